@@ -1,0 +1,166 @@
+//! The scene file (TOML): which trajectory, which IMU, what rate, where the output goes, and
+//! the engine settings. Every key is optional; command-line flags override the file.
+//! `examples/survey.toml` is a commented example.
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::scenes::SceneParams;
+
+/// A parsed scene file.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Trajectory source.
+    #[serde(default)]
+    pub trajectory: TrajectorySection,
+    /// IMU model and rate.
+    #[serde(default)]
+    pub imu: ImuSection,
+    /// Output.
+    #[serde(default)]
+    pub output: OutputSection,
+    /// Motion model and quadrature settings.
+    #[serde(default)]
+    pub engine: EngineSection,
+}
+
+/// `[trajectory]`: a built-in scene (with optional parameters) or a CSV file.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TrajectorySection {
+    /// Built-in scene name.
+    pub scene: Option<String>,
+    /// Trajectory CSV path, relative to the scene file.
+    pub file: Option<PathBuf>,
+    /// Scene parameters overriding the scene's defaults.
+    pub params: Option<toml::Table>,
+}
+
+/// `[imu]`.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ImuSection {
+    /// IMU model name (`ideal`).
+    pub model: Option<String>,
+    /// Output rate (Hz).
+    pub rate_hz: Option<f64>,
+}
+
+/// `[output]`.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// `csv` or `bin`.
+    pub format: Option<String>,
+    /// Output path (relative to the current directory), or `-` for stdout.
+    pub path: Option<PathBuf>,
+    /// Start time t₀ (s); default: the trajectory's start.
+    pub start_s: Option<f64>,
+    /// Duration (s); default: to the trajectory's end (60 s for unbounded scenes).
+    pub duration_s: Option<f64>,
+}
+
+/// `[engine]`.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct EngineSection {
+    /// Gauss–Legendre nodes per interval.
+    pub quadrature_nodes: Option<usize>,
+    /// `cubic` or `quintic`.
+    pub interpolation: Option<String>,
+    /// Finite-difference stencil size.
+    pub stencil: Option<usize>,
+}
+
+/// A scene file that cannot be used, with the place and key at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// Unreadable file.
+    #[error("{path}: cannot read: {source}")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// TOML syntax or schema error.
+    #[error("{path}:{line}:{column}: {message}")]
+    Parse {
+        /// File.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong (names the key).
+        message: String,
+    },
+    /// A value that parses but is not acceptable.
+    #[error("{path}: `{key}`: {message}")]
+    Value {
+        /// File.
+        path: PathBuf,
+        /// Dotted key.
+        key: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl SceneFile {
+    /// Parses scene-file text; `path` is used in messages.
+    pub fn parse(text: &str, path: &Path) -> Result<SceneFile, ConfigError> {
+        toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map_or((1, 1), |s| line_col(text, s.start));
+            ConfigError::Parse {
+                path: path.to_path_buf(),
+                line,
+                column,
+                message: e.message().trim().to_string(),
+            }
+        })
+    }
+
+    /// Reads and parses a scene file.
+    pub fn read(path: &Path) -> Result<SceneFile, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        SceneFile::parse(&text, path)
+    }
+
+    /// Scene parameters: the scene's defaults overridden by `[trajectory.params]`.
+    pub fn scene_params(&self, scene: &str, path: &Path) -> Result<SceneParams, ConfigError> {
+        scene_params(scene, self.trajectory.params.as_ref()).map_err(|message| ConfigError::Value {
+            path: path.to_path_buf(),
+            key: "trajectory.params".into(),
+            message,
+        })
+    }
+}
+
+/// Scene `scene`'s defaults with the keys of `overrides` replaced; unknown keys are errors.
+pub fn scene_params(scene: &str, overrides: Option<&toml::Table>) -> Result<SceneParams, String> {
+    let defaults = SceneParams::defaults_for(scene);
+    let Some(over) = overrides else {
+        return Ok(defaults);
+    };
+    let mut base = toml::Table::try_from(&defaults).map_err(|e| e.to_string())?;
+    for (k, v) in over {
+        base.insert(k.clone(), v.clone());
+    }
+    toml::Value::Table(base)
+        .try_into()
+        .map_err(|e: toml::de::Error| e.message().trim().to_string())
+}
+
+/// 1-based line and column of a byte offset.
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}

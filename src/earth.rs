@@ -1,0 +1,245 @@
+//! WGS-84 Earth model: constants, radii of curvature, normal gravity, and the geodetic ↔ ECEF
+//! conversions (DESIGN §1). Pure math, no I/O.
+
+use crate::math::{Mat3, Quat, Vec3};
+
+/// Semi-major axis a (m).
+pub const A: f64 = 6_378_137.0;
+/// Flattening f.
+pub const F: f64 = 1.0 / 298.257_223_563;
+/// First eccentricity squared e² = f(2 − f).
+pub const E2: f64 = F * (2.0 - F);
+/// Semi-minor axis b = a(1 − f) (m).
+pub const B: f64 = A * (1.0 - F);
+/// Earth rotation rate ω_ie (rad/s).
+pub const OMEGA_IE: f64 = 7.292_115e-5;
+/// Geocentric gravitational constant GM (m³/s²).
+pub const GM: f64 = 3.986_004_418e14;
+/// Normal gravity at the equator γ_e (m/s²).
+pub const GAMMA_E: f64 = 9.780_325_335_9;
+/// Somigliana constant k = (b γ_p − a γ_e)/(a γ_e).
+pub const SOMIGLIANA_K: f64 = 0.001_931_852_652_41;
+/// m = ω² a² b / GM.
+pub const M_RATIO: f64 = 0.003_449_786_506_84;
+
+/// Meridian radius of curvature R_N = a(1−e²)/(1−e² sin²φ)^{3/2}, from sin φ.
+#[inline]
+pub fn radius_meridian(sin_lat: f64) -> f64 {
+    let w = 1.0 - E2 * sin_lat * sin_lat;
+    A * (1.0 - E2) / (w * w.sqrt())
+}
+
+/// Prime-vertical radius of curvature R_E = a/√(1−e² sin²φ), from sin φ.
+#[inline]
+pub fn radius_prime_vertical(sin_lat: f64) -> f64 {
+    A / (1.0 - E2 * sin_lat * sin_lat).sqrt()
+}
+
+/// WGS-84 normal gravity magnitude γ(φ, h) (m/s²): Somigliana on the ellipsoid with the
+/// second-order height correction γ = γ₀[1 − (2/a)(1 + f + m − 2f sin²φ)h + 3h²/a²].
+#[inline]
+pub fn normal_gravity(sin_lat: f64, h: f64) -> f64 {
+    let s2 = sin_lat * sin_lat;
+    let g0 = GAMMA_E * (1.0 + SOMIGLIANA_K * s2) / (1.0 - E2 * s2).sqrt();
+    g0 * (1.0 - (2.0 / A) * (1.0 + F + M_RATIO - 2.0 * F * s2) * h + 3.0 * h * h / (A * A))
+}
+
+/// Earth rate in the local-level frame ω_ie^n = [ω cos φ, 0, −ω sin φ].
+#[inline]
+pub fn omega_ie_n(sin_lat: f64, cos_lat: f64) -> Vec3 {
+    Vec3::new(OMEGA_IE * cos_lat, 0.0, -OMEGA_IE * sin_lat)
+}
+
+/// Transport rate ω_en^n = [v_E/(R_E+h), −v_N/(R_N+h), −v_E tan φ/(R_E+h)].
+///
+/// Singular at the poles only through v_E tan φ; an exactly zero v_E gives an exactly zero
+/// third component (so a vehicle moving along a meridian through the pole stays finite).
+#[inline]
+pub fn omega_en_n(sin_lat: f64, cos_lat: f64, h: f64, v_n: Vec3) -> Vec3 {
+    let re_h = radius_prime_vertical(sin_lat) + h;
+    let rn_h = radius_meridian(sin_lat) + h;
+    let z = if v_n.y() == 0.0 {
+        0.0
+    } else {
+        -v_n.y() * sin_lat / (cos_lat * re_h)
+    };
+    Vec3::new(v_n.y() / re_h, -v_n.x() / rn_h, z)
+}
+
+/// A geodetic position held as the sines and cosines it is used through (pole-safe).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Geodetic {
+    /// sin φ.
+    pub sin_lat: f64,
+    /// cos φ (≥ 0 for ordinary latitudes; may be negative for an "extended" latitude past a pole).
+    pub cos_lat: f64,
+    /// sin λ.
+    pub sin_lon: f64,
+    /// cos λ.
+    pub cos_lon: f64,
+    /// Ellipsoidal height h (m).
+    pub h: f64,
+}
+
+impl Geodetic {
+    /// From latitude and longitude in radians and height in metres.
+    pub fn from_radians(lat: f64, lon: f64, h: f64) -> Geodetic {
+        let (sin_lat, cos_lat) = lat.sin_cos();
+        let (sin_lon, cos_lon) = lon.sin_cos();
+        Geodetic {
+            sin_lat,
+            cos_lat,
+            sin_lon,
+            cos_lon,
+            h,
+        }
+    }
+    /// Latitude in radians.
+    pub fn lat(&self) -> f64 {
+        self.sin_lat.atan2(self.cos_lat)
+    }
+    /// Longitude in radians, in (−π, π].
+    pub fn lon(&self) -> f64 {
+        self.sin_lon.atan2(self.cos_lon)
+    }
+    /// ECEF position r^e (m).
+    pub fn to_ecef(&self) -> Vec3 {
+        let n = radius_prime_vertical(self.sin_lat);
+        let rho = (n + self.h) * self.cos_lat;
+        Vec3::new(
+            rho * self.cos_lon,
+            rho * self.sin_lon,
+            (n * (1.0 - E2) + self.h) * self.sin_lat,
+        )
+    }
+    /// Unit vector of the local "up" (minus NED down) in ECEF.
+    #[inline]
+    pub fn up_e(&self) -> Vec3 {
+        Vec3::new(
+            self.cos_lat * self.cos_lon,
+            self.cos_lat * self.sin_lon,
+            self.sin_lat,
+        )
+    }
+    /// C_n^e, the NED-to-ECEF direction cosine matrix (columns: north, east, down in ECEF).
+    pub fn c_n_e(&self) -> Mat3 {
+        let (sp, cp, sl, cl) = (self.sin_lat, self.cos_lat, self.sin_lon, self.cos_lon);
+        Mat3([
+            [-sp * cl, -sl, -cp * cl],
+            [-sp * sl, cl, -cp * sl],
+            [cp, 0.0, -sp],
+        ])
+    }
+    /// Quaternion of C_n^e.
+    pub fn q_n_e(&self) -> Quat {
+        // C_n^e = Rz(λ) · Ry(−φ − π/2); built from half-angle identities to stay exact at poles.
+        let lat = self.lat();
+        let lon = self.lon();
+        let qz = {
+            let (s, c) = (0.5 * lon).sin_cos();
+            Quat::new(c, 0.0, 0.0, s)
+        };
+        let qy = {
+            let (s, c) = (0.5 * (-lat - std::f64::consts::FRAC_PI_2)).sin_cos();
+            Quat::new(c, 0.0, s, 0.0)
+        };
+        qz.mul(qy)
+    }
+}
+
+/// ECEF position to geodetic, exact to round-off at any height above −a/2 and at the poles.
+///
+/// Bowring's 1976 formula as the first guess, then fixed-point refinement of (cos φ, sin φ)
+/// written without dividing by the distance to the axis, so the poles need no special case.
+/// Each step shrinks the error by ≈ e²; near the Earth one or two steps after Bowring reach
+/// the f64 floor, higher up a few more.
+pub fn ecef_to_geodetic(r: Vec3) -> Geodetic {
+    let [x, y, z] = r.0;
+    let rho = x.hypot(y);
+    let (sin_lon, cos_lon) = if rho > 0.0 {
+        (y / rho, x / rho)
+    } else {
+        (0.0, 1.0)
+    };
+    // Bowring: tan β = z a / (ρ b).
+    let ep2 = E2 / (1.0 - E2);
+    let (sb, cb) = {
+        let (u, v) = (z * A, rho * B);
+        let n = u.hypot(v);
+        if n == 0.0 { (0.0, 1.0) } else { (u / n, v / n) }
+    };
+    let mut s = z + ep2 * B * sb * sb * sb;
+    let mut c = rho - E2 * A * cb * cb * cb;
+    let n = s.hypot(c);
+    s /= n;
+    c /= n;
+    for _ in 0..8 {
+        let nn = radius_prime_vertical(s);
+        let s2 = z + E2 * nn * s;
+        let n = s2.hypot(rho);
+        let s_new = s2 / n;
+        let done = (s_new - s).abs() <= 1e-16;
+        s = s_new;
+        c = rho / n;
+        if done {
+            break;
+        }
+    }
+    // Height from the better-conditioned of the two projections.
+    let nn = radius_prime_vertical(s);
+    let h = if c.abs() > 0.7 {
+        rho / c - nn
+    } else {
+        z / s - nn * (1.0 - E2)
+    };
+    Geodetic {
+        sin_lat: s,
+        cos_lat: c,
+        sin_lon,
+        cos_lon,
+        h,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gravity_at_equator_and_pole() {
+        assert_eq!(normal_gravity(0.0, 0.0), GAMMA_E);
+        // NGA.STND.0036 γ_p = 9.8321849379 (TR8350.2 rounds to …378); the closed form gives:
+        assert!((normal_gravity(1.0, 0.0) - 9.832_184_937_8).abs() < 2e-10);
+    }
+
+    #[test]
+    fn ecef_round_trip_everywhere() {
+        for &lat_deg in &[-90.0, -89.9999, -60.0, 0.0, 41.0, 89.9999, 90.0] {
+            for &h in &[-1000.0, 0.0, 10_000.0, 1.0e6] {
+                let g = Geodetic::from_radians(f64::to_radians(lat_deg), 0.7, h);
+                let back = ecef_to_geodetic(g.to_ecef());
+                assert!(
+                    (back.sin_lat - g.sin_lat).abs() < 2e-16,
+                    "lat {lat_deg} h {h}"
+                );
+                assert!(
+                    (back.cos_lat - g.cos_lat).abs() < 2e-16,
+                    "lat {lat_deg} h {h}"
+                );
+                assert!((back.h - h).abs() < 1e-8, "lat {lat_deg} h {h}: {}", back.h);
+            }
+        }
+    }
+
+    #[test]
+    fn c_n_e_matches_quaternion() {
+        let g = Geodetic::from_radians(0.7, -2.1, 0.0);
+        let m = g.c_n_e();
+        let q = g.q_n_e().to_mat();
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((m.0[i][j] - q.0[i][j]).abs() < 1e-15);
+            }
+        }
+    }
+}

@@ -1,0 +1,200 @@
+//! An offline generation job: a motion model, a time grid and an output encoding, run block by
+//! block into any writer. The binary adds flags, files and the progress bar around it.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use crate::generator::IdealImu;
+use crate::motion::Motion;
+use crate::motion::sampled::{ModelError, ModelSettings, SampledMotion};
+use crate::output::{self, Format};
+use crate::record::Record;
+use crate::scenes::{self, SceneParamError, SceneParams, UnknownScene};
+use crate::source::AnyMotion;
+use crate::trajectory::{self, TrajectoryError};
+
+/// Duration of a run on an unbounded scene when none is given (s).
+pub const DEFAULT_UNBOUNDED_DURATION_S: f64 = 60.0;
+
+/// Records per block: large enough to amortise the writer, small enough to stay in cache.
+pub const BLOCK: usize = 4096;
+
+/// Where the trajectory comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SourceSpec {
+    /// A built-in scene with its parameters.
+    Scene(String, SceneParams),
+    /// A trajectory CSV.
+    File(PathBuf),
+}
+
+/// Everything a job can refuse, each naming what to fix.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    /// Bad trajectory file.
+    #[error(transparent)]
+    Trajectory(#[from] TrajectoryError),
+    /// Unknown scene.
+    #[error(transparent)]
+    UnknownScene(#[from] UnknownScene),
+    /// Bad scene parameter.
+    #[error(transparent)]
+    SceneParam(#[from] SceneParamError),
+    /// The model cannot be built from the file.
+    #[error("{path}: {source}")]
+    Model {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        source: ModelError,
+    },
+    /// The requested time span is not inside the trajectory.
+    #[error("requested IMU span [{from}, {to}] s is outside the trajectory [{start}, {end}] s")]
+    Span {
+        /// Requested start.
+        from: f64,
+        /// Requested end.
+        to: f64,
+        /// Trajectory start.
+        start: f64,
+        /// Trajectory end.
+        end: f64,
+    },
+    /// A setting outside its range.
+    #[error("`{key}` = {value}: {expected}")]
+    Setting {
+        /// Setting name.
+        key: &'static str,
+        /// Value given.
+        value: String,
+        /// What is expected.
+        expected: &'static str,
+    },
+    /// Writing failed.
+    #[error("writing output: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// Builds the motion model of a source.
+pub fn build_motion(source: &SourceSpec, model: ModelSettings) -> Result<AnyMotion, JobError> {
+    match source {
+        SourceSpec::Scene(name, params) => Ok(AnyMotion::Scene(scenes::build(name, params)??)),
+        SourceSpec::File(path) => {
+            let samples = trajectory::read(path)?;
+            if samples.len() < model.min_samples() {
+                return Err(TrajectoryError::TooFewSamples {
+                    path: path.clone(),
+                    got: samples.len(),
+                    need: model.min_samples(),
+                }
+                .into());
+            }
+            let m = SampledMotion::new(&samples, model).map_err(|source| JobError::Model {
+                path: path.clone(),
+                source,
+            })?;
+            Ok(AnyMotion::Sampled(m))
+        }
+    }
+}
+
+/// The time grid of a run: t₀ and the number of records.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Grid {
+    /// t₀ (s); record k is at t₀ + k/rate.
+    pub t0: f64,
+    /// IMU rate (Hz).
+    pub rate_hz: f64,
+    /// Number of records.
+    pub count: u64,
+}
+
+/// Checks a requested span against the motion and returns the grid.
+pub fn plan(
+    motion: &impl Motion,
+    rate_hz: f64,
+    start: Option<f64>,
+    duration: Option<f64>,
+) -> Result<Grid, JobError> {
+    if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 1.0e7) {
+        return Err(JobError::Setting {
+            key: "rate",
+            value: rate_hz.to_string(),
+            expected: "a rate in (0, 1e7] Hz",
+        });
+    }
+    let (m0, m1) = (motion.start(), motion.end());
+    let t0 = start.unwrap_or(m0);
+    if !t0.is_finite() {
+        return Err(JobError::Setting {
+            key: "start",
+            value: t0.to_string(),
+            expected: "a finite time",
+        });
+    }
+    let duration = match duration {
+        Some(d) if d.is_finite() && d > 0.0 => d,
+        Some(d) => {
+            return Err(JobError::Setting {
+                key: "duration",
+                value: d.to_string(),
+                expected: "a positive duration in seconds",
+            });
+        }
+        None if m1.is_finite() => m1 - t0,
+        None => DEFAULT_UNBOUNDED_DURATION_S,
+    };
+    // Rounding slack: a span that ends within 1e-9 s of the last sample is still inside.
+    let count = (duration * rate_hz + 1e-9).floor();
+    let t_last = t0 + count / rate_hz;
+    let slack = 1e-9 * m1.abs().max(1.0);
+    if t0 < m0 - slack || t_last > m1 + slack || count < 1.0 {
+        return Err(JobError::Span {
+            from: t0,
+            to: t0 + duration,
+            start: m0,
+            end: m1,
+        });
+    }
+    Ok(Grid {
+        t0,
+        rate_hz,
+        count: count as u64,
+    })
+}
+
+/// Runs the job into `out`, calling `progress(records_done)` after each block.
+pub fn run(
+    motion: AnyMotion,
+    grid: Grid,
+    nodes: usize,
+    format: Format,
+    out: &mut impl Write,
+    mut progress: impl FnMut(u64),
+) -> Result<(), JobError> {
+    if !(1..=crate::quadrature::MAX_NODES).contains(&nodes) {
+        return Err(JobError::Setting {
+            key: "quadrature",
+            value: nodes.to_string(),
+            expected: "1 to 16 Gauss–Legendre nodes",
+        });
+    }
+    let mut imu = IdealImu::new(motion, grid.rate_hz, grid.t0, grid.count, nodes);
+    let mut block = vec![Record::default(); BLOCK];
+    let mut buf = Vec::with_capacity(BLOCK * 104);
+    if format == Format::Csv {
+        out.write_all(output::csv_header().as_bytes())?;
+    }
+    let mut k = 1u64;
+    while k <= grid.count {
+        let n = ((grid.count - k + 1) as usize).min(BLOCK);
+        imu.fill(k, &mut block[..n]);
+        buf.clear();
+        output::encode(format, &block[..n], &mut buf);
+        out.write_all(&buf)?;
+        k += n as u64;
+        progress(k - 1);
+    }
+    out.flush()?;
+    Ok(())
+}

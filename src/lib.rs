@@ -1,0 +1,28 @@
+//! # imu-emu
+//!
+//! An IMU simulator: from a georeferenced reference trajectory it computes what an ideal
+//! inertial measurement unit senses (equations 1 and 2 of Parés, Rosales & Colomina, "Yet
+//! another IMU simulator"), as raw increments Δθ, Δv over each sample interval and their
+//! interval means.
+//!
+//! The signal chain, one module per stage:
+//! [`trajectory`] (CSV input) and [`scenes`] (analytic trajectories) → [`motion`] (continuous
+//! models with analytic derivatives) → [`kinematics`] (ω_ib^b, f^b on the WGS-84 [`earth`]) →
+//! [`generator`] (increments by [`quadrature`]) → [`output`] (CSV / binary records).
+//!
+//! Conventions: NED local level, body x forward / y right / z down, C_b^n = Rz(ψ)Ry(θ)Rx(φ),
+//! SI units inside; see the README.
+
+pub mod config;
+pub mod earth;
+pub mod generator;
+pub mod job;
+pub mod kinematics;
+pub mod math;
+pub mod motion;
+pub mod output;
+pub mod quadrature;
+pub mod record;
+pub mod scenes;
+pub mod source;
+pub mod trajectory;

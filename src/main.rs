@@ -1,0 +1,284 @@
+//! `imu-emu`: the command-line front end. Flags and files here; everything else in the library.
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand};
+
+use imu_emu::config::{self, SceneFile};
+use imu_emu::generator::DEFAULT_NODES;
+use imu_emu::job::{self, SourceSpec};
+use imu_emu::math::euler_from_quat;
+use imu_emu::motion::Motion;
+use imu_emu::motion::sampled::{Degree, ModelSettings};
+use imu_emu::output::{AtomicFile, Format};
+use imu_emu::scenes;
+
+/// IMU simulator and emulator: error-free and corrupted inertial signals from a trajectory.
+#[derive(Parser)]
+#[command(name = "imu-emu", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Generate IMU records offline, as fast as the machine allows.
+    Generate(GenerateArgs),
+    /// Write a scene's reference trajectory as trajectory CSV (the input format).
+    Trajectory(TrajectoryArgs),
+    /// List the built-in scenes.
+    Scenes,
+}
+
+#[derive(clap::Args)]
+struct SourceArgs {
+    /// Scene file (TOML); flags override it.
+    scene_file: Option<PathBuf>,
+    /// Built-in scene: static, straight, circle, survey, coning, polar.
+    #[arg(long, conflicts_with = "trajectory")]
+    scene: Option<String>,
+    /// Trajectory CSV: t,lat,lon,h,vn,ve,vd,roll,pitch,yaw.
+    #[arg(long)]
+    trajectory: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct GenerateArgs {
+    #[command(flatten)]
+    source: SourceArgs,
+    /// IMU output rate (Hz) [default: 400].
+    #[arg(long)]
+    rate: Option<f64>,
+    /// Duration (s) [default: to the end of the trajectory; 60 s for unbounded scenes].
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Start time t₀ (s) [default: the trajectory's start].
+    #[arg(long)]
+    start: Option<f64>,
+    /// Output format: csv or bin [default: csv].
+    #[arg(long)]
+    format: Option<String>,
+    /// Output file, or - for stdout [default: stdout].
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// IMU error model; only `ideal` (no errors) exists so far.
+    #[arg(long)]
+    imu: Option<String>,
+    /// Gauss–Legendre nodes per interval (order 2n) [default: 3].
+    #[arg(long)]
+    quadrature: Option<usize>,
+    /// Motion-model polynomials for trajectory files: cubic or quintic [default: quintic].
+    #[arg(long)]
+    interp: Option<String>,
+    /// Finite-difference stencil (samples) for knot derivatives [default: 7].
+    #[arg(long)]
+    stencil: Option<usize>,
+}
+
+#[derive(clap::Args)]
+struct TrajectoryArgs {
+    /// Built-in scene.
+    #[arg(long, default_value = scenes::DEFAULT)]
+    scene: String,
+    /// Sample rate (Hz).
+    #[arg(long, default_value_t = 100.0)]
+    rate: f64,
+    /// Duration (s) [default: the scene's; 60 s for unbounded scenes].
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Output file, or - for stdout.
+    #[arg(short, long, default_value = "-")]
+    output: PathBuf,
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Generate(a) => generate(a),
+        Command::Trajectory(a) => export_trajectory(a),
+        Command::Scenes => {
+            for name in scenes::NAMES {
+                println!(
+                    "{name}{}",
+                    if name == scenes::DEFAULT {
+                        " (default)"
+                    } else {
+                        ""
+                    }
+                );
+            }
+            Ok(())
+        }
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+/// The settings of a generate run after merging the scene file and the flags.
+struct Resolved {
+    source: SourceSpec,
+    rate: f64,
+    start: Option<f64>,
+    duration: Option<f64>,
+    format: Format,
+    output: Option<PathBuf>,
+    nodes: usize,
+    model: ModelSettings,
+}
+
+fn resolve(a: GenerateArgs) -> Result<Resolved> {
+    let (file, file_path) = match &a.source.scene_file {
+        Some(p) => (SceneFile::read(p)?, p.clone()),
+        None => (SceneFile::default(), PathBuf::from("<flags>")),
+    };
+    let base = file_path
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    let source = if let Some(t) = a.source.trajectory {
+        SourceSpec::File(t)
+    } else if let Some(s) = a.source.scene {
+        let params = config::scene_params(&s, file.trajectory.params.as_ref())
+            .map_err(|m| anyhow::anyhow!("{}: `trajectory.params`: {m}", file_path.display()))?;
+        SourceSpec::Scene(s, params)
+    } else {
+        match (&file.trajectory.scene, &file.trajectory.file) {
+            (Some(_), Some(_)) => bail!(
+                "{}: `trajectory`: give either `scene` or `file`, not both",
+                file_path.display()
+            ),
+            (_, Some(f)) => SourceSpec::File(base.join(f)),
+            (Some(s), None) => SourceSpec::Scene(s.clone(), file.scene_params(s, &file_path)?),
+            (None, None) => SourceSpec::Scene(
+                scenes::DEFAULT.into(),
+                file.scene_params(scenes::DEFAULT, &file_path)?,
+            ),
+        }
+    };
+    let imu = a.imu.or(file.imu.model).unwrap_or_else(|| "ideal".into());
+    if imu != "ideal" {
+        bail!("IMU model `{imu}` is not available yet: only `ideal` (no errors) exists");
+    }
+    let format_name = a
+        .format
+        .or(file.output.format)
+        .unwrap_or_else(|| "csv".into());
+    let Some(format) = Format::from_name(&format_name) else {
+        bail!("output format `{format_name}`: expected `csv` or `bin`");
+    };
+    let interp = a
+        .interp
+        .or(file.engine.interpolation)
+        .unwrap_or_else(|| "quintic".into());
+    let degree = match interp.as_str() {
+        "cubic" => Degree::Cubic,
+        "quintic" => Degree::Quintic,
+        other => bail!("interpolation `{other}`: expected `cubic` or `quintic`"),
+    };
+    let stencil = a
+        .stencil
+        .or(file.engine.stencil)
+        .unwrap_or(ModelSettings::default().stencil);
+    if !(3..=15).contains(&stencil) {
+        bail!("stencil {stencil}: expected 3 to 15 samples");
+    }
+    Ok(Resolved {
+        source,
+        rate: a.rate.or(file.imu.rate_hz).unwrap_or(400.0),
+        start: a.start.or(file.output.start_s),
+        duration: a.duration.or(file.output.duration_s),
+        format,
+        output: a.output.or(file.output.path),
+        nodes: a
+            .quadrature
+            .or(file.engine.quadrature_nodes)
+            .unwrap_or(DEFAULT_NODES),
+        model: ModelSettings { degree, stencil },
+    })
+}
+
+fn generate(a: GenerateArgs) -> Result<()> {
+    let r = resolve(a)?;
+    let motion = job::build_motion(&r.source, r.model)?;
+    let grid = job::plan(&motion, r.rate, r.start, r.duration)?;
+    let show = std::io::stderr().is_terminal() && grid.count >= 500_000;
+    let bar = if show {
+        indicatif::ProgressBar::new(grid.count)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let started = Instant::now();
+    let to_stdout = r.output.as_deref().is_none_or(|p| p == Path::new("-"));
+    if to_stdout {
+        let mut out = std::io::BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
+        job::run(motion, grid, r.nodes, r.format, &mut out, |k| {
+            bar.set_position(k)
+        })?;
+        out.flush()?;
+    } else {
+        let path = r.output.expect("checked above");
+        let mut file =
+            AtomicFile::create(&path).with_context(|| format!("creating {}", path.display()))?;
+        {
+            let mut out = std::io::BufWriter::with_capacity(1 << 20, &mut file);
+            job::run(motion, grid, r.nodes, r.format, &mut out, |k| {
+                bar.set_position(k)
+            })
+            .with_context(|| format!("writing {}", path.display()))?;
+            out.flush()?;
+        }
+        file.commit()
+            .with_context(|| format!("finishing {}", path.display()))?;
+    }
+    bar.finish_and_clear();
+    if show {
+        let s = started.elapsed().as_secs_f64();
+        eprintln!(
+            "{} records in {s:.2} s ({:.3e} records/s)",
+            grid.count,
+            grid.count as f64 / s
+        );
+    }
+    Ok(())
+}
+
+fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
+    let params = scenes::SceneParams::defaults_for(&a.scene);
+    let motion = job::build_motion(
+        &SourceSpec::Scene(a.scene.clone(), params),
+        ModelSettings::default(),
+    )?;
+    // Samples at t₀ + k/rate for k = 0..=n, including the start.
+    let grid = job::plan(&motion, a.rate, None, a.duration)?;
+    let mut text = String::from("# imu-emu trajectory of scene ");
+    text.push_str(&a.scene);
+    text.push_str("\nt,lat,lon,h,vn,ve,vd,roll,pitch,yaw\n");
+    for k in 0..=grid.count {
+        let p = motion.pose(grid.t0 + k as f64 / grid.rate_hz);
+        let (r, pi, y) = euler_from_quat(p.q_b_n);
+        imu_emu::trajectory::format_row(
+            &mut text,
+            p.t,
+            p.lat.to_degrees(),
+            p.lon.to_degrees(),
+            p.h,
+            p.v_n,
+            (r.to_degrees(), pi.to_degrees(), y.to_degrees()),
+        );
+    }
+    if a.output == Path::new("-") {
+        std::io::stdout().write_all(text.as_bytes())?;
+    } else {
+        let mut f = AtomicFile::create(&a.output)
+            .with_context(|| format!("creating {}", a.output.display()))?;
+        f.write_all(text.as_bytes())?;
+        f.commit()?;
+    }
+    Ok(())
+}

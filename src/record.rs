@@ -1,0 +1,35 @@
+//! The output record of the IMU: increments over (t_{k−1}, t_k] and their interval means.
+
+use crate::math::Vec3;
+
+/// One IMU output record k, time-tagged at the end of its interval.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Record {
+    /// t_k = t₀ + k·Δt (s), formed from the integer k.
+    pub t: f64,
+    /// Interval-mean angular rate Δθ_k/Δt (rad/s).
+    pub gyro: Vec3,
+    /// Interval-mean specific force Δv_k/Δt (m/s²).
+    pub accel: Vec3,
+    /// Δθ_k = ∫ ω_ib^b dt over the interval (rad); raw, no coning compensation.
+    pub dtheta: Vec3,
+    /// Δv_k = ∫ f^b dt over the interval (m/s); raw, no sculling compensation.
+    pub dv: Vec3,
+}
+
+/// Column names of the output contract, in order.
+pub const COLUMNS: [&str; 13] = [
+    "t", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z", "dtheta_x", "dtheta_y",
+    "dtheta_z", "dv_x", "dv_y", "dv_z",
+];
+
+impl Record {
+    /// The 13 values in the order of [`COLUMNS`].
+    #[inline]
+    pub fn values(&self) -> [f64; 13] {
+        let (g, a, d, v) = (self.gyro.0, self.accel.0, self.dtheta.0, self.dv.0);
+        [
+            self.t, g[0], g[1], g[2], a[0], a[1], a[2], d[0], d[1], d[2], v[0], v[1], v[2],
+        ]
+    }
+}

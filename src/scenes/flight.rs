@@ -1,0 +1,201 @@
+//! An aircraft-like analytic scene: a horizontal path in a local map plane, a height profile,
+//! and an attitude that follows the motion (heading along the track, pitch along the flight
+//! path, bank of a coordinated turn, optionally plus a roll oscillation).
+//!
+//! The map plane is tied to the ellipsoid by lat = φ₀ + x/(M₀+h₀), lon = λ₀ + y/((N₀+h₀)cos φ₀):
+//! every quantity — position, v^n, v̇^n, attitude, ω_nb^b — is then a closed-form function of
+//! time, evaluated exactly. The price is that map speeds are ground speeds only to ~1e-4
+//! relative away from the origin; along meridians (y constant) the heading is exact.
+
+use super::path::{Jet, Planar, Poly};
+use crate::earth::{self, E2};
+use crate::kinematics::{NedState, Sensed, sense_ned};
+use crate::math::{Vec3, dcm_from_euler_sc, omega_from_euler_rates, quat_from_euler};
+use crate::motion::{Motion, Pose};
+
+/// One smooth piece: a planar path piece and a height polynomial, with their own time origins.
+#[derive(Clone, Copy, Debug)]
+pub struct FlightPiece {
+    /// Start time of the piece (s).
+    pub t_start: f64,
+    /// Horizontal motion and the time its local τ counts from.
+    pub planar: (Planar, f64),
+    /// Height and the time its local τ counts from.
+    pub height: (Poly, f64),
+}
+
+/// An analytic flight: pieces, the map origin, and an optional roll oscillation.
+#[derive(Clone, Debug)]
+pub struct FlightScene {
+    lat0: f64,
+    lon0: f64,
+    mh0: f64,
+    nh0c: f64,
+    g0: f64,
+    pieces: Vec<FlightPiece>,
+    end: f64,
+    roll_osc: Option<(f64, f64)>,
+}
+
+impl FlightScene {
+    /// Builds a flight from map origin (rad, rad, m), merged pieces and the end time.
+    /// `roll_osc` = (amplitude rad, angular frequency rad/s) added to the coordinated bank.
+    pub fn new(
+        lat0: f64,
+        lon0: f64,
+        h_ref: f64,
+        pieces: Vec<FlightPiece>,
+        end: f64,
+        roll_osc: Option<(f64, f64)>,
+    ) -> FlightScene {
+        let s0 = lat0.sin();
+        FlightScene {
+            lat0,
+            lon0,
+            mh0: earth::radius_meridian(s0) + h_ref,
+            nh0c: (earth::radius_prime_vertical(s0) + h_ref) * lat0.cos(),
+            g0: earth::normal_gravity(s0, h_ref),
+            pieces,
+            end,
+            roll_osc,
+        }
+    }
+
+    /// Merges independent lists of planar and height pieces (each sorted by start time, the
+    /// first starting at `start`) into pieces that are smooth in both.
+    pub fn merge(planar: &[(f64, Planar)], height: &[(f64, Poly)]) -> Vec<FlightPiece> {
+        let mut starts: Vec<f64> = planar
+            .iter()
+            .map(|p| p.0)
+            .chain(height.iter().map(|h| h.0))
+            .collect();
+        starts.sort_by(f64::total_cmp);
+        starts.dedup();
+        starts
+            .into_iter()
+            .map(|t| {
+                let p = planar.iter().rev().find(|p| p.0 <= t).unwrap_or(&planar[0]);
+                let h = height.iter().rev().find(|h| h.0 <= t).unwrap_or(&height[0]);
+                FlightPiece {
+                    t_start: t,
+                    planar: (p.1, p.0),
+                    height: (h.1, h.0),
+                }
+            })
+            .collect()
+    }
+
+    /// Map-plane jets (x, y) and height jet at t on piece i.
+    #[inline]
+    fn jets(&self, i: usize, t: f64) -> (Jet, Jet, Jet) {
+        let p = &self.pieces[i];
+        let (x, y) = p.planar.0.jets(t - p.planar.1);
+        let h = p.height.0.jet(t - p.height.1);
+        (x, y, h)
+    }
+
+    /// Roll, pitch, yaw as (sin, cos) pairs and the Euler-angle rates, at t.
+    #[inline]
+    fn attitude(&self, t: f64, x: &Jet, y: &Jet, h: &Jet) -> ([f64; 6], Vec3) {
+        let vh = x[1].hypot(y[1]);
+        let (cy, sy) = (x[1] / vh, y[1] / vh);
+        let v = vh.hypot(h[1]);
+        let (cp, sp) = (vh / v, h[1] / v);
+        let cross = x[1] * y[2] - y[1] * x[2];
+        let tan_b = cross / (vh * self.g0);
+        let cb = 1.0 / (1.0 + tan_b * tan_b).sqrt();
+        let sb = tan_b * cb;
+        let psi_dot = cross / (vh * vh);
+        let vh_dot = (x[1] * x[2] + y[1] * y[2]) / vh;
+        let theta_dot = (vh * h[2] - h[1] * vh_dot) / (v * v);
+        let alat_dot = (x[1] * y[3] - y[1] * x[3]) / vh - cross * vh_dot / (vh * vh);
+        let mut phi_dot = alat_dot / self.g0 * cb * cb;
+        let (mut sr, mut cr) = (sb, cb);
+        if let Some((amp, w)) = self.roll_osc {
+            let (s, c) = (w * t).sin_cos();
+            let (sd, cd) = (amp * s).sin_cos();
+            sr = sb * cd + cb * sd;
+            cr = cb * cd - sb * sd;
+            phi_dot += amp * w * c;
+        }
+        (
+            [sr, cr, sp, cp, sy, cy],
+            Vec3::new(phi_dot, theta_dot, psi_dot),
+        )
+    }
+
+    /// The NED state (v^n and v̇^n by the chain rule through the radii of curvature) and the
+    /// longitude, at t on piece i.
+    #[inline]
+    fn ned_state(&self, i: usize, t: f64) -> (NedState, f64) {
+        let (x, y, h) = self.jets(i, t);
+        let lat = self.lat0 + x[0] / self.mh0;
+        let (s, c) = lat.sin_cos();
+        let (lat_d, lat_dd) = (x[1] / self.mh0, x[2] / self.mh0);
+        let (lon_d, lon_dd) = (y[1] / self.nh0c, y[2] / self.nh0c);
+        let w = 1.0 - E2 * s * s;
+        let re = earth::A / w.sqrt();
+        let rn = re * (1.0 - E2) / w;
+        let (rn_h, re_h) = (rn + h[0], re + h[0]);
+        let drn = 3.0 * E2 * rn * s * c / w * lat_d;
+        let dre = E2 * re * s * c / w * lat_d;
+        let v_n = Vec3::new(rn_h * lat_d, re_h * c * lon_d, -h[1]);
+        let v_dot_n = Vec3::new(
+            (drn + h[1]) * lat_d + rn_h * lat_dd,
+            ((dre + h[1]) * c - re_h * s * lat_d) * lon_d + re_h * c * lon_dd,
+            -h[2],
+        );
+        let ([sr, cr, sp, cp, sy, cy], rates) = self.attitude(t, &x, &y, &h);
+        let state = NedState {
+            sin_lat: s,
+            cos_lat: c,
+            h: h[0],
+            v_n,
+            v_dot_n,
+            c_b_n: dcm_from_euler_sc(sr, cr, sp, cp, sy, cy),
+            omega_nb_b: omega_from_euler_rates(sr, cr, sp, cp, rates),
+        };
+        (state, self.lon0 + y[0] / self.nh0c)
+    }
+}
+
+impl Motion for FlightScene {
+    fn start(&self) -> f64 {
+        self.pieces[0].t_start
+    }
+    fn end(&self) -> f64 {
+        self.end
+    }
+    fn piece_at(&self, t: f64, hint: usize) -> usize {
+        let ps = &self.pieces;
+        let last = ps.len() - 1;
+        let h = hint.min(last);
+        if ps[h].t_start <= t && (h == last || t < ps[h + 1].t_start) {
+            return h;
+        }
+        ps.partition_point(|p| p.t_start <= t).saturating_sub(1)
+    }
+    fn piece_end(&self, piece: usize) -> f64 {
+        self.pieces
+            .get(piece + 1)
+            .map_or(f64::INFINITY, |p| p.t_start)
+    }
+    #[inline]
+    fn sense(&self, piece: usize, t: f64) -> Sensed {
+        sense_ned(&self.ned_state(piece, t).0)
+    }
+    fn pose(&self, t: f64) -> Pose {
+        let i = self.piece_at(t, 0);
+        let (s, lon) = self.ned_state(i, t);
+        let (x, y, h) = self.jets(i, t);
+        let ([sr, cr, sp, cp, sy, cy], _) = self.attitude(t, &x, &y, &h);
+        Pose {
+            t,
+            lat: s.sin_lat.atan2(s.cos_lat),
+            lon,
+            h: s.h,
+            v_n: s.v_n,
+            q_b_n: quat_from_euler(sr.atan2(cr), sp.atan2(cp), sy.atan2(cy)),
+        }
+    }
+}

@@ -1,0 +1,52 @@
+//! The motion a run evaluates: a built-in analytic scene or a sampled trajectory.
+
+use crate::kinematics::Sensed;
+use crate::motion::sampled::SampledMotion;
+use crate::motion::{Motion, Pose};
+use crate::scenes::Scene;
+
+/// Any motion model, dispatched by a `match` (cheaper than a trait object in the hot loop and
+/// keeps the generator monomorphic).
+#[derive(Clone, Debug)]
+pub enum AnyMotion {
+    /// A built-in scene.
+    Scene(Scene),
+    /// A trajectory file.
+    Sampled(SampledMotion),
+}
+
+macro_rules! each {
+    ($self:ident, $m:ident => $e:expr) => {
+        match $self {
+            AnyMotion::Scene(Scene::Fixed($m)) => $e,
+            AnyMotion::Scene(Scene::Flight($m)) => $e,
+            AnyMotion::Scene(Scene::Polar($m)) => $e,
+            AnyMotion::Sampled($m) => $e,
+        }
+    };
+}
+
+impl Motion for AnyMotion {
+    fn start(&self) -> f64 {
+        each!(self, m => m.start())
+    }
+    fn end(&self) -> f64 {
+        each!(self, m => m.end())
+    }
+    fn piece_at(&self, t: f64, hint: usize) -> usize {
+        each!(self, m => m.piece_at(t, hint))
+    }
+    fn piece_end(&self, piece: usize) -> f64 {
+        each!(self, m => m.piece_end(piece))
+    }
+    #[inline]
+    fn sense(&self, piece: usize, t: f64) -> Sensed {
+        each!(self, m => m.sense(piece, t))
+    }
+    fn pose(&self, t: f64) -> Pose {
+        each!(self, m => m.pose(t))
+    }
+    fn is_stationary(&self) -> bool {
+        each!(self, m => m.is_stationary())
+    }
+}
