@@ -77,8 +77,8 @@ pub struct EngineSection {
 /// A scene file that cannot be used, with the place and key at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
-    /// Unreadable file.
-    #[error("{path}: cannot read: {source}")]
+    /// Unreadable file (the cause is the error's `source()`, not repeated here).
+    #[error("{path}: cannot read")]
     Io {
         /// File.
         path: PathBuf,
@@ -114,11 +114,15 @@ impl SceneFile {
     pub fn parse(text: &str, path: &Path) -> Result<SceneFile, ConfigError> {
         toml::from_str(text).map_err(|e| {
             let (line, column) = e.span().map_or((1, 1), |s| line_col(text, s.start));
+            let message = e.message().trim();
             ConfigError::Parse {
                 path: path.to_path_buf(),
                 line,
                 column,
-                message: e.message().trim().to_string(),
+                message: match e.span().and_then(|s| key_at(text, s.start)) {
+                    Some(key) => format!("`{key}`: {message}"),
+                    None => message.to_string(),
+                },
             }
         })
     }
@@ -155,6 +159,41 @@ pub fn scene_params(scene: &str, overrides: Option<&toml::Table>) -> Result<Scen
     toml::Value::Table(base)
         .try_into()
         .map_err(|e: toml::de::Error| e.message().trim().to_string())
+}
+
+/// The dotted key of the `key = value` line (or `[table]` header) holding byte `offset`, e.g.
+/// `imu.rate_hz`: serde's messages for a wrong type do not name the key, so the error does.
+/// A plain reading of the line and the last table header above it; `None` if unclear.
+fn key_at(text: &str, offset: usize) -> Option<String> {
+    let start = text
+        .get(..offset.min(text.len()))?
+        .rfind('\n')
+        .map_or(0, |i| i + 1);
+    let line = text[start..].lines().next().unwrap_or("").trim();
+    let header = |l: &str| {
+        l.strip_prefix('[').and_then(|h| {
+            let h = h.trim_start_matches('[');
+            h.find(']').map(|end| h[..end].trim().to_string())
+        })
+    };
+    if line.starts_with('[') {
+        return header(line);
+    }
+    let (key, _) = line.split_once('=')?;
+    let key = key.trim();
+    if key.is_empty() || key.starts_with('#') {
+        return None;
+    }
+    let table = text[..start]
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('['))
+        .and_then(header);
+    Some(match table {
+        Some(t) if !t.is_empty() => format!("{t}.{key}"),
+        _ => key.to_string(),
+    })
 }
 
 /// 1-based line and column of a byte offset.

@@ -26,3 +26,4 @@ pub mod record;
 pub mod scenes;
 pub mod source;
 pub mod trajectory;
+pub mod validation;

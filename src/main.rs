@@ -9,7 +9,7 @@ use clap::{Parser, Subcommand};
 
 use imu_emu::config::{self, SceneFile};
 use imu_emu::generator::DEFAULT_NODES;
-use imu_emu::job::{self, SourceSpec};
+use imu_emu::job::{self, JobError, SourceSpec};
 use imu_emu::math::euler_from_quat;
 use imu_emu::motion::Motion;
 use imu_emu::motion::sampled::{Degree, ModelSettings};
@@ -51,13 +51,13 @@ struct GenerateArgs {
     #[command(flatten)]
     source: SourceArgs,
     /// IMU output rate (Hz) [default: 400].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     rate: Option<f64>,
     /// Duration (s) [default: to the end of the trajectory; 60 s for unbounded scenes].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     duration: Option<f64>,
     /// Start time t₀ (s) [default: the trajectory's start].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     start: Option<f64>,
     /// Output format: csv or bin [default: csv].
     #[arg(long)]
@@ -123,6 +123,10 @@ fn main() {
 /// The settings of a generate run after merging the scene file and the flags.
 struct Resolved {
     source: SourceSpec,
+    /// The scene file, if any, and whether the scene name and the parameters came from it.
+    scene_file: Option<PathBuf>,
+    scene_from_file: bool,
+    params_from_file: bool,
     rate: f64,
     start: Option<f64>,
     duration: Option<f64>,
@@ -141,6 +145,8 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_default();
+    let scene_from_file = a.source.trajectory.is_none() && a.source.scene.is_none();
+    let params_from_file = file.trajectory.params.is_some();
     let source = if let Some(t) = a.source.trajectory {
         SourceSpec::File(t)
     } else if let Some(s) = a.source.scene {
@@ -190,6 +196,9 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
     }
     Ok(Resolved {
         source,
+        scene_file: a.source.scene_file,
+        scene_from_file,
+        params_from_file,
         rate: a.rate.or(file.imu.rate_hz).unwrap_or(400.0),
         start: a.start.or(file.output.start_s),
         duration: a.duration.or(file.output.duration_s),
@@ -203,10 +212,30 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
     })
 }
 
+impl Resolved {
+    /// Adds the file (and scene-file key) at fault to an error the library reports without it.
+    fn locate(&self, e: JobError) -> anyhow::Error {
+        let place = match (&e, &self.source, &self.scene_file) {
+            (JobError::UnknownScene(_), _, Some(f)) if self.scene_from_file => {
+                Some(format!("{}: `trajectory.scene`", f.display()))
+            }
+            (JobError::SceneParam(p), _, Some(f)) if self.params_from_file => {
+                Some(format!("{}: `trajectory.params.{}`", f.display(), p.key))
+            }
+            (JobError::Span { .. }, SourceSpec::File(path), _) => Some(path.display().to_string()),
+            _ => None,
+        };
+        match place {
+            Some(place) => anyhow::Error::new(e).context(place),
+            None => e.into(),
+        }
+    }
+}
+
 fn generate(a: GenerateArgs) -> Result<()> {
     let r = resolve(a)?;
-    let motion = job::build_motion(&r.source, r.model)?;
-    let grid = job::plan(&motion, r.rate, r.start, r.duration)?;
+    let motion = job::build_motion(&r.source, r.model).map_err(|e| r.locate(e))?;
+    let grid = job::plan(&motion, r.rate, r.start, r.duration).map_err(|e| r.locate(e))?;
     let show = std::io::stderr().is_terminal() && grid.count >= 500_000;
     let bar = if show {
         indicatif::ProgressBar::new(grid.count)

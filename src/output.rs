@@ -64,15 +64,28 @@ pub fn encode(format: Format, records: &[Record], buf: &mut Vec<u8>) {
 
 /// A file written under a temporary name and renamed into place by [`AtomicFile::commit`];
 /// dropped without commit, the temporary is removed, so a failed run leaves nothing behind.
+///
+/// A destination that exists and is not a regular file (`/dev/null`, a FIFO, a tty) is
+/// written directly: renaming over it would replace the device node.
 pub struct AtomicFile {
     file: Option<File>,
-    tmp: PathBuf,
+    /// Temporary path, or `None` when writing straight into a special file.
+    tmp: Option<PathBuf>,
     dest: PathBuf,
 }
 
 impl AtomicFile {
-    /// Creates the temporary file next to `dest`.
+    /// Creates the temporary file next to `dest` (or opens `dest` if it is a special file).
     pub fn create(dest: &Path) -> io::Result<AtomicFile> {
+        let special = std::fs::metadata(dest).is_ok_and(|m| !m.is_file() && !m.is_dir());
+        if special {
+            let file = std::fs::OpenOptions::new().write(true).open(dest)?;
+            return Ok(AtomicFile {
+                file: Some(file),
+                tmp: None,
+                dest: dest.to_path_buf(),
+            });
+        }
         let name = dest
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
@@ -81,22 +94,22 @@ impl AtomicFile {
         let file = File::create(&tmp)?;
         Ok(AtomicFile {
             file: Some(file),
-            tmp,
+            tmp: Some(tmp),
             dest: dest.to_path_buf(),
         })
     }
     /// Flushes, closes and renames the file into place.
     pub fn commit(mut self) -> io::Result<()> {
-        if let Some(f) = self.file.take() {
-            f.sync_data().or_else(|e| {
-                if e.kind() == io::ErrorKind::InvalidInput {
-                    Ok(())
-                } else {
-                    Err(e)
+        let file = self.file.take();
+        match self.tmp.take() {
+            None => Ok(()),
+            Some(tmp) => {
+                if let Some(f) = file {
+                    f.sync_data()?;
                 }
-            })?;
+                std::fs::rename(&tmp, &self.dest)
+            }
         }
-        std::fs::rename(&self.tmp, &self.dest)
     }
 }
 
@@ -114,8 +127,8 @@ impl Write for AtomicFile {
 
 impl Drop for AtomicFile {
     fn drop(&mut self) {
-        if self.file.take().is_some() {
-            let _ = std::fs::remove_file(&self.tmp);
+        if let (Some(_), Some(tmp)) = (self.file.take(), self.tmp.take()) {
+            let _ = std::fs::remove_file(tmp);
         }
     }
 }

@@ -15,8 +15,9 @@ pub const COLUMNS: [&str; 10] = [
 /// What is wrong with a trajectory file, and where.
 #[derive(Debug, thiserror::Error)]
 pub enum TrajectoryError {
-    /// The file could not be read.
-    #[error("{path}: cannot read: {source}")]
+    /// The file could not be read. The cause is the error's `source()` (not repeated here, so
+    /// an error chain printed with `{:#}` names it once).
+    #[error("{path}: cannot read")]
     Io {
         /// File.
         path: PathBuf,
@@ -72,9 +73,21 @@ pub enum Problem {
         /// Its name.
         name: String,
     },
-    /// Wrong number of fields on a data line.
-    #[error("{got} fields, expected {expected}")]
+    /// Wrong number of fields on a data line: column `index` (named `name` when it is a
+    /// header column) is the first one missing or the first one extra.
+    #[error(
+        "column {index}{}: {got} fields, expected {expected}",
+        match (name, got < expected) {
+            (Some(n), true) => format!(" (`{n}`) is missing"),
+            (_, true) => " is missing".to_string(),
+            (_, false) => " is extra".to_string(),
+        }
+    )]
     FieldCount {
+        /// 1-based column number of the first missing or extra field.
+        index: usize,
+        /// Its header name, if it is a header column.
+        name: Option<&'static str>,
         /// Fields found.
         got: usize,
         /// Fields expected.
@@ -208,6 +221,8 @@ pub fn parse(text: &str, path: &Path) -> Result<Vec<Sample>, TrajectoryError> {
             return Err(at(
                 ln,
                 Problem::FieldCount {
+                    index: n.min(order.len()) + 1,
+                    name: order.get(n).map(|&k| COLUMNS[k]),
                     got: n,
                     expected: order.len(),
                 },

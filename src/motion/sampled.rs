@@ -60,7 +60,7 @@ impl Default for ModelSettings {
     fn default() -> Self {
         ModelSettings {
             degree: Degree::Quintic,
-            stencil: 7,
+            stencil: 9,
         }
     }
 }

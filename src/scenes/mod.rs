@@ -77,7 +77,7 @@ impl Default for SceneParams {
             bank_deg: 25.0,
             start_h_m: 300.0,
             lines: 3,
-            line_s: 100.0,
+            line_s: 104.0,
             cone_half_angle_deg: 1.0,
             cone_hz: 2.0,
             roll_osc_deg: 0.0,
