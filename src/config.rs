@@ -112,7 +112,7 @@ pub enum ConfigError {
 impl SceneFile {
     /// Parses scene-file text; `path` is used in messages.
     pub fn parse(text: &str, path: &Path) -> Result<SceneFile, ConfigError> {
-        toml::from_str(text).map_err(|e| {
+        let located = |e: toml::de::Error| {
             let (line, column) = e.span().map_or((1, 1), |s| line_col(text, s.start));
             let message = e.message().trim();
             ConfigError::Parse {
@@ -124,7 +124,14 @@ impl SceneFile {
                     None => message.to_string(),
                 },
             }
-        })
+        };
+        let file: SceneFile = toml::from_str(text).map_err(located)?;
+        // `[trajectory.params]` is kept as a table (the defaults depend on the scene); check its
+        // keys and types now, while an error can still point at the line.
+        if file.trajectory.params.is_some() {
+            toml::from_str::<ParamsCheck>(text).map_err(located)?;
+        }
+        Ok(file)
     }
 
     /// Reads and parses a scene file.
@@ -144,6 +151,21 @@ impl SceneFile {
             message,
         })
     }
+}
+
+/// The scene file seen only for its `[trajectory.params]`, typed, to locate bad keys and types.
+/// Deserialized for its errors only: the values are never read.
+#[allow(dead_code)]
+#[derive(Deserialize)]
+struct ParamsCheck {
+    trajectory: Option<ParamsCheckTrajectory>,
+}
+
+/// See [`ParamsCheck`].
+#[allow(dead_code)]
+#[derive(Deserialize)]
+struct ParamsCheckTrajectory {
+    params: Option<SceneParams>,
 }
 
 /// Scene `scene`'s defaults with the keys of `overrides` replaced; unknown keys are errors.

@@ -40,8 +40,14 @@ pub fn radius_prime_vertical(sin_lat: f64) -> f64 {
 #[inline]
 pub fn normal_gravity(sin_lat: f64, h: f64) -> f64 {
     let s2 = sin_lat * sin_lat;
-    let g0 = GAMMA_E * (1.0 + SOMIGLIANA_K * s2) / (1.0 - E2 * s2).sqrt();
-    g0 * (1.0 - (2.0 / A) * (1.0 + F + M_RATIO - 2.0 * F * s2) * h + 3.0 * h * h / (A * A))
+    normal_gravity_from(s2, 1.0 / (1.0 - E2 * s2).sqrt(), h)
+}
+
+/// [`normal_gravity`] from sin²φ and 1/√(1 − e² sin²φ), for callers that already hold them.
+#[inline]
+pub fn normal_gravity_from(sin2_lat: f64, inv_sqrt_w: f64, h: f64) -> f64 {
+    let g0 = GAMMA_E * (1.0 + SOMIGLIANA_K * sin2_lat) * inv_sqrt_w;
+    g0 * (1.0 - (2.0 / A) * (1.0 + F + M_RATIO - 2.0 * F * sin2_lat) * h + 3.0 * h * h / (A * A))
 }
 
 /// Earth rate in the local-level frame ω_ie^n = [ω cos φ, 0, −ω sin φ].
@@ -56,14 +62,26 @@ pub fn omega_ie_n(sin_lat: f64, cos_lat: f64) -> Vec3 {
 /// third component (so a vehicle moving along a meridian through the pole stays finite).
 #[inline]
 pub fn omega_en_n(sin_lat: f64, cos_lat: f64, h: f64, v_n: Vec3) -> Vec3 {
-    let re_h = radius_prime_vertical(sin_lat) + h;
-    let rn_h = radius_meridian(sin_lat) + h;
+    transport_rate(
+        sin_lat,
+        cos_lat,
+        radius_meridian(sin_lat) + h,
+        radius_prime_vertical(sin_lat) + h,
+        v_n,
+    )
+}
+
+/// [`omega_en_n`] with the radii R_N + h and R_E + h already known.
+#[inline]
+pub fn transport_rate(sin_lat: f64, cos_lat: f64, rn_h: f64, re_h: f64, v_n: Vec3) -> Vec3 {
+    let inv_re_h = 1.0 / re_h;
+    let east = v_n.y() * inv_re_h;
     let z = if v_n.y() == 0.0 {
         0.0
     } else {
-        -v_n.y() * sin_lat / (cos_lat * re_h)
+        -east * sin_lat / cos_lat
     };
-    Vec3::new(v_n.y() / re_h, -v_n.x() / rn_h, z)
+    Vec3::new(east, -v_n.x() / rn_h, z)
 }
 
 /// A geodetic position held as the sines and cosines it is used through (pole-safe).
@@ -155,7 +173,7 @@ impl Geodetic {
 /// the f64 floor, higher up a few more.
 pub fn ecef_to_geodetic(r: Vec3) -> Geodetic {
     let [x, y, z] = r.0;
-    let rho = x.hypot(y);
+    let rho = (x * x + y * y).sqrt();
     let (sin_lon, cos_lon) = if rho > 0.0 {
         (y / rho, x / rho)
     } else {

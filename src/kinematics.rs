@@ -31,6 +31,12 @@ pub struct NedState {
     pub cos_lat: f64,
     /// Ellipsoidal height (m).
     pub h: f64,
+    /// Meridian radius of curvature R_N at this latitude (m).
+    pub r_n: f64,
+    /// Prime-vertical radius of curvature R_E at this latitude (m).
+    pub r_e: f64,
+    /// Normal gravity γ(φ, h) (m/s²).
+    pub gravity: f64,
     /// Velocity relative to the Earth in NED, v^n (m/s).
     pub v_n: Vec3,
     /// Its time derivative v̇^n (m/s²).
@@ -45,8 +51,8 @@ pub struct NedState {
 #[inline]
 pub fn sense_ned(s: &NedState) -> Sensed {
     let w_ie = earth::omega_ie_n(s.sin_lat, s.cos_lat);
-    let w_en = earth::omega_en_n(s.sin_lat, s.cos_lat, s.h, s.v_n);
-    let g = earth::normal_gravity(s.sin_lat, s.h);
+    let w_en = earth::transport_rate(s.sin_lat, s.cos_lat, s.r_n + s.h, s.r_e + s.h, s.v_n);
+    let g = s.gravity;
     let w_in = w_ie + w_en;
     let omega_ib_b = s.omega_nb_b + s.c_b_n.tr_mul_vec(w_in);
     let mut a = s.v_dot_n + (w_ie * 2.0 + w_en).cross(s.v_n);
@@ -98,6 +104,9 @@ mod tests {
             sin_lat: lat.sin(),
             cos_lat: lat.cos(),
             h: 0.0,
+            r_n: earth::radius_meridian(lat.sin()),
+            r_e: earth::radius_prime_vertical(lat.sin()),
+            gravity: earth::normal_gravity(lat.sin(), 0.0),
             v_n: Vec3::ZERO,
             v_dot_n: Vec3::ZERO,
             c_b_n: Mat3::IDENTITY,
@@ -122,6 +131,9 @@ mod tests {
             sin_lat: pos.sin_lat,
             cos_lat: pos.cos_lat,
             h: pos.h,
+            r_n: earth::radius_meridian(pos.sin_lat),
+            r_e: earth::radius_prime_vertical(pos.sin_lat),
+            gravity: earth::normal_gravity(pos.sin_lat, pos.h),
             v_n,
             v_dot_n,
             c_b_n: q_b_n.to_mat(),

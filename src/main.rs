@@ -127,6 +127,8 @@ struct Resolved {
     scene_file: Option<PathBuf>,
     scene_from_file: bool,
     params_from_file: bool,
+    /// Settings checked later whose value came from the scene file: (setting, file key).
+    file_settings: Vec<(&'static str, &'static str)>,
     rate: f64,
     start: Option<f64>,
     duration: Option<f64>,
@@ -146,6 +148,14 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         .map(Path::to_path_buf)
         .unwrap_or_default();
     let scene_from_file = a.source.trajectory.is_none() && a.source.scene.is_none();
+    // Prefix naming the scene-file key, for a value that came from the file and not a flag.
+    let in_file = |flag_given: bool, set_in_file: bool, key: &str| {
+        if flag_given || !set_in_file {
+            String::new()
+        } else {
+            format!("{}: `{key}`: ", file_path.display())
+        }
+    };
     let params_from_file = file.trajectory.params.is_some();
     let source = if let Some(t) = a.source.trajectory {
         SourceSpec::File(t)
@@ -167,17 +177,28 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
             ),
         }
     };
+    let at = in_file(a.imu.is_some(), file.imu.model.is_some(), "imu.model");
     let imu = a.imu.or(file.imu.model).unwrap_or_else(|| "ideal".into());
     if imu != "ideal" {
-        bail!("IMU model `{imu}` is not available yet: only `ideal` (no errors) exists");
+        bail!("{at}IMU model `{imu}` is not available yet: only `ideal` (no errors) exists");
     }
+    let at = in_file(
+        a.format.is_some(),
+        file.output.format.is_some(),
+        "output.format",
+    );
     let format_name = a
         .format
         .or(file.output.format)
         .unwrap_or_else(|| "csv".into());
     let Some(format) = Format::from_name(&format_name) else {
-        bail!("output format `{format_name}`: expected `csv` or `bin`");
+        bail!("{at}output format `{format_name}`: expected `csv` or `bin`");
     };
+    let at = in_file(
+        a.interp.is_some(),
+        file.engine.interpolation.is_some(),
+        "engine.interpolation",
+    );
     let interp = a
         .interp
         .or(file.engine.interpolation)
@@ -185,29 +206,65 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
     let degree = match interp.as_str() {
         "cubic" => Degree::Cubic,
         "quintic" => Degree::Quintic,
-        other => bail!("interpolation `{other}`: expected `cubic` or `quintic`"),
+        other => bail!("{at}interpolation `{other}`: expected `cubic` or `quintic`"),
     };
+    let at = in_file(
+        a.stencil.is_some(),
+        file.engine.stencil.is_some(),
+        "engine.stencil",
+    );
     let stencil = a
         .stencil
         .or(file.engine.stencil)
         .unwrap_or(ModelSettings::default().stencil);
     if !(3..=15).contains(&stencil) {
-        bail!("stencil {stencil}: expected 3 to 15 samples");
+        bail!("{at}stencil {stencil}: expected 3 to 15 samples");
     }
+    let at = in_file(
+        a.quadrature.is_some(),
+        file.engine.quadrature_nodes.is_some(),
+        "engine.quadrature_nodes",
+    );
+    let nodes = a
+        .quadrature
+        .or(file.engine.quadrature_nodes)
+        .unwrap_or(DEFAULT_NODES);
+    if !(1..=imu_emu::quadrature::MAX_NODES).contains(&nodes) {
+        bail!("{at}quadrature {nodes}: expected 1 to 16 Gauss–Legendre nodes");
+    }
+    let file_settings = [
+        (
+            "rate",
+            a.rate.is_none() && file.imu.rate_hz.is_some(),
+            "imu.rate_hz",
+        ),
+        (
+            "start",
+            a.start.is_none() && file.output.start_s.is_some(),
+            "output.start_s",
+        ),
+        (
+            "duration",
+            a.duration.is_none() && file.output.duration_s.is_some(),
+            "output.duration_s",
+        ),
+    ]
+    .into_iter()
+    .filter(|s| s.1)
+    .map(|(setting, _, key)| (setting, key))
+    .collect();
     Ok(Resolved {
         source,
         scene_file: a.source.scene_file,
         scene_from_file,
         params_from_file,
+        file_settings,
         rate: a.rate.or(file.imu.rate_hz).unwrap_or(400.0),
         start: a.start.or(file.output.start_s),
         duration: a.duration.or(file.output.duration_s),
         format,
         output: a.output.or(file.output.path),
-        nodes: a
-            .quadrature
-            .or(file.engine.quadrature_nodes)
-            .unwrap_or(DEFAULT_NODES),
+        nodes,
         model: ModelSettings { degree, stencil },
     })
 }
@@ -222,7 +279,28 @@ impl Resolved {
             (JobError::SceneParam(p), _, Some(f)) if self.params_from_file => {
                 Some(format!("{}: `trajectory.params.{}`", f.display(), p.key))
             }
-            (JobError::Span { .. }, SourceSpec::File(path), _) => Some(path.display().to_string()),
+            (JobError::Span { .. }, _, _) => {
+                // The scene-file keys that set the span, then the trajectory file it misses.
+                let mut place: Vec<String> = Vec::new();
+                if let Some(f) = &self.scene_file {
+                    let keys: Vec<String> = (self.file_settings.iter())
+                        .filter(|s| s.0 == "start" || s.0 == "duration")
+                        .map(|s| format!("`{}`", s.1))
+                        .collect();
+                    if !keys.is_empty() {
+                        place.push(format!("{}: {}", f.display(), keys.join(", ")));
+                    }
+                }
+                if let SourceSpec::File(path) = &self.source {
+                    place.push(path.display().to_string());
+                }
+                (!place.is_empty()).then(|| place.join(": "))
+            }
+            (JobError::Setting { key, .. }, _, Some(f)) => self
+                .file_settings
+                .iter()
+                .find(|s| s.0 == *key)
+                .map(|s| format!("{}: `{}`", f.display(), s.1)),
             _ => None,
         };
         match place {

@@ -78,6 +78,13 @@ impl AtomicFile {
     /// Creates the temporary file next to `dest` (or opens `dest` if it is a special file).
     pub fn create(dest: &Path) -> io::Result<AtomicFile> {
         let special = std::fs::metadata(dest).is_ok_and(|m| !m.is_file() && !m.is_dir());
+        if std::fs::metadata(dest).is_ok_and(|m| m.is_dir()) {
+            // Refused now, not when the finished file cannot be renamed over it.
+            return Err(io::Error::new(
+                io::ErrorKind::IsADirectory,
+                "is a directory",
+            ));
+        }
         if special {
             let file = std::fs::OpenOptions::new().write(true).open(dest)?;
             return Ok(AtomicFile {
@@ -98,16 +105,19 @@ impl AtomicFile {
             dest: dest.to_path_buf(),
         })
     }
-    /// Flushes, closes and renames the file into place.
+    /// Flushes, closes and renames the file into place. On failure the temporary is removed.
     pub fn commit(mut self) -> io::Result<()> {
         let file = self.file.take();
         match self.tmp.take() {
             None => Ok(()),
             Some(tmp) => {
-                if let Some(f) = file {
-                    f.sync_data()?;
+                let done = file
+                    .map_or(Ok(()), |f| f.sync_data())
+                    .and_then(|()| std::fs::rename(&tmp, &self.dest));
+                if done.is_err() {
+                    let _ = std::fs::remove_file(&tmp);
                 }
-                std::fs::rename(&tmp, &self.dest)
+                done
             }
         }
     }
@@ -130,5 +140,34 @@ impl Drop for AtomicFile {
         if let (Some(_), Some(tmp)) = (self.file.take(), self.tmp.take()) {
             let _ = std::fs::remove_file(tmp);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn failed_commit_leaves_nothing() {
+        let dir = tempfile::TempDir::new().unwrap();
+        let dest = dir.path().join("out.csv");
+        let mut f = AtomicFile::create(&dest).unwrap();
+        f.write_all(b"data").unwrap();
+        // Something takes the name meanwhile: the rename fails, and the temporary goes.
+        std::fs::create_dir(&dest).unwrap();
+        std::fs::write(dest.join("keep"), b"").unwrap();
+        assert!(f.commit().is_err());
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["out.csv"]);
+    }
+
+    #[test]
+    fn directory_destination_is_refused_at_once() {
+        let dir = tempfile::TempDir::new().unwrap();
+        let e = AtomicFile::create(dir.path()).err().expect("refused");
+        assert_eq!(e.kind(), io::ErrorKind::IsADirectory);
     }
 }

@@ -14,6 +14,7 @@ pub struct FixedScene {
     h: f64,
     sin_lat: f64,
     cos_lat: f64,
+    gravity: f64,
     q_ref: Quat,
     c_ref: Mat3,
     coning: Option<(f64, f64)>,
@@ -30,6 +31,7 @@ impl FixedScene {
             h,
             sin_lat,
             cos_lat,
+            gravity: earth::normal_gravity(sin_lat, h),
             q_ref: q_b_n,
             c_ref: q_b_n.to_mat(),
             coning,
@@ -74,6 +76,9 @@ impl Motion for FixedScene {
             sin_lat: self.sin_lat,
             cos_lat: self.cos_lat,
             h: self.h,
+            r_n: earth::radius_meridian(self.sin_lat),
+            r_e: earth::radius_prime_vertical(self.sin_lat),
+            gravity: self.gravity,
             v_n: Vec3::ZERO,
             v_dot_n: Vec3::ZERO,
             c_b_n,
@@ -131,6 +136,9 @@ impl PolarScene {
             sin_lat: s,
             cos_lat: c,
             h: self.h,
+            r_n: rn,
+            r_e: earth::radius_prime_vertical(s),
+            gravity: earth::normal_gravity(s, self.h),
             v_n: Vec3::new((rn + self.h) * self.mu_rate, 0.0, 0.0),
             v_dot_n: Vec3::new(drn * self.mu_rate * self.mu_rate, 0.0, 0.0),
             c_b_n: Mat3::IDENTITY,
@@ -160,7 +168,8 @@ impl Motion for PolarScene {
         let s = self.state(t);
         // Map the extended latitude back to an ordinary one: past a pole the vehicle is on
         // the opposite meridian with north and east reversed (heading 180°).
-        let lat = s.sin_lat.asin();
+        // atan2 keeps full precision next to the pole, where asin(sin μ) loses half the digits.
+        let lat = s.sin_lat.atan2(s.cos_lat.abs());
         let flipped = s.cos_lat < 0.0;
         let (lon, yaw, sign) = if flipped {
             (self.lon0 + std::f64::consts::PI, std::f64::consts::PI, -1.0)

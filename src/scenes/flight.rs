@@ -29,9 +29,9 @@ pub struct FlightPiece {
 pub struct FlightScene {
     lat0: f64,
     lon0: f64,
-    mh0: f64,
-    nh0c: f64,
-    g0: f64,
+    inv_mh0: f64,
+    inv_nh0c: f64,
+    inv_g0: f64,
     pieces: Vec<FlightPiece>,
     end: f64,
     roll_osc: Option<(f64, f64)>,
@@ -52,9 +52,9 @@ impl FlightScene {
         FlightScene {
             lat0,
             lon0,
-            mh0: earth::radius_meridian(s0) + h_ref,
-            nh0c: (earth::radius_prime_vertical(s0) + h_ref) * lat0.cos(),
-            g0: earth::normal_gravity(s0, h_ref),
+            inv_mh0: 1.0 / (earth::radius_meridian(s0) + h_ref),
+            inv_nh0c: 1.0 / ((earth::radius_prime_vertical(s0) + h_ref) * lat0.cos()),
+            inv_g0: 1.0 / earth::normal_gravity(s0, h_ref),
             pieces,
             end,
             roll_osc,
@@ -97,19 +97,24 @@ impl FlightScene {
     /// Roll, pitch, yaw as (sin, cos) pairs and the Euler-angle rates, at t.
     #[inline]
     fn attitude(&self, t: f64, x: &Jet, y: &Jet, h: &Jet) -> ([f64; 6], Vec3) {
-        let vh = x[1].hypot(y[1]);
-        let (cy, sy) = (x[1] / vh, y[1] / vh);
-        let v = vh.hypot(h[1]);
-        let (cp, sp) = (vh / v, h[1] / v);
+        // Divisions and square roots dominate the cost here: take each reciprocal once.
+        let vh2 = x[1] * x[1] + y[1] * y[1];
+        let inv_vh = 1.0 / vh2.sqrt();
+        let vh = vh2 * inv_vh;
+        let (cy, sy) = (x[1] * inv_vh, y[1] * inv_vh);
+        let v2 = vh2 + h[1] * h[1];
+        let inv_v = 1.0 / v2.sqrt();
+        let (cp, sp) = (vh * inv_v, h[1] * inv_v);
         let cross = x[1] * y[2] - y[1] * x[2];
-        let tan_b = cross / (vh * self.g0);
+        let tan_b = cross * inv_vh * self.inv_g0;
         let cb = 1.0 / (1.0 + tan_b * tan_b).sqrt();
         let sb = tan_b * cb;
-        let psi_dot = cross / (vh * vh);
-        let vh_dot = (x[1] * x[2] + y[1] * y[2]) / vh;
-        let theta_dot = (vh * h[2] - h[1] * vh_dot) / (v * v);
-        let alat_dot = (x[1] * y[3] - y[1] * x[3]) / vh - cross * vh_dot / (vh * vh);
-        let mut phi_dot = alat_dot / self.g0 * cb * cb;
+        let inv_vh2 = inv_vh * inv_vh;
+        let psi_dot = cross * inv_vh2;
+        let vh_dot = (x[1] * x[2] + y[1] * y[2]) * inv_vh;
+        let theta_dot = (vh * h[2] - h[1] * vh_dot) * inv_v * inv_v;
+        let alat_dot = ((x[1] * y[3] - y[1] * x[3]) - cross * vh_dot * inv_vh) * inv_vh;
+        let mut phi_dot = alat_dot * self.inv_g0 * cb * cb;
         let (mut sr, mut cr) = (sb, cb);
         if let Some((amp, w)) = self.roll_osc {
             let (s, c) = (w * t).sin_cos();
@@ -129,16 +134,19 @@ impl FlightScene {
     #[inline]
     fn ned_state(&self, i: usize, t: f64) -> (NedState, f64) {
         let (x, y, h) = self.jets(i, t);
-        let lat = self.lat0 + x[0] / self.mh0;
+        let lat = self.lat0 + x[0] * self.inv_mh0;
         let (s, c) = lat.sin_cos();
-        let (lat_d, lat_dd) = (x[1] / self.mh0, x[2] / self.mh0);
-        let (lon_d, lon_dd) = (y[1] / self.nh0c, y[2] / self.nh0c);
+        let (lat_d, lat_dd) = (x[1] * self.inv_mh0, x[2] * self.inv_mh0);
+        let (lon_d, lon_dd) = (y[1] * self.inv_nh0c, y[2] * self.inv_nh0c);
         let w = 1.0 - E2 * s * s;
-        let re = earth::A / w.sqrt();
-        let rn = re * (1.0 - E2) / w;
+        let inv_w = 1.0 / w;
+        let inv_sqrt_w = inv_w.sqrt();
+        let re = earth::A * inv_sqrt_w;
+        let rn = re * (1.0 - E2) * inv_w;
         let (rn_h, re_h) = (rn + h[0], re + h[0]);
-        let drn = 3.0 * E2 * rn * s * c / w * lat_d;
-        let dre = E2 * re * s * c / w * lat_d;
+        let scw = s * c * inv_w * lat_d;
+        let drn = 3.0 * E2 * rn * scw;
+        let dre = E2 * re * scw;
         let v_n = Vec3::new(rn_h * lat_d, re_h * c * lon_d, -h[1]);
         let v_dot_n = Vec3::new(
             (drn + h[1]) * lat_d + rn_h * lat_dd,
@@ -150,12 +158,15 @@ impl FlightScene {
             sin_lat: s,
             cos_lat: c,
             h: h[0],
+            r_n: rn,
+            r_e: re,
+            gravity: earth::normal_gravity_from(s * s, inv_sqrt_w, h[0]),
             v_n,
             v_dot_n,
             c_b_n: dcm_from_euler_sc(sr, cr, sp, cp, sy, cy),
             omega_nb_b: omega_from_euler_rates(sr, cr, sp, cp, rates),
         };
-        (state, self.lon0 + y[0] / self.nh0c)
+        (state, self.lon0 + y[0] * self.inv_nh0c)
     }
 }
 

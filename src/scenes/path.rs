@@ -26,8 +26,10 @@ impl Poly {
     #[inline]
     pub fn jet(&self, tau: f64) -> Jet {
         let c = &self.0;
+        // Skip the zero leading coefficients of lines and constants.
+        let top = c.iter().rposition(|v| *v != 0.0).unwrap_or(0);
         let (mut p0, mut p1, mut p2, mut p3) = (0.0, 0.0, 0.0, 0.0);
-        for k in (0..8).rev() {
+        for k in (0..=top).rev() {
             p3 = p3 * tau + p2;
             p2 = p2 * tau + p1;
             p1 = p1 * tau + p0;
