@@ -47,7 +47,7 @@ pub fn normal_gravity(sin_lat: f64, h: f64) -> f64 {
 #[inline]
 pub fn normal_gravity_from(sin2_lat: f64, inv_sqrt_w: f64, h: f64) -> f64 {
     let g0 = GAMMA_E * (1.0 + SOMIGLIANA_K * sin2_lat) * inv_sqrt_w;
-    g0 * (1.0 - (2.0 / A) * (1.0 + F + M_RATIO - 2.0 * F * sin2_lat) * h + 3.0 * h * h / (A * A))
+    g0 * (1.0 - (2.0 / A) * (1.0 + F + M_RATIO - 2.0 * F * sin2_lat) * h + (3.0 / (A * A)) * h * h)
 }
 
 /// Earth rate in the local-level frame ω_ie^n = [ω cos φ, 0, −ω sin φ].

@@ -177,8 +177,9 @@ impl Quat {
             v: Vec3([x, y, z]),
         }
     }
-    /// Hamilton product self ⊗ o.
+    /// Hamilton product self ⊗ o (also the `*` operator).
     #[inline]
+    #[allow(clippy::should_implement_trait)] // inherent, so callers need no trait import
     pub fn mul(self, o: Quat) -> Quat {
         Quat {
             w: self.w * o.w - self.v.dot(o.v),
@@ -211,8 +212,9 @@ impl Quat {
             v: self.v * s,
         }
     }
-    /// Component-wise sum.
+    /// Component-wise sum (also the `+` operator).
     #[inline]
+    #[allow(clippy::should_implement_trait)] // inherent, so callers need no trait import
     pub fn add(self, o: Quat) -> Quat {
         Quat {
             w: self.w + o.w,
@@ -284,6 +286,22 @@ impl Quat {
         // atan2 keeps full relative precision for small angles, unlike acos(w).
         let angle = 2.0 * s.atan2(q.w);
         q.v * (angle / s)
+    }
+}
+
+impl Mul for Quat {
+    type Output = Quat;
+    #[inline]
+    fn mul(self, o: Quat) -> Quat {
+        Quat::mul(self, o)
+    }
+}
+
+impl Add for Quat {
+    type Output = Quat;
+    #[inline]
+    fn add(self, o: Quat) -> Quat {
+        Quat::add(self, o)
     }
 }
 

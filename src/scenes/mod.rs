@@ -423,7 +423,7 @@ fn survey(p: &SceneParams, roll_osc: Option<(f64, f64)>) -> FlightScene {
     }
     let height = [
         (0.0, Poly::constant(p.start_h_m)),
-        (t_c0, Poly(climb)),
+        (t_c0, Poly::new(climb)),
         (t_c0 + t_c, Poly::constant(p.h_m)),
     ];
     let pieces = FlightScene::merge(&planar, &height);

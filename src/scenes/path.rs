@@ -6,30 +6,37 @@ pub type Jet = [f64; 4];
 
 /// A polynomial Σ c_k τ^k of degree ≤ 7 in the piece-local time τ.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Poly(pub [f64; 8]);
+pub struct Poly {
+    c: [f64; 8],
+    /// Index of the highest non-zero coefficient: lines and constants skip the rest.
+    top: usize,
+}
 
 impl Poly {
+    /// The polynomial with coefficients `c` (c[k] multiplies τ^k).
+    pub fn new(c: [f64; 8]) -> Poly {
+        let top = c.iter().rposition(|v| *v != 0.0).unwrap_or(0);
+        Poly { c, top }
+    }
     /// The constant c.
     pub fn constant(c: f64) -> Poly {
         let mut p = [0.0; 8];
         p[0] = c;
-        Poly(p)
+        Poly::new(p)
     }
     /// c0 + c1 τ.
     pub fn linear(c0: f64, c1: f64) -> Poly {
         let mut p = [0.0; 8];
         p[0] = c0;
         p[1] = c1;
-        Poly(p)
+        Poly::new(p)
     }
     /// Value and derivatives up to order 3 at τ.
     #[inline]
     pub fn jet(&self, tau: f64) -> Jet {
-        let c = &self.0;
-        // Skip the zero leading coefficients of lines and constants.
-        let top = c.iter().rposition(|v| *v != 0.0).unwrap_or(0);
+        let c = &self.c;
         let (mut p0, mut p1, mut p2, mut p3) = (0.0, 0.0, 0.0, 0.0);
-        for k in (0..=top).rev() {
+        for k in (0..=self.top.min(7)).rev() {
             p3 = p3 * tau + p2;
             p2 = p2 * tau + p1;
             p1 = p1 * tau + p0;
@@ -65,7 +72,7 @@ impl Poly {
             let coef = if k < 4 { a[k] } else { b[k - 4] };
             c[k] = coef / t.powi(k as i32);
         }
-        Poly(c)
+        Poly::new(c)
     }
 }
 
@@ -84,10 +91,11 @@ fn solve4(mut m: [[f64; 5]; 4]) -> [f64; 4] {
             .max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))
             .unwrap_or(col);
         m.swap(col, piv);
-        for row in (col + 1)..4 {
-            let f = m[row][col] / m[col][col];
-            for k in col..5 {
-                m[row][k] -= f * m[col][k];
+        let pivot_row = m[col];
+        for row in m.iter_mut().skip(col + 1) {
+            let f = row[col] / pivot_row[col];
+            for (x, p) in row.iter_mut().zip(pivot_row.iter()).skip(col) {
+                *x -= f * p;
             }
         }
     }
@@ -167,7 +175,7 @@ mod tests {
 
     #[test]
     fn poly_jet_derivatives() {
-        let p = Poly([1.0, -2.0, 0.5, 3.0, 0.0, 0.0, 0.0, 0.1]);
+        let p = Poly::new([1.0, -2.0, 0.5, 3.0, 0.0, 0.0, 0.0, 0.1]);
         let t: f64 = 0.7;
         let j = p.jet(t);
         let f = 1.0 - 2.0 * t + 0.5 * t * t + 3.0 * t.powi(3) + 0.1 * t.powi(7);
