@@ -140,6 +140,8 @@ pub fn parse(text: &str, path: &Path) -> Result<Vec<Sample>, TrajectoryError> {
         line,
         problem,
     };
+    // A UTF-8 byte-order mark (spreadsheet exports) is not part of the first column's name.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut lines = text
         .lines()
         .enumerate()

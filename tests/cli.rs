@@ -1,0 +1,824 @@
+//! Black-box tests of the `imu-emu` binary: what a user typing commands can rely on.
+//!
+//! Every rejected input must exit non-zero, say on stderr which file, line and column is at
+//! fault and what is wrong, and leave no output file behind (neither the `-o` path nor its
+//! `.NAME.partial-*` temporary). Rates and durations are small so the whole file runs in a
+//! fraction of a second.
+
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use tempfile::TempDir;
+
+const TRAJ_HEADER: &str = "t,lat,lon,h,vn,ve,vd,roll,pitch,yaw";
+const IMU_HEADER: &str =
+    "t,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z,dtheta_x,dtheta_y,dtheta_z,dv_x,dv_y,dv_z";
+
+// ---------------------------------------------------------------------------------------------
+// Helpers.
+
+/// Runs the binary in directory `cwd` (`None`: the current one) with `args`.
+fn imu_emu<'a>(cwd: Option<&Path>, args: impl IntoIterator<Item = &'a OsStr>) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_imu-emu"));
+    if let Some(dir) = cwd {
+        cmd.current_dir(dir);
+    }
+    cmd.args(args).output().expect("run imu-emu")
+}
+
+/// `run!("generate --rate 10 -o", out)`: runs the binary. The first argument is split at
+/// spaces into words; the others (paths, values) are passed whole. `run!(in dir; …)` runs it
+/// in directory `dir`.
+macro_rules! run {
+    (in $dir:expr; $words:expr $(, $arg:expr)* $(,)?) => {
+        imu_emu(Some($dir), words($words).chain([$(OsStr::new(&$arg)),*]))
+    };
+    ($words:expr $(, $arg:expr)* $(,)?) => {
+        imu_emu(None, words($words).chain([$(OsStr::new(&$arg)),*]))
+    };
+}
+
+/// The space-separated words of `s` as arguments.
+fn words(s: &str) -> impl Iterator<Item = &OsStr> {
+    s.split_whitespace().map(OsStr::new)
+}
+
+/// Asserts success and returns stdout.
+fn succeeded(out: Output) -> Vec<u8> {
+    assert!(
+        out.status.success(),
+        "expected success, got {:?}; stderr:\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout
+}
+
+/// Asserts failure (exit code ≠ 0 and a message on stderr) and returns stderr.
+fn failed(out: Output) -> String {
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        !out.status.success(),
+        "expected failure, but it succeeded; stderr:\n{stderr}"
+    );
+    assert!(!stderr.trim().is_empty(), "failure without a message");
+    stderr
+}
+
+/// Asserts that `msg` contains every one of `needles`.
+fn assert_mentions(msg: &str, needles: &[&str]) {
+    for n in needles {
+        assert!(msg.contains(n), "message lacks `{n}`:\n{msg}");
+    }
+}
+
+/// Asserts that neither `dir/name` nor a `.name.partial-*` temporary exists.
+fn assert_no_output(dir: &Path, name: &str) {
+    let partial = format!(".{name}.partial-");
+    for entry in std::fs::read_dir(dir).expect("read dir") {
+        let entry = entry.expect("dir entry").file_name();
+        let entry = entry.to_string_lossy();
+        assert!(
+            entry != name && !entry.starts_with(&partial),
+            "a failed run left `{entry}` in {}",
+            dir.display()
+        );
+    }
+}
+
+fn write(path: &Path, text: &str) {
+    std::fs::write(path, text).expect("write test input");
+}
+
+fn path_str(p: &Path) -> String {
+    p.display().to_string()
+}
+
+/// Parses IMU CSV output: the header line and rows of 13 numbers.
+fn parse_imu_csv(bytes: &[u8]) -> (String, Vec<[f64; 13]>) {
+    let text = std::str::from_utf8(bytes).expect("CSV output is UTF-8");
+    let mut lines = text.lines();
+    let header = lines.next().expect("CSV output has a header").to_string();
+    let rows = lines
+        .map(|l| {
+            let v: Vec<f64> = (l.split(','))
+                .map(|f| {
+                    f.parse()
+                        .unwrap_or_else(|_| panic!("bad number `{f}` in `{l}`"))
+                })
+                .collect();
+            v.try_into()
+                .unwrap_or_else(|_| panic!("record without 13 fields: `{l}`"))
+        })
+        .collect();
+    (header, rows)
+}
+
+/// A valid trajectory data row: at rest at 45° N, 2° E, 100 m, level, heading 30°.
+fn rest_row(t: f64) -> String {
+    format!("{t},45,2,100,0,0,0,0,0,30\n")
+}
+
+/// `n` valid rows at t = 10, 10.1, 10.2, …
+fn rest_rows(n: usize) -> String {
+    (0..n).map(|i| rest_row(10.0 + i as f64 / 10.0)).collect()
+}
+
+/// A rejected trajectory file: its path as given on the command line, and the error text.
+struct Rejected {
+    path: String,
+    stderr: String,
+}
+
+impl Rejected {
+    /// Asserts the message has the form `PATH:LINE: …` and mentions every one of `needles`.
+    fn at(&self, line: usize, needles: &[&str]) {
+        assert_mentions(&self.stderr, &[&format!("{}:{line}: ", self.path)]);
+        assert_mentions(&self.stderr, needles);
+    }
+}
+
+/// Runs `generate --trajectory FILE --rate 10 -o OUT [extra]` on a file holding `text`;
+/// asserts it fails, names the file and leaves no output behind.
+fn reject_trajectory(text: &str, extra: &[&str]) -> Rejected {
+    let dir = TempDir::new().expect("temp dir");
+    let csv = dir.path().join("traj.csv");
+    write(&csv, text);
+    let out = dir.path().join("imu.csv");
+    let args = [
+        OsStr::new("generate"),
+        "--trajectory".as_ref(),
+        csv.as_ref(),
+    ];
+    let args = args
+        .into_iter()
+        .chain(["--rate", "10", "-o"].map(OsStr::new));
+    let args = args
+        .chain([out.as_os_str()])
+        .chain(extra.iter().map(OsStr::new));
+    let stderr = failed(imu_emu(None, args));
+    let path = path_str(&csv);
+    assert_mentions(&stderr, &[&path]);
+    assert_no_output(dir.path(), "imu.csv");
+    Rejected { path, stderr }
+}
+
+/// Runs `generate SCENE.toml -o OUT` on a scene file holding `text`; asserts it fails, names
+/// the file and leaves no output. Returns the scene file's path and stderr.
+fn reject_scene_file(text: &str) -> (String, String) {
+    let dir = TempDir::new().unwrap();
+    let scene = dir.path().join("bad.toml");
+    write(&scene, text);
+    let out = dir.path().join("imu.csv");
+    let stderr = failed(run!("generate", scene, "-o", out));
+    let path = path_str(&scene);
+    assert_mentions(&stderr, &[&path]);
+    assert_no_output(dir.path(), "imu.csv");
+    (path, stderr)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bad trajectory CSV: file, line, column and problem; no output.
+
+// A header without a required column names the column and the header's line.
+#[test]
+fn trajectory_missing_column() {
+    let text = "# made by hand\n\nt,lat,lon,h,vn,ve,vd,roll,yaw\n".to_string()
+        + &"0,45,2,100,0,0,0,0,30\n".repeat(10);
+    reject_trajectory(&text, &[]).at(3, &["header", "missing column `pitch`"]);
+}
+
+// A header with a column we do not know names its number and name.
+#[test]
+fn trajectory_unknown_column() {
+    let text = format!("# c\n{TRAJ_HEADER},speed\n{}", rest_rows(10));
+    reject_trajectory(&text, &[]).at(2, &["column 11", "unknown column `speed`"]);
+}
+
+// A header naming a column twice names the second occurrence.
+#[test]
+fn trajectory_duplicate_column() {
+    let text = format!("t,lat,lon,h,vn,ve,lat,vd,roll,pitch,yaw\n{}", rest_rows(10));
+    reject_trajectory(&text, &[]).at(1, &["column 7", "`lat` appears twice"]);
+}
+
+// A data line with too few fields says which column is missing; too many, which is extra.
+#[test]
+fn trajectory_wrong_field_count() {
+    let text = format!(
+        "{TRAJ_HEADER}\n{}# gap\n\n10.2,45,2,100,0,0,0,0,0\n",
+        rest_rows(2)
+    );
+    let missing = ["column 10 (`yaw`) is missing", "9 fields, expected 10"];
+    reject_trajectory(&text, &[]).at(6, &missing);
+
+    let text = format!(
+        "{TRAJ_HEADER}\n{}10.1,45,2,100,0,0,0,0,0,30,7\n",
+        rest_rows(1)
+    );
+    reject_trajectory(&text, &[]).at(3, &["column 11 is extra", "11 fields, expected 10"]);
+}
+
+// A field that is not a number names the file column (number and name) and the text.
+#[test]
+fn trajectory_non_numeric_value() {
+    // Columns in another order: `ve` is file column 3.
+    let text = "t,vn,ve,vd,lat,lon,h,roll,pitch,yaw\n0,0,0,0,45,2,100,0,0,0\n\
+                # next line is bad\n0.1,0,fast,0,45,2,100,0,0,0\n";
+    reject_trajectory(text, &[]).at(4, &["column 3 (`ve`)", "`fast` is not a number"]);
+}
+
+// NaN is refused with its column.
+#[test]
+fn trajectory_nan_value() {
+    let text = format!(
+        "{TRAJ_HEADER}\n{}10.3,45,2,NaN,0,0,0,0,0,30\n",
+        rest_rows(3)
+    );
+    reject_trajectory(&text, &[]).at(5, &["column 4 (`h`)", "`NaN` is not finite"]);
+}
+
+// Infinity is refused with its column.
+#[test]
+fn trajectory_infinite_value() {
+    let text = format!(
+        "{TRAJ_HEADER}\n\n{}10.3,45,2,100,0,0,0,0,0,-inf\n",
+        rest_rows(3)
+    );
+    reject_trajectory(&text, &[]).at(6, &["column 10 (`yaw`)", "`-inf` is not finite"]);
+}
+
+// A time equal to the previous sample's is refused at its line.
+#[test]
+fn trajectory_repeated_time() {
+    let text = format!("{TRAJ_HEADER}\n{}{}", rest_rows(4), rest_row(10.3));
+    let problem = "10.3 does not increase (previous sample at 10.3)";
+    reject_trajectory(&text, &[]).at(6, &["column 1 (`t`)", problem]);
+}
+
+// A time before the previous sample's is refused at its line, in whichever column `t` is.
+#[test]
+fn trajectory_decreasing_time() {
+    let text = "# t last\nlat,lon,h,vn,ve,vd,roll,pitch,yaw,t\n\
+                45,2,100,0,0,0,0,0,0,1\n45,2,100,0,0,0,0,0,0,2\n\n45,2,100,0,0,0,0,0,0,1.5\n";
+    let problem = "1.5 does not increase (previous sample at 2)";
+    reject_trajectory(text, &[]).at(6, &["column 10 (`t`)", problem]);
+}
+
+// A latitude beyond ±90° is refused with its value.
+#[test]
+fn trajectory_latitude_out_of_range() {
+    let text = format!(
+        "{TRAJ_HEADER}\n{}10.2,-90.5,2,100,0,0,0,0,0,30\n",
+        rest_rows(2)
+    );
+    let problem = "-90.5 is outside [-90, 90] degrees";
+    reject_trajectory(&text, &[]).at(4, &["column 2 (`lat`)", problem]);
+}
+
+// Fewer samples than the motion model needs (its stencil) is refused, saying how many there
+// are and how many are needed; a smaller --stencil accepts the same file.
+#[test]
+fn trajectory_too_few_samples() {
+    let need = imu_emu::motion::sampled::ModelSettings::default().stencil;
+    let text = format!("{TRAJ_HEADER}\n{}", rest_rows(need - 1));
+    let r = reject_trajectory(&text, &[]);
+    let problem = format!(
+        "{} samples, but the motion model needs at least {need}",
+        need - 1
+    );
+    assert_mentions(&r.stderr, &[&problem]);
+    let r = reject_trajectory(
+        &format!("{TRAJ_HEADER}\n{}", rest_rows(5)),
+        &["--stencil", "6"],
+    );
+    assert_mentions(&r.stderr, &["5 samples", "needs at least 6"]);
+    let r = reject_trajectory(&format!("# header only\n{TRAJ_HEADER}\n"), &[]);
+    assert_mentions(&r.stderr, &["0 samples", "needs at least"]);
+
+    let dir = TempDir::new().unwrap();
+    let csv = dir.path().join("five.csv");
+    write(&csv, &format!("{TRAJ_HEADER}\n{}", rest_rows(5)));
+    let out = run!("generate --rate 10 --stencil 5 --trajectory", csv);
+    assert_eq!(parse_imu_csv(&succeeded(out)).1.len(), 4);
+}
+
+// --start before the first sample is refused, naming the file and both spans.
+#[test]
+fn trajectory_span_starts_before_first_sample() {
+    let text = format!("{TRAJ_HEADER}\n{}", rest_rows(11)); // t = 10 … 11
+    let r = reject_trajectory(&text, &["--start", "9.5", "--duration", "1"]);
+    let span = "requested IMU span [9.5, 10.5] s is outside the trajectory [10, 11] s";
+    assert_mentions(&r.stderr, &[&format!("{}: {span}", r.path)]);
+    // A negative start is a number, not a flag.
+    let r = reject_trajectory(&text, &["--start", "-1"]);
+    assert_mentions(
+        &r.stderr,
+        &["span [-1, ", "outside the trajectory [10, 11] s"],
+    );
+}
+
+// --duration past the last sample is refused; the span ending exactly on it is accepted.
+#[test]
+fn trajectory_span_ends_after_last_sample() {
+    let text = format!("{TRAJ_HEADER}\n{}", rest_rows(11)); // t = 10 … 11
+    let r = reject_trajectory(&text, &["--duration", "1.5"]);
+    let span = "requested IMU span [10, 11.5] s is outside the trajectory [10, 11] s";
+    assert_mentions(&r.stderr, &[&format!("{}: {span}", r.path)]);
+    let r = reject_trajectory(&text, &["--start", "10.5", "--duration", "0.6"]);
+    assert_mentions(&r.stderr, &["outside the trajectory [10, 11] s"]);
+
+    let dir = TempDir::new().unwrap();
+    let csv = dir.path().join("t.csv");
+    write(&csv, &text);
+    let out = run!(
+        "generate --rate 10 --start 10 --duration 1 --trajectory",
+        csv
+    );
+    let (_, rows) = parse_imu_csv(&succeeded(out));
+    assert_eq!(rows.len(), 10);
+    assert_eq!(rows[9][0], 11.0);
+}
+
+// An empty file, or one with only comments and blank lines, has no header; the line given
+// is the file's last.
+#[test]
+fn trajectory_without_header() {
+    reject_trajectory("", &[]).at(1, &["no header line", TRAJ_HEADER]);
+    reject_trajectory("# nothing\n\n# here\n", &[]).at(3, &["no header line"]);
+}
+
+// A file that does not exist is reported with its path and the system's reason, once.
+#[test]
+fn trajectory_file_missing() {
+    let dir = TempDir::new().unwrap();
+    let csv = dir.path().join("nowhere.csv");
+    let out = dir.path().join("imu.csv");
+    let stderr = failed(run!("generate --trajectory", csv, "-o", out));
+    assert_mentions(&stderr, &[&format!("{}: cannot read: ", csv.display())]);
+    assert_eq!(stderr.matches("os error").count(), 1, "{stderr}");
+    assert_no_output(dir.path(), "imu.csv");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Good trajectory CSV.
+
+// A scene exported with `imu-emu trajectory` and fed back with --trajectory gives the CSV
+// contract (header, duration×rate records at t = k/rate) and the scene's own IMU signal.
+#[test]
+fn exported_trajectory_round_trips() {
+    let dir = TempDir::new().unwrap();
+    let csv = dir.path().join("circle.csv");
+    succeeded(run!(
+        "trajectory --scene circle --rate 100 --duration 2 -o",
+        csv
+    ));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let data: Vec<&str> = text.lines().filter(|l| !l.starts_with('#')).collect();
+    assert_eq!(data[0], TRAJ_HEADER);
+    assert_eq!(data.len(), 1 + 201, "samples at t = 0, 0.01, …, 2");
+
+    let out = dir.path().join("imu.csv");
+    succeeded(run!("generate --rate 50 --trajectory", csv, "-o", out));
+    let (header, replay) = parse_imu_csv(&std::fs::read(&out).unwrap());
+    assert_eq!(header, IMU_HEADER);
+    assert_eq!(replay.len(), 2 * 50);
+    for (k, r) in (1..).zip(&replay) {
+        assert_eq!(r[0], k as f64 / 50.0, "t of record {k}");
+    }
+
+    let scene = succeeded(run!("generate --scene circle --rate 50 --duration 2"));
+    let (_, scene) = parse_imu_csv(&scene);
+    assert_eq!(scene.len(), replay.len());
+    for (a, b) in replay.iter().zip(&scene) {
+        assert_eq!(a[0], b[0]);
+        let gyro = (1..4).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max);
+        let accel = (4..7).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max);
+        assert!(gyro < 1e-8 && accel < 1e-6, "t = {}: {a:?} vs {b:?}", a[0]);
+    }
+}
+
+// Comments, blank lines, another column order, uneven time steps and a yaw wrapping from
+// +179° to −179° are all fine: finite output, and the yaw rate has no spike at the wrap.
+#[test]
+fn hand_written_trajectory_with_yaw_wrap() {
+    // A turntable at 2°/s, sampled unevenly, yaw crossing ±180° between t = 3.6 and 4.5.
+    let times = [
+        0.0, 0.5, 1.2, 1.7, 2.5, 3.0, 3.6, 4.5, 5.0, 5.8, 6.5, 7.0, 7.4, 8.0,
+    ];
+    let mut text =
+        String::from("# turntable, yaw 2 deg/s\n\nyaw,pitch,roll,t,vd,ve,vn,h,lon,lat\n");
+    for (i, t) in times.iter().enumerate() {
+        let mut yaw = 172.0 + 2.0 * t;
+        if yaw > 180.0 {
+            yaw -= 360.0;
+        }
+        text += &format!("{yaw},0,0,{t},0,0,0,100,2,45\n");
+        if i == 6 {
+            text += "# across the wrap\n\n";
+        }
+    }
+    assert!(
+        text.contains("\n179.2,") && text.contains("\n-179,"),
+        "{text}"
+    );
+    let dir = TempDir::new().unwrap();
+    let csv = dir.path().join("turntable.csv");
+    write(&csv, &text);
+    let (header, rows) = parse_imu_csv(&succeeded(run!("generate --rate 20 --trajectory", csv)));
+    assert_eq!(header, IMU_HEADER);
+    assert_eq!(rows.len(), 160);
+    assert!(rows.iter().flatten().all(|v| v.is_finite()));
+    // Body z is down: the turntable's 2°/s less the vertical part of the Earth rate.
+    let expected = 2f64.to_radians() - 7.292115e-5 * 45f64.to_radians().sin();
+    for r in &rows {
+        assert!(
+            (r[3] - expected).abs() < 1e-6,
+            "gyro_z {} at t = {}",
+            r[3],
+            r[0]
+        );
+    }
+    for w in rows.windows(2) {
+        let jump = (w[1][3] - w[0][3]).abs();
+        assert!(jump < 1e-7, "yaw-rate jump {jump} at t = {}", w[1][0]);
+    }
+}
+
+// Windows line ends and a UTF-8 byte-order mark (spreadsheet exports) are accepted.
+#[test]
+fn trajectory_crlf_and_byte_order_mark() {
+    let dir = TempDir::new().unwrap();
+    let csv = dir.path().join("excel.csv");
+    let text = format!("\u{feff}# exported\n{TRAJ_HEADER}\n{}", rest_rows(11));
+    write(&csv, &text.replace('\n', "\r\n"));
+    let (header, rows) = parse_imu_csv(&succeeded(run!("generate --rate 10 --trajectory", csv)));
+    assert_eq!(header, IMU_HEADER);
+    assert_eq!(rows.len(), 10);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output formats and destinations.
+
+// `--format bin` writes 104 bytes (13 little-endian f64) per record, bit-identical to the
+// numbers of the CSV output (which uses shortest round-trip formatting).
+#[test]
+fn binary_output_matches_csv_bit_for_bit() {
+    let dir = TempDir::new().unwrap();
+    let (csv, bin) = (dir.path().join("imu.csv"), dir.path().join("imu.bin"));
+    succeeded(run!(
+        "generate --scene circle --rate 40 --duration 1 -o",
+        csv
+    ));
+    succeeded(run!(
+        "generate --scene circle --rate 40 --duration 1 --format bin -o",
+        bin
+    ));
+    let (_, rows) = parse_imu_csv(&std::fs::read(&csv).unwrap());
+    let bytes = std::fs::read(&bin).unwrap();
+    assert_eq!(rows.len(), 40);
+    assert_eq!(bytes.len(), 104 * rows.len());
+    for (rec, row) in bytes.chunks_exact(104).zip(&rows) {
+        for (field, v) in rec.chunks_exact(8).zip(row) {
+            let b = f64::from_le_bytes(field.try_into().unwrap());
+            assert_eq!(b.to_bits(), v.to_bits(), "bin {b:e} vs csv {v:e}");
+        }
+    }
+}
+
+// `-o -` and no `-o` both write the records to stdout, the same bytes as `-o FILE`.
+#[test]
+fn stdout_output() {
+    let dir = TempDir::new().unwrap();
+    let file = dir.path().join("imu.csv");
+    let plain = succeeded(run!("generate --scene static --rate 10 --duration 1"));
+    let dash = succeeded(run!("generate --scene static --rate 10 --duration 1 -o -"));
+    let to_file = run!("generate --scene static --rate 10 --duration 1 -o", file);
+    assert!(
+        succeeded(to_file).is_empty(),
+        "-o FILE writes nothing to stdout"
+    );
+    let written = std::fs::read(&file).unwrap();
+    assert!(written.starts_with(format!("{IMU_HEADER}\n").as_bytes()));
+    assert_eq!(written.iter().filter(|&&b| b == b'\n').count(), 1 + 10);
+    assert_eq!(plain, written);
+    assert_eq!(dash, written);
+    let bin = succeeded(run!(
+        "generate --scene static --rate 10 --duration 1 --format bin"
+    ));
+    assert_eq!(bin.len(), 10 * 104);
+}
+
+// An output path that is a directory is refused before any work, leaving no temporary.
+#[test]
+fn output_path_that_is_a_directory() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("imu.csv");
+    std::fs::create_dir(&out).unwrap();
+    let stderr = failed(run!(
+        "generate --scene static --rate 10 --duration 1 -o",
+        out
+    ));
+    assert_mentions(&stderr, &[&path_str(&out), "is a directory"]);
+    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(names.len(), 1, "only the directory itself: {names:?}");
+}
+
+// Out-of-range settings given as flags are refused, naming the setting, leaving no output.
+#[test]
+fn bad_setting_flags() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("imu.csv");
+    for (flag, value, needle) in [
+        ("--rate", "-5", "`rate` = -5"),
+        ("--rate", "0", "`rate` = 0"),
+        ("--duration", "0", "`duration` = 0"),
+        ("--quadrature", "17", "quadrature 17"),
+        ("--quadrature", "0", "quadrature 0"),
+        ("--stencil", "2", "stencil 2"),
+        ("--format", "xml", "output format `xml`"),
+        ("--interp", "linear", "interpolation `linear`"),
+    ] {
+        let stderr = failed(run!("generate --scene static", flag, value, "-o", out));
+        assert_mentions(&stderr, &[needle]);
+        assert_no_output(dir.path(), "imu.csv");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scene files.
+
+const CIRCLE_SCENE: &str = "\
+[trajectory]
+scene = \"circle\"
+
+[trajectory.params]
+radius_m = 300
+
+[imu]
+rate_hz = 50
+
+[output]
+duration_s = 1
+";
+
+// A scene file sets the scene, its parameters, the rate and the duration; flags override it.
+#[test]
+fn scene_file_runs_and_flags_override_it() {
+    let dir = TempDir::new().unwrap();
+    let scene = dir.path().join("circle.toml");
+    write(&scene, CIRCLE_SCENE);
+    let (header, rows) = parse_imu_csv(&succeeded(run!("generate", scene)));
+    assert_eq!(header, IMU_HEADER);
+    assert_eq!(rows.len(), 50);
+    assert_eq!(rows.last().unwrap()[0], 1.0);
+    // radius_m = 300 at the circle's 50 m/s: the body turns at 1/6 rad/s (plus Earth rate).
+    for r in &rows {
+        let rate = (r[1] * r[1] + r[2] * r[2] + r[3] * r[3]).sqrt();
+        assert!((rate - 50.0 / 300.0).abs() < 1e-3, "turn rate {rate}");
+    }
+
+    let (_, rows) = parse_imu_csv(&succeeded(run!("generate --rate 10", scene)));
+    assert_eq!(rows.len(), 10);
+    assert_eq!(rows[0][0], 0.1);
+
+    let bin = succeeded(run!("generate --duration 2 --format bin", scene));
+    assert_eq!(bin.len(), 2 * 50 * 104);
+}
+
+// `file = "x.csv"` in a scene file is found next to the scene file, not in the current
+// directory, and problems in it are reported with that resolved path.
+#[test]
+fn scene_file_trajectory_path_is_relative_to_the_scene_file() {
+    let dir = TempDir::new().unwrap();
+    let sub = dir.path().join("scenes");
+    std::fs::create_dir(&sub).unwrap();
+    let (csv, scene) = (sub.join("x.csv"), sub.join("replay.toml"));
+    write(&csv, &format!("{TRAJ_HEADER}\n{}", rest_rows(11)));
+    write(
+        &scene,
+        "[trajectory]\nfile = \"x.csv\"\n\n[imu]\nrate_hz = 10\n",
+    );
+    let elsewhere = TempDir::new().unwrap();
+    let out = run!(in elsewhere.path(); "generate", scene);
+    let (_, rows) = parse_imu_csv(&succeeded(out));
+    assert_eq!(rows.len(), 10);
+    assert_eq!(rows[0][0], 10.1);
+
+    write(&csv, &format!("{TRAJ_HEADER}\n{}", rest_rows(3)));
+    let stderr = failed(run!(in elsewhere.path(); "generate", scene));
+    assert_mentions(&stderr, &[&format!("{}: 3 samples", csv.display())]);
+}
+
+// An unknown key is refused with file, line, column and the dotted key.
+#[test]
+fn scene_file_unknown_key() {
+    let (p, e) = reject_scene_file("[trajectory]\nscene = \"circle\"\ncolour = \"red\"\n");
+    assert_mentions(
+        &e,
+        &[&format!(
+            "{p}:3:1: `trajectory.colour`: unknown field `colour`"
+        )],
+    );
+    let (p, e) = reject_scene_file("[trajectory.params]\nradius = 5\n");
+    let msg = format!("{p}:2:1: `trajectory.params.radius`: unknown field `radius`");
+    assert_mentions(&e, &[&msg, "radius_m"]);
+    let (p, e) = reject_scene_file("[imu]\nrate_hz = 5\n\n[outputs]\nformat = \"csv\"\n");
+    assert_mentions(&e, &[&format!("{p}:4:"), "`outputs`: unknown field"]);
+}
+
+// A value of the wrong type is refused with file, line, column and the dotted key.
+#[test]
+fn scene_file_wrong_type() {
+    let (p, e) = reject_scene_file("# rate\n[imu]\nrate_hz = \"fast\"\n");
+    assert_mentions(&e, &[&format!("{p}:3:11: `imu.rate_hz`: invalid type")]);
+    let (p, e) = reject_scene_file("[trajectory.params]\nlines = 2\nradius_m = \"big\"\n");
+    assert_mentions(
+        &e,
+        &[&format!(
+            "{p}:3:12: `trajectory.params.radius_m`: invalid type"
+        )],
+    );
+}
+
+// A TOML syntax error is refused with file, line and column.
+#[test]
+fn scene_file_syntax_error() {
+    let (p, e) = reject_scene_file("\n[trajectory\nscene = \"circle\"\n");
+    assert_mentions(&e, &[&format!("{p}:2:12: ")]);
+}
+
+// An unknown scene name is refused naming the file, the key and the built-in scenes.
+#[test]
+fn scene_file_unknown_scene() {
+    let (p, e) = reject_scene_file("[trajectory]\nscene = \"spiral\"\n");
+    let msg = format!("{p}: `trajectory.scene`: unknown scene `spiral`");
+    assert_mentions(&e, &[&msg, "circle, survey"]);
+}
+
+// A parameter outside its range (a negative speed) is refused naming the file and the key.
+#[test]
+fn scene_file_negative_speed() {
+    let text = "[trajectory]\nscene = \"circle\"\n[trajectory.params]\nspeed_m_s = -5\n";
+    let (p, e) = reject_scene_file(text);
+    let msg = format!("{p}: `trajectory.params.speed_m_s`: ");
+    assert_mentions(&e, &[&msg, "-5", "a positive speed"]);
+}
+
+// Out-of-range settings in a scene file are refused naming the file and the key.
+#[test]
+fn scene_file_bad_settings() {
+    for (text, key, needle) in [
+        ("[imu]\nrate_hz = -5\n", "imu.rate_hz", "-5"),
+        (
+            "[imu]\nmodel = \"ln200\"\n",
+            "imu.model",
+            "not available yet",
+        ),
+        (
+            "[output]\nduration_s = 0\n",
+            "output.duration_s",
+            "positive duration",
+        ),
+        (
+            "[output]\nstart_s = -10\n",
+            "output.start_s",
+            "outside the trajectory",
+        ),
+        ("[output]\nformat = \"xml\"\n", "output.format", "`xml`"),
+        (
+            "[engine]\nquadrature_nodes = 0\n",
+            "engine.quadrature_nodes",
+            "1 to 16",
+        ),
+        ("[engine]\nstencil = 16\n", "engine.stencil", "3 to 15"),
+        (
+            "[engine]\ninterpolation = \"linear\"\n",
+            "engine.interpolation",
+            "`linear`",
+        ),
+    ] {
+        let (p, e) = reject_scene_file(text);
+        assert_mentions(&e, &[&format!("{p}: `{key}`: "), needle]);
+    }
+}
+
+// `scene` and `file` together are refused naming the file and the section.
+#[test]
+fn scene_file_scene_and_file_conflict() {
+    let (p, e) = reject_scene_file("[trajectory]\nscene = \"circle\"\nfile = \"x.csv\"\n");
+    assert_mentions(&e, &[&format!("{p}: `trajectory`: "), "not both"]);
+}
+
+// ---------------------------------------------------------------------------------------------
+// IMU models and defaults.
+
+// `--imu ideal` is accepted; a model that does not exist yet is refused clearly, leaving no
+// output (from the scene file: see `scene_file_bad_settings`).
+#[test]
+fn imu_models() {
+    let out = run!("generate --scene static --rate 10 --duration 1 --imu ideal");
+    assert_eq!(parse_imu_csv(&succeeded(out)).1.len(), 10);
+
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("imu.csv");
+    let stderr = failed(run!("generate --scene static --imu ln200 -o", out));
+    assert_mentions(
+        &stderr,
+        &["IMU model `ln200` is not available yet", "`ideal`"],
+    );
+    assert_no_output(dir.path(), "imu.csv");
+}
+
+// Unbounded scenes run 60 s when no duration is given.
+#[test]
+fn unbounded_scenes_default_to_60_s() {
+    for scene in ["static", "circle"] {
+        let (_, rows) = parse_imu_csv(&succeeded(run!("generate --rate 1 --scene", scene)));
+        assert_eq!(rows.len(), 60, "{scene}");
+        assert_eq!(rows.last().unwrap()[0], 60.0, "{scene}");
+    }
+}
+
+// The survey runs to its end (about 601 s) by default: at 1 Hz the last record is t = 600.
+// It is also the default scene.
+#[test]
+fn survey_runs_to_its_end() {
+    let survey = succeeded(run!("generate --scene survey --rate 1"));
+    let (_, rows) = parse_imu_csv(&survey);
+    assert_eq!(rows.len(), 600);
+    assert_eq!(rows.last().unwrap()[0], 600.0);
+    assert_eq!(survey, succeeded(run!("generate --rate 1")));
+}
+
+// ---------------------------------------------------------------------------------------------
+// The example scene file.
+
+fn example() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/survey.toml")
+}
+
+// `imu-emu generate examples/survey.toml` runs (here for 1 s, into a temporary file).
+#[test]
+fn example_scene_file_runs() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("survey.csv");
+    succeeded(run!("generate --duration 1", example(), "-o", out));
+    let (header, rows) = parse_imu_csv(&std::fs::read(&out).unwrap());
+    assert_eq!(header, IMU_HEADER);
+    assert_eq!(rows.len(), 400);
+}
+
+// examples/survey.toml documents every scene parameter and setting with its current default
+// (as `key = value` or `# key = value`), and reproduces the built-in survey.
+#[test]
+fn example_scene_file_documents_every_key() {
+    use imu_emu::scenes::SceneParams;
+    use toml::Value;
+    let text = std::fs::read_to_string(example()).unwrap();
+    let documented = |key: &str| -> Value {
+        let line = (text.lines())
+            .map(|l| l.trim_start_matches(['#', ' ']))
+            .find(|l| l.split('=').next().map(str::trim) == Some(key))
+            .unwrap_or_else(|| panic!("examples/survey.toml does not document `{key}`"));
+        let value = line.split_once('=').unwrap().1;
+        let value = value.split('#').next().unwrap().trim();
+        let t: toml::Table = toml::from_str(&format!("v = {value}")).unwrap();
+        t["v"].clone()
+    };
+    let same = |a: &Value, b: &Value| match (a, b) {
+        (Value::Integer(x), Value::Float(y)) | (Value::Float(y), Value::Integer(x)) => {
+            *x as f64 == *y
+        }
+        _ => a == b,
+    };
+    let stencil = imu_emu::motion::sampled::ModelSettings::default().stencil;
+    let nodes = imu_emu::generator::DEFAULT_NODES;
+    let settings = [
+        ("model", Value::from("ideal")),
+        ("rate_hz", Value::from(400.0)),
+        ("format", Value::from("csv")),
+        ("quadrature_nodes", Value::from(nodes as i64)),
+        ("interpolation", Value::from("quintic")),
+        ("stencil", Value::from(stencil as i64)),
+    ];
+    let survey = toml::Table::try_from(SceneParams::defaults_for("survey")).unwrap();
+    let params = survey.iter().map(|(k, v)| (k.as_str(), v));
+    for (key, default) in params.chain(settings.iter().map(|(k, v)| (*k, v))) {
+        let doc = documented(key);
+        assert!(
+            same(&doc, default),
+            "`{key}`: the example says {doc}, the default is {default}"
+        );
+    }
+    for key in ["scene", "file", "path", "start_s", "duration_s"] {
+        documented(key);
+    }
+    let file = imu_emu::config::SceneFile::read(&example()).unwrap();
+    assert_eq!(file.trajectory.scene.as_deref(), Some("survey"));
+    assert_eq!(
+        file.scene_params("survey", &example()).unwrap(),
+        SceneParams::defaults_for("survey")
+    );
+}
