@@ -253,9 +253,9 @@ fn by_definition(m: &AnyMotion, t: f64, d: f64) -> (Vec3, Vec3) {
     for (k, wk) in w {
         let (pp, pm) = (m.pose(t + k * d), m.pose(t - k * d));
         let (cp, cm) = (pp.q_b_n.to_mat(), pm.q_b_n.to_mat());
-        for i in 0..3 {
-            for j in 0..3 {
-                cdot[i][j] += wk * (cp.0[i][j] - cm.0[i][j]) / d;
+        for (row, (rp, rm)) in cdot.iter_mut().zip(cp.0.iter().zip(cm.0.iter())) {
+            for (x, (a, b)) in row.iter_mut().zip(rp.iter().zip(rm.iter())) {
+                *x += wk * (a - b) / d;
             }
         }
         vdot += (pp.v_n - pm.v_n) * (wk / d);
