@@ -28,7 +28,17 @@ fn measure(
         let grid = job::plan(&motion, rate, None, duration).expect("valid span");
         count = grid.count;
         let t = Instant::now();
-        job::run(motion, grid, nodes, format, &mut io::sink(), |_| {}).expect("runs");
+        job::run(
+            motion,
+            grid,
+            nodes,
+            format,
+            None,
+            &mut io::sink(),
+            None,
+            |_| {},
+        )
+        .expect("runs");
         best = best.min(t.elapsed().as_secs_f64());
     }
     (count, count as f64 / best)

@@ -42,10 +42,12 @@ pub struct TrajectorySection {
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ImuSection {
-    /// IMU model name (`ideal`).
+    /// IMU model: a template name or a template file.
     pub model: Option<String>,
     /// Output rate (Hz).
     pub rate_hz: Option<f64>,
+    /// Master seed of the error model.
+    pub seed: Option<u64>,
 }
 
 /// `[output]`.

@@ -71,6 +71,7 @@ impl<M: Motion> IdealImu<M> {
                     accel: a,
                     dtheta: g * dt,
                     dv: a * dt,
+                    flags: 0,
                 };
             }
             return;
@@ -84,6 +85,7 @@ impl<M: Motion> IdealImu<M> {
                 accel: a,
                 dtheta: g * dt,
                 dv: a * dt,
+                flags: 0,
             };
         }
     }

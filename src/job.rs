@@ -4,6 +4,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
+use crate::errors::ErrorChain;
 use crate::generator::IdealImu;
 use crate::motion::Motion;
 use crate::motion::sampled::{ModelError, ModelSettings, SampledMotion};
@@ -164,12 +165,18 @@ pub fn plan(
 }
 
 /// Runs the job into `out`, calling `progress(records_done)` after each block.
+///
+/// With an error `chain`, records are corrupted after generation; `truth`, if given, receives
+/// the error-free records in the same format and on the same time grid.
+#[allow(clippy::too_many_arguments)] // the run's inputs, each distinct; a struct would only rename them
 pub fn run(
     motion: AnyMotion,
     grid: Grid,
     nodes: usize,
     format: Format,
+    mut chain: Option<ErrorChain>,
     out: &mut impl Write,
+    mut truth: Option<&mut dyn Write>,
     mut progress: impl FnMut(u64),
 ) -> Result<(), JobError> {
     if !(1..=crate::quadrature::MAX_NODES).contains(&nodes) {
@@ -184,11 +191,22 @@ pub fn run(
     let mut buf = Vec::with_capacity(BLOCK * 104);
     if format == Format::Csv {
         out.write_all(output::csv_header().as_bytes())?;
+        if let Some(t) = truth.as_mut() {
+            t.write_all(output::csv_header().as_bytes())?;
+        }
     }
     let mut k = 1u64;
     while k <= grid.count {
         let n = ((grid.count - k + 1) as usize).min(BLOCK);
         imu.fill(k, &mut block[..n]);
+        if let Some(t) = truth.as_mut() {
+            buf.clear();
+            output::encode(format, &block[..n], &mut buf);
+            t.write_all(&buf)?;
+        }
+        if let Some(c) = chain.as_mut() {
+            c.apply(&mut block[..n]);
+        }
         buf.clear();
         output::encode(format, &block[..n], &mut buf);
         out.write_all(&buf)?;
@@ -196,5 +214,8 @@ pub fn run(
         progress(k - 1);
     }
     out.flush()?;
+    if let Some(t) = truth.as_mut() {
+        t.flush()?;
+    }
     Ok(())
 }

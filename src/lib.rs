@@ -15,6 +15,7 @@
 
 pub mod config;
 pub mod earth;
+pub mod errors;
 pub mod generator;
 pub mod job;
 pub mod kinematics;
@@ -23,7 +24,9 @@ pub mod motion;
 pub mod output;
 pub mod quadrature;
 pub mod record;
+pub mod rng;
 pub mod scenes;
 pub mod source;
 pub mod trajectory;
+pub mod units;
 pub mod validation;

@@ -27,11 +27,13 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Generate IMU records offline, as fast as the machine allows.
-    Generate(GenerateArgs),
+    Generate(Box<GenerateArgs>),
     /// Write a scene's reference trajectory as trajectory CSV (the input format).
     Trajectory(TrajectoryArgs),
     /// List the built-in scenes.
     Scenes,
+    /// List the built-in IMU templates with their headline figures.
+    Templates,
 }
 
 #[derive(clap::Args)]
@@ -65,9 +67,15 @@ struct GenerateArgs {
     /// Output file, or - for stdout [default: stdout].
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// IMU error model; only `ideal` (no errors) exists so far.
+    /// IMU error model: a template name (`imu-emu templates`) or a template file [default: ideal].
     #[arg(long)]
     imu: Option<String>,
+    /// Master seed of every random error process [default: 20261124].
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Also write the error-free records here (same format and time grid).
+    #[arg(long)]
+    truth: Option<PathBuf>,
     /// Gauss–Legendre nodes per interval (order 2n) [default: 3].
     #[arg(long)]
     quadrature: Option<usize>,
@@ -98,8 +106,9 @@ struct TrajectoryArgs {
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Generate(a) => generate(a),
+        Command::Generate(a) => generate(*a),
         Command::Trajectory(a) => export_trajectory(a),
+        Command::Templates => list_templates(),
         Command::Scenes => {
             for name in scenes::NAMES {
                 println!(
@@ -134,6 +143,9 @@ struct Resolved {
     duration: Option<f64>,
     format: Format,
     output: Option<PathBuf>,
+    truth: Option<PathBuf>,
+    imu: imu_emu::errors::ImuModel,
+    seed: u64,
     nodes: usize,
     model: ModelSettings,
 }
@@ -178,10 +190,12 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         }
     };
     let at = in_file(a.imu.is_some(), file.imu.model.is_some(), "imu.model");
-    let imu = a.imu.or(file.imu.model).unwrap_or_else(|| "ideal".into());
-    if imu != "ideal" {
-        bail!("{at}IMU model `{imu}` is not available yet: only `ideal` (no errors) exists");
-    }
+    let imu_name = a.imu.or(file.imu.model).unwrap_or_else(|| "ideal".into());
+    let imu = imu_emu::errors::template::load(&imu_name).map_err(|e| anyhow::anyhow!("{at}{e}"))?;
+    let seed = a
+        .seed
+        .or(file.imu.seed)
+        .unwrap_or(imu_emu::rng::DEFAULT_SEED);
     let at = in_file(
         a.format.is_some(),
         file.output.format.is_some(),
@@ -259,11 +273,14 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         scene_from_file,
         params_from_file,
         file_settings,
-        rate: a.rate.or(file.imu.rate_hz).unwrap_or(400.0),
+        rate: a.rate.or(file.imu.rate_hz).or(imu.rate_hz).unwrap_or(400.0),
         start: a.start.or(file.output.start_s),
         duration: a.duration.or(file.output.duration_s),
         format,
         output: a.output.or(file.output.path),
+        truth: a.truth,
+        imu,
+        seed,
         nodes,
         model: ModelSettings { degree, stencil },
     })
@@ -314,6 +331,11 @@ fn generate(a: GenerateArgs) -> Result<()> {
     let r = resolve(a)?;
     let motion = job::build_motion(&r.source, r.model).map_err(|e| r.locate(e))?;
     let grid = job::plan(&motion, r.rate, r.start, r.duration).map_err(|e| r.locate(e))?;
+    let chain = imu_emu::errors::ErrorChain::new(&r.imu, grid.rate_hz, r.seed);
+    let chain = (!chain.is_empty()).then_some(chain);
+    if chain.is_some() {
+        eprintln!("imu-emu: IMU `{}`, seed {}", r.imu.name, r.seed);
+    }
     let show = std::io::stderr().is_terminal() && grid.count >= 500_000;
     let bar = if show {
         indicatif::ProgressBar::new(grid.count)
@@ -321,27 +343,61 @@ fn generate(a: GenerateArgs) -> Result<()> {
         indicatif::ProgressBar::hidden()
     };
     let started = Instant::now();
-    let to_stdout = r.output.as_deref().is_none_or(|p| p == Path::new("-"));
-    if to_stdout {
-        let mut out = std::io::BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
-        job::run(motion, grid, r.nodes, r.format, &mut out, |k| {
-            bar.set_position(k)
-        })?;
-        out.flush()?;
-    } else {
-        let path = r.output.expect("checked above");
-        let mut file =
-            AtomicFile::create(&path).with_context(|| format!("creating {}", path.display()))?;
-        {
-            let mut out = std::io::BufWriter::with_capacity(1 << 20, &mut file);
-            job::run(motion, grid, r.nodes, r.format, &mut out, |k| {
-                bar.set_position(k)
-            })
-            .with_context(|| format!("writing {}", path.display()))?;
+    let mut truth_file = match &r.truth {
+        Some(p) => Some((
+            AtomicFile::create(p).with_context(|| format!("creating {}", p.display()))?,
+            p.clone(),
+        )),
+        None => None,
+    };
+    {
+        let mut truth_out = truth_file
+            .as_mut()
+            .map(|(f, _)| std::io::BufWriter::with_capacity(1 << 20, f));
+        let truth_w = truth_out.as_mut().map(|w| w as &mut dyn Write);
+        let to_stdout = r.output.as_deref().is_none_or(|p| p == Path::new("-"));
+        if to_stdout {
+            let mut out = std::io::BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
+            job::run(
+                motion,
+                grid,
+                r.nodes,
+                r.format,
+                chain,
+                &mut out,
+                truth_w,
+                |k| bar.set_position(k),
+            )?;
             out.flush()?;
+        } else {
+            let path = r.output.clone().expect("checked above");
+            let mut file = AtomicFile::create(&path)
+                .with_context(|| format!("creating {}", path.display()))?;
+            {
+                let mut out = std::io::BufWriter::with_capacity(1 << 20, &mut file);
+                job::run(
+                    motion,
+                    grid,
+                    r.nodes,
+                    r.format,
+                    chain,
+                    &mut out,
+                    truth_w,
+                    |k| bar.set_position(k),
+                )
+                .with_context(|| format!("writing {}", path.display()))?;
+                out.flush()?;
+            }
+            file.commit()
+                .with_context(|| format!("finishing {}", path.display()))?;
         }
-        file.commit()
-            .with_context(|| format!("finishing {}", path.display()))?;
+        if let Some(w) = truth_out.as_mut() {
+            w.flush()?;
+        }
+    }
+    if let Some((f, p)) = truth_file {
+        f.commit()
+            .with_context(|| format!("finishing {}", p.display()))?;
     }
     bar.finish_and_clear();
     if show {
@@ -350,6 +406,34 @@ fn generate(a: GenerateArgs) -> Result<()> {
             "{} records in {s:.2} s ({:.3e} records/s)",
             grid.count,
             grid.count as f64 / s
+        );
+    }
+    Ok(())
+}
+
+/// `imu-emu templates`: the built-in IMU templates and their headline figures.
+fn list_templates() -> Result<()> {
+    use std::f64::consts::PI;
+    println!(
+        "{:<11} {:<11} {:>12} {:>13} {:>12} {:>13}  description",
+        "name", "grade", "gyro BI", "ARW", "accel BI", "VRW"
+    );
+    println!(
+        "{:<11} {:<11} {:>12} {:>13} {:>12} {:>13}",
+        "", "", "deg/h", "deg/sqrt(h)", "ug", "m/s/sqrt(h)"
+    );
+    for name in imu_emu::errors::template::builtin_names() {
+        let m = imu_emu::errors::template::load(name)?;
+        let deg_h = 180.0 / PI * 3600.0;
+        println!(
+            "{:<11} {:<11} {:>12.3} {:>13.4} {:>12.1} {:>13.4}  {}",
+            m.name,
+            m.grade,
+            m.gyro.bias_instability[0] * deg_h,
+            m.gyro.noise[0] * 180.0 / PI * 60.0,
+            m.accel.bias_instability[0] / imu_emu::units::G0 * 1e6,
+            m.accel.noise[0] * 60.0,
+            m.description
         );
     }
     Ok(())

@@ -15,6 +15,8 @@ pub struct Record {
     pub dtheta: Vec3,
     /// Δv_k = ∫ f^b dt over the interval (m/s); raw, no sculling compensation.
     pub dv: Vec3,
+    /// Status bits set by the error model (saturation); not part of the CSV/binary contract.
+    pub flags: u8,
 }
 
 /// Column names of the output contract, in order.

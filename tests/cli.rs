@@ -672,9 +672,9 @@ fn scene_file_bad_settings() {
     for (text, key, needle) in [
         ("[imu]\nrate_hz = -5\n", "imu.rate_hz", "-5"),
         (
-            "[imu]\nmodel = \"ln200\"\n",
+            "[imu]\nmodel = \"nosuchimu\"\n",
             "imu.model",
-            "not available yet",
+            "unknown IMU `nosuchimu`",
         ),
         (
             "[output]\nduration_s = 0\n",
@@ -723,12 +723,82 @@ fn imu_models() {
 
     let dir = TempDir::new().unwrap();
     let out = dir.path().join("imu.csv");
-    let stderr = failed(run!("generate --scene static --imu ln200 -o", out));
-    assert_mentions(
-        &stderr,
-        &["IMU model `ln200` is not available yet", "`ideal`"],
-    );
+    let stderr = failed(run!("generate --scene static --imu nosuchimu -o", out));
+    assert_mentions(&stderr, &["unknown IMU `nosuchimu`", "ideal"]);
     assert_no_output(dir.path(), "imu.csv");
+}
+
+// A template file with a bad value is refused naming the file and the key; nothing is written.
+#[test]
+fn bad_template_files() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("imu.csv");
+    for (body, key, needle) in [
+        (
+            "[gyro]\nnoise = \"0.1 furlong\"\n",
+            "gyro.noise",
+            "unknown unit `furlong`",
+        ),
+        (
+            "[gyro]\nbias_turn_on = \"-1 deg/h\"\n",
+            "gyro.bias_turn_on",
+            "negative",
+        ),
+        (
+            "[accel]\nbias_gm = { sigma = \"1 mg\", tau = \"0 s\" }\n",
+            "accel.bias_gm",
+            "tau must be positive",
+        ),
+        (
+            "[accel]\nbias_gm = { sigma = \"-1 mg\", tau = \"10 s\" }\n",
+            "accel.bias_gm",
+            "sigma must not be negative",
+        ),
+        (
+            "[gyro]\nwobble = \"1 deg/h\"\n",
+            "gyro.wobble",
+            "unknown key",
+        ),
+        ("colour = \"red\"\n", "colour", "unknown key"),
+        ("base = \"nosuch\"\n", "base", "unknown template"),
+    ] {
+        let t = dir.path().join("bad.toml");
+        std::fs::write(&t, body).unwrap();
+        let stderr = failed(run!(
+            "generate --scene static --duration 1 --imu",
+            t,
+            "-o",
+            out
+        ));
+        let p = t.display().to_string();
+        assert_mentions(&stderr, &[&p, &format!("`{key}`"), needle]);
+        assert_no_output(dir.path(), "imu.csv");
+    }
+}
+
+// `--truth` writes the error-free records beside the corrupted ones, on the same grid.
+#[test]
+fn truth_file_beside_the_output() {
+    let dir = TempDir::new().unwrap();
+    let t = dir.path().join("noisy.toml");
+    std::fs::write(&t, "name = \"noisy\"\n[gyro]\nnoise = \"1 deg/sqrt(h)\"\n[accel]\nnoise = \"0.1 m/s/sqrt(h)\"\n").unwrap();
+    let (out, truth) = (dir.path().join("imu.csv"), dir.path().join("truth.csv"));
+    succeeded(run!(
+        "generate --scene static --rate 10 --duration 1 --imu",
+        t,
+        "-o",
+        out,
+        "--truth",
+        truth
+    ));
+    let ideal = String::from_utf8(succeeded(run!(
+        "generate --scene static --rate 10 --duration 1"
+    )))
+    .unwrap();
+    assert_eq!(std::fs::read_to_string(&truth).unwrap(), ideal);
+    let noisy = std::fs::read_to_string(&out).unwrap();
+    assert_ne!(noisy, ideal);
+    assert_eq!(noisy.lines().count(), ideal.lines().count());
 }
 
 // Unbounded scenes run 60 s when no duration is given.

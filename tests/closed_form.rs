@@ -544,7 +544,17 @@ fn time_base_exact_over_24_hours_at_1khz() {
         k: 0,
         buf: Vec::new(),
     };
-    job::run(m, grid, 3, imu_emu::output::Format::Bin, &mut check, |_| {}).unwrap();
+    job::run(
+        m,
+        grid,
+        3,
+        imu_emu::output::Format::Bin,
+        None,
+        &mut check,
+        None,
+        |_| {},
+    )
+    .unwrap();
     assert_eq!(check.k, 86_400_000);
 }
 

@@ -1,0 +1,366 @@
+//! The error chain: stages applied to each record's interval-mean rates in the order the IMU
+//! model says (default: the paper's — scale factor, bias, misalignment, noise, quantization),
+//! then multiplied by Δt back into increments. A stage whose terms are all zero is not built.
+
+use super::process::{Flicker, GaussMarkov, QuantMode, Quantizer, RandomWalk};
+use super::template::{ImuModel, TriadModel};
+use crate::math::Vec3;
+use crate::record::Record;
+use crate::rng::NormalStream;
+use crate::units::Lsb;
+
+/// A stage of the chain.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StageKind {
+    /// Scale factor (paper eq. 3–4).
+    ScaleFactor,
+    /// Bias (eq. 5–6).
+    Bias,
+    /// Misalignment (eq. 7–8).
+    Misalignment,
+    /// White noise.
+    Noise,
+    /// Saturation and quantization (eq. 9–10).
+    Quantization,
+}
+
+impl StageKind {
+    /// The paper's order.
+    pub const PAPER_ORDER: [StageKind; 5] = [
+        StageKind::ScaleFactor,
+        StageKind::Bias,
+        StageKind::Misalignment,
+        StageKind::Noise,
+        StageKind::Quantization,
+    ];
+    /// Parses a stage name.
+    pub fn from_name(s: &str) -> Option<StageKind> {
+        Some(match s {
+            "scale_factor" => StageKind::ScaleFactor,
+            "bias" => StageKind::Bias,
+            "misalignment" => StageKind::Misalignment,
+            "noise" => StageKind::Noise,
+            "quantization" => StageKind::Quantization,
+            _ => return None,
+        })
+    }
+}
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+const PAIRS: [&str; 6] = ["xy", "xz", "yx", "yz", "zx", "zy"];
+
+/// Record flag: a gyro axis was saturated.
+pub const FLAG_GYRO_SATURATED: u8 = 1;
+/// Record flag: an accelerometer axis was saturated.
+pub const FLAG_ACCEL_SATURATED: u8 = 2;
+
+/// Scale-factor error of one axis.
+#[derive(Clone, Debug)]
+struct AxisScale {
+    fixed: f64,
+    gm: Option<GaussMarkov>,
+    rw: Option<RandomWalk>,
+    asym_half: f64,
+    quad: f64,
+}
+
+/// Bias of one axis.
+#[derive(Clone, Debug)]
+struct AxisBias {
+    fixed: f64,
+    gm: Option<GaussMarkov>,
+    rw: Option<RandomWalk>,
+    flicker: Option<Flicker>,
+}
+
+/// The stages of one triad.
+#[derive(Clone, Debug)]
+struct Triad {
+    scale: Option<[AxisScale; 3]>,
+    bias: Option<[AxisBias; 3]>,
+    /// y = M x, with M = I + off-diagonal angles.
+    misalign: Option<[[f64; 3]; 3]>,
+    noise: Option<([f64; 3], [NormalStream; 3])>,
+    quant: Option<(Lsb, [Quantizer; 3])>,
+    range: Option<f64>,
+}
+
+/// The error chain of an IMU: gyro and accelerometer triads, and the gyro g-sensitivity.
+#[derive(Clone, Debug)]
+pub struct ErrorChain {
+    order: Vec<StageKind>,
+    gyro: Triad,
+    accel: Triad,
+    g_sens: Option<[[f64; 3]; 3]>,
+    dt: f64,
+}
+
+impl ErrorChain {
+    /// Builds the chain of `model` for records at `rate_hz`, drawing every random constant
+    /// and seeding every process from `seed` and the term's name.
+    pub fn new(model: &ImuModel, rate_hz: f64, seed: u64) -> ErrorChain {
+        let dt = 1.0 / rate_hz;
+        let g = &model.gyro;
+        let g_sens = g.g_sensitivity.iter().any(|v| *v != 0.0).then(|| {
+            let s = &g.g_sensitivity;
+            [[s[0], s[1], s[2]], [s[3], s[4], s[5]], [s[6], s[7], s[8]]]
+        });
+        ErrorChain {
+            order: model.order.clone(),
+            gyro: Triad::new(&model.gyro, "gyro", dt, seed, model.quantization_mode),
+            accel: Triad::new(&model.accel, "accel", dt, seed, model.quantization_mode),
+            g_sens,
+            dt,
+        }
+    }
+
+    /// True when no stage was built (an ideal IMU): records pass unchanged.
+    pub fn is_empty(&self) -> bool {
+        self.gyro.is_empty() && self.accel.is_empty() && self.g_sens.is_none()
+    }
+
+    /// Corrupts records in place, in record order.
+    pub fn apply(&mut self, records: &mut [Record]) {
+        if self.is_empty() {
+            return;
+        }
+        for r in records.iter_mut() {
+            let f_true = r.accel;
+            let mut g = r.gyro;
+            let mut a = r.accel;
+            let mut flags = 0u8;
+            for stage in &self.order {
+                match stage {
+                    StageKind::ScaleFactor => {
+                        g = self.gyro.scale(g);
+                        a = self.accel.scale(a);
+                    }
+                    StageKind::Bias => {
+                        g = self.gyro.bias(g);
+                        if let Some(m) = &self.g_sens {
+                            g += Vec3(m.map(|row| {
+                                row[0] * f_true.0[0] + row[1] * f_true.0[1] + row[2] * f_true.0[2]
+                            }));
+                        }
+                        a = self.accel.bias(a);
+                    }
+                    StageKind::Misalignment => {
+                        g = Triad::misalign(&self.gyro.misalign, g);
+                        a = Triad::misalign(&self.accel.misalign, a);
+                    }
+                    StageKind::Noise => {
+                        g = self.gyro.noise(g, self.dt);
+                        a = self.accel.noise(a, self.dt);
+                    }
+                    StageKind::Quantization => {
+                        let (gq, gs) = self.gyro.quantize(g, self.dt);
+                        let (aq, as_) = self.accel.quantize(a, self.dt);
+                        g = gq;
+                        a = aq;
+                        flags |= ((gs as u8) * FLAG_GYRO_SATURATED)
+                            | ((as_ as u8) * FLAG_ACCEL_SATURATED);
+                    }
+                }
+            }
+            r.gyro = g;
+            r.accel = a;
+            r.dtheta = g * self.dt;
+            r.dv = a * self.dt;
+            r.flags = flags;
+        }
+    }
+}
+
+impl Triad {
+    fn new(m: &TriadModel, sensor: &str, dt: f64, seed: u64, mode: QuantMode) -> Triad {
+        let stream =
+            |axis: &str, term: &str| NormalStream::new(seed, &format!("{sensor}/{axis}/{term}"));
+        // Random constants: one draw each from their own stream.
+        let turn_on = |axis: usize, term: &str, sigma: f64| {
+            if sigma == 0.0 {
+                0.0
+            } else {
+                sigma * stream(AXES[axis], term).draw()
+            }
+        };
+        let scale_needed = any(&m.scale_factor)
+            || any(&m.scale_factor_turn_on)
+            || m.scale_factor_gm.is_some()
+            || any(&m.scale_factor_random_walk)
+            || any(&m.scale_factor_asymmetry)
+            || any(&m.scale_factor_quadratic);
+        let scale = scale_needed.then(|| {
+            std::array::from_fn(|i| AxisScale {
+                fixed: m.scale_factor[i]
+                    + turn_on(i, "scale_factor_turn_on", m.scale_factor_turn_on[i]),
+                gm: m.scale_factor_gm.and_then(|(s, t)| {
+                    (s[i] > 0.0).then(|| {
+                        GaussMarkov::new(s[i], t[i], dt, stream(AXES[i], "scale_factor_gm"))
+                    })
+                }),
+                rw: (m.scale_factor_random_walk[i] > 0.0).then(|| {
+                    RandomWalk::new(
+                        m.scale_factor_random_walk[i],
+                        dt,
+                        stream(AXES[i], "scale_factor_random_walk"),
+                    )
+                }),
+                asym_half: 0.5 * m.scale_factor_asymmetry[i],
+                quad: m.scale_factor_quadratic[i],
+            })
+        });
+        let bias_needed = any(&m.bias)
+            || any(&m.bias_turn_on)
+            || any(&m.bias_instability)
+            || m.bias_gm.is_some()
+            || any(&m.random_walk);
+        let bias = bias_needed.then(|| {
+            std::array::from_fn(|i| AxisBias {
+                fixed: m.bias[i] + turn_on(i, "bias_turn_on", m.bias_turn_on[i]),
+                gm: m.bias_gm.and_then(|(s, t)| {
+                    (s[i] > 0.0)
+                        .then(|| GaussMarkov::new(s[i], t[i], dt, stream(AXES[i], "bias_gm")))
+                }),
+                rw: (m.random_walk[i] > 0.0)
+                    .then(|| RandomWalk::new(m.random_walk[i], dt, stream(AXES[i], "random_walk"))),
+                flicker: (m.bias_instability[i] > 0.0).then(|| {
+                    Flicker::new(m.bias_instability[i], m.bias_instability_band, dt, |j| {
+                        stream(AXES[i], &format!("bias_instability/{j}"))
+                    })
+                }),
+            })
+        });
+        let mis_needed = any(&m.misalignment) || any(&m.misalignment_turn_on);
+        let misalign = mis_needed.then(|| {
+            let ang: [f64; 6] = std::array::from_fn(|j| {
+                let s = m.misalignment_turn_on[j];
+                m.misalignment[j]
+                    + if s == 0.0 {
+                        0.0
+                    } else {
+                        s * NormalStream::new(
+                            seed,
+                            &format!("{sensor}/{}/misalignment_turn_on", PAIRS[j]),
+                        )
+                        .draw()
+                    }
+            });
+            // Paper eq. 7–8: [[1, −y_z, z_y], [x_z, 1, −z_x], [−x_y, y_x, 1]] with angles
+            // ordered [xy, xz, yx, yz, zx, zy].
+            let [xy, xz, yx, yz, zx, zy] = ang;
+            [[1.0, -yz, zy], [xz, 1.0, -zx], [-xy, yx, 1.0]]
+        });
+        let noise = any(&m.noise).then(|| {
+            (
+                std::array::from_fn(|i| m.noise[i] / dt.sqrt()),
+                std::array::from_fn(|i| stream(AXES[i], "noise")),
+            )
+        });
+        let quant = m.quantization.map(|lsb| {
+            let q = match lsb {
+                Lsb::Increment(q) | Lsb::Rate(q) => q,
+            };
+            (lsb, std::array::from_fn(|_| Quantizer::new(q, mode)))
+        });
+        Triad {
+            scale,
+            bias,
+            misalign,
+            noise,
+            quant,
+            range: m.range,
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.scale.is_none()
+            && self.bias.is_none()
+            && self.misalign.is_none()
+            && self.noise.is_none()
+            && self.quant.is_none()
+            && self.range.is_none()
+    }
+
+    #[inline]
+    fn scale(&mut self, x: Vec3) -> Vec3 {
+        let Some(s) = self.scale.as_mut() else {
+            return x;
+        };
+        Vec3(std::array::from_fn(|i| {
+            let a = &mut s[i];
+            let v = x.0[i];
+            let mut k = a.fixed + if v >= 0.0 { a.asym_half } else { -a.asym_half };
+            if let Some(gm) = a.gm.as_mut() {
+                k += gm.step();
+            }
+            if let Some(rw) = a.rw.as_mut() {
+                k += rw.step();
+            }
+            v * (1.0 + k) + a.quad * v * v
+        }))
+    }
+
+    #[inline]
+    fn bias(&mut self, x: Vec3) -> Vec3 {
+        let Some(b) = self.bias.as_mut() else {
+            return x;
+        };
+        Vec3(std::array::from_fn(|i| {
+            let a = &mut b[i];
+            let mut v = x.0[i] + a.fixed;
+            if let Some(gm) = a.gm.as_mut() {
+                v += gm.step();
+            }
+            if let Some(rw) = a.rw.as_mut() {
+                v += rw.step();
+            }
+            if let Some(f) = a.flicker.as_mut() {
+                v += f.step();
+            }
+            v
+        }))
+    }
+
+    #[inline]
+    fn misalign(m: &Option<[[f64; 3]; 3]>, x: Vec3) -> Vec3 {
+        match m {
+            None => x,
+            Some(m) => Vec3(m.map(|row| row[0] * x.0[0] + row[1] * x.0[1] + row[2] * x.0[2])),
+        }
+    }
+
+    #[inline]
+    fn noise(&mut self, x: Vec3, _dt: f64) -> Vec3 {
+        let Some((sigma, rng)) = self.noise.as_mut() else {
+            return x;
+        };
+        Vec3(std::array::from_fn(|i| x.0[i] + sigma[i] * rng[i].draw()))
+    }
+
+    /// Saturates at ±range, then quantizes; returns whether any axis saturated.
+    #[inline]
+    fn quantize(&mut self, x: Vec3, dt: f64) -> (Vec3, bool) {
+        let mut sat = false;
+        let mut x = x;
+        if let Some(r) = self.range {
+            for v in x.0.iter_mut() {
+                if v.abs() > r {
+                    *v = v.clamp(-r, r);
+                    sat = true;
+                }
+            }
+        }
+        let Some((lsb, q)) = self.quant.as_mut() else {
+            return (x, sat);
+        };
+        let out = match lsb {
+            Lsb::Increment(_) => Vec3(std::array::from_fn(|i| q[i].apply(x.0[i] * dt) / dt)),
+            Lsb::Rate(_) => Vec3(std::array::from_fn(|i| q[i].apply(x.0[i]))),
+        };
+        (out, sat)
+    }
+}
+
+fn any(v: &[f64]) -> bool {
+    v.iter().any(|x| *x != 0.0)
+}

@@ -1,0 +1,155 @@
+//! The random processes of the error model, each advancing once per output record (DESIGN §3).
+
+use crate::rng::NormalStream;
+
+/// First-order Gauss–Markov b' = −b/τ + w, discretised exactly for any Δt/τ:
+/// b⁺ = e^{−Δt/τ} b + σ√(1 − e^{−2Δt/τ}) n, started from its stationary law b₀ ~ N(0, σ²).
+#[derive(Clone, Debug)]
+pub struct GaussMarkov {
+    phi: f64,
+    q: f64,
+    state: f64,
+    rng: NormalStream,
+}
+
+impl GaussMarkov {
+    /// Stationary σ, correlation time τ, step Δt, and the process's stream.
+    pub fn new(sigma: f64, tau: f64, dt: f64, mut rng: NormalStream) -> GaussMarkov {
+        let phi = (-dt / tau).exp();
+        // 1 − e^{−2x} without cancellation for small x.
+        let q = sigma * (-(-2.0 * dt / tau).exp_m1()).sqrt();
+        let state = sigma * rng.draw();
+        GaussMarkov { phi, q, state, rng }
+    }
+    /// Advances one step and returns the new state.
+    #[inline]
+    pub fn step(&mut self) -> f64 {
+        self.state = self.phi * self.state + self.q * self.rng.draw();
+        self.state
+    }
+    /// The current state.
+    pub fn value(&self) -> f64 {
+        self.state
+    }
+}
+
+/// Random walk b⁺ = b + K√Δt n from b₀ = 0.
+#[derive(Clone, Debug)]
+pub struct RandomWalk {
+    step_sigma: f64,
+    state: f64,
+    rng: NormalStream,
+}
+
+impl RandomWalk {
+    /// Density K (unit/√s), step Δt.
+    pub fn new(k: f64, dt: f64, rng: NormalStream) -> RandomWalk {
+        RandomWalk {
+            step_sigma: k * dt.sqrt(),
+            state: 0.0,
+            rng,
+        }
+    }
+    /// Advances one step and returns the new state.
+    #[inline]
+    pub fn step(&mut self) -> f64 {
+        self.state += self.step_sigma * self.rng.draw();
+        self.state
+    }
+}
+
+/// Bias instability as a flicker-like process: a bank of Gauss–Markov processes with
+/// log-spaced correlation times, two per decade, each of variance B² ln r / π, whose summed
+/// one-sided PSD approximates B²/(π f) — the IEEE 952 flicker law whose Allan deviation is
+/// the flat floor 0.664·B — over the frequencies that set the ADEV in [τ_lo, τ_hi].
+#[derive(Clone, Debug)]
+pub struct Flicker {
+    bank: Vec<GaussMarkov>,
+}
+
+/// Correlation-time spacing of the bank (two per decade).
+pub const FLICKER_RATIO: f64 = 3.162_277_660_168_379_5;
+
+impl Flicker {
+    /// Floor coefficient B, band [τ_lo, τ_hi] (s), step Δt; `stream(j)` gives component j's stream.
+    pub fn new(
+        b: f64,
+        band: (f64, f64),
+        dt: f64,
+        mut stream: impl FnMut(usize) -> NormalStream,
+    ) -> Flicker {
+        let ln_r = FLICKER_RATIO.ln();
+        let sigma = b * (ln_r / std::f64::consts::PI).sqrt();
+        // ADEV at τ is mostly set by frequencies near 1/(2τ); a GM of correlation time τ_c
+        // turns from flat to 1/f² at 1/(2πτ_c). Cover τ_c from τ_lo/π to τ_hi (one extra step
+        // each side keeps the band edges flat).
+        let lo = band.0 / std::f64::consts::PI / FLICKER_RATIO;
+        let hi = band.1 * FLICKER_RATIO;
+        let n = ((hi / lo).ln() / ln_r).ceil().max(1.0) as usize + 1;
+        let bank = (0..n)
+            .map(|j| GaussMarkov::new(sigma, lo * FLICKER_RATIO.powi(j as i32), dt, stream(j)))
+            .collect();
+        Flicker { bank }
+    }
+    /// Advances every component one step and returns their sum.
+    #[inline]
+    pub fn step(&mut self) -> f64 {
+        self.bank.iter_mut().map(GaussMarkov::step).sum()
+    }
+    /// Number of Gauss–Markov components.
+    pub fn len(&self) -> usize {
+        self.bank.len()
+    }
+    /// Always false.
+    pub fn is_empty(&self) -> bool {
+        self.bank.is_empty()
+    }
+}
+
+/// How values are quantized to the output LSB.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum QuantMode {
+    /// The paper's eq. 9–10: integer part (toward zero); biased by up to one LSB.
+    Truncate,
+    /// Nearest LSB per sample.
+    Round,
+    /// Pulse accumulation: the residual is carried, so the running sum of outputs stays within
+    /// half an LSB of the running sum of inputs.
+    Carry,
+}
+
+/// Quantizer of one axis.
+#[derive(Clone, Debug)]
+pub struct Quantizer {
+    q: f64,
+    inv_q: f64,
+    mode: QuantMode,
+    residual: f64,
+}
+
+impl Quantizer {
+    /// Step q > 0 and mode.
+    pub fn new(q: f64, mode: QuantMode) -> Quantizer {
+        Quantizer {
+            q,
+            inv_q: 1.0 / q,
+            mode,
+            residual: 0.0,
+        }
+    }
+    /// Quantizes x (a zero result is +0, never −0).
+    #[inline]
+    pub fn apply(&mut self, x: f64) -> f64 {
+        0.0 + match self.mode {
+            QuantMode::Truncate => (x * self.inv_q).trunc() * self.q,
+            QuantMode::Round => (x * self.inv_q).round() * self.q,
+            QuantMode::Carry => {
+                let total = x + self.residual;
+                let out = (total * self.inv_q).round() * self.q;
+                self.residual = total - out;
+                out
+            }
+        }
+    }
+}

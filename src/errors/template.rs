@@ -1,0 +1,442 @@
+//! IMU templates: TOML files of datasheet figures with units (`templates/README.md`),
+//! converted to SI once. Named templates are embedded in the binary; a user file may start from
+//! a named one (`base = "ln200"`) and override any key.
+
+use std::path::{Path, PathBuf};
+
+use super::process::QuantMode;
+use crate::units::{self, Kind, Lsb};
+
+/// The built-in templates, embedded at compile time.
+pub const BUILTIN: &[(&str, &str)] = &[("ideal", include_str!("../../templates/ideal.toml"))];
+
+/// The error terms of one sensor triad, in SI, per axis.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriadModel {
+    /// Constant bias.
+    pub bias: [f64; 3],
+    /// Random-constant (turn-on) bias, 1σ.
+    pub bias_turn_on: [f64; 3],
+    /// Bias-instability coefficient B (ADEV floor 0.664·B).
+    pub bias_instability: [f64; 3],
+    /// τ band of the bias-instability floor (s).
+    pub bias_instability_band: (f64, f64),
+    /// Gauss–Markov bias: σ and τ per axis.
+    pub bias_gm: Option<([f64; 3], [f64; 3])>,
+    /// Random-walk density K of the bias.
+    pub random_walk: [f64; 3],
+    /// White-noise density N (ARW / VRW).
+    pub noise: [f64; 3],
+    /// Constant scale-factor error.
+    pub scale_factor: [f64; 3],
+    /// Random-constant scale-factor error, 1σ.
+    pub scale_factor_turn_on: [f64; 3],
+    /// Gauss–Markov scale-factor error: σ and τ.
+    pub scale_factor_gm: Option<([f64; 3], [f64; 3])>,
+    /// Scale-factor random-walk density.
+    pub scale_factor_random_walk: [f64; 3],
+    /// Scale-factor asymmetry (positive minus negative input).
+    pub scale_factor_asymmetry: [f64; 3],
+    /// Quadratic scale factor (accelerometers), 1/(m/s²).
+    pub scale_factor_quadratic: [f64; 3],
+    /// Constant misalignment angles [xy, xz, yx, yz, zx, zy] (rad).
+    pub misalignment: [f64; 6],
+    /// Random-constant misalignment, 1σ per angle (rad).
+    pub misalignment_turn_on: [f64; 6],
+    /// Gyro g-sensitivity matrix, row-major, (rad/s)/(m/s²).
+    pub g_sensitivity: [f64; 9],
+    /// Output LSB.
+    pub quantization: Option<Lsb>,
+    /// Saturation limit (rad/s or m/s²).
+    pub range: Option<f64>,
+}
+
+/// A loaded IMU model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImuModel {
+    /// Template name.
+    pub name: String,
+    /// One-line description.
+    pub description: String,
+    /// Grade (navigation, tactical, industrial, consumer, ideal).
+    pub grade: String,
+    /// Nominal output rate (Hz), if the template gives one.
+    pub rate_hz: Option<f64>,
+    /// Gyro terms.
+    pub gyro: TriadModel,
+    /// Accelerometer terms.
+    pub accel: TriadModel,
+    /// Quantization mode.
+    pub quantization_mode: QuantMode,
+    /// Stage order.
+    pub order: Vec<super::chain::StageKind>,
+}
+
+/// A template that cannot be used, with the file and key at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum TemplateError {
+    /// Unreadable file.
+    #[error("{path}: cannot read")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// TOML syntax.
+    #[error("{path}: {message}")]
+    Syntax {
+        /// File.
+        path: PathBuf,
+        /// Parser message (with line and column).
+        message: String,
+    },
+    /// A bad key or value.
+    #[error("{path}: `{key}`: {message}")]
+    Key {
+        /// File.
+        path: PathBuf,
+        /// Dotted key.
+        key: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// Not a built-in name and not a file.
+    #[error("unknown IMU `{0}` (built-in: {1}; or give a template file)")]
+    Unknown(String, String),
+}
+
+/// Names of the built-in templates.
+pub fn builtin_names() -> Vec<&'static str> {
+    BUILTIN.iter().map(|b| b.0).collect()
+}
+
+/// Loads a built-in template by name or a template file by path.
+pub fn load(name_or_path: &str) -> Result<ImuModel, TemplateError> {
+    if let Some((n, text)) = BUILTIN.iter().find(|b| b.0 == name_or_path) {
+        return parse(text, Path::new(&format!("templates/{n}.toml")));
+    }
+    let path = Path::new(name_or_path);
+    if path.extension().is_some_and(|e| e == "toml") || path.exists() {
+        let text = std::fs::read_to_string(path).map_err(|source| TemplateError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        return parse(&text, path);
+    }
+    Err(TemplateError::Unknown(
+        name_or_path.to_string(),
+        builtin_names().join(", "),
+    ))
+}
+
+/// Parses template text (`path` for messages), resolving `base`.
+pub fn parse(text: &str, path: &Path) -> Result<ImuModel, TemplateError> {
+    let syntax = |e: toml::de::Error| TemplateError::Syntax {
+        path: path.to_path_buf(),
+        message: e.to_string().trim().replace('\n', " "),
+    };
+    let mut table: toml::Table = text.parse().map_err(syntax)?;
+    if let Some(base) = table.remove("base") {
+        let Some(base_name) = base.as_str() else {
+            return Err(key_err(path, "base", "expected a template name"));
+        };
+        let (_, base_text) = BUILTIN.iter().find(|b| b.0 == base_name).ok_or_else(|| {
+            key_err(
+                path,
+                "base",
+                &format!(
+                    "unknown template `{base_name}` (built-in: {})",
+                    builtin_names().join(", ")
+                ),
+            )
+        })?;
+        let mut merged: toml::Table = base_text.parse().map_err(syntax)?;
+        for (k, v) in table {
+            match (merged.get_mut(&k), v) {
+                (Some(toml::Value::Table(m)), toml::Value::Table(o)) => m.extend(o),
+                (_, v) => {
+                    merged.insert(k, v);
+                }
+            }
+        }
+        table = merged;
+    }
+    from_table(&table, path)
+}
+
+fn key_err(path: &Path, key: &str, message: &str) -> TemplateError {
+    TemplateError::Key {
+        path: path.to_path_buf(),
+        key: key.to_string(),
+        message: message.to_string(),
+    }
+}
+
+fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
+    let text = |k: &str| t.get(k).and_then(|v| v.as_str()).map(String::from);
+    for k in t.keys() {
+        if ![
+            "name",
+            "description",
+            "grade",
+            "rate_hz",
+            "sources",
+            "gyro",
+            "accel",
+            "quantization_mode",
+            "order",
+        ]
+        .contains(&k.as_str())
+        {
+            return Err(key_err(path, k, "unknown key"));
+        }
+    }
+    let rate_hz = match t.get("rate_hz") {
+        None => None,
+        Some(v) => match v.as_float().or(v.as_integer().map(|i| i as f64)) {
+            Some(r) if r > 0.0 && r.is_finite() => Some(r),
+            _ => return Err(key_err(path, "rate_hz", "expected a positive number (Hz)")),
+        },
+    };
+    let quantization_mode = match t.get("quantization_mode") {
+        None => QuantMode::Carry,
+        Some(v) => match v.as_str() {
+            Some("carry") => QuantMode::Carry,
+            Some("round") => QuantMode::Round,
+            Some("truncate") => QuantMode::Truncate,
+            _ => {
+                return Err(key_err(
+                    path,
+                    "quantization_mode",
+                    "expected `carry`, `round` or `truncate`",
+                ));
+            }
+        },
+    };
+    let order = match t.get("order") {
+        None => super::chain::StageKind::PAPER_ORDER.to_vec(),
+        Some(v) => {
+            let arr = v
+                .as_array()
+                .ok_or_else(|| key_err(path, "order", "expected a list of stage names"))?;
+            let mut out = Vec::new();
+            for s in arr {
+                let name = s.as_str().unwrap_or("");
+                let k = super::chain::StageKind::from_name(name).ok_or_else(|| {
+                    key_err(path, "order", &format!("unknown stage `{name}` (scale_factor, bias, misalignment, noise, quantization)"))
+                })?;
+                out.push(k);
+            }
+            out
+        }
+    };
+    let gyro = triad(t.get("gyro"), "gyro", path)?;
+    let accel = triad(t.get("accel"), "accel", path)?;
+    Ok(ImuModel {
+        name: text("name").unwrap_or_else(|| {
+            path.file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        }),
+        description: text("description").unwrap_or_default(),
+        grade: text("grade").unwrap_or_default(),
+        rate_hz,
+        gyro,
+        accel,
+        quantization_mode,
+        order,
+    })
+}
+
+/// Reads one `[gyro]` or `[accel]` table.
+fn triad(v: Option<&toml::Value>, sensor: &str, path: &Path) -> Result<TriadModel, TemplateError> {
+    let mut m = TriadModel {
+        bias_instability_band: (1.0, 1000.0),
+        ..TriadModel::default()
+    };
+    let Some(v) = v else { return Ok(m) };
+    let table = v
+        .as_table()
+        .ok_or_else(|| key_err(path, sensor, "expected a table"))?;
+    let gyro = sensor == "gyro";
+    let (rate, rw, bias_rw, lsb) = if gyro {
+        (
+            Kind::AngularRate,
+            Kind::AngleRandomWalk,
+            Kind::RateRandomWalk,
+            Kind::GyroLsb,
+        )
+    } else {
+        (
+            Kind::Acceleration,
+            Kind::VelocityRandomWalk,
+            Kind::AccelRandomWalk,
+            Kind::AccelLsb,
+        )
+    };
+    for (key, val) in table {
+        let full = format!("{sensor}.{key}");
+        let err = |msg: String| key_err(path, &full, &msg);
+        let nonneg = |x: &[f64]| -> Result<(), TemplateError> {
+            if x.iter().any(|v| *v < 0.0) {
+                Err(key_err(path, &full, "must not be negative"))
+            } else {
+                Ok(())
+            }
+        };
+        match key.as_str() {
+            "bias" => m.bias = axes(val, rate).map_err(err)?,
+            "bias_turn_on" => {
+                m.bias_turn_on = axes(val, rate).map_err(err)?;
+                nonneg(&m.bias_turn_on)?
+            }
+            "bias_instability" => {
+                m.bias_instability = axes(val, rate).map_err(err)?;
+                nonneg(&m.bias_instability)?
+            }
+            "bias_instability_band" => {
+                let v = list(val, Kind::Time, 2).map_err(err)?;
+                if !(v[0] > 0.0 && v[1] > v[0]) {
+                    return Err(key_err(
+                        path,
+                        &full,
+                        "expected [τ_lo, τ_hi] with 0 < τ_lo < τ_hi",
+                    ));
+                }
+                m.bias_instability_band = (v[0], v[1]);
+            }
+            "bias_gm" => m.bias_gm = Some(gm(val, rate).map_err(err)?),
+            "random_walk" => {
+                m.random_walk = axes(val, bias_rw).map_err(err)?;
+                nonneg(&m.random_walk)?
+            }
+            "noise" => {
+                m.noise = axes(val, rw).map_err(err)?;
+                nonneg(&m.noise)?
+            }
+            "scale_factor" => m.scale_factor = axes(val, Kind::Ratio).map_err(err)?,
+            "scale_factor_turn_on" => {
+                m.scale_factor_turn_on = axes(val, Kind::Ratio).map_err(err)?;
+                nonneg(&m.scale_factor_turn_on)?
+            }
+            "scale_factor_gm" => m.scale_factor_gm = Some(gm(val, Kind::Ratio).map_err(err)?),
+            "scale_factor_random_walk" => {
+                m.scale_factor_random_walk = axes(val, Kind::RatioRandomWalk).map_err(err)?;
+                nonneg(&m.scale_factor_random_walk)?
+            }
+            "scale_factor_asymmetry" => {
+                m.scale_factor_asymmetry = axes(val, Kind::Ratio).map_err(err)?
+            }
+            "scale_factor_quadratic" if !gyro => {
+                m.scale_factor_quadratic = axes(val, Kind::Quadratic).map_err(err)?
+            }
+            "misalignment" => m.misalignment = six(val).map_err(err)?,
+            "misalignment_turn_on" => {
+                m.misalignment_turn_on = six(val).map_err(err)?;
+                nonneg(&m.misalignment_turn_on)?
+            }
+            "g_sensitivity" if gyro => {
+                let v = match val.as_array().map(|a| a.len()) {
+                    Some(9) => list(val, Kind::GSensitivity, 9).map_err(err)?,
+                    _ => {
+                        let d = axes(val, Kind::GSensitivity).map_err(err)?;
+                        vec![d[0], 0.0, 0.0, 0.0, d[1], 0.0, 0.0, 0.0, d[2]]
+                    }
+                };
+                m.g_sensitivity.copy_from_slice(&v);
+            }
+            "quantization" => {
+                let s = val
+                    .as_str()
+                    .ok_or_else(|| err("expected a string \"value unit\"".into()))?;
+                let (q, inc) = units::parse(s, lsb).map_err(|e| err(e.to_string()))?;
+                if q <= 0.0 {
+                    return Err(err("must be positive".into()));
+                }
+                m.quantization = Some(if inc { Lsb::Increment(q) } else { Lsb::Rate(q) });
+            }
+            "range" => {
+                let s = val
+                    .as_str()
+                    .ok_or_else(|| err("expected a string \"value unit\"".into()))?;
+                let (r, _) = units::parse(s, rate).map_err(|e| err(e.to_string()))?;
+                if r <= 0.0 {
+                    return Err(err("must be positive".into()));
+                }
+                m.range = Some(r);
+            }
+            _ => return Err(err("unknown key".into())),
+        }
+    }
+    Ok(m)
+}
+
+/// One value for all axes or three, each `"number unit"`.
+fn axes(v: &toml::Value, kind: Kind) -> Result<[f64; 3], String> {
+    match v {
+        toml::Value::Array(_) => {
+            let l = list(v, kind, 3)?;
+            Ok([l[0], l[1], l[2]])
+        }
+        _ => {
+            let x = one(v, kind)?;
+            Ok([x; 3])
+        }
+    }
+}
+
+/// The six misalignment angles, or one value for all.
+fn six(v: &toml::Value) -> Result<[f64; 6], String> {
+    match v {
+        toml::Value::Array(_) => {
+            let l = list(v, Kind::Angle, 6)?;
+            let mut o = [0.0; 6];
+            o.copy_from_slice(&l);
+            Ok(o)
+        }
+        _ => Ok([one(v, Kind::Angle)?; 6]),
+    }
+}
+
+/// `{ sigma = "…", tau = "…" }` with per-axis or shared values.
+fn gm(v: &toml::Value, kind: Kind) -> Result<([f64; 3], [f64; 3]), String> {
+    let t = v
+        .as_table()
+        .ok_or("expected { sigma = \"…\", tau = \"…\" }")?;
+    for k in t.keys() {
+        if k != "sigma" && k != "tau" {
+            return Err(format!("unknown key `{k}` (expected sigma, tau)"));
+        }
+    }
+    let sigma = axes(t.get("sigma").ok_or("missing `sigma`")?, kind)?;
+    let tau = axes(t.get("tau").ok_or("missing `tau`")?, Kind::Time)?;
+    if sigma.iter().any(|s| *s < 0.0) {
+        return Err("sigma must not be negative".into());
+    }
+    if tau.iter().any(|s| *s <= 0.0) {
+        return Err("tau must be positive".into());
+    }
+    Ok((sigma, tau))
+}
+
+fn list(v: &toml::Value, kind: Kind, n: usize) -> Result<Vec<f64>, String> {
+    let a = v.as_array().ok_or_else(|| format!("expected {n} values"))?;
+    if a.len() != n {
+        return Err(format!("expected {n} values, got {}", a.len()));
+    }
+    a.iter().map(|x| one(x, kind)).collect()
+}
+
+fn one(v: &toml::Value, kind: Kind) -> Result<f64, String> {
+    let s = v.as_str().ok_or_else(|| {
+        format!(
+            "expected a string \"value unit\" (units: {})",
+            kind.unit_names()
+        )
+    })?;
+    units::parse(s, kind)
+        .map(|x| x.0)
+        .map_err(|e| e.to_string())
+}
