@@ -24,6 +24,97 @@ pub struct SceneFile {
     /// Motion model and quadrature settings.
     #[serde(default)]
     pub engine: EngineSection,
+    /// The IMU's temperature over the run.
+    #[serde(default)]
+    pub temperature: TemperatureSection,
+}
+
+/// `[temperature]`: the IMU temperature profile (°C) driving the templates' temperature terms.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TemperatureSection {
+    /// `constant`, `ramp`, `warmup` or `file`.
+    pub profile: Option<String>,
+    /// Constant temperature (°C).
+    pub celsius: Option<f64>,
+    /// Start temperature of `ramp` and `warmup` (°C).
+    pub start_celsius: Option<f64>,
+    /// Ramp rate (°C/s).
+    pub rate_celsius_per_s: Option<f64>,
+    /// Temperature where the ramp stops (°C).
+    pub limit_celsius: Option<f64>,
+    /// Final temperature of `warmup` (°C).
+    pub end_celsius: Option<f64>,
+    /// Warm-up time constant (s).
+    pub tau_s: Option<f64>,
+    /// CSV of `t,T` for `file`, relative to the scene file.
+    pub file: Option<PathBuf>,
+}
+
+impl TemperatureSection {
+    /// The profile this section describes; `None` when absent (the model's reference
+    /// temperature applies). `base` resolves a relative `file`.
+    pub fn profile(
+        &self,
+        path: &Path,
+        base: &Path,
+    ) -> Result<Option<crate::errors::temperature::TemperatureProfile>, ConfigError> {
+        use crate::errors::temperature::{TemperatureProfile as P, read_table};
+        let Some(kind) = &self.profile else {
+            return Ok(None);
+        };
+        let need = |v: Option<f64>, key: &str| -> Result<f64, ConfigError> {
+            v.filter(|x| x.is_finite())
+                .ok_or_else(|| ConfigError::Value {
+                    path: path.to_path_buf(),
+                    key: format!("temperature.{key}"),
+                    message: format!("required by profile `{kind}` (a finite number)"),
+                })
+        };
+        let p = match kind.as_str() {
+            "constant" => P::Constant(need(self.celsius, "celsius")?),
+            "ramp" => P::Ramp {
+                start: need(self.start_celsius, "start_celsius")?,
+                rate: need(self.rate_celsius_per_s, "rate_celsius_per_s")?,
+                limit: self.limit_celsius,
+            },
+            "warmup" => {
+                let tau = need(self.tau_s, "tau_s")?;
+                if tau <= 0.0 {
+                    return Err(ConfigError::Value {
+                        path: path.to_path_buf(),
+                        key: "temperature.tau_s".into(),
+                        message: "must be positive".into(),
+                    });
+                }
+                P::Warmup {
+                    start: need(self.start_celsius, "start_celsius")?,
+                    end: need(self.end_celsius, "end_celsius")?,
+                    tau,
+                }
+            }
+            "file" => {
+                let f = self.file.as_ref().ok_or_else(|| ConfigError::Value {
+                    path: path.to_path_buf(),
+                    key: "temperature.file".into(),
+                    message: "required by profile `file`".into(),
+                })?;
+                read_table(&base.join(f)).map_err(|e| ConfigError::Value {
+                    path: path.to_path_buf(),
+                    key: "temperature.file".into(),
+                    message: format!("{e:#}"),
+                })?
+            }
+            other => {
+                return Err(ConfigError::Value {
+                    path: path.to_path_buf(),
+                    key: "temperature.profile".into(),
+                    message: format!("`{other}`: expected constant, ramp, warmup or file"),
+                });
+            }
+        };
+        Ok(Some(p))
+    }
 }
 
 /// `[trajectory]`: a built-in scene (with optional parameters) or a CSV file.

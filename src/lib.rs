@@ -13,6 +13,7 @@
 //! Conventions: NED local level, body x forward / y right / z down, C_b^n = Rz(ψ)Ry(θ)Rx(φ),
 //! SI units inside; see the README.
 
+pub mod analysis;
 pub mod config;
 pub mod earth;
 pub mod errors;

@@ -146,6 +146,7 @@ struct Resolved {
     truth: Option<PathBuf>,
     imu: imu_emu::errors::ImuModel,
     seed: u64,
+    temperature: Option<imu_emu::errors::temperature::TemperatureProfile>,
     nodes: usize,
     model: ModelSettings,
 }
@@ -196,6 +197,7 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         .seed
         .or(file.imu.seed)
         .unwrap_or(imu_emu::rng::DEFAULT_SEED);
+    let temperature = file.temperature.profile(&file_path, &base)?;
     let at = in_file(
         a.format.is_some(),
         file.output.format.is_some(),
@@ -281,6 +283,7 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         truth: a.truth,
         imu,
         seed,
+        temperature,
         nodes,
         model: ModelSettings { degree, stencil },
     })
@@ -331,7 +334,10 @@ fn generate(a: GenerateArgs) -> Result<()> {
     let r = resolve(a)?;
     let motion = job::build_motion(&r.source, r.model).map_err(|e| r.locate(e))?;
     let grid = job::plan(&motion, r.rate, r.start, r.duration).map_err(|e| r.locate(e))?;
-    let chain = imu_emu::errors::ErrorChain::new(&r.imu, grid.rate_hz, r.seed);
+    let mut chain = imu_emu::errors::ErrorChain::new(&r.imu, grid.rate_hz, r.seed);
+    if let Some(p) = r.temperature.clone() {
+        chain = chain.with_temperature(p, &r.imu);
+    }
     let chain = (!chain.is_empty()).then_some(chain);
     if chain.is_some() {
         eprintln!("imu-emu: IMU `{}`, seed {}", r.imu.name, r.seed);

@@ -892,3 +892,36 @@ fn example_scene_file_documents_every_key() {
         SceneParams::defaults_for("survey")
     );
 }
+
+// Temperature: a template's bias and scale-factor polynomials of (T − T_ref) follow the
+// scene file's profile; here a ramp from 25 °C at 1 °C/s with 0.1 mg/°C and 2e-4 (mg)/°C²
+// of accelerometer bias gives exactly b(t) = 0.1·ΔT + 2e-4·ΔT² mg on each axis.
+#[test]
+fn temperature_profile_drives_the_bias() {
+    let dir = TempDir::new().unwrap();
+    let t = dir.path().join("warm.toml");
+    std::fs::write(
+        &t,
+        "name = \"warm\"\ntemperature_ref = \"25 degC\"\n[accel]\nbias_temperature = [\"0.1 mg/degC\", \"2e-4 mg/degC^2\"]\n",
+    )
+    .unwrap();
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        "[trajectory]\nscene = \"static\"\n[temperature]\nprofile = \"ramp\"\nstart_celsius = 25\nrate_celsius_per_s = 1\n",
+    )
+    .unwrap();
+    let ideal = parse_imu_csv(&succeeded(run!("generate --rate 10 --duration 5", scene)));
+    let warm = parse_imu_csv(&succeeded(run!("generate --rate 10 --duration 5 --imu", t, scene)));
+    for (a, b) in ideal.1.iter().zip(&warm.1) {
+        let dt = a[0];
+        let want = (0.1 * dt + 2e-4 * dt * dt) * 9.80665e-3;
+        for c in 4..7 {
+            assert!((b[c] - a[c] - want).abs() < 1e-14, "t {dt}: {} vs {want}", b[c] - a[c]);
+        }
+    }
+    // A profile with a missing key is refused naming the file and key.
+    std::fs::write(&scene, "[temperature]\nprofile = \"warmup\"\nstart_celsius = 20\n").unwrap();
+    let e = failed(run!("generate --duration 1 --imu", t, scene));
+    assert_mentions(&e, &["s.toml", "`temperature.tau_s`", "required by profile `warmup`"]);
+}

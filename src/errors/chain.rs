@@ -3,6 +3,7 @@
 //! then multiplied by Δt back into increments. A stage whose terms are all zero is not built.
 
 use super::process::{Flicker, GaussMarkov, QuantMode, Quantizer, RandomWalk};
+use super::temperature::TemperatureProfile;
 use super::template::{ImuModel, TriadModel};
 use crate::math::Vec3;
 use crate::record::Record;
@@ -83,12 +84,17 @@ struct Triad {
     noise: Option<([f64; 3], [NormalStream; 3])>,
     quant: Option<(Lsb, [Quantizer; 3])>,
     range: Option<f64>,
+    /// Temperature polynomials (bias, scale factor), set by `ErrorChain::with_temperature`.
+    temp: Option<([f64; 3], [f64; 3])>,
 }
 
 /// The error chain of an IMU: gyro and accelerometer triads, and the gyro g-sensitivity.
 #[derive(Clone, Debug)]
 pub struct ErrorChain {
     order: Vec<StageKind>,
+    /// The temperature profile and the model's reference temperature, when any temperature
+    /// coefficient is non-zero.
+    temperature: Option<(TemperatureProfile, f64)>,
     gyro: Triad,
     accel: Triad,
     g_sens: Option<[[f64; 3]; 3]>,
@@ -107,6 +113,7 @@ impl ErrorChain {
         });
         ErrorChain {
             order: model.order.clone(),
+            temperature: None,
             gyro: Triad::new(&model.gyro, "gyro", dt, seed, model.quantization_mode),
             accel: Triad::new(&model.accel, "accel", dt, seed, model.quantization_mode),
             g_sens,
@@ -114,9 +121,32 @@ impl ErrorChain {
         }
     }
 
+    /// Sets the IMU temperature over the run (default: the model's reference temperature, so
+    /// the temperature terms vanish). Ignored when the model has no temperature coefficients.
+    pub fn with_temperature(mut self, profile: TemperatureProfile, model: &ImuModel) -> ErrorChain {
+        let any_coeff = [&model.gyro, &model.accel]
+            .iter()
+            .any(|t| any(&t.bias_temperature) || any(&t.scale_factor_temperature));
+        if any_coeff {
+            self.gyro.temp = Some((
+                model.gyro.bias_temperature,
+                model.gyro.scale_factor_temperature,
+            ));
+            self.accel.temp = Some((
+                model.accel.bias_temperature,
+                model.accel.scale_factor_temperature,
+            ));
+            self.temperature = Some((profile, model.temperature_ref));
+        }
+        self
+    }
+
     /// True when no stage was built (an ideal IMU): records pass unchanged.
     pub fn is_empty(&self) -> bool {
-        self.gyro.is_empty() && self.accel.is_empty() && self.g_sens.is_none()
+        self.gyro.is_empty()
+            && self.accel.is_empty()
+            && self.g_sens.is_none()
+            && self.temperature.is_none()
     }
 
     /// Corrupts records in place, in record order.
@@ -129,28 +159,32 @@ impl ErrorChain {
             let mut g = r.gyro;
             let mut a = r.accel;
             let mut flags = 0u8;
+            let dtemp = self
+                .temperature
+                .as_ref()
+                .map_or(0.0, |(p, t_ref)| p.at(r.t) - t_ref);
             for stage in &self.order {
                 match stage {
                     StageKind::ScaleFactor => {
-                        g = self.gyro.scale(g);
-                        a = self.accel.scale(a);
+                        g = self.gyro.scale(g, dtemp);
+                        a = self.accel.scale(a, dtemp);
                     }
                     StageKind::Bias => {
-                        g = self.gyro.bias(g);
+                        g = self.gyro.bias(g, dtemp);
                         if let Some(m) = &self.g_sens {
                             g += Vec3(m.map(|row| {
                                 row[0] * f_true.0[0] + row[1] * f_true.0[1] + row[2] * f_true.0[2]
                             }));
                         }
-                        a = self.accel.bias(a);
+                        a = self.accel.bias(a, dtemp);
                     }
                     StageKind::Misalignment => {
                         g = Triad::misalign(&self.gyro.misalign, g);
                         a = Triad::misalign(&self.accel.misalign, a);
                     }
                     StageKind::Noise => {
-                        g = self.gyro.noise(g, self.dt);
-                        a = self.accel.noise(a, self.dt);
+                        g = self.gyro.noise(g);
+                        a = self.accel.noise(a);
                     }
                     StageKind::Quantization => {
                         let (gq, gs) = self.gyro.quantize(g, self.dt);
@@ -263,6 +297,7 @@ impl Triad {
             (lsb, std::array::from_fn(|_| Quantizer::new(q, mode)))
         });
         Triad {
+            temp: None,
             scale,
             bias,
             misalign,
@@ -273,7 +308,8 @@ impl Triad {
     }
 
     fn is_empty(&self) -> bool {
-        self.scale.is_none()
+        self.temp.is_none()
+            && self.scale.is_none()
             && self.bias.is_none()
             && self.misalign.is_none()
             && self.noise.is_none()
@@ -281,44 +317,53 @@ impl Triad {
             && self.range.is_none()
     }
 
+    // Plain loops rather than array::from_fn closures: the closures were not inlined here.
     #[inline]
-    fn scale(&mut self, x: Vec3) -> Vec3 {
+    fn scale(&mut self, x: Vec3, dtemp: f64) -> Vec3 {
+        let mut out = x;
+        if let Some((_, c)) = self.temp {
+            let k = dtemp * (c[0] + dtemp * (c[1] + dtemp * c[2]));
+            out = out * (1.0 + k);
+        }
         let Some(s) = self.scale.as_mut() else {
-            return x;
+            return out;
         };
-        Vec3(std::array::from_fn(|i| {
-            let a = &mut s[i];
-            let v = x.0[i];
-            let mut k = a.fixed + if v >= 0.0 { a.asym_half } else { -a.asym_half };
+        for (a, v) in s.iter_mut().zip(out.0.iter_mut()) {
+            let mut k = a.fixed + if *v >= 0.0 { a.asym_half } else { -a.asym_half };
             if let Some(gm) = a.gm.as_mut() {
                 k += gm.step();
             }
             if let Some(rw) = a.rw.as_mut() {
                 k += rw.step();
             }
-            v * (1.0 + k) + a.quad * v * v
-        }))
+            *v = *v * (1.0 + k) + a.quad * *v * *v;
+        }
+        out
     }
 
     #[inline]
-    fn bias(&mut self, x: Vec3) -> Vec3 {
+    fn bias(&mut self, x: Vec3, dtemp: f64) -> Vec3 {
+        let mut out = x;
+        if let Some((c, _)) = self.temp {
+            let b = dtemp * (c[0] + dtemp * (c[1] + dtemp * c[2]));
+            out += Vec3::new(b, b, b);
+        }
         let Some(b) = self.bias.as_mut() else {
-            return x;
+            return out;
         };
-        Vec3(std::array::from_fn(|i| {
-            let a = &mut b[i];
-            let mut v = x.0[i] + a.fixed;
+        for (a, v) in b.iter_mut().zip(out.0.iter_mut()) {
+            *v += a.fixed;
             if let Some(gm) = a.gm.as_mut() {
-                v += gm.step();
+                *v += gm.step();
             }
             if let Some(rw) = a.rw.as_mut() {
-                v += rw.step();
+                *v += rw.step();
             }
             if let Some(f) = a.flicker.as_mut() {
-                v += f.step();
+                *v += f.step();
             }
-            v
-        }))
+        }
+        out
     }
 
     #[inline]
@@ -330,11 +375,15 @@ impl Triad {
     }
 
     #[inline]
-    fn noise(&mut self, x: Vec3, _dt: f64) -> Vec3 {
+    fn noise(&mut self, x: Vec3) -> Vec3 {
         let Some((sigma, rng)) = self.noise.as_mut() else {
             return x;
         };
-        Vec3(std::array::from_fn(|i| x.0[i] + sigma[i] * rng[i].draw()))
+        let mut out = x;
+        for ((v, s), r) in out.0.iter_mut().zip(sigma.iter()).zip(rng.iter_mut()) {
+            *v += s * r.draw();
+        }
+        out
     }
 
     /// Saturates at ±range, then quantizes; returns whether any axis saturated.
@@ -353,11 +402,15 @@ impl Triad {
         let Some((lsb, q)) = self.quant.as_mut() else {
             return (x, sat);
         };
-        let out = match lsb {
-            Lsb::Increment(_) => Vec3(std::array::from_fn(|i| q[i].apply(x.0[i] * dt) / dt)),
-            Lsb::Rate(_) => Vec3(std::array::from_fn(|i| q[i].apply(x.0[i]))),
-        };
-        (out, sat)
+        let inc = matches!(lsb, Lsb::Increment(_));
+        for (v, q) in x.0.iter_mut().zip(q.iter_mut()) {
+            *v = if inc {
+                q.apply(*v * dt) / dt
+            } else {
+                q.apply(*v)
+            };
+        }
+        (x, sat)
     }
 }
 

@@ -3,6 +3,7 @@
 
 pub mod chain;
 pub mod process;
+pub mod temperature;
 pub mod template;
 
 pub use chain::ErrorChain;

@@ -62,13 +62,32 @@ impl RandomWalk {
 /// log-spaced correlation times, two per decade, each of variance B² ln r / π, whose summed
 /// one-sided PSD approximates B²/(π f) — the IEEE 952 flicker law whose Allan deviation is
 /// the flat floor 0.664·B — over the frequencies that set the ADEV in [τ_lo, τ_hi].
+///
+/// Speed: a component with correlation time τ_c ≫ Δt is advanced on its own coarser grid of
+/// step M·Δt ≤ τ_c/[`FLICKER_STEPS_PER_TAU`] (exact discretisation at that step) and held in
+/// between; what the hold changes lies far above the component's bandwidth 1/(2πτ_c), where
+/// the faster components and white noise dominate. Periods are powers of two sorted
+/// ascending, so a sample that is not due for one component is not due for any slower one:
+/// the bank costs about two normal draws per sample instead of one per component.
 #[derive(Clone, Debug)]
 pub struct Flicker {
-    bank: Vec<GaussMarkov>,
+    bank: Vec<HeldGm>,
+    sum: f64,
+    k: u64,
+}
+
+#[derive(Clone, Debug)]
+struct HeldGm {
+    gm: GaussMarkov,
+    /// Update period in samples, a power of two.
+    period: u64,
 }
 
 /// Correlation-time spacing of the bank (two per decade).
 pub const FLICKER_RATIO: f64 = 3.162_277_660_168_379_5;
+
+/// Updates per correlation time of a held component.
+pub const FLICKER_STEPS_PER_TAU: f64 = 16.0;
 
 impl Flicker {
     /// Floor coefficient B, band [τ_lo, τ_hi] (s), step Δt; `stream(j)` gives component j's stream.
@@ -86,15 +105,36 @@ impl Flicker {
         let lo = band.0 / std::f64::consts::PI / FLICKER_RATIO;
         let hi = band.1 * FLICKER_RATIO;
         let n = ((hi / lo).ln() / ln_r).ceil().max(1.0) as usize + 1;
-        let bank = (0..n)
-            .map(|j| GaussMarkov::new(sigma, lo * FLICKER_RATIO.powi(j as i32), dt, stream(j)))
+        let bank: Vec<HeldGm> = (0..n)
+            .map(|j| {
+                let tau = lo * FLICKER_RATIO.powi(j as i32);
+                let steps = (tau / (FLICKER_STEPS_PER_TAU * dt)).max(1.0);
+                let period = 1u64 << (steps.log2().floor() as u32).min(40);
+                HeldGm {
+                    gm: GaussMarkov::new(sigma, tau, period as f64 * dt, stream(j)),
+                    period,
+                }
+            })
             .collect();
-        Flicker { bank }
+        let sum = bank.iter().map(|c| c.gm.value()).sum();
+        Flicker { bank, sum, k: 0 }
     }
-    /// Advances every component one step and returns their sum.
+    /// Advances one sample and returns the sum of the components.
     #[inline]
     pub fn step(&mut self) -> f64 {
-        self.bank.iter_mut().map(GaussMarkov::step).sum()
+        self.k += 1;
+        for c in self.bank.iter_mut() {
+            if self.k & (c.period - 1) != 0 {
+                break;
+            }
+            let old = c.gm.value();
+            self.sum += c.gm.step() - old;
+        }
+        if self.k & 0xffff == 0 {
+            // Re-sum now and then so the running sum's rounding cannot accumulate.
+            self.sum = self.bank.iter().map(|c| c.gm.value()).sum();
+        }
+        self.sum
     }
     /// Number of Gauss–Markov components.
     pub fn len(&self) -> usize {
@@ -143,13 +183,25 @@ impl Quantizer {
     pub fn apply(&mut self, x: f64) -> f64 {
         0.0 + match self.mode {
             QuantMode::Truncate => (x * self.inv_q).trunc() * self.q,
-            QuantMode::Round => (x * self.inv_q).round() * self.q,
+            QuantMode::Round => round(x * self.inv_q) * self.q,
             QuantMode::Carry => {
                 let total = x + self.residual;
-                let out = (total * self.inv_q).round() * self.q;
+                let out = round(total * self.inv_q) * self.q;
                 self.residual = total - out;
                 out
             }
         }
+    }
+}
+
+/// Round half to even without a libm call (baseline x86-64 has no rounding instruction):
+/// adding and subtracting 1.5·2⁵² leaves the nearest integer for |x| < 2⁵¹.
+#[inline]
+fn round(x: f64) -> f64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    if x.abs() < 2_251_799_813_685_248.0 {
+        (x + MAGIC) - MAGIC
+    } else {
+        x.round()
     }
 }

@@ -49,6 +49,10 @@ pub struct TriadModel {
     pub quantization: Option<Lsb>,
     /// Saturation limit (rad/s or m/s²).
     pub range: Option<f64>,
+    /// Bias temperature polynomial: coefficients of (T − T_ref)^1, ^2, ^3 (SI per °C^k).
+    pub bias_temperature: [f64; 3],
+    /// Scale-factor temperature polynomial: coefficients of (T − T_ref)^1, ^2, ^3 (1/°C^k).
+    pub scale_factor_temperature: [f64; 3],
 }
 
 /// A loaded IMU model.
@@ -70,6 +74,8 @@ pub struct ImuModel {
     pub quantization_mode: QuantMode,
     /// Stage order.
     pub order: Vec<super::chain::StageKind>,
+    /// Reference temperature of the temperature polynomials (°C).
+    pub temperature_ref: f64,
 }
 
 /// A template that cannot be used, with the file and key at fault.
@@ -187,6 +193,7 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
             "accel",
             "quantization_mode",
             "order",
+            "temperature_ref",
         ]
         .contains(&k.as_str())
         {
@@ -232,6 +239,15 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
             out
         }
     };
+    let temperature_ref = match t.get("temperature_ref") {
+        None => 25.0,
+        Some(v) => v
+            .as_str()
+            .and_then(|s| s.trim().strip_suffix("degC"))
+            .and_then(|s| s.trim().parse::<f64>().ok())
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| key_err(path, "temperature_ref", "expected \"<number> degC\""))?,
+    };
     let gyro = triad(t.get("gyro"), "gyro", path)?;
     let accel = triad(t.get("accel"), "accel", path)?;
     Ok(ImuModel {
@@ -247,6 +263,7 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
         accel,
         quantization_mode,
         order,
+        temperature_ref,
     })
 }
 
@@ -367,6 +384,10 @@ fn triad(v: Option<&toml::Value>, sensor: &str, path: &Path) -> Result<TriadMode
                 }
                 m.range = Some(r);
             }
+            "bias_temperature" => m.bias_temperature = poly(val, rate).map_err(err)?,
+            "scale_factor_temperature" => {
+                m.scale_factor_temperature = poly(val, Kind::Ratio).map_err(err)?
+            }
             _ => return Err(err("unknown key".into())),
         }
     }
@@ -419,6 +440,35 @@ fn gm(v: &toml::Value, kind: Kind) -> Result<([f64; 3], [f64; 3]), String> {
         return Err("tau must be positive".into());
     }
     Ok((sigma, tau))
+}
+
+/// Up to three polynomial coefficients, the k-th in `<unit>/degC^k` (`/degC` for k = 1).
+fn poly(v: &toml::Value, kind: Kind) -> Result<[f64; 3], String> {
+    let a = v.as_array().ok_or(
+        "expected a list of coefficients, e.g. [\"0.1 deg/h/degC\", \"0.01 deg/h/degC^2\"]",
+    )?;
+    if a.is_empty() || a.len() > 3 {
+        return Err(format!("expected 1 to 3 coefficients, got {}", a.len()));
+    }
+    let mut out = [0.0; 3];
+    for (k, x) in a.iter().enumerate() {
+        let s = x
+            .as_str()
+            .ok_or("expected strings \"value unit/degC^k\"")?
+            .trim();
+        let suffix = if k == 0 {
+            "/degC".to_string()
+        } else {
+            format!("/degC^{}", k + 1)
+        };
+        let base = s
+            .strip_suffix(suffix.as_str())
+            .ok_or_else(|| format!("coefficient {} `{s}` must end in `{suffix}`", k + 1))?;
+        out[k] = units::parse(base, kind)
+            .map(|x| x.0)
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(out)
 }
 
 fn list(v: &toml::Value, kind: Kind, n: usize) -> Result<Vec<f64>, String> {
