@@ -139,6 +139,8 @@ pub struct ImuSection {
     pub rate_hz: Option<f64>,
     /// Master seed of the error model.
     pub seed: Option<u64>,
+    /// Mounting of the IMU case in the body: [roll, pitch, yaw] of C_c^b in degrees.
+    pub mounting_deg: Option<[f64; 3]>,
 }
 
 /// `[output]`.

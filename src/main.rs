@@ -147,6 +147,7 @@ struct Resolved {
     imu: imu_emu::errors::ImuModel,
     seed: u64,
     temperature: Option<imu_emu::errors::temperature::TemperatureProfile>,
+    mounting_deg: Option<[f64; 3]>,
     nodes: usize,
     model: ModelSettings,
 }
@@ -284,6 +285,7 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         imu,
         seed,
         temperature,
+        mounting_deg: file.imu.mounting_deg,
         nodes,
         model: ModelSettings { degree, stencil },
     })
@@ -337,6 +339,12 @@ fn generate(a: GenerateArgs) -> Result<()> {
     let mut chain = imu_emu::errors::ErrorChain::new(&r.imu, grid.rate_hz, r.seed);
     if let Some(p) = r.temperature.clone() {
         chain = chain.with_temperature(p, &r.imu);
+    }
+    if let Some([roll, pitch, yaw]) = r.mounting_deg {
+        // The file gives the case's attitude in the body (C_c^b); the chain wants C_b^c.
+        let q_c_b =
+            imu_emu::math::quat_from_euler(roll.to_radians(), pitch.to_radians(), yaw.to_radians());
+        chain = chain.with_mounting(q_c_b.conj());
     }
     let chain = (!chain.is_empty()).then_some(chain);
     if chain.is_some() {

@@ -912,16 +912,70 @@ fn temperature_profile_drives_the_bias() {
     )
     .unwrap();
     let ideal = parse_imu_csv(&succeeded(run!("generate --rate 10 --duration 5", scene)));
-    let warm = parse_imu_csv(&succeeded(run!("generate --rate 10 --duration 5 --imu", t, scene)));
+    let warm = parse_imu_csv(&succeeded(run!(
+        "generate --rate 10 --duration 5 --imu",
+        t,
+        scene
+    )));
     for (a, b) in ideal.1.iter().zip(&warm.1) {
         let dt = a[0];
         let want = (0.1 * dt + 2e-4 * dt * dt) * 9.80665e-3;
         for c in 4..7 {
-            assert!((b[c] - a[c] - want).abs() < 1e-14, "t {dt}: {} vs {want}", b[c] - a[c]);
+            assert!(
+                (b[c] - a[c] - want).abs() < 1e-14,
+                "t {dt}: {} vs {want}",
+                b[c] - a[c]
+            );
         }
     }
     // A profile with a missing key is refused naming the file and key.
-    std::fs::write(&scene, "[temperature]\nprofile = \"warmup\"\nstart_celsius = 20\n").unwrap();
+    std::fs::write(
+        &scene,
+        "[temperature]\nprofile = \"warmup\"\nstart_celsius = 20\n",
+    )
+    .unwrap();
     let e = failed(run!("generate --duration 1 --imu", t, scene));
-    assert_mentions(&e, &["s.toml", "`temperature.tau_s`", "required by profile `warmup`"]);
+    assert_mentions(
+        &e,
+        &[
+            "s.toml",
+            "`temperature.tau_s`",
+            "required by profile `warmup`",
+        ],
+    );
+}
+
+// Mounting: an IMU case yawed 90° in the body senses the body's x axis on its −y axis.
+#[test]
+fn mounting_rotation() {
+    let dir = TempDir::new().unwrap();
+    let scene = dir.path().join("m.toml");
+    std::fs::write(&scene, "[trajectory]\nscene = \"static\"\n[trajectory.params]\npitch_deg = 30\n[imu]\nmounting_deg = [0, 0, 90]\n").unwrap();
+    let body = dir.path().join("b.toml");
+    std::fs::write(
+        &body,
+        "[trajectory]\nscene = \"static\"\n[trajectory.params]\npitch_deg = 30\n",
+    )
+    .unwrap();
+    let (_, m) = parse_imu_csv(&succeeded(run!("generate --rate 10 --duration 1", scene)));
+    let (_, b) = parse_imu_csv(&succeeded(run!("generate --rate 10 --duration 1", body)));
+    for (m, b) in m.iter().zip(&b) {
+        // C_b^c for a case yawed +90°: x_c = y_b, y_c = −x_b, z_c = z_b. The rotation's
+        // entries carry ~1 ulp, so the bound is a few ulp of each vector's magnitude.
+        let (gn, an) = (b[1].hypot(b[3]), b[4].hypot(b[6]));
+        for (col, want, n) in [
+            (1, b[2], gn),
+            (2, -b[1], gn),
+            (3, b[3], gn),
+            (4, b[5], an),
+            (5, -b[4], an),
+            (6, b[6], an),
+        ] {
+            assert!(
+                (m[col] - want).abs() <= 4.0 * f64::EPSILON * n,
+                "col {col}: {} vs {want}",
+                m[col]
+            );
+        }
+    }
 }

@@ -5,7 +5,7 @@
 use super::process::{Flicker, GaussMarkov, QuantMode, Quantizer, RandomWalk};
 use super::temperature::TemperatureProfile;
 use super::template::{ImuModel, TriadModel};
-use crate::math::Vec3;
+use crate::math::{Mat3, Vec3};
 use crate::record::Record;
 use crate::rng::NormalStream;
 use crate::units::Lsb;
@@ -98,6 +98,8 @@ pub struct ErrorChain {
     gyro: Triad,
     accel: Triad,
     g_sens: Option<[[f64; 3]; 3]>,
+    /// C_b^c: body to IMU case, when the IMU is not mounted along the body axes.
+    mounting: Option<Mat3>,
     dt: f64,
 }
 
@@ -114,6 +116,7 @@ impl ErrorChain {
         ErrorChain {
             order: model.order.clone(),
             temperature: None,
+            mounting: None,
             gyro: Triad::new(&model.gyro, "gyro", dt, seed, model.quantization_mode),
             accel: Triad::new(&model.accel, "accel", dt, seed, model.quantization_mode),
             g_sens,
@@ -141,12 +144,23 @@ impl ErrorChain {
         self
     }
 
+    /// Mounts the IMU case rotated from the body by `q_b_c` (C_b^c): the sensors see
+    /// ω^c = C_b^c ω^b and f^c = C_b^c f^b before any error stage (lever arm not included).
+    pub fn with_mounting(mut self, q_b_c: crate::math::Quat) -> ErrorChain {
+        let m = q_b_c.to_mat();
+        if m != Mat3::IDENTITY {
+            self.mounting = Some(m);
+        }
+        self
+    }
+
     /// True when no stage was built (an ideal IMU): records pass unchanged.
     pub fn is_empty(&self) -> bool {
         self.gyro.is_empty()
             && self.accel.is_empty()
             && self.g_sens.is_none()
             && self.temperature.is_none()
+            && self.mounting.is_none()
     }
 
     /// Corrupts records in place, in record order.
@@ -155,6 +169,10 @@ impl ErrorChain {
             return;
         }
         for r in records.iter_mut() {
+            if let Some(m) = &self.mounting {
+                r.gyro = m.mul_vec(r.gyro);
+                r.accel = m.mul_vec(r.accel);
+            }
             let f_true = r.accel;
             let mut g = r.gyro;
             let mut a = r.accel;
