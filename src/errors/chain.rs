@@ -86,6 +86,8 @@ struct Triad {
     range: Option<f64>,
     /// Temperature polynomials (bias, scale factor), set by `ErrorChain::with_temperature`.
     temp: Option<([f64; 3], [f64; 3])>,
+    /// The increments of the last quantization on an increment LSB, while still exact.
+    last_inc: Option<Vec3>,
 }
 
 /// The error chain of an IMU: gyro and accelerometer triads, and the gyro g-sensitivity.
@@ -213,11 +215,17 @@ impl ErrorChain {
                             | ((as_ as u8) * FLAG_ACCEL_SATURATED);
                     }
                 }
+                // A stage after quantization moves the values off the LSB grid again.
+                if *stage != StageKind::Quantization {
+                    self.gyro.last_inc = None;
+                    self.accel.last_inc = None;
+                }
             }
             r.gyro = g;
             r.accel = a;
-            r.dtheta = g * self.dt;
-            r.dv = a * self.dt;
+            // Quantized increments are kept exactly (whole LSBs), not recomputed as rate·Δt.
+            r.dtheta = self.gyro.last_inc.take().unwrap_or(g * self.dt);
+            r.dv = self.accel.last_inc.take().unwrap_or(a * self.dt);
             r.flags = flags;
         }
     }
@@ -316,6 +324,7 @@ impl Triad {
         });
         Triad {
             temp: None,
+            last_inc: None,
             scale,
             bias,
             misalign,
@@ -420,13 +429,20 @@ impl Triad {
         let Some((lsb, q)) = self.quant.as_mut() else {
             return (x, sat);
         };
-        let inc = matches!(lsb, Lsb::Increment(_));
-        for (v, q) in x.0.iter_mut().zip(q.iter_mut()) {
-            *v = if inc {
-                q.apply(*v * dt) / dt
-            } else {
-                q.apply(*v)
-            };
+        match lsb {
+            Lsb::Increment(_) => {
+                let mut inc = Vec3::ZERO;
+                for ((v, q), i) in x.0.iter_mut().zip(q.iter_mut()).zip(inc.0.iter_mut()) {
+                    *i = q.apply(*v * dt);
+                    *v = *i / dt;
+                }
+                self.last_inc = Some(inc);
+            }
+            Lsb::Rate(_) => {
+                for (v, q) in x.0.iter_mut().zip(q.iter_mut()) {
+                    *v = q.apply(*v);
+                }
+            }
         }
         (x, sat)
     }
