@@ -7,8 +7,28 @@ use std::path::{Path, PathBuf};
 use super::process::QuantMode;
 use crate::units::{self, Kind, Lsb};
 
-/// The built-in templates, embedded at compile time.
-pub const BUILTIN: &[(&str, &str)] = &[("ideal", include_str!("../../templates/ideal.toml"))];
+/// The built-in templates, embedded at compile time (a test checks every file in `templates/`
+/// is listed here).
+pub const BUILTIN: &[(&str, &str)] = &[
+    ("ideal", include_str!("../../templates/ideal.toml")),
+    ("ln200", include_str!("../../templates/ln200.toml")),
+    ("hg1700", include_str!("../../templates/hg1700.toml")),
+    ("hg4930", include_str!("../../templates/hg4930.toml")),
+    ("kvh1750", include_str!("../../templates/kvh1750.toml")),
+    ("fsas", include_str!("../../templates/fsas.toml")),
+    ("stim300", include_str!("../../templates/stim300.toml")),
+    ("adis16488", include_str!("../../templates/adis16488.toml")),
+    ("adis16405", include_str!("../../templates/adis16405.toml")),
+    ("mpu6000", include_str!("../../templates/mpu6000.toml")),
+    ("ltn101", include_str!("../../templates/ltn101.toml")),
+    ("dmars", include_str!("../../templates/dmars.toml")),
+    ("ssks", include_str!("../../templates/ssks.toml")),
+    (
+        "motionpak2",
+        include_str!("../../templates/motionpak2.toml"),
+    ),
+    ("fji", include_str!("../../templates/fji.toml")),
+];
 
 /// The error terms of one sensor triad, in SI, per axis.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -489,4 +509,49 @@ fn one(v: &toml::Value, kind: Kind) -> Result<f64, String> {
     units::parse(s, kind)
         .map(|x| x.0)
         .map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every template file is built in under its file name, and every built-in one loads.
+    #[test]
+    fn every_template_file_is_built_in_and_loads() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("templates");
+        let mut files: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .map(|e| e.path())
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+            .collect();
+        files.sort();
+        let mut names: Vec<String> = builtin_names().iter().map(|s| s.to_string()).collect();
+        names.sort();
+        assert_eq!(files, names);
+        for n in builtin_names() {
+            let m = load(n).unwrap_or_else(|e| panic!("{n}: {e}"));
+            assert_eq!(m.name, n);
+            assert!(
+                n.chars()
+                    .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit())
+            );
+        }
+    }
+
+    /// A user file can start from a built-in template and override single keys.
+    #[test]
+    fn base_template_with_overrides() {
+        let m = parse(
+            "base = \"ln200\"\nname = \"mine\"\n[gyro]\nnoise = \"0.1 deg/sqrt(h)\"\n",
+            Path::new("mine.toml"),
+        )
+        .unwrap();
+        let base = load("ln200").unwrap();
+        assert_eq!(m.name, "mine");
+        assert!((m.gyro.noise[0] - 0.1f64.to_radians() / 60.0).abs() < 1e-18);
+        assert_eq!(m.gyro.bias_turn_on, base.gyro.bias_turn_on);
+        assert_eq!(m.accel, base.accel);
+    }
 }
