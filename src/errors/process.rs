@@ -110,8 +110,18 @@ impl Flicker {
                 let tau = lo * FLICKER_RATIO.powi(j as i32);
                 let steps = (tau / (FLICKER_STEPS_PER_TAU * dt)).max(1.0);
                 let period = 1u64 << (steps.log2().floor() as u32).min(40);
+                // A component faster than the sampling would alias its full variance into
+                // white noise; scale its variance by the interval-mean factor
+                // g(x) = 2(x − 1 + e^{−x})/x², x = Δt/τ_c, which keeps its low-frequency PSD
+                // level 4σ²τ_c (g → 1 for slow components).
+                let x = dt / tau;
+                let g = if x < 1e-4 {
+                    1.0 - x / 3.0
+                } else {
+                    2.0 * (x + (-x).exp_m1()) / (x * x)
+                };
                 HeldGm {
-                    gm: GaussMarkov::new(sigma, tau, period as f64 * dt, stream(j)),
+                    gm: GaussMarkov::new(sigma * g.sqrt(), tau, period as f64 * dt, stream(j)),
                     period,
                 }
             })

@@ -254,7 +254,23 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
                 let k = super::chain::StageKind::from_name(name).ok_or_else(|| {
                     key_err(path, "order", &format!("unknown stage `{name}` (scale_factor, bias, misalignment, noise, quantization)"))
                 })?;
+                if out.contains(&k) {
+                    return Err(key_err(
+                        path,
+                        "order",
+                        &format!("stage `{name}` appears twice"),
+                    ));
+                }
                 out.push(k);
+            }
+            // Every stage exactly once: quantization also carries the saturation, so leaving a
+            // stage out would silently drop terms the template sets.
+            if out.len() != 5 {
+                return Err(key_err(
+                    path,
+                    "order",
+                    "list all five stages: scale_factor, bias, misalignment, noise, quantization",
+                ));
             }
             out
         }
@@ -537,6 +553,27 @@ mod tests {
                 n.chars()
                     .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit())
             );
+        }
+    }
+
+    /// `order` must list every stage once: a duplicate would apply a stage twice, a missing
+    /// quantization would silently drop the saturation.
+    #[test]
+    fn order_is_a_permutation() {
+        let ok = parse(
+            "order = [\"bias\", \"scale_factor\", \"misalignment\", \"noise\", \"quantization\"]\n",
+            Path::new("o.toml"),
+        );
+        assert!(ok.is_ok());
+        for bad in [
+            "[\"bias\", \"bias\", \"misalignment\", \"noise\", \"quantization\"]",
+            "[\"bias\", \"noise\"]",
+            "[\"wobble\"]",
+        ] {
+            let e = parse(&format!("order = {bad}\n"), Path::new("o.toml"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("o.toml") && e.contains("`order`"), "{e}");
         }
     }
 

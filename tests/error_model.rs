@@ -1,0 +1,1465 @@
+//! The error model (DESIGN §3–4) against its closed forms, one term at a time, with fixed seeds.
+//!
+//! Records are static, zero-motion inputs (or constant rates and ±g positions) built directly,
+//! so nothing here depends on the motion models: every difference between input and output is
+//! the error model's. Statistical figures come from the library's overlapping Allan deviation
+//! ([`imu_emu::analysis::allan`]) or from plain moments; each tolerance is derived from the
+//! record length in the comment next to it (mostly 4σ of the estimator's own scatter: a
+//! correct model would fail a single check with probability ≈ 6e-5, and the fixed seeds make
+//! every run identical). Long records are reduced on the fly (block means or point samples), in
+//! blocks of 4096 records, the way a streaming consumer would.
+//!
+//! The measured figures are printed (`cargo test --release --test error_model -- --nocapture`).
+
+use std::path::Path;
+
+use imu_emu::analysis::allan::{self, AllanPoint};
+use imu_emu::errors::chain::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED};
+use imu_emu::errors::template::TriadModel;
+use imu_emu::errors::{ErrorChain, ImuModel, template};
+use imu_emu::math::Vec3;
+use imu_emu::record::Record;
+use imu_emu::units::{G0, Lsb};
+
+/// Records per call to `ErrorChain::apply`, as the generator streams them.
+const BLOCK: usize = 4096;
+/// Both rates the issue asks for: the fitted figures must not move with the rate.
+const RATES: [f64; 2] = [100.0, 1000.0];
+const DEG_H: f64 = std::f64::consts::PI / 180.0 / 3600.0;
+
+fn model(text: &str) -> ImuModel {
+    template::parse(text, Path::new("x.toml")).expect("test template")
+}
+
+/// Record k (time tag at the end of its interval) with interval-mean rates and their increments.
+fn record(k: usize, rate: f64, gyro: [f64; 3], accel: [f64; 3]) -> Record {
+    let dt = 1.0 / rate;
+    Record {
+        t: (k + 1) as f64 / rate,
+        gyro: Vec3(gyro),
+        accel: Vec3(accel),
+        dtheta: Vec3(gyro) * dt,
+        dv: Vec3(accel) * dt,
+        flags: 0,
+    }
+}
+
+/// The static zero-motion input (all-zero signal).
+fn zero(k: usize, rate: f64) -> Record {
+    record(k, rate, [0.0; 3], [0.0; 3])
+}
+
+/// Feeds records `input(0..n)` through `chain` in blocks of `block`, handing each corrupted
+/// block and the index of its first record to `sink`; only one block is ever held.
+fn stream(
+    chain: &mut ErrorChain,
+    rate: f64,
+    n: usize,
+    block: usize,
+    input: impl Fn(usize, f64) -> Record,
+    mut sink: impl FnMut(usize, &[Record]),
+) {
+    let mut buf = Vec::with_capacity(block);
+    let mut k0 = 0;
+    while k0 < n {
+        buf.clear();
+        buf.extend((k0..n.min(k0 + block)).map(|k| input(k, rate)));
+        chain.apply(&mut buf);
+        sink(k0, &buf);
+        k0 += buf.len();
+    }
+}
+
+/// The six error axes (gyro x y z, accel x y z) of a record against its input.
+fn errors6(out: &Record, inp: &Record) -> [f64; 6] {
+    let (g, a) = (out.gyro - inp.gyro, out.accel - inp.accel);
+    [g.0[0], g.0[1], g.0[2], a.0[0], a.0[1], a.0[2]]
+}
+
+/// How a long record is reduced while it streams.
+#[derive(Clone, Copy)]
+enum Reduce {
+    /// Means of consecutive groups of d samples: the rate series at Δt·d. Its overlapping
+    /// ADEV at cluster m/d uses the phase points of the full series that fall on multiples
+    /// of d, so it estimates the same σ(τ) for τ ≥ d·Δt.
+    Mean(usize),
+    /// Every d-th sample (the process state itself, for variances and correlations).
+    Every(usize),
+}
+
+/// The six error axes of `n` zero-input records, reduced as asked.
+fn simulate(m: &ImuModel, rate: f64, seed: u64, n: usize, reduce: Reduce) -> [Vec<f64>; 6] {
+    simulate_with(m, rate, seed, n, reduce, zero)
+}
+
+/// The six error axes (output − input) of `n` records `input(k)`, reduced as asked.
+fn simulate_with(
+    m: &ImuModel,
+    rate: f64,
+    seed: u64,
+    n: usize,
+    reduce: Reduce,
+    input: impl Fn(usize, f64) -> Record + Copy,
+) -> [Vec<f64>; 6] {
+    let mut chain = ErrorChain::new(m, rate, seed);
+    let (d, mean) = match reduce {
+        Reduce::Mean(d) => (d, true),
+        Reduce::Every(d) => (d, false),
+    };
+    let mut out: [Vec<f64>; 6] = std::array::from_fn(|_| Vec::with_capacity(n / d + 1));
+    let mut acc = [0.0; 6];
+    stream(&mut chain, rate, n, BLOCK, input, |k0, block| {
+        for (j, r) in block.iter().enumerate() {
+            let k = k0 + j;
+            let e = errors6(r, &input(k, rate));
+            if mean {
+                acc.iter_mut().zip(e).for_each(|(a, v)| *a += v);
+                if (k + 1) % d == 0 {
+                    for (o, a) in out.iter_mut().zip(acc.iter_mut()) {
+                        o.push(*a / d as f64);
+                        *a = 0.0;
+                    }
+                }
+            } else if k % d == 0 {
+                out.iter_mut().zip(e).for_each(|(o, v)| o.push(v));
+            }
+        }
+    });
+    out
+}
+
+/// √(mean of σ²) over several axes' Allan curves, each divided by its own scale first.
+fn pooled_adev(curves: &[(Vec<AllanPoint>, f64)]) -> Vec<(f64, f64)> {
+    let n = curves.len() as f64;
+    (0..curves[0].0.len())
+        .map(|i| {
+            let v: f64 = curves.iter().map(|(c, s)| (c[i].adev / s).powi(2)).sum();
+            (curves[0].0[i].tau, (v / n).sqrt())
+        })
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------------------
+// White noise: ARW and VRW.
+
+/// ARW (gyro `noise`) and VRW (accel `noise`) read from the ADEV at τ = 1 s, per axis, at
+/// 100 Hz and 1 kHz: within ±5 % of the template's density (σ(1 s) = N for white rate noise).
+///
+/// Record: 1 h. The white-noise edf of the overlapping estimate at τ = 1 s is ≈ 1.5·T/τ =
+/// 5400, a 1σ scatter of 1/√(2·5400) = 0.96 %, so ±5 % is 5.2σ per axis; the test asserts
+/// this margin (4 half-widths < 5 %) from the library's own half-width so that a shorter
+/// record cannot silently weaken it. At 1 kHz the rate is reduced to 100 Hz block means
+/// first (a subset of the same phase points; the edf at m = 100 is unchanged to 0.5 %).
+#[test]
+fn white_noise_arw_vrw_at_one_second() {
+    let m = model(
+        r#"
+[gyro]
+noise = "0.15 deg/sqrt(h)"
+[accel]
+noise = "0.06 m/s/sqrt(h)"
+"#,
+    );
+    let density = [m.gyro.noise[0], m.accel.noise[0]];
+    assert!((density[0] - 0.15 * std::f64::consts::PI / 180.0 / 60.0).abs() < 1e-18);
+    let seconds = 3600.0;
+    for rate in RATES {
+        let d = (rate / 100.0) as usize;
+        let axes = simulate(&m, rate, 11, (seconds * rate) as usize, Reduce::Mean(d));
+        let dt = d as f64 / rate;
+        for (i, y) in axes.iter().enumerate() {
+            let p = allan::overlapping_at(y, dt, &[(1.0 / dt).round() as usize])[0];
+            let n = density[i / 3];
+            let ratio = p.adev / n;
+            eprintln!(
+                "noise {} Hz axis {i}: σ(1 s)/N = {ratio:.4} (±1σ {:.4})",
+                rate,
+                p.half_width / n
+            );
+            assert!(4.0 * p.half_width / p.adev < 0.05, "record too short");
+            assert!(
+                (ratio - 1.0).abs() <= 0.05,
+                "{rate} Hz axis {i}: σ(1 s) = {:e}, N = {n:e}",
+                p.adev
+            );
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Random walk of the bias: RRW (gyro) and acceleration random walk.
+
+/// K̂/K from three axes of a random walk of density K (σ(τ) = K√(τ/3)), pooling σ² over the
+/// axes at the octaves with T/τ between 128 and 1024; also the slope of ln σ over them and
+/// the τ range.
+fn fit_random_walk(axes: &[Vec<f64>], dt: f64, k: f64) -> (f64, f64, (f64, f64)) {
+    let big = axes[0].len();
+    let clusters: Vec<usize> = allan::octave_clusters(big)
+        .into_iter()
+        .filter(|&c| big / c >= 128 && big / c <= 1024)
+        .collect();
+    assert_eq!(clusters.len(), 3);
+    let curves: Vec<_> = axes
+        .iter()
+        .map(|y| (allan::overlapping_at(y, dt, &clusters), 1.0))
+        .collect();
+    let pooled = pooled_adev(&curves);
+    let k2: f64 = pooled
+        .iter()
+        .map(|(tau, sig)| sig * sig * 3.0 / tau)
+        .sum::<f64>()
+        / pooled.len() as f64;
+    let (first, last) = (pooled[0], pooled[pooled.len() - 1]);
+    let slope = (last.1 / first.1).ln() / (last.0 / first.0).ln();
+    (k2.sqrt() / k, slope, (first.0, last.0))
+}
+
+/// Rate random walk K from the +½-slope region of the ADEV, σ(τ) = K√(τ/3) (the sampled walk
+/// adds a factor 1 + 1/(2m²), < 2e-6 at the m used here), at 100 Hz and 1 kHz, gyro and accel.
+///
+/// Record: 1 h; the fit uses the octaves with T/τ between 128 and 1024 (τ ≈ 3.5–28 s) and
+/// pools σ² over the three axes. The random-walk edf of one overlapping point is
+/// ≈ (T/τ)(1 − 3τ/T) (NIST SP 1065 Table 5): ≥ 125 per axis, ≥ 375 pooled, so the σ at the
+/// longest τ has a 1σ scatter ≤ 1/√(2·375) = 3.7 %, and the mean of the correlated points
+/// scatters no more than its worst point. ±20 % is then ≥ 5σ. The slope of ln σ over the
+/// same three octaves is +½ within ±0.1 (its 1σ is ≈ (3.7 % + 1.3 %)/ln 8 = 0.024).
+#[test]
+fn random_walk_from_half_slope() {
+    let m = model(
+        r#"
+[gyro]
+random_walk = "0.3 deg/h/sqrt(h)"
+[accel]
+random_walk = "2 ug/sqrt(s)"
+"#,
+    );
+    let k = [m.gyro.random_walk[0], m.accel.random_walk[0]];
+    let seconds = 3600.0;
+    for rate in RATES {
+        let d = (rate / 100.0) as usize;
+        let n = (seconds * rate) as usize;
+        let axes = simulate(&m, rate, 12, n, Reduce::Mean(d));
+        let dt = d as f64 / rate;
+        for (s, name) in [(0, "gyro"), (1, "accel")] {
+            let (ratio, slope, taus) = fit_random_walk(&axes[3 * s..3 * s + 3], dt, k[s]);
+            eprintln!(
+                "random walk {rate} Hz {name}: K̂/K = {ratio:.4}, slope {slope:.3} over τ {:.2}–{:.2} s",
+                taus.0, taus.1
+            );
+            assert!(
+                (ratio - 1.0).abs() <= 0.20,
+                "{rate} Hz {name}: K̂/K = {ratio}"
+            );
+            assert!(
+                (slope - 0.5).abs() <= 0.1,
+                "{rate} Hz {name}: slope {slope}"
+            );
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bias instability.
+
+/// Bias instability B shows the flat ADEV floor 0.664·B over its band, within ±15 %.
+///
+/// 100 Hz, default band 1–1000 s, record 1e5 s (27.8 h); 1 kHz, same band, record 1e4 s,
+/// checked over τ = 1–100 s (T/τ ≥ 100 in both). σ² is pooled over the six axes (gyro and
+/// accel banks are built identically from independent streams). Scatter: the flicker-rate
+/// edf of an overlapping point is ≈ 1.25(T/τ)/(1 + 3τ/T) (NIST SP 1065 Table 5) ≥ 121 per
+/// axis at T/τ = 100, 728 pooled: 1σ ≤ 2.6 % on σ (much less at short τ). The bank's own
+/// expected shape (sum of its components' continuous-time Gauss–Markov ADEVs, without the
+/// held update grids) lies between 0.962 and 0.998 of 0.664·B over the band, so ±15 % leaves
+/// ≥ 4σ of scatter beyond the construction's −4 % edges.
+#[test]
+fn bias_instability_floor() {
+    let m = model(
+        r#"
+[gyro]
+bias_instability = "0.35 deg/h"
+[accel]
+bias_instability = "50 ug"
+"#,
+    );
+    assert_eq!(m.gyro.bias_instability_band, (1.0, 1000.0));
+    let b = [m.gyro.bias_instability[0], m.accel.bias_instability[0]];
+    // 1 Hz: the band starts at the sample step, where components faster than the sampling
+    // must not alias their variance into the floor (the interval-mean variance factor).
+    for (rate, seconds, tau_max) in [
+        (100.0, 1.0e5, 1000.0),
+        (1000.0, 1.0e4, 100.0),
+        (1.0, 2.0e5, 1000.0),
+    ] {
+        // Block means at 10 Hz: τ ≥ 1 s is ≥ 10 clusters (no averaging below 10 Hz).
+        let d = ((rate / 10.0) as usize).max(1);
+        let dt = d as f64 / rate;
+        let axes = simulate(&m, rate, 13, (seconds * rate) as usize, Reduce::Mean(d));
+        let taus: Vec<f64> = [1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0]
+            .into_iter()
+            .filter(|t| *t <= tau_max)
+            .collect();
+        let clusters: Vec<usize> = taus.iter().map(|t| (t / dt).round() as usize).collect();
+        let curves: Vec<_> = axes
+            .iter()
+            .enumerate()
+            .map(|(i, y)| (allan::overlapping_at(y, dt, &clusters), 0.664 * b[i / 3]))
+            .collect();
+        let pooled = pooled_adev(&curves);
+        let shape: Vec<String> = pooled.iter().map(|(t, r)| format!("{t}:{r:.3}")).collect();
+        eprintln!(
+            "bias instability {rate} Hz, T = {seconds} s, σ/(0.664B) at τ: {}",
+            shape.join(" ")
+        );
+        for (tau, r) in pooled {
+            assert!(
+                (r - 1.0).abs() <= 0.15,
+                "{rate} Hz: σ({tau} s)/(0.664 B) = {r:.3}; floor {}",
+                shape.join(" ")
+            );
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Gauss–Markov.
+
+/// Mean over several zero-mean series of ρ(L) = Σ y_k y_{k+L} / Σ y_k².
+fn acf(series: &[Vec<f64>], lag: usize) -> f64 {
+    series
+        .iter()
+        .map(|y| {
+            let num: f64 = y.iter().zip(&y[lag..]).map(|(a, b)| a * b).sum();
+            num / y.iter().map(|v| v * v).sum::<f64>()
+        })
+        .sum::<f64>()
+        / series.len() as f64
+}
+
+/// The lag (in samples, interpolated) where the mean autocorrelation first falls to e^{−1},
+/// found by bisection over [1, hi] (the estimated ρ is smooth and decreasing there).
+fn e_fold(series: &[Vec<f64>], hi: usize) -> f64 {
+    let target = (-1.0f64).exp();
+    let (mut lo, mut hi) = (1usize, hi);
+    assert!(acf(series, lo) > target && acf(series, hi) < target);
+    while hi - lo > 1 {
+        let mid = (lo + hi) / 2;
+        if acf(series, mid) > target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let (a, b) = (acf(series, lo), acf(series, hi));
+    lo as f64 + (a - target) / (a - b)
+}
+
+/// σ̂/σ and τ̂/τ of Gauss–Markov states (point samples at `dt`), each axis normalised by its
+/// σ first: σ̂² is the mean square about the known zero mean, τ̂ the e^{−1} crossing of the
+/// autocorrelation averaged over the axes.
+fn fit_gauss_markov(axes: &mut [Vec<f64>], sigma: &[f64], dt: f64, tau: f64) -> (f64, f64) {
+    for (y, s) in axes.iter_mut().zip(sigma) {
+        y.iter_mut().for_each(|v| *v /= s);
+    }
+    let var: f64 = axes
+        .iter()
+        .map(|y| y.iter().map(|v| v * v).sum::<f64>() / y.len() as f64)
+        .sum::<f64>()
+        / axes.len() as f64;
+    let tau_hat = e_fold(axes, (4.0 * tau / dt) as usize) * dt;
+    (var.sqrt(), tau_hat / tau)
+}
+
+/// Gauss–Markov bias: the stationary σ (from the variance about the known zero mean) and the
+/// correlation time τ (where the autocorrelation crosses e^{−1}) within ±15 %, at 100 Hz and
+/// 1 kHz (τ/Δt = 200 and 2000).
+///
+/// τ = 2 s, record 1000 τ, six axes each normalised by its σ. For a first-order Gauss–Markov
+/// process, the variance estimate scatters by √(2τ/T) (∫ρ² = τ) and the lag-τ autocorrelation
+/// by ≈ 0.77√(τ/T) (Bartlett), i.e. e·0.77√(τ/T) = 2.1√(τ/T) on the crossing; pooled over six
+/// axes the 1σ are 0.9 % on σ and 2.7 % on τ, so ±15 % is ≥ 5.5σ.
+#[test]
+fn gauss_markov_sigma_and_tau() {
+    let m = model(
+        r#"
+[gyro]
+bias_gm = { sigma = ["0.5 deg/h", "0.2 deg/h", "1 deg/h"], tau = "2 s" }
+[accel]
+bias_gm = { sigma = "100 ug", tau = "2 s" }
+"#,
+    );
+    let (sg, sa) = (m.gyro.bias_gm.unwrap().0, m.accel.bias_gm.unwrap().0);
+    let sigma = [sg[0], sg[1], sg[2], sa[0], sa[1], sa[2]];
+    let tau = 2.0;
+    for rate in RATES {
+        // Point samples at 100 Hz: the state itself, 200 per τ.
+        let d = (rate / 100.0) as usize;
+        let dt = d as f64 / rate;
+        let mut axes = simulate(
+            &m,
+            rate,
+            14,
+            (1000.0 * tau * rate) as usize,
+            Reduce::Every(d),
+        );
+        let (sigma_ratio, tau_ratio) = fit_gauss_markov(&mut axes, &sigma, dt, tau);
+        eprintln!("Gauss–Markov {rate} Hz: σ̂/σ = {sigma_ratio:.4}, τ̂/τ = {tau_ratio:.4}");
+        assert!(
+            (sigma_ratio - 1.0).abs() <= 0.15,
+            "{rate} Hz: σ̂/σ {sigma_ratio}"
+        );
+        assert!(
+            (tau_ratio - 1.0).abs() <= 0.15,
+            "{rate} Hz: τ̂/τ {tau_ratio}"
+        );
+    }
+}
+
+/// The Gauss–Markov process starts stationary: its first output has variance σ² across seeds
+/// (a process started at zero would show σ²(1 − e^{−2Δt/τ}) ≈ 2e-4 σ² here).
+///
+/// 2000 seeds × 6 axes = 12 000 draws of N(0, σ²): the σ estimate scatters by 1/√24 000 =
+/// 0.65 %; the bound is 4σ = 2.6 %.
+#[test]
+fn gauss_markov_starts_stationary() {
+    let m = model(
+        r#"
+[gyro]
+bias_gm = { sigma = "0.1 deg/h", tau = "100 s" }
+[accel]
+bias_gm = { sigma = "25 ug", tau = "100 s" }
+"#,
+    );
+    let sigma = [m.gyro.bias_gm.unwrap().0[0], m.accel.bias_gm.unwrap().0[0]];
+    let seeds = 2000;
+    let bound = 4.0 / (2.0 * 6.0 * seeds as f64).sqrt();
+    for rate in RATES {
+        let mut sum = 0.0;
+        for seed in 0..seeds {
+            let mut r = [zero(0, rate)];
+            ErrorChain::new(&m, rate, seed).apply(&mut r);
+            let e = errors6(&r[0], &zero(0, rate));
+            sum += e
+                .iter()
+                .enumerate()
+                .map(|(i, v)| (v / sigma[i / 3]).powi(2))
+                .sum::<f64>();
+        }
+        let ratio = (sum / (6 * seeds) as f64).sqrt();
+        eprintln!("Gauss–Markov first sample {rate} Hz: σ̂/σ = {ratio:.4} (bound ±{bound:.4})");
+        assert!(
+            (ratio - 1.0).abs() <= bound,
+            "{rate} Hz: first-sample σ̂/σ {ratio}"
+        );
+    }
+}
+
+/// The scale-factor processes are the same Gauss–Markov and random-walk processes acting on
+/// the scale factor: under a unit input on every axis the error is the scale-factor error
+/// itself (x(1 + k) − x = k for x = 1). 100 Hz; Gauss–Markov σ, τ within ±15 % and
+/// random-walk K within ±20 %, with the records and the justification of
+/// `gauss_markov_sigma_and_tau` (1000 τ, pooled over six axes) and
+/// `random_walk_from_half_slope` (1 h, pooled over three axes per sensor).
+#[test]
+fn scale_factor_processes() {
+    let rate = 100.0;
+    let unit = |k: usize, rate: f64| record(k, rate, [1.0; 3], [1.0; 3]);
+    let tau = 2.0;
+    let m = model(
+        r#"
+[gyro]
+scale_factor_gm = { sigma = "100 ppm", tau = "2 s" }
+[accel]
+scale_factor_gm = { sigma = ["300 ppm", "200 ppm", "50 ppm"], tau = "2 s" }
+"#,
+    );
+    let (sg, sa) = (
+        m.gyro.scale_factor_gm.unwrap().0,
+        m.accel.scale_factor_gm.unwrap().0,
+    );
+    let sigma = [sg, sa].concat();
+    let n = (1000.0 * tau * rate) as usize;
+    let mut axes = simulate_with(&m, rate, 15, n, Reduce::Every(1), unit);
+    let (sigma_ratio, tau_ratio) = fit_gauss_markov(&mut axes, &sigma, 1.0 / rate, tau);
+    eprintln!("scale-factor Gauss–Markov: σ̂/σ = {sigma_ratio:.4}, τ̂/τ = {tau_ratio:.4}");
+    assert!((sigma_ratio - 1.0).abs() <= 0.15 && (tau_ratio - 1.0).abs() <= 0.15);
+
+    let m = model(
+        r#"
+[gyro]
+scale_factor_random_walk = "60 ppm/sqrt(h)"
+[accel]
+scale_factor_random_walk = "2 ppm/sqrt(s)"
+"#,
+    );
+    let k = [
+        m.gyro.scale_factor_random_walk[0],
+        m.accel.scale_factor_random_walk[0],
+    ];
+    assert!((k[1] - 2e-6).abs() < 1e-20);
+    let axes = simulate_with(&m, rate, 16, 360_000, Reduce::Every(1), unit);
+    for (s, name) in [(0, "gyro"), (1, "accel")] {
+        let (ratio, slope, _) = fit_random_walk(&axes[3 * s..3 * s + 3], 1.0 / rate, k[s]);
+        eprintln!("scale-factor random walk {name}: K̂/K = {ratio:.4}, slope {slope:.3}");
+        assert!((ratio - 1.0).abs() <= 0.20 && (slope - 0.5).abs() <= 0.1);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Random constants.
+
+/// Sample mean and standard deviation about the known zero mean.
+fn moments(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    (
+        v.iter().sum::<f64>() / n,
+        (v.iter().map(|x| x * x).sum::<f64>() / n).sqrt(),
+    )
+}
+
+/// Pearson correlation of two zero-mean samples.
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let ab: f64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
+    ab / (moments(a).1 * moments(b).1 * a.len() as f64)
+}
+
+/// Random constants (turn-on bias, turn-on scale factor, turn-on misalignment): across 1000
+/// seeds the sample standard deviation is the template's 1σ within ±10 %, the mean is zero,
+/// and the draws of different axes (angles) are uncorrelated.
+///
+/// Per sensor and term: 3 axes × 1000 seeds = 3000 draws (6000 for the six angles); the
+/// standard deviation then scatters by 1/√6000 = 1.3 % (0.9 %), so ±10 % is ≥ 7σ; the mean
+/// is checked to 4 standard errors (4σ/√3000 = 0.073σ) and each correlation to 4/√1000 = 0.13.
+#[test]
+fn random_constants_across_seeds() {
+    let seeds = 1000u64;
+    let rate = 100.0;
+    let check = |name: &str, draws: &[Vec<f64>], sigma: &[f64]| {
+        let pooled: Vec<f64> = draws
+            .iter()
+            .zip(sigma)
+            .flat_map(|(d, s)| d.iter().map(move |v| v / s))
+            .collect();
+        let (mean, sd) = moments(&pooled);
+        eprintln!(
+            "{name}: σ̂/σ = {sd:.4}, mean/σ = {mean:+.4} over {} draws",
+            pooled.len()
+        );
+        assert!((sd - 1.0).abs() <= 0.10, "{name}: σ̂/σ {sd}");
+        assert!(
+            mean.abs() <= 4.0 / (pooled.len() as f64).sqrt(),
+            "{name}: mean {mean}"
+        );
+        for i in 0..draws.len() {
+            for j in i + 1..draws.len() {
+                let r = correlation(&draws[i], &draws[j]);
+                assert!(
+                    r.abs() <= 4.0 / (seeds as f64).sqrt(),
+                    "{name}: ρ({i},{j}) = {r}"
+                );
+            }
+        }
+    };
+
+    // Turn-on bias: the output of a zero input is the bias.
+    let m = model(
+        r#"
+[gyro]
+bias_turn_on = ["1 deg/h", "2 deg/h", "0.5 deg/h"]
+[accel]
+bias_turn_on = "0.3 mg"
+"#,
+    );
+    let mut draws = vec![Vec::new(); 6];
+    for seed in 0..seeds {
+        let mut r = [zero(0, rate)];
+        ErrorChain::new(&m, rate, seed).apply(&mut r);
+        for (d, e) in draws.iter_mut().zip(errors6(&r[0], &zero(0, rate))) {
+            d.push(e);
+        }
+    }
+    check("bias_turn_on gyro", &draws[..3], &m.gyro.bias_turn_on);
+    check("bias_turn_on accel", &draws[3..], &m.accel.bias_turn_on);
+
+    // Turn-on scale factor: out = x(1 + k) for a unit input on every axis.
+    let m = model(
+        r#"
+[gyro]
+scale_factor_turn_on = "100 ppm"
+[accel]
+scale_factor_turn_on = ["300 ppm", "200 ppm", "500 ppm"]
+"#,
+    );
+    let unit = record(0, rate, [1.0; 3], [1.0; 3]);
+    let mut draws = vec![Vec::new(); 6];
+    for seed in 0..seeds {
+        let mut r = [unit];
+        ErrorChain::new(&m, rate, seed).apply(&mut r);
+        for (d, e) in draws.iter_mut().zip(errors6(&r[0], &unit)) {
+            d.push(e);
+        }
+    }
+    check(
+        "scale_factor_turn_on gyro",
+        &draws[..3],
+        &m.gyro.scale_factor_turn_on,
+    );
+    check(
+        "scale_factor_turn_on accel",
+        &draws[3..],
+        &m.accel.scale_factor_turn_on,
+    );
+
+    // Turn-on misalignment: unit inputs on x, y, z give the columns of M.
+    let m = model(
+        r#"
+[gyro]
+misalignment_turn_on = "0.1 mrad"
+[accel]
+misalignment_turn_on = ["0.2 mrad", "0.1 mrad", "0.3 mrad", "0.2 mrad", "0.1 mrad", "0.4 mrad"]
+"#,
+    );
+    let mut gyro = vec![Vec::new(); 6];
+    let mut accel = vec![Vec::new(); 6];
+    for seed in 0..seeds {
+        let mut r: Vec<Record> = (0..3)
+            .map(|j| {
+                let mut e = [0.0; 3];
+                e[j] = 1.0;
+                record(j, rate, e, e)
+            })
+            .collect();
+        ErrorChain::new(&m, rate, seed).apply(&mut r);
+        for (angles, cols) in [
+            (&mut gyro, r.iter().map(|r| r.gyro.0).collect::<Vec<_>>()),
+            (&mut accel, r.iter().map(|r| r.accel.0).collect::<Vec<_>>()),
+        ] {
+            for (a, v) in angles.iter_mut().zip(angles_from_columns(&cols)) {
+                a.push(v);
+            }
+        }
+    }
+    check(
+        "misalignment_turn_on gyro",
+        &gyro,
+        &m.gyro.misalignment_turn_on,
+    );
+    check(
+        "misalignment_turn_on accel",
+        &accel,
+        &m.accel.misalignment_turn_on,
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Quantization.
+
+/// x·2^shift as an exact integer (panics if it is not one).
+fn fixed(x: f64, shift: i32) -> i128 {
+    let s = x * 2f64.powi(shift);
+    assert!(
+        s.fract() == 0.0 && s.abs() < 2f64.powi(120),
+        "{x:e} not exact at 2^{shift}"
+    );
+    s as i128
+}
+
+/// Carry mode (the default): over a long run with a varying, non-integer input of both signs,
+/// the running sum of output increments never differs from the running sum of input
+/// increments by more than one LSB — checked exactly, every sample, in fixed point (every
+/// increment here is an integer multiple of 2^−115 rad or 2^−110 m/s). The construction
+/// promises half an LSB; a few ε of arithmetic in the carry are allowed on top.
+#[test]
+fn quantization_carry_keeps_the_sum() {
+    let m = model(
+        r#"
+[gyro]
+quantization = "1.907e-6 rad"
+[accel]
+quantization = "6.1e-5 m/s"
+"#,
+    );
+    assert_eq!(
+        m.quantization_mode,
+        imu_emu::errors::process::QuantMode::Carry
+    );
+    let rate = 1000.0;
+    let dt = 1.0 / rate;
+    let n = 1_000_000;
+    let input = |k: usize, rate: f64| {
+        let t = k as f64 / rate;
+        let w = [
+            0.0123 + 0.02 * (0.37 * t).sin(),
+            -0.007 + 0.011 * (1.3 * t).cos(),
+            3.3e-3 * (0.05 * t).sin() + 1.0e-4 * (37.0 * t).sin(),
+        ];
+        let f = [
+            0.3 * (0.21 * t).sin(),
+            -0.17 + 0.05 * (3.1 * t).cos(),
+            -G0 + 0.7 * (0.9 * t).sin(),
+        ];
+        record(k, rate, w, f)
+    };
+    let shift = [115, 115, 115, 110, 110, 110];
+    let q = [m.gyro.quantization, m.accel.quantization].map(|l| match l {
+        Some(Lsb::Increment(q)) => q,
+        other => panic!("{other:?}"),
+    });
+    let q_fixed = [q[0], q[0], q[0], q[1], q[1], q[1]]
+        .iter()
+        .zip(shift)
+        .map(|(&q, s)| fixed(q, s) as f64)
+        .collect::<Vec<_>>();
+    let mut drift = [0i128; 6];
+    let mut worst = [0.0f64; 6];
+    let mut chain = ErrorChain::new(&m, rate, 1);
+    stream(&mut chain, rate, n, BLOCK, input, |k0, block| {
+        for (j, r) in block.iter().enumerate() {
+            let inp = input(k0 + j, rate);
+            // The chain quantizes rate·Δt with Δt = 1/rate; the output increments are dθ, dv.
+            let ins = [inp.gyro.0, inp.accel.0].concat();
+            let outs = [r.dtheta.0, r.dv.0].concat();
+            for i in 0..6 {
+                drift[i] += fixed(outs[i], shift[i]) - fixed(ins[i] * dt, shift[i]);
+                worst[i] = worst[i].max((drift[i] as f64 / q_fixed[i]).abs());
+            }
+        }
+    });
+    eprintln!("carry: max |Σout − Σin| in LSB per axis {worst:.6?}");
+    for (i, w) in worst.iter().enumerate() {
+        assert!(*w <= 1.0, "axis {i}: drift {w} LSB");
+        assert!(
+            *w <= 0.5 + 1e-9,
+            "axis {i}: drift {w} LSB exceeds half an LSB"
+        );
+    }
+}
+
+/// The quantization error of the carry mode is a white error on the integrated angle, uniform
+/// over one LSB q: its ADEV (of output − input increments, divided by Δt) is
+/// σ(τ) = √3·Q/τ with Q = q/√12, i.e. exactly q/(2τ). The input carries Gaussian noise of
+/// 3 LSB per sample so that the carried residual is uniform and independent (its deviation
+/// from uniform is ~e^{−2π²·9}).
+///
+/// 100 000 samples at 100 Hz and 1 kHz; at every octave m ≤ n/4 the white-phase edf
+/// (N+1)(N−2m)/(2(N−m)) is ≥ 33 000, so each point's 1σ is ≤ 0.39 % and the bound is 4σ
+/// of that point (≤ 1.6 %).
+#[test]
+fn quantization_carry_adev() {
+    let m = model(
+        r#"
+[gyro]
+quantization = "2e-6 rad"
+[accel]
+quantization = "1e-4 m/s"
+"#,
+    );
+    let q = [2e-6, 1e-4];
+    let n = 100_000usize;
+    for rate in RATES {
+        let dt = 1.0 / rate;
+        let noise: Vec<[f64; 6]> = {
+            let mut s = imu_emu::rng::NormalStream::new(7, &format!("test/quant-input/{rate}"));
+            (0..n)
+                .map(|_| std::array::from_fn(|i| 3.0 * q[i / 3] / dt * s.draw()))
+                .collect()
+        };
+        let input = |k: usize, rate: f64| {
+            let v = noise[k];
+            record(
+                k,
+                rate,
+                [0.01 + v[0], -0.02 + v[1], v[2]],
+                [0.1 + v[3], 0.2 + v[4], -G0 + v[5]],
+            )
+        };
+        let mut err: [Vec<f64>; 6] = Default::default();
+        let mut chain = ErrorChain::new(&m, rate, 1);
+        stream(&mut chain, rate, n, BLOCK, input, |k0, block| {
+            for (j, r) in block.iter().enumerate() {
+                // On the increments: (Δθ_out − Δθ_in)/Δt, (Δv_out − Δv_in)/Δt.
+                let inp = input(k0 + j, rate);
+                let d = [r.dtheta - inp.dtheta, r.dv - inp.dv];
+                for (i, v) in err.iter_mut().enumerate() {
+                    v.push(d[i / 3].0[i % 3] / dt);
+                }
+            }
+        });
+        let big_n = (n + 1) as f64;
+        let mut worst = 0.0f64;
+        for (i, y) in err.iter().enumerate() {
+            for p in allan::overlapping(y, dt).iter().filter(|p| p.m <= n / 4) {
+                let expect = 3f64.sqrt() * (q[i / 3] / 12f64.sqrt()) / p.tau;
+                let mf = p.m as f64;
+                let edf = (big_n + 1.0) * (big_n - 2.0 * mf) / (2.0 * (big_n - mf));
+                let tol = 4.0 / (2.0 * edf).sqrt();
+                let r = p.adev / expect;
+                worst = worst.max((r - 1.0).abs());
+                assert!(
+                    (r - 1.0).abs() <= tol,
+                    "{rate} Hz axis {i} τ {}: σ/(q/2τ) = {r} (tol {tol})",
+                    p.tau
+                );
+            }
+        }
+        eprintln!("carry ADEV {rate} Hz: max |σ/(√3Q/τ) − 1| = {worst:.4} over 6 axes, τ ≤ n/4");
+    }
+}
+
+/// Truncation (the paper's eq. 9–10) is biased toward zero: about −q/2 per sample for a
+/// positive input with a spread-out fractional part, +q/2 for a negative one. Rounding is
+/// unbiased per sample. (Per-sample errors are uniform over one LSB, σ = q/√12; over 100 000
+/// samples the mean is known to 4·q/√12/√n = 0.0037 q.)
+#[test]
+fn quantization_truncate_and_round() {
+    let rate = 100.0;
+    let dt = 1.0 / rate;
+    let n = 100_000usize;
+    let q = 1e-6;
+    let tol = 4.0 / 12f64.sqrt() / (n as f64).sqrt();
+    let mut s = imu_emu::rng::NormalStream::new(8, "test/quant-input");
+    // Increments of +20 ± 3 LSB (gyro) and −20 ± 3 LSB (accel): always of one sign.
+    let inputs: Vec<Record> = (0..n)
+        .map(|k| {
+            let g: [f64; 3] = std::array::from_fn(|_| (20.0 + 3.0 * s.draw()) * q / dt);
+            let a: [f64; 3] = std::array::from_fn(|_| -(20.0 + 3.0 * s.draw()) * q / dt);
+            record(k, rate, g, a)
+        })
+        .collect();
+    for (mode, expect) in [("truncate", [-0.5, 0.5]), ("round", [0.0, 0.0])] {
+        let m = model(&format!(
+            "quantization_mode = \"{mode}\"\n[gyro]\nquantization = \"1e-6 rad\"\n\
+             [accel]\nquantization = \"1e-6 m/s\"\n"
+        ));
+        let mut out = inputs.clone();
+        ErrorChain::new(&m, rate, 1).apply(&mut out);
+        for i in 0..6 {
+            let mean = out
+                .iter()
+                .zip(&inputs)
+                .map(|(o, r)| errors6(o, r)[i] * dt / q)
+                .sum::<f64>()
+                / n as f64;
+            eprintln!("{mode} axis {i}: mean (out − in) = {mean:+.4} LSB per sample");
+            assert!(
+                (mean - expect[i / 3]).abs() <= tol,
+                "{mode} axis {i}: mean error {mean} LSB, expected {}",
+                expect[i / 3]
+            );
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Deterministic terms: recovered to round-off.
+
+/// ε-level tolerance for a unit-sized input: a handful of roundings of order 1.
+const ROUND_OFF: f64 = 8.0 * f64::EPSILON;
+
+/// The six angles [xy, xz, yx, yz, zx, zy] from the columns of the paper's eq. 7–8 matrix
+/// M = [[1, −yz, zy], [xz, 1, −zx], [−xy, yx, 1]] (`cols[j]` = M·e_j), after checking its
+/// diagonal is exactly 1.
+fn angles_from_columns(cols: &[[f64; 3]]) -> [f64; 6] {
+    for (j, c) in cols.iter().enumerate() {
+        assert_eq!(c[j], 1.0, "diagonal of M");
+    }
+    let m = |i: usize, j: usize| cols[j][i];
+    [-m(2, 0), m(1, 0), m(2, 1), -m(0, 1), -m(1, 2), m(0, 2)]
+}
+
+/// Constant scale factor and scale-factor asymmetry: constant rates ±ω on each axis give
+/// ω(1 + s ± a/2); the fitted s and a match the template to round-off.
+#[test]
+fn scale_factor_and_asymmetry_exact() {
+    let m = model(
+        r#"
+[gyro]
+scale_factor = ["100 ppm", "-250 ppm", "30 ppm"]
+scale_factor_asymmetry = ["40 ppm", "0 ppm", "-60 ppm"]
+[accel]
+scale_factor = ["-500 ppm", "120 ppm", "1000 ppm"]
+scale_factor_asymmetry = ["15 ppm", "-35 ppm", "80 ppm"]
+"#,
+    );
+    let rate = 200.0;
+    let (w, f) = (0.7, 9.5);
+    let mut r = vec![
+        record(0, rate, [w; 3], [f; 3]),
+        record(1, rate, [-w; 3], [-f; 3]),
+    ];
+    ErrorChain::new(&m, rate, 1).apply(&mut r);
+    for (i, (sf, asym, x)) in [
+        (m.gyro.scale_factor, m.gyro.scale_factor_asymmetry, w),
+        (m.accel.scale_factor, m.accel.scale_factor_asymmetry, f),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        for a in 0..3 {
+            let pos = [r[0].gyro, r[0].accel][i].0[a] / x - 1.0;
+            let neg = [r[1].gyro, r[1].accel][i].0[a] / -x - 1.0;
+            let (s_hat, a_hat) = ((pos + neg) / 2.0, pos - neg);
+            assert!(
+                (s_hat - sf[a]).abs() <= ROUND_OFF,
+                "SF {i}/{a}: {s_hat:e} vs {:e}",
+                sf[a]
+            );
+            assert!(
+                (a_hat - asym[a]).abs() <= ROUND_OFF,
+                "asym {i}/{a}: {a_hat:e}"
+            );
+        }
+    }
+    // Increments are the rates times Δt.
+    for x in &r {
+        assert_eq!(x.dtheta, x.gyro * (1.0 / rate));
+        assert_eq!(x.dv, x.accel * (1.0 / rate));
+    }
+}
+
+/// Accelerometer quadratic scale factor: at ±g on each axis, f(1 + s) + k₂f²; the half-sum
+/// over g² gives k₂ to round-off of g (a few ε·g/g² ≈ 2e-16 (m/s²)⁻¹ against k₂ ≈ 1e-6).
+#[test]
+fn accel_quadratic_exact() {
+    let m = model(
+        r#"
+[accel]
+scale_factor = "200 ppm"
+scale_factor_quadratic = ["10 ug/g^2", "-25 ug/g^2", "40 ug/g^2"]
+"#,
+    );
+    let k2 = m.accel.scale_factor_quadratic;
+    assert!((k2[0] - 10e-6 / G0).abs() < 1e-20);
+    let rate = 100.0;
+    let mut r: Vec<Record> = (0..6)
+        .map(|p| {
+            let mut f = [0.0; 3];
+            f[p / 2] = if p % 2 == 0 { G0 } else { -G0 };
+            record(p, rate, [0.0; 3], f)
+        })
+        .collect();
+    ErrorChain::new(&m, rate, 1).apply(&mut r);
+    for a in 0..3 {
+        let (up, down) = (r[2 * a].accel.0[a], r[2 * a + 1].accel.0[a]);
+        let k2_hat = (up + down) / (2.0 * G0 * G0);
+        let s_hat = (up - down) / (2.0 * G0) - 1.0;
+        eprintln!("quadratic axis {a}: k̂₂/k₂ − 1 = {:e}", k2_hat / k2[a] - 1.0);
+        assert!(
+            (k2_hat - k2[a]).abs() <= ROUND_OFF * G0 / (G0 * G0),
+            "k₂ axis {a}"
+        );
+        assert!((s_hat - 200e-6).abs() <= ROUND_OFF, "SF axis {a}");
+        // Off-axis outputs stay exactly zero.
+        for b in (0..3).filter(|b| *b != a) {
+            assert_eq!(r[2 * a].accel.0[b], 0.0);
+        }
+    }
+}
+
+/// The six misalignment angles: unit gyro rates and ±g accelerometer positions on each axis
+/// read the columns of M; the matrix is the paper's eq. 7–8 layout with the angles in the
+/// order [xy, xz, yx, yz, zx, zy], to round-off.
+#[test]
+fn misalignment_matrix_exact() {
+    let m = model(
+        r#"
+[gyro]
+misalignment = ["0.1 mrad", "0.2 mrad", "0.3 mrad", "0.4 mrad", "0.5 mrad", "0.6 mrad"]
+[accel]
+misalignment = ["-1 mrad", "2 mrad", "-3 mrad", "4 mrad", "-5 mrad", "6 mrad"]
+"#,
+    );
+    let rate = 100.0;
+    let mut r: Vec<Record> = (0..6)
+        .map(|p| {
+            let s = if p % 2 == 0 { 1.0 } else { -1.0 };
+            let mut w = [0.0; 3];
+            let mut f = [0.0; 3];
+            w[p / 2] = s;
+            f[p / 2] = s * G0;
+            record(p, rate, w, f)
+        })
+        .collect();
+    ErrorChain::new(&m, rate, 1).apply(&mut r);
+    let gyro_cols: Vec<[f64; 3]> = (0..3).map(|j| r[2 * j].gyro.0).collect();
+    let accel_cols: Vec<[f64; 3]> = (0..3)
+        .map(|j| {
+            std::array::from_fn(|i| (r[2 * j].accel.0[i] - r[2 * j + 1].accel.0[i]) / (2.0 * G0))
+        })
+        .collect();
+    for (name, cols, truth) in [
+        ("gyro", gyro_cols, m.gyro.misalignment),
+        ("accel", accel_cols, m.accel.misalignment),
+    ] {
+        let got = angles_from_columns(&cols);
+        for (g, t) in got.iter().zip(truth) {
+            assert!((g - t).abs() <= ROUND_OFF, "{name}: {got:?} vs {truth:?}");
+        }
+        // Spot-check the layout literally: M[0][1] = −yz, M[2][0] = −xy.
+        assert!((cols[1][0] + truth[3]).abs() <= ROUND_OFF);
+        assert!((cols[0][2] + truth[0]).abs() <= ROUND_OFF);
+    }
+}
+
+/// Gyro g-sensitivity (paper eq. 5): b_g = G f with the error-free specific force. Six static
+/// positions (±g on each axis) under a constant rate give the columns of G from the output
+/// differences, to round-off of the rate (ε·|ω|/g). Adding accelerometer errors (bias, scale
+/// factor, misalignment, noise) must not change a single gyro bit: G sees the true f.
+#[test]
+fn g_sensitivity_uses_true_specific_force() {
+    let text = r#"
+[gyro]
+g_sensitivity = ["1 deg/h/g", "-2 deg/h/g", "3 deg/h/g", "0.5 deg/h/g", "4 deg/h/g",
+                 "-1.5 deg/h/g", "2.5 deg/h/g", "0.25 deg/h/g", "-3 deg/h/g"]
+"#;
+    let m = model(text);
+    assert!((m.gyro.g_sensitivity[1] + 2.0 * DEG_H / G0).abs() < 1e-22);
+    let rate = 100.0;
+    let w = [5.2e-5, -1.1e-5, -3.6e-5];
+    let positions: Vec<Record> = (0..6)
+        .map(|p| {
+            let mut f = [0.0; 3];
+            f[p / 2] = if p % 2 == 0 { G0 } else { -G0 };
+            record(p, rate, w, f)
+        })
+        .collect();
+    let mut r = positions.clone();
+    ErrorChain::new(&m, rate, 1).apply(&mut r);
+    for j in 0..3 {
+        for i in 0..3 {
+            let g_hat = (r[2 * j].gyro.0[i] - r[2 * j + 1].gyro.0[i]) / (2.0 * G0);
+            let g = m.gyro.g_sensitivity[3 * i + j];
+            assert!(
+                (g_hat - g).abs() <= ROUND_OFF * 1e-4 / G0,
+                "G[{i}][{j}] = {g_hat:e} vs {g:e}"
+            );
+        }
+    }
+    let noisy = model(&format!(
+        "{text}\n[accel]\nbias = \"5 mg\"\nscale_factor = \"2000 ppm\"\n\
+         misalignment = \"3 mrad\"\nnoise = \"0.5 m/s/sqrt(h)\"\n"
+    ));
+    let mut r2 = positions.clone();
+    ErrorChain::new(&noisy, rate, 1).apply(&mut r2);
+    for (a, b) in r.iter().zip(&r2) {
+        assert_eq!(a.gyro, b.gyro, "gyro changed by accelerometer errors");
+        assert_ne!(a.accel, b.accel);
+    }
+}
+
+/// The paper's stage order composes as y = M((1 + S)x + b) (scale factor, bias, then
+/// misalignment), checked on one generic input to round-off.
+#[test]
+fn paper_order_composition() {
+    let m = model(
+        r#"
+[gyro]
+scale_factor = ["100 ppm", "200 ppm", "-300 ppm"]
+bias = ["10 deg/h", "-20 deg/h", "5 deg/h"]
+misalignment = ["1 mrad", "2 mrad", "3 mrad", "4 mrad", "5 mrad", "6 mrad"]
+"#,
+    );
+    let rate = 100.0;
+    let x = [0.3, -0.2, 0.1];
+    let mut r = [record(0, rate, x, [0.0; 3])];
+    ErrorChain::new(&m, rate, 1).apply(&mut r);
+    let [xy, xz, yx, yz, zx, zy] = m.gyro.misalignment;
+    let mm = [[1.0, -yz, zy], [xz, 1.0, -zx], [-xy, yx, 1.0]];
+    let u: [f64; 3] =
+        std::array::from_fn(|i| (1.0 + m.gyro.scale_factor[i]) * x[i] + m.gyro.bias[i]);
+    for (i, row) in mm.iter().enumerate() {
+        let y = row[0] * u[0] + row[1] * u[1] + row[2] * u[2];
+        assert!((r[0].gyro.0[i] - y).abs() <= ROUND_OFF, "axis {i}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Saturation.
+
+/// `range` clamps each axis at ±range (before quantization) and flags the record.
+#[test]
+fn saturation_clamps_and_flags() {
+    let m = model(
+        r#"
+[gyro]
+range = "100 deg/s"
+[accel]
+range = "2 g"
+quantization = "1e-4 m/s"
+"#,
+    );
+    let rate = 100.0;
+    let rg = 100f64.to_radians();
+    let ra = 2.0 * G0;
+    let mut r = vec![
+        record(0, rate, [0.5 * rg, -0.9 * rg, rg], [0.0, 0.0, -G0]),
+        record(1, rate, [1.5 * rg, -3.0 * rg, 0.0], [0.0, 0.0, -G0]),
+        record(2, rate, [0.0; 3], [2.5 * G0, 0.0, -3.0 * G0]),
+        record(3, rate, [-1.01 * rg, 0.0, 0.0], [0.0, 10.0 * G0, 0.0]),
+    ];
+    ErrorChain::new(&m, rate, 1).apply(&mut r);
+    assert_eq!(r[0].flags, 0);
+    assert_eq!(r[0].gyro.0, [0.5 * rg, -0.9 * rg, rg]);
+    assert_eq!(r[1].flags, FLAG_GYRO_SATURATED);
+    assert_eq!(r[1].gyro.0, [rg, -rg, 0.0]);
+    assert_eq!(r[2].flags, FLAG_ACCEL_SATURATED);
+    assert_eq!(r[3].flags, FLAG_GYRO_SATURATED | FLAG_ACCEL_SATURATED);
+    assert_eq!(r[3].gyro.0[0], -rg);
+    // Clamped accelerations are then quantized (carry): within one LSB of ±range.
+    let q = 1e-4 / (1.0 / rate);
+    assert!((r[2].accel.0[0] - ra).abs() <= q && (r[2].accel.0[2] + ra).abs() <= q);
+    assert!((r[3].accel.0[1] - ra).abs() <= q);
+    for x in &r {
+        assert!(x.accel.0.iter().all(|a| a.abs() <= ra + q));
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reproducibility (DESIGN §4).
+
+/// A template with every term, deterministic and stochastic.
+const FULL: &str = r#"
+[gyro]
+bias = "0.5 deg/h"
+bias_turn_on = "1 deg/h"
+bias_instability = "0.35 deg/h"
+bias_gm = { sigma = "0.1 deg/h", tau = "300 s" }
+random_walk = "0.1 deg/h/sqrt(h)"
+noise = "0.07 deg/sqrt(h)"
+scale_factor = "50 ppm"
+scale_factor_turn_on = "100 ppm"
+scale_factor_gm = { sigma = "10 ppm", tau = "3600 s" }
+scale_factor_random_walk = "1 ppm/sqrt(h)"
+scale_factor_asymmetry = "20 ppm"
+misalignment = "0.05 mrad"
+misalignment_turn_on = "0.1 mrad"
+g_sensitivity = "1 deg/h/g"
+quantization = "1.907e-6 rad"
+range = "1000 deg/s"
+
+[accel]
+bias = "0.1 mg"
+bias_turn_on = "0.3 mg"
+bias_instability = "50 ug"
+bias_gm = { sigma = "20 ug", tau = "300 s" }
+random_walk = "1 ug/sqrt(s)"
+noise = "0.03 m/s/sqrt(h)"
+scale_factor = "100 ppm"
+scale_factor_turn_on = "300 ppm"
+scale_factor_gm = { sigma = "30 ppm", tau = "3600 s" }
+scale_factor_random_walk = "1 ppm/sqrt(h)"
+scale_factor_asymmetry = "10 ppm"
+scale_factor_quadratic = "10 ug/g^2"
+misalignment = "0.1 mrad"
+misalignment_turn_on = "0.2 mrad"
+quantization = "6.1e-5 m/s"
+range = "40 g"
+"#;
+
+/// A moving input (every scale-factor term matters).
+fn moving(k: usize, rate: f64) -> Record {
+    let t = k as f64 / rate;
+    record(
+        k,
+        rate,
+        [
+            0.3 * (0.7 * t).sin(),
+            -0.2 + 0.1 * (1.1 * t).cos(),
+            0.05 * t.sin(),
+        ],
+        [
+            0.5 * (0.3 * t).cos(),
+            1.0 * (0.9 * t).sin(),
+            -G0 + 0.2 * (2.0 * t).sin(),
+        ],
+    )
+}
+
+/// Runs a template over `n` moving records in chunks cycling through `sizes`.
+fn run_chunked(m: &ImuModel, rate: f64, seed: u64, n: usize, sizes: &[usize]) -> Vec<Record> {
+    let mut r: Vec<Record> = (0..n).map(|k| moving(k, rate)).collect();
+    let mut chain = ErrorChain::new(m, rate, seed);
+    let mut rest = &mut r[..];
+    for s in sizes.iter().cycle() {
+        if rest.is_empty() {
+            break;
+        }
+        let (head, tail) = rest.split_at_mut((*s).min(rest.len()));
+        chain.apply(head);
+        rest = tail;
+    }
+    r
+}
+
+fn bits(r: &[Record]) -> Vec<(u64, u8)> {
+    r.iter()
+        .flat_map(|x| x.values().map(|v| (v.to_bits(), x.flags)))
+        .collect()
+}
+
+/// Same seed ⇒ bit-identical output whatever the block size; another seed changes it.
+#[test]
+fn reproducible_whatever_the_block_size() {
+    let m = model(FULL);
+    // Without quantization for the seed check: quantized outputs of two seeds coincide
+    // whenever their errors round to the same LSB (the gyro noise is ≈ 1 LSB per sample).
+    let unquantized = model(
+        &FULL
+            .lines()
+            .filter(|l| !l.starts_with("quantization"))
+            .collect::<Vec<_>>()
+            .join("\n"),
+    );
+    assert!(unquantized.gyro.quantization.is_none());
+    let (rate, n) = (100.0, 60_000);
+    let whole = run_chunked(&m, rate, 5, n, &[n]);
+    for sizes in [
+        &[1][..],
+        &[4096],
+        &[7, 1, 4095, 333, 10_000, 2],
+        &[59_999, 1],
+    ] {
+        assert!(
+            bits(&whole) == bits(&run_chunked(&m, rate, 5, n, sizes)),
+            "block sizes {sizes:?} changed the output"
+        );
+    }
+    let whole = run_chunked(&unquantized, rate, 5, n, &[n]);
+    let other = run_chunked(&unquantized, rate, 6, n, &[n]);
+    for i in 0..6 {
+        let same = whole
+            .iter()
+            .zip(&other)
+            .filter(|(a, b)| errors6(a, &Record::default())[i] == errors6(b, &Record::default())[i])
+            .count();
+        // Quantized outputs may coincide now and then; most samples must differ.
+        assert!(
+            same < n / 100,
+            "axis {i}: {same} equal samples with another seed"
+        );
+    }
+}
+
+/// Adding or changing one term leaves every other term's draws unchanged: (1) adding a gyro
+/// Gauss–Markov bias leaves the accelerometers bit-identical, and the gyro output moves by
+/// exactly the Gauss–Markov process a chain with only that term produces; (2) doubling the
+/// accelerometer noise leaves the gyros bit-identical and moves the accelerometers by exactly
+/// their noise component (output minus the output without accelerometer noise). "Exactly" is
+/// to the round-off of re-associated sums: a few ε of the largest summand, the input
+/// (≤ 0.5 rad/s, ≤ 11 m/s² here).
+#[test]
+fn one_term_does_not_disturb_the_others() {
+    // Every stochastic term, no quantization (a nonlinearity would hide the differences) and
+    // no gyro misalignment (so the gyro bias reaches the output unmixed).
+    let base_gyro = r#"bias_turn_on = "1 deg/h"
+bias_instability = "0.35 deg/h"
+random_walk = "0.1 deg/h/sqrt(h)"
+noise = "0.07 deg/sqrt(h)"
+scale_factor_turn_on = "100 ppm"
+scale_factor_gm = { sigma = "10 ppm", tau = "3600 s" }
+scale_factor_random_walk = "1 ppm/sqrt(h)"
+"#;
+    let accel = |noise: &str| {
+        format!(
+            r#"[accel]
+bias_turn_on = "0.3 mg"
+bias_instability = "50 ug"
+bias_gm = {{ sigma = "20 ug", tau = "300 s" }}
+random_walk = "1 ug/sqrt(s)"
+{noise}
+scale_factor_turn_on = "300 ppm"
+scale_factor_gm = {{ sigma = "30 ppm", tau = "3600 s" }}
+misalignment_turn_on = "0.2 mrad"
+"#
+        )
+    };
+    let gm = "bias_gm = { sigma = \"0.1 deg/h\", tau = \"300 s\" }\n";
+    let noise1 = "noise = \"0.03 m/s/sqrt(h)\"";
+    let noise2 = "noise = \"0.06 m/s/sqrt(h)\"";
+    let a = model(&format!("[gyro]\n{base_gyro}\n{}", accel(noise1)));
+    let b = model(&format!("[gyro]\n{base_gyro}{gm}\n{}", accel(noise1)));
+    let c = model(&format!("[gyro]\n{gm}"));
+    let a2 = model(&format!("[gyro]\n{base_gyro}\n{}", accel(noise2)));
+    let a0 = model(&format!("[gyro]\n{base_gyro}\n{}", accel("")));
+    let (rate, n, seed) = (100.0, 20_000, 9);
+    let [ra, rb, ra2, ra0] = [&a, &b, &a2, &a0].map(|m| run_chunked(m, rate, seed, n, &[BLOCK]));
+    let mut rc: Vec<Record> = (0..n).map(|k| zero(k, rate)).collect();
+    ErrorChain::new(&c, rate, seed).apply(&mut rc);
+    let tol_g = ROUND_OFF * 0.5;
+    let tol_a = ROUND_OFF * 11.0;
+    let mut resid = [0.0f64; 2];
+    let mut moved = [0.0f64; 2];
+    for k in 0..n {
+        assert_eq!(
+            ra[k].accel, rb[k].accel,
+            "accel changed by a gyro term at {k}"
+        );
+        assert_eq!(
+            ra[k].gyro, ra2[k].gyro,
+            "gyro changed by the accel noise at {k}"
+        );
+        for i in 0..3 {
+            let d = rb[k].gyro.0[i] - ra[k].gyro.0[i];
+            assert!(
+                (d - rc[k].gyro.0[i]).abs() <= tol_g,
+                "gyro GM difference at {k}"
+            );
+            let d2 = ra2[k].accel.0[i] - ra[k].accel.0[i];
+            let comp = ra[k].accel.0[i] - ra0[k].accel.0[i];
+            assert!((d2 - comp).abs() <= tol_a, "accel noise difference at {k}");
+            resid[0] = resid[0].max((d - rc[k].gyro.0[i]).abs());
+            resid[1] = resid[1].max((d2 - comp).abs());
+            moved[0] = moved[0].max(d.abs());
+            moved[1] = moved[1].max(d2.abs());
+        }
+    }
+    eprintln!(
+        "one term changed: max residual gyro {:e} rad/s, accel {:e} m/s²",
+        resid[0], resid[1]
+    );
+    // The changed terms did change something.
+    assert!(moved[0] > 1e-7 && moved[1] > 1e-3, "{moved:?}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// A long run.
+
+/// 24 h at 100 Hz of the template with every term, streamed in blocks of 4096 records (one
+/// block in memory; the statistics below keep 1 s point samples only): every output stays
+/// finite and within a generous envelope (10× the sum of the terms' sizes at 24 h — a
+/// divergence check, not a statistical one). The random-walk and Gauss–Markov states of the same run — the chains with only
+/// those terms and the same seed, which are the very draws of the full run (checked by
+/// `one_term_does_not_disturb_the_others`) — have the expected variance along the run:
+///
+/// * random walk: the non-overlapping increments over L = 1, 10, 100, 1000 s have variance
+///   K²L; pooled over six axes there are 6·86 400/L of them, so the variance ratio scatters by
+///   √(2L/(6·86 400)) (0.2 % at 1 s, 6.2 % at 1000 s) and the bound is 4σ; the final state
+///   b(24 h) is within 5σ of N(0, K²T) on every axis;
+/// * Gauss–Markov (τ = 300 s): the variance over the run is σ² with a scatter
+///   √(2τ/T)/√6 = 3.4 %; the bound is 4σ = 13.6 % on σ².
+#[test]
+fn long_run_24_hours() {
+    let rate = 100.0;
+    let n = 24 * 3600 * 100;
+    let full = model(FULL);
+    let rw = model(
+        "[gyro]\nrandom_walk = \"0.1 deg/h/sqrt(h)\"\n[accel]\nrandom_walk = \"1 ug/sqrt(s)\"\n",
+    );
+    let gm = model(
+        "[gyro]\nbias_gm = { sigma = \"0.1 deg/h\", tau = \"300 s\" }\n\
+         [accel]\nbias_gm = { sigma = \"20 ug\", tau = \"300 s\" }\n",
+    );
+    assert_eq!(rw.gyro.random_walk, full.gyro.random_walk);
+    assert_eq!(gm.accel.bias_gm, full.accel.bias_gm);
+    let seed = 24;
+    // Static, level, at 45° N: Earth rate and gravity in the body frame.
+    let we = 7.292_115e-5 * std::f64::consts::FRAC_1_SQRT_2;
+    let input = move |k: usize, rate: f64| record(k, rate, [we, 0.0, -we], [0.0, 0.0, -G0]);
+
+    // Envelope: 10 × the sum over terms of each one's size at 24 h (fixed value or 1σ; the
+    // flicker bank's σ is ≈ 1.9 B; white noise per sample; scale-factor and misalignment
+    // terms times the largest input; g-sensitivity at 1 g; one LSB).
+    let size = |t: &TriadModel, signal: f64| {
+        let dt = 1.0 / rate;
+        let big_t = n as f64 * dt;
+        let lsb = match t.quantization {
+            Some(Lsb::Increment(q)) => q / dt,
+            Some(Lsb::Rate(q)) => q,
+            None => 0.0,
+        };
+        let relative = t.scale_factor[0].abs()
+            + t.scale_factor_turn_on[0]
+            + t.scale_factor_gm.map_or(0.0, |g| g.0[0])
+            + t.scale_factor_random_walk[0] * big_t.sqrt()
+            + t.scale_factor_asymmetry[0].abs() / 2.0
+            + t.scale_factor_quadratic[0].abs() * signal
+            + 2.0 * (t.misalignment[0].abs() + t.misalignment_turn_on[0]);
+        t.bias[0].abs()
+            + t.bias_turn_on[0]
+            + 2.0 * t.bias_instability[0]
+            + t.bias_gm.map_or(0.0, |g| g.0[0])
+            + t.random_walk[0] * big_t.sqrt()
+            + t.noise[0] / dt.sqrt()
+            + signal * relative
+            + t.g_sensitivity[0].abs() * G0
+            + lsb
+    };
+    let env = [10.0 * size(&full.gyro, we), 10.0 * size(&full.accel, G0)];
+
+    let mut chains = [&full, &rw, &gm].map(|m| ErrorChain::new(m, rate, seed));
+    let mut buf = [Vec::new(), Vec::new(), Vec::new()];
+    let mut worst = [0.0f64; 2];
+    let mut rw_states: [Vec<f64>; 6] = Default::default();
+    let mut gm_sum2 = [0.0f64; 6];
+    let mut gm_count = 0usize;
+    let mut k0 = 0;
+    while k0 < n {
+        let len = BLOCK.min(n - k0);
+        for (c, b) in chains.iter_mut().zip(buf.iter_mut()) {
+            b.clear();
+            b.extend((k0..k0 + len).map(|k| input(k, rate)));
+            c.apply(b);
+        }
+        let [full_out, rw_out, gm_out] = &buf;
+        for (j, ((r, w), g)) in full_out.iter().zip(rw_out).zip(gm_out).enumerate() {
+            let k = k0 + j;
+            let e = errors6(r, &input(k, rate));
+            for (i, v) in e.iter().enumerate() {
+                assert!(v.is_finite(), "non-finite output at record {k}");
+                worst[i / 3] = worst[i / 3].max(v.abs() / env[i / 3]);
+            }
+            if (k + 1) % 100 == 0 {
+                let w = errors6(w, &input(k, rate));
+                rw_states.iter_mut().zip(w).for_each(|(s, v)| s.push(v));
+                let g = errors6(g, &input(k, rate));
+                gm_sum2.iter_mut().zip(g).for_each(|(s, v)| *s += v * v);
+                gm_count += 1;
+            }
+        }
+        k0 += len;
+    }
+    eprintln!(
+        "24 h: max |error| / envelope: gyro {:.3}, accel {:.3}",
+        worst[0], worst[1]
+    );
+    assert!(worst[0] < 1.0 && worst[1] < 1.0, "{worst:?}");
+
+    let k = [full.gyro.random_walk[0], full.accel.random_walk[0]];
+    for lag in [1usize, 10, 100, 1000] {
+        let mut sum = 0.0;
+        let mut count = 0;
+        for (i, s) in rw_states.iter().enumerate() {
+            // States at t = 1 s, 2 s, …; b(0) = 0 starts the first increment.
+            let ext: Vec<f64> = std::iter::once(0.0).chain(s.iter().copied()).collect();
+            let incs = (0..(ext.len() - 1) / lag).map(|j| ext[(j + 1) * lag] - ext[j * lag]);
+            for d in incs {
+                sum += d * d / (k[i / 3] * k[i / 3] * lag as f64);
+                count += 1;
+            }
+        }
+        let ratio = sum / count as f64;
+        let tol = 4.0 * (2.0 / count as f64).sqrt();
+        eprintln!(
+            "24 h random walk: var(Δb over {lag} s)/(K²L) = {ratio:.4} (±{tol:.4}, {count} increments)"
+        );
+        assert!((ratio - 1.0).abs() <= tol, "lag {lag} s: {ratio}");
+    }
+    let t = n as f64 / rate;
+    for (i, s) in rw_states.iter().enumerate() {
+        let z = s.last().unwrap() / (k[i / 3] * t.sqrt());
+        eprintln!("24 h random walk axis {i}: b(T)/(K√T) = {z:+.3}");
+        assert!(z.abs() < 5.0);
+    }
+    let sigma = [
+        full.gyro.bias_gm.unwrap().0[0],
+        full.accel.bias_gm.unwrap().0[0],
+    ];
+    let var = gm_sum2
+        .iter()
+        .enumerate()
+        .map(|(i, s)| s / gm_count as f64 / sigma[i / 3].powi(2))
+        .sum::<f64>()
+        / 6.0;
+    let tol = 4.0 * (2.0 * 300.0 / t).sqrt() / 6f64.sqrt();
+    eprintln!("24 h Gauss–Markov: var/σ² = {var:.4} (±{tol:.4})");
+    assert!((var - 1.0).abs() <= tol, "GM variance ratio {var}");
+}
