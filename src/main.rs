@@ -10,8 +10,6 @@ use clap::{Parser, Subcommand};
 use imu_emu::config::{self, SceneFile};
 use imu_emu::generator::DEFAULT_NODES;
 use imu_emu::job::{self, JobError, SourceSpec};
-use imu_emu::math::euler_from_quat;
-use imu_emu::motion::Motion;
 use imu_emu::motion::sampled::{Degree, ModelSettings};
 use imu_emu::output::{AtomicFile, Format};
 use imu_emu::scenes;
@@ -461,22 +459,13 @@ fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
     )?;
     // Samples at t₀ + k/rate for k = 0..=n, including the start.
     let grid = job::plan(&motion, a.rate, None, a.duration)?;
-    let mut text = String::from("# imu-emu trajectory of scene ");
-    text.push_str(&a.scene);
-    text.push_str("\nt,lat,lon,h,vn,ve,vd,roll,pitch,yaw\n");
-    for k in 0..=grid.count {
-        let p = motion.pose(grid.t0 + k as f64 / grid.rate_hz);
-        let (r, pi, y) = euler_from_quat(p.q_b_n);
-        imu_emu::trajectory::format_row(
-            &mut text,
-            p.t,
-            p.lat.to_degrees(),
-            p.lon.to_degrees(),
-            p.h,
-            p.v_n,
-            (r.to_degrees(), pi.to_degrees(), y.to_degrees()),
-        );
-    }
+    let text = imu_emu::trajectory::sample_motion(
+        &motion,
+        grid.t0,
+        grid.rate_hz,
+        grid.count,
+        Some(&format!("imu-emu trajectory of scene {}", a.scene)),
+    );
     if a.output == Path::new("-") {
         std::io::stdout().write_all(text.as_bytes())?;
     } else {

@@ -296,3 +296,36 @@ pub fn format_row(
     }
     out.push('\n');
 }
+
+/// Trajectory CSV of `motion` sampled at t₀ + k/rate for k = 0..=count (degrees, shortest
+/// round-trip decimals), preceded by `# comment` when given.
+pub fn sample_motion(
+    motion: &impl crate::motion::Motion,
+    t0: f64,
+    rate_hz: f64,
+    count: u64,
+    comment: Option<&str>,
+) -> String {
+    let mut text = String::new();
+    if let Some(c) = comment {
+        text.push_str("# ");
+        text.push_str(c);
+        text.push('\n');
+    }
+    text.push_str(&COLUMNS.join(","));
+    text.push('\n');
+    for k in 0..=count {
+        let p = motion.pose(t0 + k as f64 / rate_hz);
+        let (r, pi, y) = crate::math::euler_from_quat(p.q_b_n);
+        format_row(
+            &mut text,
+            p.t,
+            p.lat.to_degrees(),
+            p.lon.to_degrees(),
+            p.h,
+            p.v_n,
+            (r.to_degrees(), pi.to_degrees(), y.to_degrees()),
+        );
+    }
+    text
+}

@@ -3,7 +3,6 @@
 //! benchmark (`cargo bench --bench accuracy`) and by the tests.
 
 use crate::generator::IdealImu;
-use crate::math::euler_from_quat;
 use crate::motion::Motion;
 use crate::motion::sampled::{ModelSettings, SampledMotion};
 use crate::record::Record;
@@ -82,21 +81,7 @@ pub fn analytic(case: &Case) -> AnyMotion {
 /// carry it: degrees, shortest round-trip decimal).
 pub fn sample_csv(motion: &impl Motion, rate_hz: f64, duration_s: f64) -> String {
     let n = (duration_s * rate_hz + 1e-9).floor() as u64;
-    let mut text = String::from("t,lat,lon,h,vn,ve,vd,roll,pitch,yaw\n");
-    for k in 0..=n {
-        let p = motion.pose(k as f64 / rate_hz);
-        let (r, pi, y) = euler_from_quat(p.q_b_n);
-        trajectory::format_row(
-            &mut text,
-            p.t,
-            p.lat.to_degrees(),
-            p.lon.to_degrees(),
-            p.h,
-            p.v_n,
-            (r.to_degrees(), pi.to_degrees(), y.to_degrees()),
-        );
-    }
-    text
+    trajectory::sample_motion(motion, 0.0, rate_hz, n, None)
 }
 
 /// The sampled motion rebuilt from `sample_csv` text.
