@@ -86,8 +86,6 @@ struct Triad {
     range: Option<f64>,
     /// Temperature polynomials (bias, scale factor), set by `ErrorChain::with_temperature`.
     temp: Option<([f64; 3], [f64; 3])>,
-    /// The increments of the last quantization on an increment LSB, while still exact.
-    last_inc: Option<Vec3>,
 }
 
 /// The error chain of an IMU: gyro and accelerometer triads, and the gyro g-sensitivity.
@@ -103,6 +101,28 @@ pub struct ErrorChain {
     /// C_b^c: body to IMU case, when the IMU is not mounted along the body axes.
     mounting: Option<Mat3>,
     dt: f64,
+    /// Scratch: the block's error-free specific force and temperature offsets.
+    f_true: Vec<Vec3>,
+    dtemp: Vec<f64>,
+}
+
+/// Selects one sensor's vector in a record.
+type Sel = fn(&mut Record) -> &mut Vec3;
+
+fn gyro_of(r: &mut Record) -> &mut Vec3 {
+    &mut r.gyro
+}
+
+fn accel_of(r: &mut Record) -> &mut Vec3 {
+    &mut r.accel
+}
+
+fn dtheta_of(r: &mut Record) -> &mut Vec3 {
+    &mut r.dtheta
+}
+
+fn dv_of(r: &mut Record) -> &mut Vec3 {
+    &mut r.dv
 }
 
 impl ErrorChain {
@@ -119,6 +139,8 @@ impl ErrorChain {
             order: model.order.clone(),
             temperature: None,
             mounting: None,
+            f_true: Vec::new(),
+            dtemp: Vec::new(),
             gyro: Triad::new(&model.gyro, "gyro", dt, seed, model.quantization_mode),
             accel: Triad::new(&model.accel, "accel", dt, seed, model.quantization_mode),
             g_sens,
@@ -165,68 +187,81 @@ impl ErrorChain {
             && self.mounting.is_none()
     }
 
-    /// Corrupts records in place, in record order.
+    /// Corrupts records in place. Stage by stage over the whole block (each random process
+    /// still steps once per record, in record order, on its own stream — so the result is
+    /// bit-identical to a record-by-record pass and independent of the block size).
     pub fn apply(&mut self, records: &mut [Record]) {
         if self.is_empty() {
             return;
         }
-        for r in records.iter_mut() {
-            if let Some(m) = &self.mounting {
+        if let Some(m) = &self.mounting {
+            for r in records.iter_mut() {
                 r.gyro = m.mul_vec(r.gyro);
                 r.accel = m.mul_vec(r.accel);
             }
-            let f_true = r.accel;
-            let mut g = r.gyro;
-            let mut a = r.accel;
-            let mut flags = 0u8;
-            let dtemp = self
-                .temperature
-                .as_ref()
-                .map_or(0.0, |(p, t_ref)| p.at(r.t) - t_ref);
-            for stage in &self.order {
-                match stage {
-                    StageKind::ScaleFactor => {
-                        g = self.gyro.scale(g, dtemp);
-                        a = self.accel.scale(a, dtemp);
-                    }
-                    StageKind::Bias => {
-                        g = self.gyro.bias(g, dtemp);
-                        if let Some(m) = &self.g_sens {
-                            g += Vec3(m.map(|row| {
-                                row[0] * f_true.0[0] + row[1] * f_true.0[1] + row[2] * f_true.0[2]
-                            }));
-                        }
-                        a = self.accel.bias(a, dtemp);
-                    }
-                    StageKind::Misalignment => {
-                        g = Triad::misalign(&self.gyro.misalign, g);
-                        a = Triad::misalign(&self.accel.misalign, a);
-                    }
-                    StageKind::Noise => {
-                        g = self.gyro.noise(g);
-                        a = self.accel.noise(a);
-                    }
-                    StageKind::Quantization => {
-                        let (gq, gs) = self.gyro.quantize(g, self.dt);
-                        let (aq, as_) = self.accel.quantize(a, self.dt);
-                        g = gq;
-                        a = aq;
-                        flags |= ((gs as u8) * FLAG_GYRO_SATURATED)
-                            | ((as_ as u8) * FLAG_ACCEL_SATURATED);
-                    }
+        }
+        // The error-free specific force, for the g-sensitivity; the temperature offsets.
+        self.f_true.clear();
+        if self.g_sens.is_some() {
+            self.f_true.extend(records.iter().map(|r| r.accel));
+        }
+        self.dtemp.clear();
+        if let Some((p, t_ref)) = &self.temperature {
+            self.dtemp.extend(records.iter().map(|r| p.at(r.t) - t_ref));
+        }
+        for r in records.iter_mut() {
+            r.flags = 0;
+        }
+        let (gyro, accel): (Sel, Sel) = (gyro_of, accel_of);
+        // Whether the last stage left the increments on the LSB grid (then kept exactly).
+        let (mut exact_g, mut exact_a) = (false, false);
+        for i in 0..self.order.len() {
+            let stage = self.order[i];
+            match stage {
+                StageKind::ScaleFactor => {
+                    self.gyro.scale(records, gyro, &self.dtemp);
+                    self.accel.scale(records, accel, &self.dtemp);
                 }
-                // A stage after quantization moves the values off the LSB grid again.
-                if *stage != StageKind::Quantization {
-                    self.gyro.last_inc = None;
-                    self.accel.last_inc = None;
+                StageKind::Bias => {
+                    self.gyro.bias(records, gyro, &self.dtemp);
+                    if let Some(m) = &self.g_sens {
+                        for (r, f) in records.iter_mut().zip(&self.f_true) {
+                            r.gyro +=
+                                Vec3(m.map(|row| {
+                                    row[0] * f.0[0] + row[1] * f.0[1] + row[2] * f.0[2]
+                                }));
+                        }
+                    }
+                    self.accel.bias(records, accel, &self.dtemp);
+                }
+                StageKind::Misalignment => {
+                    Triad::misalign(&self.gyro.misalign, records, gyro);
+                    Triad::misalign(&self.accel.misalign, records, accel);
+                }
+                StageKind::Noise => {
+                    self.gyro.noise(records, gyro);
+                    self.accel.noise(records, accel);
+                }
+                StageKind::Quantization => {
+                    exact_g =
+                        self.gyro
+                            .quantize(records, gyro, dtheta_of, FLAG_GYRO_SATURATED, self.dt);
+                    exact_a =
+                        self.accel
+                            .quantize(records, accel, dv_of, FLAG_ACCEL_SATURATED, self.dt);
                 }
             }
-            r.gyro = g;
-            r.accel = a;
-            // Quantized increments are kept exactly (whole LSBs), not recomputed as rate·Δt.
-            r.dtheta = self.gyro.last_inc.take().unwrap_or(g * self.dt);
-            r.dv = self.accel.last_inc.take().unwrap_or(a * self.dt);
-            r.flags = flags;
+            if stage != StageKind::Quantization {
+                (exact_g, exact_a) = (false, false);
+            }
+        }
+        for r in records.iter_mut() {
+            if !exact_g {
+                r.dtheta = r.gyro * self.dt;
+            }
+            if !exact_a {
+                r.dv = r.accel * self.dt;
+            }
         }
     }
 }
@@ -324,7 +359,6 @@ impl Triad {
         });
         Triad {
             temp: None,
-            last_inc: None,
             scale,
             bias,
             misalign,
@@ -344,107 +378,116 @@ impl Triad {
             && self.range.is_none()
     }
 
-    // Plain loops rather than array::from_fn closures: the closures were not inlined here.
-    #[inline]
-    fn scale(&mut self, x: Vec3, dtemp: f64) -> Vec3 {
-        let mut out = x;
+    // Each stage runs over the block axis by axis: the per-axis options are tested once per
+    // block, and each process's draws stay in record order.
+    fn scale(&mut self, recs: &mut [Record], sel: Sel, dtemp: &[f64]) {
         if let Some((_, c)) = self.temp {
-            let k = dtemp * (c[0] + dtemp * (c[1] + dtemp * c[2]));
-            out = out * (1.0 + k);
-        }
-        let Some(s) = self.scale.as_mut() else {
-            return out;
-        };
-        for (a, v) in s.iter_mut().zip(out.0.iter_mut()) {
-            let mut k = a.fixed + if *v >= 0.0 { a.asym_half } else { -a.asym_half };
-            if let Some(gm) = a.gm.as_mut() {
-                k += gm.step();
+            for (r, d) in recs.iter_mut().zip(dtemp) {
+                let k = d * (c[0] + d * (c[1] + d * c[2]));
+                *sel(r) = *sel(r) * (1.0 + k);
             }
-            if let Some(rw) = a.rw.as_mut() {
-                k += rw.step();
-            }
-            *v = *v * (1.0 + k) + a.quad * *v * *v;
         }
-        out
+        let Some(s) = self.scale.as_mut() else { return };
+        for (i, a) in s.iter_mut().enumerate() {
+            for r in recs.iter_mut() {
+                let v = &mut sel(r).0[i];
+                let mut k = a.fixed + if *v >= 0.0 { a.asym_half } else { -a.asym_half };
+                if let Some(gm) = a.gm.as_mut() {
+                    k += gm.step();
+                }
+                if let Some(rw) = a.rw.as_mut() {
+                    k += rw.step();
+                }
+                *v = *v * (1.0 + k) + a.quad * *v * *v;
+            }
+        }
     }
 
-    #[inline]
-    fn bias(&mut self, x: Vec3, dtemp: f64) -> Vec3 {
-        let mut out = x;
+    fn bias(&mut self, recs: &mut [Record], sel: Sel, dtemp: &[f64]) {
         if let Some((c, _)) = self.temp {
-            let b = dtemp * (c[0] + dtemp * (c[1] + dtemp * c[2]));
-            out += Vec3::new(b, b, b);
-        }
-        let Some(b) = self.bias.as_mut() else {
-            return out;
-        };
-        for (a, v) in b.iter_mut().zip(out.0.iter_mut()) {
-            *v += a.fixed;
-            if let Some(gm) = a.gm.as_mut() {
-                *v += gm.step();
-            }
-            if let Some(rw) = a.rw.as_mut() {
-                *v += rw.step();
-            }
-            if let Some(f) = a.flicker.as_mut() {
-                *v += f.step();
+            for (r, d) in recs.iter_mut().zip(dtemp) {
+                let b = d * (c[0] + d * (c[1] + d * c[2]));
+                *sel(r) += Vec3::new(b, b, b);
             }
         }
-        out
-    }
-
-    #[inline]
-    fn misalign(m: &Option<[[f64; 3]; 3]>, x: Vec3) -> Vec3 {
-        match m {
-            None => x,
-            Some(m) => Vec3(m.map(|row| row[0] * x.0[0] + row[1] * x.0[1] + row[2] * x.0[2])),
+        let Some(b) = self.bias.as_mut() else { return };
+        for (i, a) in b.iter_mut().enumerate() {
+            for r in recs.iter_mut() {
+                let v = &mut sel(r).0[i];
+                *v += a.fixed;
+                if let Some(gm) = a.gm.as_mut() {
+                    *v += gm.step();
+                }
+                if let Some(rw) = a.rw.as_mut() {
+                    *v += rw.step();
+                }
+                if let Some(f) = a.flicker.as_mut() {
+                    *v += f.step();
+                }
+            }
         }
     }
 
-    #[inline]
-    fn noise(&mut self, x: Vec3) -> Vec3 {
+    fn misalign(m: &Option<[[f64; 3]; 3]>, recs: &mut [Record], sel: Sel) {
+        let Some(m) = m else { return };
+        for r in recs.iter_mut() {
+            let x = *sel(r);
+            *sel(r) = Vec3(m.map(|row| row[0] * x.0[0] + row[1] * x.0[1] + row[2] * x.0[2]));
+        }
+    }
+
+    fn noise(&mut self, recs: &mut [Record], sel: Sel) {
         let Some((sigma, rng)) = self.noise.as_mut() else {
-            return x;
+            return;
         };
-        let mut out = x;
-        for ((v, s), r) in out.0.iter_mut().zip(sigma.iter()).zip(rng.iter_mut()) {
-            *v += s * r.draw();
+        for (i, (s, g)) in sigma.iter().zip(rng.iter_mut()).enumerate() {
+            for r in recs.iter_mut() {
+                sel(r).0[i] += s * g.draw();
+            }
         }
-        out
     }
 
-    /// Saturates at ±range, then quantizes; returns whether any axis saturated.
-    #[inline]
-    fn quantize(&mut self, x: Vec3, dt: f64) -> (Vec3, bool) {
-        let mut sat = false;
-        let mut x = x;
-        if let Some(r) = self.range {
-            for v in x.0.iter_mut() {
-                if v.abs() > r {
-                    *v = v.clamp(-r, r);
-                    sat = true;
+    /// Saturates at ±range (setting `flag`), then quantizes. With an increment LSB the exact
+    /// quantized increments go to `inc` and the function returns true.
+    fn quantize(&mut self, recs: &mut [Record], sel: Sel, inc: Sel, flag: u8, dt: f64) -> bool {
+        if let Some(lim) = self.range {
+            for r in recs.iter_mut() {
+                let mut hit = false;
+                for v in sel(r).0.iter_mut() {
+                    if v.abs() > lim {
+                        *v = v.clamp(-lim, lim);
+                        hit = true;
+                    }
+                }
+                if hit {
+                    r.flags |= flag;
                 }
             }
         }
         let Some((lsb, q)) = self.quant.as_mut() else {
-            return (x, sat);
+            return false;
         };
         match lsb {
             Lsb::Increment(_) => {
-                let mut inc = Vec3::ZERO;
-                for ((v, q), i) in x.0.iter_mut().zip(q.iter_mut()).zip(inc.0.iter_mut()) {
-                    *i = q.apply(*v * dt);
-                    *v = *i / dt;
+                for (i, q) in q.iter_mut().enumerate() {
+                    for r in recs.iter_mut() {
+                        let d = q.apply(sel(r).0[i] * dt);
+                        inc(r).0[i] = d;
+                        sel(r).0[i] = d / dt;
+                    }
                 }
-                self.last_inc = Some(inc);
+                true
             }
             Lsb::Rate(_) => {
-                for (v, q) in x.0.iter_mut().zip(q.iter_mut()) {
-                    *v = q.apply(*v);
+                for (i, q) in q.iter_mut().enumerate() {
+                    for r in recs.iter_mut() {
+                        let v = &mut sel(r).0[i];
+                        *v = q.apply(*v);
+                    }
                 }
+                false
             }
         }
-        (x, sat)
     }
 }
 
