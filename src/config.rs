@@ -141,6 +141,8 @@ pub struct ImuSection {
     pub seed: Option<u64>,
     /// Mounting of the IMU case in the body: [roll, pitch, yaw] of C_c^b in degrees.
     pub mounting_deg: Option<[f64; 3]>,
+    /// Lever arm from the trajectory's reference point to the IMU, in the IMU case frame (m).
+    pub lever_arm_m: Option<[f64; 3]>,
 }
 
 /// `[output]`.

@@ -12,6 +12,16 @@ use crate::record::Record;
 /// run-time-against-error table of `cargo bench --bench accuracy` (see README).
 pub const DEFAULT_NODES: usize = 3;
 
+/// What a sensor away from the IMU's reference point adds needs over each interval: the change
+/// of ω_ib^b (so the mean of ω̇ is Δω/Δt exactly) and the mean of ω ωᵀ (for ω × (ω × r)).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RotationTerms {
+    /// ω_ib^b(t_k) − ω_ib^b(t_{k−1}) (rad/s).
+    pub d_omega: Vec3,
+    /// Interval mean of ω ωᵀ (rad²/s²), row-major.
+    pub omega_outer: [[f64; 3]; 3],
+}
+
 /// Generates error-free records k = 1, 2, … at t_k = t₀ + k/rate.
 pub struct IdealImu<M: Motion> {
     motion: M,
@@ -87,6 +97,49 @@ impl<M: Motion> IdealImu<M> {
                 dv: a * dt,
                 flags: 0,
             };
+        }
+    }
+
+    /// Fills `out` with the rotation terms of records k_first, k_first+1, … (for sensors
+    /// offset from the reference point; costs about one more evaluation per node).
+    pub fn rotation_terms(&mut self, k_first: u64, out: &mut [RotationTerms]) {
+        let omega_at =
+            |s: &Self, t: f64| s.motion.sense(s.motion.piece_at(t, s.hint), t).omega_ib_b;
+        let mut w_prev = omega_at(self, self.time_of(k_first - 1));
+        for (i, o) in out.iter_mut().enumerate() {
+            let k = k_first + i as u64;
+            let (lo, hi) = (self.time_of(k - 1), self.time_of(k));
+            let w_end = omega_at(self, hi);
+            let mut outer = [[0.0; 3]; 3];
+            // Same splitting at breakpoints as the increments.
+            let mut piece = self.motion.piece_at(lo, self.hint);
+            let mut a = lo;
+            loop {
+                let b = self.motion.piece_end(piece).min(hi);
+                let len = b - a;
+                if len > 0.0 {
+                    for (x, wt) in self.rule.nodes.iter().zip(&self.rule.weights) {
+                        let w = self.motion.sense(piece, a + x * len).omega_ib_b.0;
+                        let f = wt * len / (hi - lo);
+                        for (r, wr) in outer.iter_mut().zip(w) {
+                            for (c, wc) in r.iter_mut().zip(w) {
+                                *c += f * wr * wc;
+                            }
+                        }
+                    }
+                }
+                if b >= hi {
+                    break;
+                }
+                piece += 1;
+                a = b;
+            }
+            self.hint = piece;
+            *o = RotationTerms {
+                d_omega: w_end - w_prev,
+                omega_outer: outer,
+            };
+            w_prev = w_end;
         }
     }
 

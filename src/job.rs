@@ -188,6 +188,9 @@ pub fn run(
     }
     let mut imu = IdealImu::new(motion, grid.rate_hz, grid.t0, grid.count, nodes);
     let mut block = vec![Record::default(); BLOCK];
+    let needs_rot = chain.as_ref().is_some_and(|c| c.needs_rotation_terms());
+    let mut rot =
+        vec![crate::generator::RotationTerms::default(); if needs_rot { BLOCK } else { 0 }];
     let mut buf = Vec::with_capacity(BLOCK * 104);
     if format == Format::Csv {
         out.write_all(output::csv_header().as_bytes())?;
@@ -205,7 +208,12 @@ pub fn run(
             t.write_all(&buf)?;
         }
         if let Some(c) = chain.as_mut() {
-            c.apply(&mut block[..n]);
+            if c.needs_rotation_terms() {
+                imu.rotation_terms(k, &mut rot[..n]);
+                c.apply_with(&mut block[..n], Some(&rot[..n]));
+            } else {
+                c.apply(&mut block[..n]);
+            }
         }
         buf.clear();
         output::encode(format, &block[..n], &mut buf);

@@ -146,6 +146,7 @@ struct Resolved {
     seed: u64,
     temperature: Option<imu_emu::errors::temperature::TemperatureProfile>,
     mounting_deg: Option<[f64; 3]>,
+    lever_arm_m: Option<[f64; 3]>,
     nodes: usize,
     model: ModelSettings,
 }
@@ -284,6 +285,7 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         seed,
         temperature,
         mounting_deg: file.imu.mounting_deg,
+        lever_arm_m: file.imu.lever_arm_m,
         nodes,
         model: ModelSettings { degree, stencil },
     })
@@ -343,6 +345,9 @@ fn generate(a: GenerateArgs) -> Result<()> {
         let q_c_b =
             imu_emu::math::quat_from_euler(roll.to_radians(), pitch.to_radians(), yaw.to_radians());
         chain = chain.with_mounting(q_c_b.conj());
+    }
+    if let Some(r) = r.lever_arm_m {
+        chain = chain.with_lever_arm(imu_emu::math::Vec3(r));
     }
     let chain = (!chain.is_empty()).then_some(chain);
     if chain.is_some() {

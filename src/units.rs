@@ -33,6 +33,8 @@ pub enum Kind {
     GSensitivity,
     /// Time → s.
     Time,
+    /// Length → m.
+    Length,
     /// Gyro quantization: an angle increment (rad) or a rate (rad/s).
     GyroLsb,
     /// Accelerometer quantization: a velocity increment (m/s) or an acceleration (m/s²).
@@ -109,6 +111,7 @@ impl Kind {
                 ("deg/s/g", DEG / G0, false),
                 ("rad/s/(m/s^2)", 1.0, false),
             ],
+            Kind::Length => &[("m", 1.0, false), ("cm", 1e-2, false), ("mm", 1e-3, false)],
             Kind::Time => &[
                 ("s", 1.0, false),
                 ("min", 60.0, false),

@@ -979,3 +979,31 @@ fn mounting_rotation() {
         }
     }
 }
+
+// A lever arm in the scene file moves every accelerometer: at rest at 41° N an IMU 10 m along
+// body y from the reference point senses the Earth's centripetal term ω(ω·r) − r|ω|².
+#[test]
+fn lever_arm_from_the_scene_file() {
+    let dir = TempDir::new().unwrap();
+    let (arm, plain) = (dir.path().join("arm.toml"), dir.path().join("plain.toml"));
+    std::fs::write(
+        &arm,
+        "[trajectory]\nscene = \"static\"\n[imu]\nlever_arm_m = [0, 10, 0]\n",
+    )
+    .unwrap();
+    std::fs::write(&plain, "[trajectory]\nscene = \"static\"\n").unwrap();
+    let (_, a) = parse_imu_csv(&succeeded(run!("generate --rate 10 --duration 1", arm)));
+    let (_, p) = parse_imu_csv(&succeeded(run!("generate --rate 10 --duration 1", plain)));
+    let lat = 41f64.to_radians();
+    let w = 7.292115e-5 * lat.cos(); // ω_y = 0: the y term is −r|ω|² + ω_y² r = −10 |ω|²
+    let wz = -7.292115e-5 * lat.sin();
+    let want_y = -10.0 * (w * w + wz * wz);
+    for (a, p) in a.iter().zip(&p) {
+        assert!(
+            (a[5] - p[5] - want_y).abs() < 4e-15,
+            "{} vs {want_y}",
+            a[5] - p[5]
+        );
+        assert_eq!(a[4], p[4]);
+    }
+}

@@ -5,6 +5,7 @@
 use super::process::{Flicker, GaussMarkov, QuantMode, Quantizer, RandomWalk};
 use super::temperature::TemperatureProfile;
 use super::template::{ImuModel, TriadModel};
+use crate::generator::RotationTerms;
 use crate::math::{Mat3, Vec3};
 use crate::record::Record;
 use crate::rng::NormalStream;
@@ -101,6 +102,8 @@ pub struct ErrorChain {
     /// C_b^c: body to IMU case, when the IMU is not mounted along the body axes.
     mounting: Option<Mat3>,
     dt: f64,
+    /// Position of each accelerometer (row i) from the reference point, case frame (m).
+    size_effect: Option<[[f64; 3]; 3]>,
     /// Scratch: the block's error-free specific force and temperature offsets.
     f_true: Vec<Vec3>,
     dtemp: Vec<f64>,
@@ -139,6 +142,13 @@ impl ErrorChain {
             order: model.order.clone(),
             temperature: None,
             mounting: None,
+            size_effect: model
+                .accel
+                .size_effect
+                .iter()
+                .flatten()
+                .any(|v| *v != 0.0)
+                .then_some(model.accel.size_effect),
             f_true: Vec::new(),
             dtemp: Vec::new(),
             gyro: Triad::new(&model.gyro, "gyro", dt, seed, model.quantization_mode),
@@ -178,6 +188,27 @@ impl ErrorChain {
         self
     }
 
+    /// Adds a lever arm (case frame, m) from the trajectory's reference point to the IMU's, to
+    /// every accelerometer's position.
+    pub fn with_lever_arm(mut self, r: Vec3) -> ErrorChain {
+        if r != Vec3::ZERO {
+            let mut p = self.size_effect.unwrap_or([[0.0; 3]; 3]);
+            for row in p.iter_mut() {
+                for (c, v) in row.iter_mut().zip(r.0) {
+                    *c += v;
+                }
+            }
+            self.size_effect = Some(p);
+        }
+        self
+    }
+
+    /// True when accelerometers sit away from the reference point: then the records must be
+    /// corrupted with [`ErrorChain::apply_with`] and the generator's rotation terms.
+    pub fn needs_rotation_terms(&self) -> bool {
+        self.size_effect.is_some()
+    }
+
     /// True when no stage was built (an ideal IMU): records pass unchanged.
     pub fn is_empty(&self) -> bool {
         self.gyro.is_empty()
@@ -185,12 +216,23 @@ impl ErrorChain {
             && self.g_sens.is_none()
             && self.temperature.is_none()
             && self.mounting.is_none()
+            && self.size_effect.is_none()
     }
 
     /// Corrupts records in place. Stage by stage over the whole block (each random process
     /// still steps once per record, in record order, on its own stream — so the result is
     /// bit-identical to a record-by-record pass and independent of the block size).
+    ///
+    /// Ignores the size effect and lever arm (see [`ErrorChain::apply_with`]).
     pub fn apply(&mut self, records: &mut [Record]) {
+        self.apply_with(records, None)
+    }
+
+    /// [`ErrorChain::apply`] with the generator's rotation terms of the same records, which
+    /// the size effect and lever arm need: accelerometer i at r_i senses
+    /// f + ω̇ × r_i + ω × (ω × r_i), whose interval mean is f̄ + (Δω/Δt) × r_i + (W − tr W·I) r_i
+    /// with W the mean of ω ωᵀ — exact, with no differentiation of ω.
+    pub fn apply_with(&mut self, records: &mut [Record], rotation: Option<&[RotationTerms]>) {
         if self.is_empty() {
             return;
         }
@@ -198,6 +240,22 @@ impl ErrorChain {
             for r in records.iter_mut() {
                 r.gyro = m.mul_vec(r.gyro);
                 r.accel = m.mul_vec(r.accel);
+            }
+        }
+        if let (Some(pos), Some(rot)) = (&self.size_effect, rotation) {
+            let inv_dt = 1.0 / self.dt;
+            for (r, t) in records.iter_mut().zip(rot) {
+                let (mut dw, mut w) = (t.d_omega, Mat3(t.omega_outer));
+                if let Some(m) = &self.mounting {
+                    dw = m.mul_vec(dw);
+                    w = m.mul_mat(&w).mul_mat(&m.transpose());
+                }
+                let tr = w.0[0][0] + w.0[1][1] + w.0[2][2];
+                for (i, p) in pos.iter().enumerate() {
+                    let p = Vec3(*p);
+                    let add = (dw * inv_dt).cross(p) + w.mul_vec(p) - p * tr;
+                    r.accel.0[i] += add.0[i];
+                }
             }
         }
         // The error-free specific force, for the g-sensitivity; the temperature offsets.

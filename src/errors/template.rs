@@ -73,6 +73,9 @@ pub struct TriadModel {
     pub bias_temperature: [f64; 3],
     /// Scale-factor temperature polynomial: coefficients of (T − T_ref)^1, ^2, ^3 (1/°C^k).
     pub scale_factor_temperature: [f64; 3],
+    /// Accelerometers only: position of accelerometer i (row i) from the IMU's reference
+    /// point, in the case frame (m) — the size effect.
+    pub size_effect: [[f64; 3]; 3],
 }
 
 /// A loaded IMU model.
@@ -421,6 +424,10 @@ fn triad(v: Option<&toml::Value>, sensor: &str, path: &Path) -> Result<TriadMode
                 m.range = Some(r);
             }
             "bias_temperature" => m.bias_temperature = poly(val, rate).map_err(err)?,
+            "size_effect" if !gyro => {
+                let v = list(val, Kind::Length, 9).map_err(err)?;
+                m.size_effect = [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]];
+            }
             "scale_factor_temperature" => {
                 m.scale_factor_temperature = poly(val, Kind::Ratio).map_err(err)?
             }
