@@ -1463,3 +1463,47 @@ fn long_run_24_hours() {
     eprintln!("24 h Gauss–Markov: var/σ² = {var:.4} (±{tol:.4})");
     assert!((var - 1.0).abs() <= tol, "GM variance ratio {var}");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Noise correlated across axes.
+
+/// `noise_correlation` gives the white noise the stated correlation across axes while each
+/// axis keeps its density: with N = 1e5 samples the sample correlation's standard error is
+/// (1 − ρ²)/√N ≤ 0.0032, so ±0.016 is 5σ; each axis's σ has standard error 1/√(2N) = 0.22 %,
+/// so ±1.5 % is ~7σ. Invalid matrices are refused with the key named.
+#[test]
+fn correlated_noise_across_axes() {
+    let m = model("[gyro]\nnoise = \"0.1 deg/sqrt(h)\"\nnoise_correlation = [0.5, -0.3, 0.2]\n");
+    let rate = 100.0;
+    let n = 100_000;
+    let mut chain = ErrorChain::new(&m, rate, 5);
+    let mut recs: Vec<Record> = (0..n).map(|k| zero(k, rate)).collect();
+    chain.apply(&mut recs);
+    let axis = |i: usize| -> Vec<f64> { recs.iter().map(|r| r.gyro.0[i]).collect() };
+    let (x, y, z) = (axis(0), axis(1), axis(2));
+    let sigma = 0.1f64.to_radians() / 60.0 * rate.sqrt();
+    for (v, name) in [(&x, "x"), (&y, "y"), (&z, "z")] {
+        let s = (v.iter().map(|a| a * a).sum::<f64>() / n as f64).sqrt();
+        assert!(
+            (s / sigma - 1.0).abs() < 0.015,
+            "{name}: σ ratio {}",
+            s / sigma
+        );
+    }
+    for (a, b, rho) in [(&x, &y, 0.5), (&x, &z, -0.3), (&y, &z, 0.2)] {
+        let r = correlation(a, b);
+        assert!((r - rho).abs() < 0.016, "ρ {r} vs {rho}");
+    }
+    for bad in ["[0.9, 0.9, -0.9]", "[1.5, 0, 0]", "[0.1, 0.2]"] {
+        let e = template::parse(
+            &format!("[gyro]\nnoise_correlation = {bad}\n"),
+            Path::new("c.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("c.toml") && e.contains("`gyro.noise_correlation`"),
+            "{e}"
+        );
+    }
+}

@@ -83,6 +83,8 @@ struct Triad {
     /// y = M x, with M = I + off-diagonal angles.
     misalign: Option<[[f64; 3]; 3]>,
     noise: Option<([f64; 3], [NormalStream; 3])>,
+    /// Lower Cholesky factor of the noise correlation across axes, when not the identity.
+    noise_chol: Option<[[f64; 3]; 3]>,
     quant: Option<(Lsb, [Quantizer; 3])>,
     range: Option<f64>,
     /// Temperature polynomials (bias, scale factor), set by `ErrorChain::with_temperature`.
@@ -409,6 +411,7 @@ impl Triad {
                 std::array::from_fn(|i| stream(AXES[i], "noise")),
             )
         });
+        let noise_chol = m.noise_correlation.map(cholesky3);
         let quant = m.quantization.map(|lsb| {
             let q = match lsb {
                 Lsb::Increment(q) | Lsb::Rate(q) => q,
@@ -421,6 +424,7 @@ impl Triad {
             bias,
             misalign,
             noise,
+            noise_chol,
             quant,
             range: m.range,
         }
@@ -498,6 +502,17 @@ impl Triad {
         let Some((sigma, rng)) = self.noise.as_mut() else {
             return;
         };
+        if let Some(l) = &self.noise_chol {
+            // Correlated across axes: n = diag(σ)·L·z with z the three axes' own draws.
+            for r in recs.iter_mut() {
+                let z = [rng[0].draw(), rng[1].draw(), rng[2].draw()];
+                let v = sel(r);
+                for i in 0..3 {
+                    v.0[i] += sigma[i] * (l[i][0] * z[0] + l[i][1] * z[1] + l[i][2] * z[2]);
+                }
+            }
+            return;
+        }
         for (i, (s, g)) in sigma.iter().zip(rng.iter_mut()).enumerate() {
             for r in recs.iter_mut() {
                 sel(r).0[i] += s * g.draw();
@@ -551,4 +566,20 @@ impl Triad {
 
 fn any(v: &[f64]) -> bool {
     v.iter().any(|x| *x != 0.0)
+}
+
+/// Lower Cholesky factor of a symmetric positive-definite 3×3 matrix (validated on load).
+fn cholesky3(c: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut l = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..=i {
+            let s: f64 = (0..j).map(|k| l[i][k] * l[j][k]).sum();
+            l[i][j] = if i == j {
+                (c[i][i] - s).max(0.0).sqrt()
+            } else {
+                (c[i][j] - s) / l[j][j]
+            };
+        }
+    }
+    l
 }

@@ -73,6 +73,8 @@ pub struct TriadModel {
     pub bias_temperature: [f64; 3],
     /// Scale-factor temperature polynomial: coefficients of (T − T_ref)^1, ^2, ^3 (1/°C^k).
     pub scale_factor_temperature: [f64; 3],
+    /// Correlation matrix of the white noise across the three axes (identity when absent).
+    pub noise_correlation: Option<[[f64; 3]; 3]>,
     /// Accelerometers only: position of accelerometer i (row i) from the IMU's reference
     /// point, in the case frame (m) — the size effect.
     pub size_effect: [[f64; 3]; 3],
@@ -424,6 +426,7 @@ fn triad(v: Option<&toml::Value>, sensor: &str, path: &Path) -> Result<TriadMode
                 m.range = Some(r);
             }
             "bias_temperature" => m.bias_temperature = poly(val, rate).map_err(err)?,
+            "noise_correlation" => m.noise_correlation = Some(correlation(val).map_err(err)?),
             "size_effect" if !gyro => {
                 let v = list(val, Kind::Length, 9).map_err(err)?;
                 m.size_effect = [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]];
@@ -483,6 +486,45 @@ fn gm(v: &toml::Value, kind: Kind) -> Result<([f64; 3], [f64; 3]), String> {
         return Err("tau must be positive".into());
     }
     Ok((sigma, tau))
+}
+
+/// A 3×3 correlation matrix given as 9 numbers row-major (or the 3 off-diagonal values
+/// [ρ_xy, ρ_xz, ρ_yz]); it must be symmetric with a unit diagonal and positive definite.
+fn correlation(v: &toml::Value) -> Result<[[f64; 3]; 3], String> {
+    let a = v
+        .as_array()
+        .ok_or("expected [ρ_xy, ρ_xz, ρ_yz] or 9 numbers row-major")?;
+    let n: Vec<f64> = a
+        .iter()
+        .map(|x| {
+            x.as_float()
+                .or(x.as_integer().map(|i| i as f64))
+                .ok_or("expected numbers")
+        })
+        .collect::<Result<_, _>>()?;
+    let c = match n.len() {
+        3 => [[1.0, n[0], n[1]], [n[0], 1.0, n[2]], [n[1], n[2], 1.0]],
+        9 => [[n[0], n[1], n[2]], [n[3], n[4], n[5]], [n[6], n[7], n[8]]],
+        k => return Err(format!("expected 3 or 9 numbers, got {k}")),
+    };
+    if (0..3).any(|i| c[i][i] != 1.0) {
+        return Err("the diagonal must be 1".into());
+    }
+    let symmetric = (0..3)
+        .all(|i| (0..3).all(|j| c[i][j] == c[j][i] && c[i][j].is_finite() && c[i][j].abs() <= 1.0));
+    if !symmetric {
+        return Err("must be symmetric with entries in [−1, 1]".into());
+    }
+    // Positive definite: leading minors > 0.
+    let m2 = 1.0 - c[0][1] * c[0][1];
+    let det = 1.0 + 2.0 * c[0][1] * c[0][2] * c[1][2]
+        - c[0][1] * c[0][1]
+        - c[0][2] * c[0][2]
+        - c[1][2] * c[1][2];
+    if m2 <= 0.0 || det <= 0.0 {
+        return Err("not positive definite".into());
+    }
+    Ok(c)
 }
 
 /// Up to three polynomial coefficients, the k-th in `<unit>/degC^k` (`/degC` for k = 1).
