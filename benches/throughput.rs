@@ -47,6 +47,7 @@ fn measure(case: &Case, rate: f64) -> (u64, f64) {
             chain,
             &mut io::sink(),
             None,
+            None,
             |_| {},
         )
         .expect("runs");

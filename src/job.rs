@@ -167,7 +167,8 @@ pub fn plan(
 /// Runs the job into `out`, calling `progress(records_done)` after each block.
 ///
 /// With an error `chain`, records are corrupted after generation; `truth`, if given, receives
-/// the error-free records in the same format and on the same time grid.
+/// the error-free records in the same format and on the same time grid, and `injected` the
+/// error each stage added to each record (`output::components_header`).
 #[allow(clippy::too_many_arguments)] // the run's inputs, each distinct; a struct would only rename them
 pub fn run(
     motion: AnyMotion,
@@ -177,6 +178,7 @@ pub fn run(
     mut chain: Option<ErrorChain>,
     out: &mut impl Write,
     mut truth: Option<&mut dyn Write>,
+    mut injected: Option<&mut dyn Write>,
     mut progress: impl FnMut(u64),
 ) -> Result<(), JobError> {
     if !(1..=crate::quadrature::MAX_NODES).contains(&nodes) {
@@ -197,6 +199,17 @@ pub fn run(
         if let Some(t) = truth.as_mut() {
             t.write_all(output::csv_header().as_bytes())?;
         }
+        if let Some(t) = injected.as_mut() {
+            t.write_all(output::components_header().as_bytes())?;
+        }
+    }
+    if injected.is_some() {
+        chain = Some(
+            chain
+                .take()
+                .unwrap_or_else(ErrorChain::ideal)
+                .with_components(),
+        );
     }
     let mut k = 1u64;
     while k <= grid.count {
@@ -215,6 +228,11 @@ pub fn run(
                 c.apply(&mut block[..n]);
             }
         }
+        if let (Some(w), Some(c)) = (injected.as_mut(), chain.as_ref()) {
+            buf.clear();
+            output::encode_components(format, &block[..n], c.components(), &mut buf);
+            w.write_all(&buf)?;
+        }
         buf.clear();
         output::encode(format, &block[..n], &mut buf);
         out.write_all(&buf)?;
@@ -223,6 +241,9 @@ pub fn run(
     }
     out.flush()?;
     if let Some(t) = truth.as_mut() {
+        t.flush()?;
+    }
+    if let Some(t) = injected.as_mut() {
         t.flush()?;
     }
     Ok(())

@@ -74,6 +74,9 @@ struct GenerateArgs {
     /// Also write the error-free records here (same format and time grid).
     #[arg(long)]
     truth: Option<PathBuf>,
+    /// Also write the error each stage injected into each record here (same format).
+    #[arg(long)]
+    truth_errors: Option<PathBuf>,
     /// Gauss–Legendre nodes per interval (order 2n) [default: 3].
     #[arg(long)]
     quadrature: Option<usize>,
@@ -142,6 +145,7 @@ struct Resolved {
     format: Format,
     output: Option<PathBuf>,
     truth: Option<PathBuf>,
+    truth_errors: Option<PathBuf>,
     imu: imu_emu::errors::ImuModel,
     seed: u64,
     temperature: Option<imu_emu::errors::temperature::TemperatureProfile>,
@@ -281,6 +285,7 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         format,
         output: a.output.or(file.output.path),
         truth: a.truth,
+        truth_errors: a.truth_errors,
         imu,
         seed,
         temperature,
@@ -360,18 +365,29 @@ fn generate(a: GenerateArgs) -> Result<()> {
         indicatif::ProgressBar::hidden()
     };
     let started = Instant::now();
-    let mut truth_file = match &r.truth {
-        Some(p) => Some((
-            AtomicFile::create(p).with_context(|| format!("creating {}", p.display()))?,
-            p.clone(),
-        )),
-        None => None,
+    // Side files (error-free truth, injected errors): written beside the output, committed
+    // only when the whole run succeeded.
+    let side = |p: &Option<PathBuf>| -> Result<Option<(AtomicFile, PathBuf)>> {
+        p.as_ref()
+            .map(|p| {
+                Ok((
+                    AtomicFile::create(p).with_context(|| format!("creating {}", p.display()))?,
+                    p.clone(),
+                ))
+            })
+            .transpose()
     };
+    let mut truth_file = side(&r.truth)?;
+    let mut errors_file = side(&r.truth_errors)?;
     {
         let mut truth_out = truth_file
             .as_mut()
             .map(|(f, _)| std::io::BufWriter::with_capacity(1 << 20, f));
+        let mut errors_out = errors_file
+            .as_mut()
+            .map(|(f, _)| std::io::BufWriter::with_capacity(1 << 20, f));
         let truth_w = truth_out.as_mut().map(|w| w as &mut dyn Write);
+        let errors_w = errors_out.as_mut().map(|w| w as &mut dyn Write);
         let to_stdout = r.output.as_deref().is_none_or(|p| p == Path::new("-"));
         if to_stdout {
             let mut out = std::io::BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
@@ -383,6 +399,7 @@ fn generate(a: GenerateArgs) -> Result<()> {
                 chain,
                 &mut out,
                 truth_w,
+                errors_w,
                 |k| bar.set_position(k),
             )?;
             out.flush()?;
@@ -400,6 +417,7 @@ fn generate(a: GenerateArgs) -> Result<()> {
                     chain,
                     &mut out,
                     truth_w,
+                    errors_w,
                     |k| bar.set_position(k),
                 )
                 .with_context(|| format!("writing {}", path.display()))?;
@@ -408,11 +426,14 @@ fn generate(a: GenerateArgs) -> Result<()> {
             file.commit()
                 .with_context(|| format!("finishing {}", path.display()))?;
         }
-        if let Some(w) = truth_out.as_mut() {
+        for w in [truth_out.as_mut(), errors_out.as_mut()]
+            .into_iter()
+            .flatten()
+        {
             w.flush()?;
         }
     }
-    if let Some((f, p)) = truth_file {
+    for (f, p) in [truth_file, errors_file].into_iter().flatten() {
         f.commit()
             .with_context(|| format!("finishing {}", p.display()))?;
     }

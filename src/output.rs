@@ -143,6 +143,53 @@ impl Drop for AtomicFile {
     }
 }
 
+/// Header of the injected-errors file: `t` then `GROUP_SENSOR_AXIS` for every group of
+/// [`crate::errors::chain::COMPONENT_GROUPS`], sensors gyro and accel, axes x, y, z.
+pub fn components_header() -> String {
+    let mut cols = vec!["t".to_string()];
+    for g in crate::errors::chain::COMPONENT_GROUPS {
+        for s in ["gyro", "accel"] {
+            for a in ["x", "y", "z"] {
+                cols.push(format!("{g}_{s}_{a}"));
+            }
+        }
+    }
+    cols.join(",") + "\n"
+}
+
+/// Appends the injected errors of `records` (CSV rows or 37 little-endian f64 per record).
+pub fn encode_components(
+    format: Format,
+    records: &[Record],
+    comps: &[crate::errors::chain::Components],
+    buf: &mut Vec<u8>,
+) {
+    let mut f = ryu::Buffer::new();
+    for (r, c) in records.iter().zip(comps) {
+        let mut vals = Vec::with_capacity(37);
+        vals.push(r.t);
+        for g in &c.0 {
+            for v in g {
+                vals.extend_from_slice(&v.0);
+            }
+        }
+        match format {
+            Format::Bin => vals
+                .iter()
+                .for_each(|v| buf.extend_from_slice(&v.to_le_bytes())),
+            Format::Csv => {
+                for (i, v) in vals.iter().enumerate() {
+                    if i > 0 {
+                        buf.push(b',');
+                    }
+                    buf.extend_from_slice(f.format(*v).as_bytes());
+                }
+                buf.push(b'\n');
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

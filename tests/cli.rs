@@ -1007,3 +1007,50 @@ fn lever_arm_from_the_scene_file() {
         assert_eq!(a[4], p[4]);
     }
 }
+
+// `--truth-errors` writes what each stage injected: the output equals the error-free record
+// plus the sum of the groups (to a few ulp of the values), so a navigator can be scored.
+#[test]
+fn injected_errors_sum_to_the_output() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("imu.csv");
+    let truth = dir.path().join("truth.csv");
+    let errs = dir.path().join("errors.csv");
+    succeeded(run!(
+        "generate --scene circle --rate 50 --duration 2 --imu stim300 -o",
+        out,
+        "--truth",
+        truth,
+        "--truth-errors",
+        errs
+    ));
+    let (_, o) = parse_imu_csv(&std::fs::read(&out).unwrap());
+    let (_, t) = parse_imu_csv(&std::fs::read(&truth).unwrap());
+    let text = std::fs::read_to_string(&errs).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(header.len(), 37);
+    assert_eq!(header[1], "size_effect_gyro_x");
+    assert_eq!(header[36], "quantization_accel_z");
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), o.len());
+    for ((o, t), e) in o.iter().zip(&t).zip(&rows) {
+        assert_eq!(o[0], e[0]);
+        for sensor in 0..2 {
+            for axis in 0..3 {
+                let sum: f64 = (0..6).map(|g| e[1 + g * 6 + sensor * 3 + axis]).sum();
+                let col = 1 + sensor * 3 + axis;
+                // Stages mix axes (misalignment), so rounding scales with the whole vector.
+                let mag: f64 = (1..4).map(|a| t[sensor * 3 + a].abs()).sum();
+                let tol = 8.0 * f64::EPSILON * mag.max(1e-6);
+                assert!(
+                    (o[col] - t[col] - sum).abs() <= tol,
+                    "col {col}: {} vs {sum}",
+                    o[col] - t[col]
+                );
+            }
+        }
+    }
+}

@@ -552,6 +552,7 @@ fn time_base_exact_over_24_hours_at_1khz() {
         None,
         &mut check,
         None,
+        None,
         |_| {},
     )
     .unwrap();

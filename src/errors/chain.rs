@@ -109,7 +109,27 @@ pub struct ErrorChain {
     /// Scratch: the block's error-free specific force and temperature offsets.
     f_true: Vec<Vec3>,
     dtemp: Vec<f64>,
+    /// When capturing: each record's injected error per group, and a scratch snapshot.
+    capture: Option<Capture>,
 }
+
+/// Captured injected errors of a block and a scratch (gyro, accel) snapshot.
+type Capture = (Vec<Components>, Vec<(Vec3, Vec3)>);
+
+/// Names of the groups of injected errors, in [`Components`] order.
+pub const COMPONENT_GROUPS: [&str; 6] = [
+    "size_effect",
+    "scale_factor",
+    "bias",
+    "misalignment",
+    "noise",
+    "quantization",
+];
+
+/// The error each group injected into one record, in output units (rad/s for the gyro,
+/// m/s² for the accelerometer): `0[group][0]` gyro, `0[group][1]` accelerometer.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Components(pub [[Vec3; 2]; 6]);
 
 /// Selects one sensor's vector in a record.
 type Sel = fn(&mut Record) -> &mut Vec3;
@@ -153,6 +173,7 @@ impl ErrorChain {
                 .then_some(model.accel.size_effect),
             f_true: Vec::new(),
             dtemp: Vec::new(),
+            capture: None,
             gyro: Triad::new(&model.gyro, "gyro", dt, seed, model.quantization_mode),
             accel: Triad::new(&model.accel, "accel", dt, seed, model.quantization_mode),
             g_sens,
@@ -205,6 +226,40 @@ impl ErrorChain {
         self
     }
 
+    /// A chain with no stage (an ideal IMU).
+    pub fn ideal() -> ErrorChain {
+        let model = super::template::parse("", std::path::Path::new("ideal"))
+            .expect("empty template is valid");
+        ErrorChain::new(&model, 1.0, 0)
+    }
+
+    /// Records, on each apply, the error every group injected into every record (see
+    /// [`ErrorChain::components`]): what a navigator under test can be scored against.
+    pub fn with_components(mut self) -> ErrorChain {
+        self.capture = Some((Vec::new(), Vec::new()));
+        self
+    }
+
+    /// The injected errors of the records of the last apply (empty unless capturing).
+    pub fn components(&self) -> &[Components] {
+        self.capture.as_ref().map_or(&[], |c| &c.0)
+    }
+
+    fn snapshot(&mut self, records: &[Record]) {
+        if let Some((_, snap)) = self.capture.as_mut() {
+            snap.clear();
+            snap.extend(records.iter().map(|r| (r.gyro, r.accel)));
+        }
+    }
+
+    fn record_delta(&mut self, group: usize, records: &[Record]) {
+        if let Some((comps, snap)) = self.capture.as_mut() {
+            for ((c, r), (g, a)) in comps.iter_mut().zip(records).zip(snap.iter()) {
+                c.0[group] = [r.gyro - *g, r.accel - *a];
+            }
+        }
+    }
+
     /// True when accelerometers sit away from the reference point: then the records must be
     /// corrupted with [`ErrorChain::apply_with`] and the generator's rotation terms.
     pub fn needs_rotation_terms(&self) -> bool {
@@ -235,6 +290,10 @@ impl ErrorChain {
     /// f + ω̇ × r_i + ω × (ω × r_i), whose interval mean is f̄ + (Δω/Δt) × r_i + (W − tr W·I) r_i
     /// with W the mean of ω ωᵀ — exact, with no differentiation of ω.
     pub fn apply_with(&mut self, records: &mut [Record], rotation: Option<&[RotationTerms]>) {
+        if let Some((comps, _)) = self.capture.as_mut() {
+            comps.clear();
+            comps.resize(records.len(), Components::default());
+        }
         if self.is_empty() {
             return;
         }
@@ -244,6 +303,7 @@ impl ErrorChain {
                 r.accel = m.mul_vec(r.accel);
             }
         }
+        self.snapshot(records);
         if let (Some(pos), Some(rot)) = (&self.size_effect, rotation) {
             let inv_dt = 1.0 / self.dt;
             for (r, t) in records.iter_mut().zip(rot) {
@@ -260,6 +320,7 @@ impl ErrorChain {
                 }
             }
         }
+        self.record_delta(0, records);
         // The error-free specific force, for the g-sensitivity; the temperature offsets.
         self.f_true.clear();
         if self.g_sens.is_some() {
@@ -277,6 +338,7 @@ impl ErrorChain {
         let (mut exact_g, mut exact_a) = (false, false);
         for i in 0..self.order.len() {
             let stage = self.order[i];
+            self.snapshot(records);
             match stage {
                 StageKind::ScaleFactor => {
                     self.gyro.scale(records, gyro, &self.dtemp);
@@ -314,6 +376,14 @@ impl ErrorChain {
             if stage != StageKind::Quantization {
                 (exact_g, exact_a) = (false, false);
             }
+            let group = match stage {
+                StageKind::ScaleFactor => 1,
+                StageKind::Bias => 2,
+                StageKind::Misalignment => 3,
+                StageKind::Noise => 4,
+                StageKind::Quantization => 5,
+            };
+            self.record_delta(group, records);
         }
         for r in records.iter_mut() {
             if !exact_g {
