@@ -27,6 +27,133 @@ pub struct SceneFile {
     /// The IMU's temperature over the run.
     #[serde(default)]
     pub temperature: TemperatureSection,
+    /// Vibration of the IMU (sinusoids and random from PSD tables), in the case axes.
+    #[serde(default)]
+    pub vibration: VibrationSection,
+}
+
+/// `[vibration]`: `[[vibration.sine]]` and `[[vibration.random]]` entries.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct VibrationSection {
+    /// Sinusoids.
+    #[serde(default)]
+    pub sine: Vec<SineEntry>,
+    /// Random vibrations.
+    #[serde(default)]
+    pub random: Vec<RandomEntry>,
+}
+
+/// One `[[vibration.sine]]`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SineEntry {
+    /// `accel` or `gyro`.
+    pub sensor: String,
+    /// `x`, `y` or `z`.
+    pub axis: String,
+    /// Peak amplitude with unit (`"0.5 g"`, `"2 deg/s"`).
+    pub amplitude: String,
+    /// Frequency with unit (`"25 Hz"`).
+    pub frequency: String,
+    /// Phase with unit (`"30 deg"`), default 0.
+    pub phase: Option<String>,
+}
+
+/// One `[[vibration.random]]`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RandomEntry {
+    /// `accel` or `gyro`.
+    pub sensor: String,
+    /// `x`, `y` or `z`.
+    pub axis: String,
+    /// Breakpoints `[["20 Hz", "0.01 g^2/Hz"], …]`, log-log interpolated.
+    pub psd: Vec<[String; 2]>,
+}
+
+impl VibrationSection {
+    /// The vibration this section describes (empty when absent).
+    pub fn spec(
+        &self,
+        path: &Path,
+    ) -> Result<crate::errors::vibration::VibrationSpec, ConfigError> {
+        use crate::errors::vibration::{Random, Sensor, Sine, VibrationSpec};
+        use crate::units::{self, Kind};
+        let bad = |key: String, message: String| ConfigError::Value {
+            path: path.to_path_buf(),
+            key,
+            message,
+        };
+        let sensor = |s: &str, key: &str| match s {
+            "accel" => Ok(Sensor::Accel),
+            "gyro" => Ok(Sensor::Gyro),
+            _ => Err(bad(
+                format!("{key}.sensor"),
+                format!("`{s}`: expected `accel` or `gyro`"),
+            )),
+        };
+        let axis = |s: &str, key: &str| match s {
+            "x" => Ok(0),
+            "y" => Ok(1),
+            "z" => Ok(2),
+            _ => Err(bad(
+                format!("{key}.axis"),
+                format!("`{s}`: expected `x`, `y` or `z`"),
+            )),
+        };
+        let value = |text: &str, kind: Kind, key: String| {
+            units::parse(text, kind)
+                .map(|v| v.0)
+                .map_err(|e| bad(key, e.to_string()))
+        };
+        let mut spec = VibrationSpec::default();
+        for (i, e) in self.sine.iter().enumerate() {
+            let key = format!("vibration.sine[{i}]");
+            let sensor = sensor(&e.sensor, &key)?;
+            let kind = if sensor == Sensor::Accel {
+                Kind::Acceleration
+            } else {
+                Kind::AngularRate
+            };
+            spec.sines.push(Sine {
+                sensor,
+                axis: axis(&e.axis, &key)?,
+                amplitude: value(&e.amplitude, kind, format!("{key}.amplitude"))?,
+                freq_hz: value(&e.frequency, Kind::Frequency, format!("{key}.frequency"))?,
+                phase_rad: match &e.phase {
+                    Some(p) => value(p, Kind::Angle, format!("{key}.phase"))?,
+                    None => 0.0,
+                },
+            });
+        }
+        for (i, e) in self.random.iter().enumerate() {
+            let key = format!("vibration.random[{i}]");
+            let sensor = sensor(&e.sensor, &key)?;
+            let kind = if sensor == Sensor::Accel {
+                Kind::AccelPsd
+            } else {
+                Kind::RatePsd
+            };
+            let psd = e
+                .psd
+                .iter()
+                .enumerate()
+                .map(|(j, [f, p])| {
+                    Ok((
+                        value(f, Kind::Frequency, format!("{key}.psd[{j}]"))?,
+                        value(p, kind, format!("{key}.psd[{j}]"))?,
+                    ))
+                })
+                .collect::<Result<Vec<_>, ConfigError>>()?;
+            spec.randoms.push(Random {
+                sensor,
+                axis: axis(&e.axis, &key)?,
+                psd,
+            });
+        }
+        Ok(spec)
+    }
 }
 
 /// `[temperature]`: the IMU temperature profile (°C) driving the templates' temperature terms.

@@ -151,6 +151,7 @@ struct Resolved {
     temperature: Option<imu_emu::errors::temperature::TemperatureProfile>,
     mounting_deg: Option<[f64; 3]>,
     lever_arm_m: Option<[f64; 3]>,
+    vibration: imu_emu::errors::vibration::VibrationSpec,
     nodes: usize,
     model: ModelSettings,
 }
@@ -202,6 +203,7 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         .or(file.imu.seed)
         .unwrap_or(imu_emu::rng::DEFAULT_SEED);
     let temperature = file.temperature.profile(&file_path, &base)?;
+    let vibration = file.vibration.spec(&file_path)?;
     let at = in_file(
         a.format.is_some(),
         file.output.format.is_some(),
@@ -291,6 +293,7 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         temperature,
         mounting_deg: file.imu.mounting_deg,
         lever_arm_m: file.imu.lever_arm_m,
+        vibration,
         nodes,
         model: ModelSettings { degree, stencil },
     })
@@ -353,6 +356,29 @@ fn generate(a: GenerateArgs) -> Result<()> {
     }
     if let Some(r) = r.lever_arm_m {
         chain = chain.with_lever_arm(imu_emu::math::Vec3(r));
+    }
+    if !r.vibration.is_empty() {
+        let v =
+            imu_emu::errors::vibration::Vibration::new(&r.vibration, 1.0 / grid.rate_hz, r.seed)
+                .map_err(|e| {
+                    anyhow::anyhow!(
+                        "{}: `vibration`: {e}",
+                        r.scene_file
+                            .as_deref()
+                            .unwrap_or(Path::new("<flags>"))
+                            .display()
+                    )
+                })?;
+        for s in v.random_summaries() {
+            if let Some(f) = s.truncated_at_hz {
+                eprintln!(
+                    "imu-emu: warning: random vibration on {} {} cut at the Nyquist frequency {f} Hz",
+                    s.sensor.name(),
+                    ["x", "y", "z"][s.axis]
+                );
+            }
+        }
+        chain = chain.with_vibration(v);
     }
     let chain = (!chain.is_empty()).then_some(chain);
     if chain.is_some() {

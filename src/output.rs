@@ -157,7 +157,7 @@ pub fn components_header() -> String {
     cols.join(",") + "\n"
 }
 
-/// Appends the injected errors of `records` (CSV rows or 37 little-endian f64 per record).
+/// Appends the injected errors of `records` (CSV rows or 43 little-endian f64 per record).
 pub fn encode_components(
     format: Format,
     records: &[Record],
@@ -166,7 +166,7 @@ pub fn encode_components(
 ) {
     let mut f = ryu::Buffer::new();
     for (r, c) in records.iter().zip(comps) {
-        let mut vals = Vec::with_capacity(37);
+        let mut vals = Vec::with_capacity(43);
         vals.push(r.t);
         for g in &c.0 {
             for v in g {

@@ -35,6 +35,12 @@ pub enum Kind {
     Time,
     /// Length → m.
     Length,
+    /// Frequency → Hz.
+    Frequency,
+    /// Acceleration PSD → (m/s²)²/Hz.
+    AccelPsd,
+    /// Angular-rate PSD → (rad/s)²/Hz.
+    RatePsd,
     /// Gyro quantization: an angle increment (rad) or a rate (rad/s).
     GyroLsb,
     /// Accelerometer quantization: a velocity increment (m/s) or an acceleration (m/s²).
@@ -112,6 +118,17 @@ impl Kind {
                 ("rad/s/(m/s^2)", 1.0, false),
             ],
             Kind::Length => &[("m", 1.0, false), ("cm", 1e-2, false), ("mm", 1e-3, false)],
+            Kind::Frequency => &[("Hz", 1.0, false), ("kHz", 1e3, false)],
+            Kind::AccelPsd => &[
+                ("g^2/Hz", G0 * G0, false),
+                ("mg^2/Hz", G0 * G0 * 1e-6, false),
+                ("(m/s^2)^2/Hz", 1.0, false),
+            ],
+            Kind::RatePsd => &[
+                ("(rad/s)^2/Hz", 1.0, false),
+                ("(deg/s)^2/Hz", DEG * DEG, false),
+                ("(deg/h)^2/Hz", DEG * DEG / 3600.0 / 3600.0, false),
+            ],
             Kind::Time => &[
                 ("s", 1.0, false),
                 ("min", 60.0, false),

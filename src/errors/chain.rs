@@ -5,6 +5,7 @@
 use super::process::{Flicker, GaussMarkov, QuantMode, Quantizer, RandomWalk};
 use super::temperature::TemperatureProfile;
 use super::template::{ImuModel, TriadModel};
+use super::vibration::Vibration;
 use crate::generator::RotationTerms;
 use crate::math::{Mat3, Vec3};
 use crate::record::Record;
@@ -109,6 +110,8 @@ pub struct ErrorChain {
     /// Scratch: the block's error-free specific force and temperature offsets.
     f_true: Vec<Vec3>,
     dtemp: Vec<f64>,
+    /// Vibration of the case, added to the true signal before every error stage.
+    vibration: Option<Vibration>,
     /// When capturing: each record's injected error per group, and a scratch snapshot.
     capture: Option<Capture>,
 }
@@ -117,7 +120,8 @@ pub struct ErrorChain {
 type Capture = (Vec<Components>, Vec<(Vec3, Vec3)>);
 
 /// Names of the groups of injected errors, in [`Components`] order.
-pub const COMPONENT_GROUPS: [&str; 6] = [
+pub const COMPONENT_GROUPS: [&str; 7] = [
+    "vibration",
     "size_effect",
     "scale_factor",
     "bias",
@@ -129,7 +133,7 @@ pub const COMPONENT_GROUPS: [&str; 6] = [
 /// The error each group injected into one record, in output units (rad/s for the gyro,
 /// m/s² for the accelerometer): `0[group][0]` gyro, `0[group][1]` accelerometer.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Components(pub [[Vec3; 2]; 6]);
+pub struct Components(pub [[Vec3; 2]; 7]);
 
 /// Selects one sensor's vector in a record.
 type Sel = fn(&mut Record) -> &mut Vec3;
@@ -174,6 +178,7 @@ impl ErrorChain {
             f_true: Vec::new(),
             dtemp: Vec::new(),
             capture: None,
+            vibration: None,
             gyro: Triad::new(&model.gyro, "gyro", dt, seed, model.quantization_mode),
             accel: Triad::new(&model.accel, "accel", dt, seed, model.quantization_mode),
             g_sens,
@@ -226,6 +231,16 @@ impl ErrorChain {
         self
     }
 
+    /// Vibrates the IMU case (sinusoids and random vibration in the case axes): added to the
+    /// true signal after the mounting rotation and before every error stage, so scale factor,
+    /// g-sensitivity, saturation and quantization act on it.
+    pub fn with_vibration(mut self, v: Vibration) -> ErrorChain {
+        if !v.is_empty() {
+            self.vibration = Some(v);
+        }
+        self
+    }
+
     /// A chain with no stage (an ideal IMU).
     pub fn ideal() -> ErrorChain {
         let model = super::template::parse("", std::path::Path::new("ideal"))
@@ -274,6 +289,7 @@ impl ErrorChain {
             && self.temperature.is_none()
             && self.mounting.is_none()
             && self.size_effect.is_none()
+            && self.vibration.is_none()
     }
 
     /// Corrupts records in place. Stage by stage over the whole block (each random process
@@ -304,6 +320,15 @@ impl ErrorChain {
             }
         }
         self.snapshot(records);
+        if let Some(v) = self.vibration.as_mut() {
+            for r in records.iter_mut() {
+                let (g, a) = v.next();
+                r.gyro += g;
+                r.accel += a;
+            }
+        }
+        self.record_delta(0, records);
+        self.snapshot(records);
         if let (Some(pos), Some(rot)) = (&self.size_effect, rotation) {
             let inv_dt = 1.0 / self.dt;
             for (r, t) in records.iter_mut().zip(rot) {
@@ -320,7 +345,7 @@ impl ErrorChain {
                 }
             }
         }
-        self.record_delta(0, records);
+        self.record_delta(1, records);
         // The error-free specific force, for the g-sensitivity; the temperature offsets.
         self.f_true.clear();
         if self.g_sens.is_some() {
@@ -377,11 +402,11 @@ impl ErrorChain {
                 (exact_g, exact_a) = (false, false);
             }
             let group = match stage {
-                StageKind::ScaleFactor => 1,
-                StageKind::Bias => 2,
-                StageKind::Misalignment => 3,
-                StageKind::Noise => 4,
-                StageKind::Quantization => 5,
+                StageKind::ScaleFactor => 2,
+                StageKind::Bias => 3,
+                StageKind::Misalignment => 4,
+                StageKind::Noise => 5,
+                StageKind::Quantization => 6,
             };
             self.record_delta(group, records);
         }

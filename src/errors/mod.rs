@@ -5,6 +5,7 @@ pub mod chain;
 pub mod process;
 pub mod temperature;
 pub mod template;
+pub mod vibration;
 
 pub use chain::ErrorChain;
 pub use template::{ImuModel, TemplateError};
