@@ -380,6 +380,12 @@ fn generate(a: GenerateArgs) -> Result<()> {
         }
         chain = chain.with_vibration(v);
     }
+    if r.imu.grade != "ideal" && !r.imu.has_error_figures() {
+        eprintln!(
+            "imu-emu: warning: template `{}` has no error figures (no public source was found; see its file): the output is error-free apart from the interface's quantization and range",
+            r.imu.name
+        );
+    }
     let chain = (!chain.is_empty()).then_some(chain);
     if chain.is_some() {
         eprintln!("imu-emu: IMU `{}`, seed {}", r.imu.name, r.seed);

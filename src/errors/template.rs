@@ -138,6 +138,33 @@ pub enum TemplateError {
     Unknown(String, String),
 }
 
+impl ImuModel {
+    /// True when the template sets any stochastic or deterministic error term (not just the
+    /// interface's quantization and range).
+    pub fn has_error_figures(&self) -> bool {
+        [&self.gyro, &self.accel].iter().any(|t| {
+            let any = |v: &[f64]| v.iter().any(|x| *x != 0.0);
+            any(&t.bias)
+                || any(&t.bias_turn_on)
+                || any(&t.bias_instability)
+                || t.bias_gm.is_some()
+                || any(&t.random_walk)
+                || any(&t.noise)
+                || any(&t.scale_factor)
+                || any(&t.scale_factor_turn_on)
+                || t.scale_factor_gm.is_some()
+                || any(&t.scale_factor_random_walk)
+                || any(&t.scale_factor_asymmetry)
+                || any(&t.scale_factor_quadratic)
+                || any(&t.misalignment)
+                || any(&t.misalignment_turn_on)
+                || any(&t.g_sensitivity)
+                || any(&t.bias_temperature)
+                || any(&t.scale_factor_temperature)
+        })
+    }
+}
+
 /// Names of the built-in templates.
 pub fn builtin_names() -> Vec<&'static str> {
     BUILTIN.iter().map(|b| b.0).collect()
