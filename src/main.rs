@@ -83,7 +83,7 @@ struct GenerateArgs {
     /// Motion-model polynomials for trajectory files: cubic or quintic [default: quintic].
     #[arg(long)]
     interp: Option<String>,
-    /// Finite-difference stencil (samples) for knot derivatives [default: 7].
+    /// Finite-difference stencil (samples) for knot derivatives [default: 9].
     #[arg(long)]
     stencil: Option<usize>,
 }
@@ -203,6 +203,17 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         .or(file.imu.seed)
         .unwrap_or(imu_emu::rng::DEFAULT_SEED);
     let temperature = file.temperature.profile(&file_path, &base)?;
+    for (key, v) in [
+        ("imu.mounting_deg", file.imu.mounting_deg),
+        ("imu.lever_arm_m", file.imu.lever_arm_m),
+    ] {
+        if v.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
+            bail!(
+                "{}: `{key}`: expected three finite numbers",
+                file_path.display()
+            );
+        }
+    }
     let vibration = file.vibration.spec(&file_path)?;
     let at = in_file(
         a.format.is_some(),

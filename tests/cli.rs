@@ -1093,3 +1093,29 @@ fn sinusoidal_vibration_from_the_scene_file() {
     let e = failed(run!("generate --duration 1 -o", out, scene));
     assert_mentions(&e, &["v.toml", "`vibration.sine[0].axis`", "`w`"]);
 }
+
+// Non-finite numbers in a scene file never reach the signal: NaN and inf are refused naming
+// the file and key, and nothing is written.
+#[test]
+fn non_finite_scene_values_are_refused() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("o.csv");
+    for (body, key) in [
+        (
+            "[trajectory]\nscene = \"static\"\n[trajectory.params]\nroll_deg = nan\n",
+            "`trajectory.params.roll_deg`",
+        ),
+        (
+            "[trajectory]\nscene = \"circle\"\n[trajectory.params]\nroll_osc_hz = inf\n",
+            "`trajectory.params.roll_osc_hz`",
+        ),
+        ("[imu]\nmounting_deg = [0, nan, 0]\n", "`imu.mounting_deg`"),
+        ("[imu]\nlever_arm_m = [inf, 0, 0]\n", "`imu.lever_arm_m`"),
+    ] {
+        let f = dir.path().join("n.toml");
+        std::fs::write(&f, body).unwrap();
+        let e = failed(run!("generate --duration 1 -o", out, f));
+        assert_mentions(&e, &["n.toml", key]);
+        assert_no_output(dir.path(), "o.csv");
+    }
+}

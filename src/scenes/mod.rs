@@ -166,6 +166,26 @@ pub fn build(name: &str, p: &SceneParams) -> Result<Result<Scene, SceneParamErro
     };
     let r = |v: f64| v.to_radians();
     let inner = || -> Result<Scene, SceneParamError> {
+        let numbers = [
+            ("lat_deg", p.lat_deg),
+            ("lon_deg", p.lon_deg),
+            ("h_m", p.h_m),
+            ("roll_deg", p.roll_deg),
+            ("pitch_deg", p.pitch_deg),
+            ("yaw_deg", p.yaw_deg),
+            ("speed_m_s", p.speed_m_s),
+            ("radius_m", p.radius_m),
+            ("bank_deg", p.bank_deg),
+            ("start_h_m", p.start_h_m),
+            ("line_s", p.line_s),
+            ("cone_half_angle_deg", p.cone_half_angle_deg),
+            ("cone_hz", p.cone_hz),
+            ("roll_osc_deg", p.roll_osc_deg),
+            ("roll_osc_hz", p.roll_osc_hz),
+        ];
+        for (key, value) in numbers {
+            check(key, value, true, "a finite number")?;
+        }
         check(
             "lat_deg",
             p.lat_deg,
