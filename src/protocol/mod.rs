@@ -1,0 +1,41 @@
+//! Wire formats of real IMUs, described as data (`protocols/NAME.toml`): a specification is
+//! validated and compiled once into a flat plan that encodes records into frames and decodes
+//! frames back (DESIGN §5). Pure: no I/O.
+
+pub mod check;
+pub mod framing;
+pub mod plan;
+pub mod spec;
+
+pub use plan::{DecodeError, Decoded, EncoderState, Plan};
+pub use spec::{FrameSpec, SpecError};
+
+use std::path::Path;
+
+/// The built-in specifications, embedded at compile time (a test checks every file in
+/// `protocols/` is listed).
+pub const BUILTIN: &[(&str, &str)] = &[("kvh1750", include_str!("../../protocols/kvh1750.toml"))];
+
+/// Names of the built-in protocols.
+pub fn builtin_names() -> Vec<&'static str> {
+    BUILTIN.iter().map(|b| b.0).collect()
+}
+
+/// Loads and compiles a built-in protocol by name or a spec file by path.
+pub fn load(name_or_path: &str) -> Result<(FrameSpec, Plan), SpecError> {
+    let (text, path) = match BUILTIN.iter().find(|b| b.0 == name_or_path) {
+        Some((n, t)) => (t.to_string(), format!("protocols/{n}.toml")),
+        None => {
+            let p = Path::new(name_or_path);
+            let text = std::fs::read_to_string(p).map_err(|source| SpecError::Io {
+                path: p.to_path_buf(),
+                source,
+            })?;
+            (text, name_or_path.to_string())
+        }
+    };
+    let path = Path::new(&path);
+    let spec = FrameSpec::parse(&text, path)?;
+    let plan = Plan::compile(&spec, path)?;
+    Ok((spec, plan))
+}

@@ -1,0 +1,416 @@
+//! A frame specification compiled once into a flat plan of byte offsets and conversions, run
+//! per frame to encode records and decode frames (RUST-NOTES §3.2: as fast as hand-written
+//! code, and a user's TOML file needs no recompiling).
+
+use std::path::Path;
+
+use super::check::Check;
+use super::spec::{ByteOrder, FrameSpec, Source, SpecError, WireType};
+use crate::record::Record;
+
+/// One compiled field.
+#[derive(Clone, Debug)]
+struct Op {
+    name: String,
+    offset: usize,
+    ty: WireType,
+    order: ByteOrder,
+    what: What,
+}
+
+#[derive(Clone, Debug)]
+enum What {
+    Constant(i64),
+    Quantity { source: Source, scale: f64 },
+    Counter { modulo: u64, step: u64 },
+}
+
+/// The compiled check.
+#[derive(Clone, Debug)]
+struct CheckOp {
+    check: Check,
+    offset: usize,
+    ty: WireType,
+    order: ByteOrder,
+    from: usize,
+    pad_to: usize,
+}
+
+/// A compiled frame: encode records, decode frames.
+#[derive(Clone, Debug)]
+pub struct Plan {
+    /// Protocol name.
+    pub name: String,
+    /// Nominal rate (Hz), if the spec gives one.
+    pub rate_hz: Option<f64>,
+    /// Nominal link speed (bit/s), if given.
+    pub baud: Option<u64>,
+    ops: Vec<Op>,
+    check: Option<CheckOp>,
+    len: usize,
+}
+
+/// Encoder state carried from frame to frame (the counter).
+#[derive(Clone, Debug, Default)]
+pub struct EncoderState {
+    /// Frames encoded so far.
+    pub frames: u64,
+}
+
+/// Why a frame does not decode.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DecodeError {
+    /// Fewer bytes than a frame.
+    #[error("{got} bytes, a frame has {need}")]
+    Short {
+        /// Bytes given.
+        got: usize,
+        /// Frame length.
+        need: usize,
+    },
+    /// A constant field (sync word, fixed status) has another value.
+    #[error("field `{field}`: {got:#x}, expected {expected:#x}")]
+    Constant {
+        /// Field name.
+        field: String,
+        /// Value found.
+        got: i64,
+        /// Value expected.
+        expected: i64,
+    },
+    /// The integrity check does not match.
+    #[error("check: frame carries {got:#x}, computed {computed:#x}")]
+    Check {
+        /// Transmitted.
+        got: u64,
+        /// Computed.
+        computed: u64,
+    },
+}
+
+/// A decoded frame: every quantity field's value in SI, by field order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Decoded {
+    /// (source, value) of each quantity and counter field, in wire order.
+    pub values: Vec<(Source, f64)>,
+}
+
+impl Decoded {
+    /// The value of a source, if the frame carries it.
+    pub fn get(&self, s: Source) -> Option<f64> {
+        self.values.iter().find(|v| v.0 == s).map(|v| v.1)
+    }
+}
+
+impl Plan {
+    /// Validates and compiles a spec (`path` for messages).
+    pub fn compile(spec: &FrameSpec, path: &Path) -> Result<Plan, SpecError> {
+        let ferr = |field: &str, message: String| SpecError::Field {
+            path: path.to_path_buf(),
+            field: field.to_string(),
+            message,
+        };
+        let mut ops = Vec::with_capacity(spec.field.len());
+        let mut offset = 0;
+        for f in &spec.field {
+            let order = f.byte_order.unwrap_or(spec.byte_order);
+            let what = match (&f.value, &f.source) {
+                (Some(_), Some(_)) => {
+                    return Err(ferr(
+                        &f.name,
+                        "give either `value` or `source`, not both".into(),
+                    ));
+                }
+                (None, None) => {
+                    return Err(ferr(
+                        &f.name,
+                        "needs a `value` (constant) or a `source` (quantity)".into(),
+                    ));
+                }
+                (Some(v), None) => {
+                    if let Some((lo, hi)) = f.ty.int_range()
+                        && ((*v as i128) < lo || (*v as i128) > hi)
+                    {
+                        return Err(ferr(
+                            &f.name,
+                            format!("constant {v} does not fit in {:?}", f.ty),
+                        ));
+                    }
+                    What::Constant(*v)
+                }
+                (None, Some(name)) => {
+                    let source = Source::from_name(name).ok_or_else(|| {
+                        ferr(&f.name, format!("unknown source quantity `{name}` (gyro.x…z, accel.*, dtheta.*, dv.*, time, counter, temperature)"))
+                    })?;
+                    if source == Source::Counter {
+                        let range = f.ty.int_range().ok_or_else(|| {
+                            ferr(&f.name, "a counter needs an integer type".into())
+                        })?;
+                        let modulo = f.modulo.unwrap_or((range.1 + 1) as u64);
+                        if modulo == 0 || modulo as i128 > range.1 + 1 {
+                            return Err(ferr(
+                                &f.name,
+                                format!("modulo {modulo} does not fit in {:?}", f.ty),
+                            ));
+                        }
+                        What::Counter {
+                            modulo,
+                            step: f.step.unwrap_or(1),
+                        }
+                    } else {
+                        let lsb = f.lsb.unwrap_or(1.0);
+                        if !(lsb.is_finite() && lsb != 0.0) {
+                            return Err(ferr(
+                                &f.name,
+                                format!("lsb {lsb} must be finite and non-zero"),
+                            ));
+                        }
+                        What::Quantity {
+                            source,
+                            scale: f.sign.unwrap_or(1.0) / lsb,
+                        }
+                    }
+                }
+            };
+            ops.push(Op {
+                name: f.name.clone(),
+                offset,
+                ty: f.ty,
+                order,
+                what,
+            });
+            offset += f.ty.bytes();
+        }
+        let check = match &spec.check {
+            None => None,
+            Some(c) => {
+                let cerr = |message: String| SpecError::Check {
+                    path: path.to_path_buf(),
+                    message,
+                };
+                let check = Check::from_toml(&c.kind).map_err(|e| cerr(e.to_string()))?;
+                let from = c.from.unwrap_or(0);
+                let pad_to = c.pad_to_multiple_of.unwrap_or(1);
+                if !(1..=16).contains(&pad_to) {
+                    return Err(cerr(format!(
+                        "pad_to_multiple_of = {pad_to}: expected 1 to 16"
+                    )));
+                }
+                if from >= offset {
+                    return Err(cerr(format!(
+                        "coverage starts at byte {from}, outside the {offset}-byte frame"
+                    )));
+                }
+                if c.ty.bytes() < check.width_bytes() || c.ty.int_range().is_none() {
+                    return Err(cerr(format!(
+                        "a {}-byte check does not fit in {:?}",
+                        check.width_bytes(),
+                        c.ty
+                    )));
+                }
+                Some(CheckOp {
+                    check,
+                    offset,
+                    ty: c.ty,
+                    order: c.byte_order.unwrap_or(spec.byte_order),
+                    from,
+                    pad_to,
+                })
+            }
+        };
+        let len = offset + check.as_ref().map_or(0, |c| c.ty.bytes());
+        Ok(Plan {
+            name: spec.name.clone(),
+            rate_hz: spec.rate_hz,
+            baud: spec.baud,
+            ops,
+            check,
+            len,
+        })
+    }
+
+    /// Frame length in bytes.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Always false: a frame has at least one field.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Appends the frame of `r` to `out`; values beyond a field's range saturate.
+    /// `temperature` is the sensor temperature (°C) if the frame carries one.
+    pub fn encode(
+        &self,
+        r: &Record,
+        temperature: f64,
+        state: &mut EncoderState,
+        out: &mut Vec<u8>,
+    ) {
+        let start = out.len();
+        out.resize(start + self.len, 0);
+        let frame = &mut out[start..];
+        for op in &self.ops {
+            let dst = &mut frame[op.offset..op.offset + op.ty.bytes()];
+            match op.what {
+                What::Constant(v) => put_int(dst, op.ty, op.order, v as i128),
+                What::Counter { modulo, step } => {
+                    let v = (state.frames.wrapping_mul(step)) % modulo;
+                    put_int(dst, op.ty, op.order, v as i128);
+                }
+                What::Quantity { source, scale } => {
+                    let x = quantity(r, temperature, source) * scale;
+                    put_value(dst, op.ty, op.order, x);
+                }
+            }
+        }
+        if let Some(c) = &self.check {
+            let v = c.compute(frame);
+            put_int(
+                &mut frame[c.offset..c.offset + c.ty.bytes()],
+                c.ty,
+                c.order,
+                v as i128,
+            );
+        }
+        state.frames += 1;
+    }
+
+    /// Decodes one frame at the start of `bytes`, checking constants and the check.
+    pub fn decode(&self, bytes: &[u8]) -> Result<Decoded, DecodeError> {
+        if bytes.len() < self.len {
+            return Err(DecodeError::Short {
+                got: bytes.len(),
+                need: self.len,
+            });
+        }
+        let frame = &bytes[..self.len];
+        if let Some(c) = &self.check {
+            let got = get_int(&frame[c.offset..c.offset + c.ty.bytes()], c.ty, c.order) as u64;
+            let computed = c.compute(frame);
+            if got != computed {
+                return Err(DecodeError::Check { got, computed });
+            }
+        }
+        let mut out = Decoded::default();
+        for op in &self.ops {
+            let src = &frame[op.offset..op.offset + op.ty.bytes()];
+            match op.what {
+                What::Constant(expected) => {
+                    let got = get_int(src, op.ty, op.order) as i64;
+                    if got != expected {
+                        return Err(DecodeError::Constant {
+                            field: op.name.clone(),
+                            got,
+                            expected,
+                        });
+                    }
+                }
+                What::Counter { .. } => out
+                    .values
+                    .push((Source::Counter, get_int(src, op.ty, op.order) as f64)),
+                What::Quantity { source, scale } => out
+                    .values
+                    .push((source, get_value(src, op.ty, op.order) / scale)),
+            }
+        }
+        Ok(out)
+    }
+}
+
+impl CheckOp {
+    /// The check over the covered bytes, zero-padded (not transmitted) when the protocol says so.
+    fn compute(&self, frame: &[u8]) -> u64 {
+        let covered = &frame[self.from..self.offset];
+        let pad = (self.pad_to - covered.len() % self.pad_to) % self.pad_to;
+        const ZEROS: [u8; 16] = [0; 16];
+        self.check.compute_parts(&[covered, &ZEROS[..pad.min(16)]])
+    }
+}
+
+fn quantity(r: &Record, temperature: f64, s: Source) -> f64 {
+    match s {
+        Source::Gyro(i) => r.gyro.0[i],
+        Source::Accel(i) => r.accel.0[i],
+        Source::DTheta(i) => r.dtheta.0[i],
+        Source::Dv(i) => r.dv.0[i],
+        Source::Time => r.t,
+        Source::Temperature => temperature,
+        Source::Counter => 0.0,
+    }
+}
+
+/// Writes a physical value: floats as they are, integers rounded and saturated at the type's
+/// range (a real unit flags overrange rather than wrapping).
+fn put_value(dst: &mut [u8], ty: WireType, order: ByteOrder, x: f64) {
+    match ty {
+        WireType::F32 => put_bytes(dst, &(x as f32).to_be_bytes(), order),
+        WireType::F64 => put_bytes(dst, &x.to_be_bytes(), order),
+        _ => {
+            let (lo, hi) = ty.int_range().expect("integer type");
+            let v = if x.is_nan() {
+                0
+            } else {
+                (x.round() as i128).clamp(lo, hi)
+            };
+            put_int(dst, ty, order, v);
+        }
+    }
+}
+
+fn get_value(src: &[u8], ty: WireType, order: ByteOrder) -> f64 {
+    match ty {
+        WireType::F32 => {
+            let mut b = [0u8; 4];
+            get_bytes(src, &mut b, order);
+            f32::from_be_bytes(b) as f64
+        }
+        WireType::F64 => {
+            let mut b = [0u8; 8];
+            get_bytes(src, &mut b, order);
+            f64::from_be_bytes(b)
+        }
+        _ => get_int(src, ty, order) as f64,
+    }
+}
+
+/// Writes the low `ty.bytes()` bytes of v (two's complement) in `order`.
+fn put_int(dst: &mut [u8], ty: WireType, order: ByteOrder, v: i128) {
+    let n = ty.bytes();
+    let be = v.to_be_bytes();
+    put_bytes(dst, &be[16 - n..], order);
+}
+
+fn get_int(src: &[u8], ty: WireType, order: ByteOrder) -> i128 {
+    let n = ty.bytes();
+    let mut be = [0u8; 16];
+    get_bytes(src, &mut be[16 - n..], order);
+    let raw = i128::from_be_bytes(be);
+    match ty.int_range() {
+        Some((lo, _)) if lo < 0 && raw >= -lo => raw - 2 * (-lo),
+        _ => raw,
+    }
+}
+
+/// Copies big-endian bytes `be` into `dst` in the wire order.
+fn put_bytes(dst: &mut [u8], be: &[u8], order: ByteOrder) {
+    match order {
+        ByteOrder::Big => dst.copy_from_slice(be),
+        ByteOrder::Little => dst
+            .iter_mut()
+            .zip(be.iter().rev())
+            .for_each(|(d, s)| *d = *s),
+    }
+}
+
+/// Reads wire bytes `src` into big-endian `be`.
+fn get_bytes(src: &[u8], be: &mut [u8], order: ByteOrder) {
+    match order {
+        ByteOrder::Big => be.copy_from_slice(src),
+        ByteOrder::Little => be
+            .iter_mut()
+            .zip(src.iter().rev())
+            .for_each(|(d, s)| *d = *s),
+    }
+}

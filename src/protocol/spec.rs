@@ -1,0 +1,280 @@
+//! The specification language of a frame (`protocols/NAME.toml`): fixed-layout frames of
+//! typed fields in order, each a constant or a quantity of the record scaled by its LSB,
+//! optionally closed by an integrity check. Parsing and validation only; [`super::plan`]
+//! compiles a validated spec.
+//!
+//! ```toml
+//! name = "kvh1750"
+//! byte_order = "big"            # default of every field
+//! rate_hz = 1000
+//! [[field]]
+//! name = "header"
+//! type = "u32"
+//! value = 0xFE81FF55            # a constant
+//! [[field]]
+//! name = "dtheta_x"
+//! type = "f32"
+//! source = "dtheta.x"           # a quantity of the record, in SI
+//! lsb = 1.0                     # SI units per wire unit (wire = SI / lsb)
+//! [[field]]
+//! name = "sequence"
+//! type = "u8"
+//! source = "counter"
+//! modulo = 128
+//! [check]
+//! kind = "crc-32/mpeg-2"
+//! type = "u32"
+//! from = 0                      # first byte covered; the check covers up to itself
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+/// Byte order of a multi-byte field.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ByteOrder {
+    /// Most significant byte first.
+    #[default]
+    Big,
+    /// Least significant byte first.
+    Little,
+}
+
+/// A field's wire type.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum WireType {
+    /// Unsigned 8-bit.
+    U8,
+    /// Signed 8-bit.
+    I8,
+    /// Unsigned 16-bit.
+    U16,
+    /// Signed 16-bit.
+    I16,
+    /// Unsigned 24-bit.
+    U24,
+    /// Signed 24-bit (two's complement).
+    I24,
+    /// Unsigned 32-bit.
+    U32,
+    /// Signed 32-bit.
+    I32,
+    /// Unsigned 64-bit.
+    U64,
+    /// Signed 64-bit.
+    I64,
+    /// IEEE-754 single.
+    F32,
+    /// IEEE-754 double.
+    F64,
+}
+
+impl WireType {
+    /// Size on the wire.
+    pub fn bytes(self) -> usize {
+        match self {
+            WireType::U8 | WireType::I8 => 1,
+            WireType::U16 | WireType::I16 => 2,
+            WireType::U24 | WireType::I24 => 3,
+            WireType::U32 | WireType::I32 | WireType::F32 => 4,
+            WireType::U64 | WireType::I64 | WireType::F64 => 8,
+        }
+    }
+    /// Representable integer range, `None` for floats.
+    pub fn int_range(self) -> Option<(i128, i128)> {
+        let b = self.bytes() as u32 * 8;
+        match self {
+            WireType::F32 | WireType::F64 => None,
+            WireType::U8 | WireType::U16 | WireType::U24 | WireType::U32 | WireType::U64 => {
+                Some((0, (1i128 << b) - 1))
+            }
+            _ => Some((-(1i128 << (b - 1)), (1i128 << (b - 1)) - 1)),
+        }
+    }
+}
+
+/// A quantity a field can carry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Source {
+    /// Interval-mean angular rate, axis 0–2 (rad/s).
+    Gyro(usize),
+    /// Interval-mean specific force (m/s²).
+    Accel(usize),
+    /// Angle increment (rad).
+    DTheta(usize),
+    /// Velocity increment (m/s).
+    Dv(usize),
+    /// The record's time tag (s).
+    Time,
+    /// The frame counter (advances by `step` per frame, wraps at `modulo`).
+    Counter,
+    /// Sensor temperature (°C).
+    Temperature,
+}
+
+impl Source {
+    /// Parses `gyro.x`, `accel.z`, `dtheta.y`, `dv.x`, `time`, `counter`, `temperature`.
+    pub fn from_name(s: &str) -> Option<Source> {
+        let axis = |a: &str| match a {
+            "x" => Some(0),
+            "y" => Some(1),
+            "z" => Some(2),
+            _ => None,
+        };
+        Some(match s.split_once('.') {
+            Some(("gyro", a)) => Source::Gyro(axis(a)?),
+            Some(("accel", a)) => Source::Accel(axis(a)?),
+            Some(("dtheta", a)) => Source::DTheta(axis(a)?),
+            Some(("dv", a)) => Source::Dv(axis(a)?),
+            None if s == "time" => Source::Time,
+            None if s == "counter" => Source::Counter,
+            None if s == "temperature" => Source::Temperature,
+            _ => return None,
+        })
+    }
+}
+
+/// One `[[field]]` as written.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FieldSpec {
+    /// Name (for messages and decoded columns).
+    pub name: String,
+    /// Wire type.
+    #[serde(rename = "type")]
+    pub ty: WireType,
+    /// Overrides the spec's byte order.
+    pub byte_order: Option<ByteOrder>,
+    /// A constant value (sync words, fixed status).
+    pub value: Option<i64>,
+    /// The quantity carried (`gyro.x`, `dtheta.z`, `counter`, …).
+    pub source: Option<String>,
+    /// SI units per wire unit (default 1).
+    pub lsb: Option<f64>,
+    /// Multiplier applied before scaling (e.g. −1 for a reversed axis).
+    pub sign: Option<f64>,
+    /// Counter wrap (the counter runs 0..modulo−1).
+    pub modulo: Option<u64>,
+    /// Counter increment per frame (default 1).
+    pub step: Option<u64>,
+}
+
+/// `[check]` as written.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CheckSpec {
+    /// The check algorithm (see `protocol::check`), as TOML.
+    pub kind: toml::Value,
+    /// Wire type of the check field (`u8`, `u16`, `u32`).
+    #[serde(rename = "type")]
+    pub ty: WireType,
+    /// Byte order of the check field.
+    pub byte_order: Option<ByteOrder>,
+    /// First byte covered (default 0).
+    pub from: Option<usize>,
+    /// Zero bytes appended to the covered data before computing (not transmitted).
+    pub pad_to_multiple_of: Option<usize>,
+}
+
+/// A golden test vector: bytes and the values they decode to.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TestVector {
+    /// What the vector is and where it comes from.
+    pub comment: Option<String>,
+    /// The frame, hex (spaces allowed).
+    pub hex: String,
+    /// Decoded values by source name (`dtheta.x`, `counter`, …), in SI.
+    pub values: toml::Table,
+    /// Relative tolerance of the value comparison (default 1e-6: single floats).
+    pub tolerance: Option<f64>,
+}
+
+/// A frame specification as written.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FrameSpec {
+    /// Protocol name.
+    pub name: String,
+    /// One-line description.
+    pub description: Option<String>,
+    /// Where each fact comes from.
+    #[serde(default)]
+    pub sources: Vec<String>,
+    /// Nominal output rate (Hz).
+    pub rate_hz: Option<f64>,
+    /// Nominal link speed (bit/s).
+    pub baud: Option<u64>,
+    /// Default byte order.
+    #[serde(default)]
+    pub byte_order: ByteOrder,
+    /// The fields in wire order.
+    pub field: Vec<FieldSpec>,
+    /// The integrity check, appended after the fields.
+    pub check: Option<CheckSpec>,
+    /// Golden vectors.
+    #[serde(default)]
+    pub test_vector: Vec<TestVector>,
+}
+
+/// A specification that cannot be used, naming the file, the field and the problem.
+#[derive(Debug, thiserror::Error)]
+pub enum SpecError {
+    /// Unreadable file.
+    #[error("{path}: cannot read")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// TOML syntax or schema.
+    #[error("{path}: {message}")]
+    Syntax {
+        /// File.
+        path: PathBuf,
+        /// Message with line and column.
+        message: String,
+    },
+    /// A field that cannot be used.
+    #[error("{path}: field `{field}`: {message}")]
+    Field {
+        /// File.
+        path: PathBuf,
+        /// Field name.
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The check cannot be used.
+    #[error("{path}: `check`: {message}")]
+    Check {
+        /// File.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl FrameSpec {
+    /// Parses spec text; `path` is used in messages.
+    pub fn parse(text: &str, path: &Path) -> Result<FrameSpec, SpecError> {
+        toml::from_str(text).map_err(|e| SpecError::Syntax {
+            path: path.to_path_buf(),
+            message: e.to_string().trim().replace('\n', " "),
+        })
+    }
+
+    /// Reads and parses a spec file.
+    pub fn read(path: &Path) -> Result<FrameSpec, SpecError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SpecError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        FrameSpec::parse(&text, path)
+    }
+}
