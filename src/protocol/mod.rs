@@ -14,7 +14,13 @@ use std::path::Path;
 
 /// The built-in specifications, embedded at compile time (a test checks every file in
 /// `protocols/` is listed).
-pub const BUILTIN: &[(&str, &str)] = &[("kvh1750", include_str!("../../protocols/kvh1750.toml"))];
+pub const BUILTIN: &[(&str, &str)] = &[
+    (
+        "imar-ixcom",
+        include_str!("../../protocols/imar-ixcom.toml"),
+    ),
+    ("kvh1750", include_str!("../../protocols/kvh1750.toml")),
+];
 
 /// Names of the built-in protocols.
 pub fn builtin_names() -> Vec<&'static str> {

@@ -50,12 +50,18 @@ pub struct Plan {
     len: usize,
 }
 
-/// Encoder state carried from frame to frame (the counter).
+/// Encoder state carried from frame to frame (the counter) and the run's time reference.
 #[derive(Clone, Debug, Default)]
 pub struct EncoderState {
     /// Frames encoded so far.
     pub frames: u64,
+    /// GPS time (s since the GPS epoch, 1980-01-06) of the record time t = 0; GPS fields carry
+    /// t + this. With the default 0, record times are GPS seconds since the epoch.
+    pub gps_time_of_t0: f64,
 }
+
+/// Seconds in a GPS week.
+pub const GPS_WEEK_S: f64 = 604_800.0;
 
 /// Why a frame does not decode.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -260,7 +266,7 @@ impl Plan {
                     put_int(dst, op.ty, op.order, v as i128);
                 }
                 What::Quantity { source, scale } => {
-                    let x = quantity(r, temperature, source) * scale;
+                    let x = quantity(r, temperature, state.gps_time_of_t0, source) * scale;
                     put_value(dst, op.ty, op.order, x);
                 }
             }
@@ -329,8 +335,22 @@ impl CheckOp {
     }
 }
 
-fn quantity(r: &Record, temperature: f64, s: Source) -> f64 {
+fn quantity(r: &Record, temperature: f64, gps_t0: f64, s: Source) -> f64 {
+    // GPS fields split the time tag from the integer part, so microseconds stay exact.
+    let gps = || {
+        let t = r.t + gps_t0;
+        let week = (t / GPS_WEEK_S).floor();
+        (week, t - week * GPS_WEEK_S)
+    };
     match s {
+        Source::GpsWeek => gps().0,
+        Source::GpsSeconds => gps().1,
+        Source::GpsWholeSeconds => gps().1.floor(),
+        Source::GpsMicros => {
+            let sow = gps().1;
+            ((sow - sow.floor()) * 1e6).round().min(999_999.0)
+        }
+        Source::GpsMillis => (gps().1 * 1e3).round(),
         Source::Gyro(i) => r.gyro.0[i],
         Source::Accel(i) => r.accel.0[i],
         Source::DTheta(i) => r.dtheta.0[i],

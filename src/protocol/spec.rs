@@ -113,10 +113,21 @@ pub enum Source {
     Counter,
     /// Sensor temperature (°C).
     Temperature,
+    /// GPS week number of the record's time tag.
+    GpsWeek,
+    /// GPS seconds of week (s, fractional).
+    GpsSeconds,
+    /// Whole GPS seconds of week.
+    GpsWholeSeconds,
+    /// Microseconds within the GPS second.
+    GpsMicros,
+    /// GPS milliseconds of week.
+    GpsMillis,
 }
 
 impl Source {
-    /// Parses `gyro.x`, `accel.z`, `dtheta.y`, `dv.x`, `time`, `counter`, `temperature`.
+    /// Parses `gyro.x`, `accel.z`, `dtheta.y`, `dv.x`, `time`, `counter`, `temperature`,
+    /// `gps.week`, `gps.seconds`, `gps.whole_seconds`, `gps.micros`, `gps.millis`.
     pub fn from_name(s: &str) -> Option<Source> {
         let axis = |a: &str| match a {
             "x" => Some(0),
@@ -132,6 +143,11 @@ impl Source {
             None if s == "time" => Source::Time,
             None if s == "counter" => Source::Counter,
             None if s == "temperature" => Source::Temperature,
+            Some(("gps", "week")) => Source::GpsWeek,
+            Some(("gps", "seconds")) => Source::GpsSeconds,
+            Some(("gps", "whole_seconds")) => Source::GpsWholeSeconds,
+            Some(("gps", "micros")) => Source::GpsMicros,
+            Some(("gps", "millis")) => Source::GpsMillis,
             _ => return None,
         })
     }
