@@ -164,6 +164,57 @@ pub fn plan(
     })
 }
 
+/// What the main output carries.
+#[derive(Clone, Debug)]
+pub enum Encoding {
+    /// The record contract: CSV or binary.
+    Records(Format),
+    /// A protocol's frames, one per record; side files (truth, injected errors) use `side`.
+    Frames {
+        /// The compiled frame.
+        plan: Box<crate::protocol::Plan>,
+        /// Counter and GPS time reference.
+        state: crate::protocol::EncoderState,
+        /// The sensor temperature carried by frames that have one (°C).
+        temperature: f64,
+        /// Format of the side files.
+        side: Format,
+    },
+}
+
+impl From<Format> for Encoding {
+    fn from(f: Format) -> Encoding {
+        Encoding::Records(f)
+    }
+}
+
+impl Encoding {
+    /// Format of the side files (truth, injected errors).
+    fn side(&self) -> Format {
+        match self {
+            Encoding::Records(f) => *f,
+            Encoding::Frames { side, .. } => *side,
+        }
+    }
+
+    /// Appends the main output's bytes for `records`.
+    fn encode(&mut self, records: &[Record], buf: &mut Vec<u8>) {
+        match self {
+            Encoding::Records(f) => output::encode(*f, records, buf),
+            Encoding::Frames {
+                plan,
+                state,
+                temperature,
+                ..
+            } => {
+                for r in records {
+                    plan.encode(r, *temperature, state, buf);
+                }
+            }
+        }
+    }
+}
+
 /// Runs the job into `out`, calling `progress(records_done)` after each block.
 ///
 /// With an error `chain`, records are corrupted after generation; `truth`, if given, receives
@@ -174,7 +225,7 @@ pub fn run(
     motion: AnyMotion,
     grid: Grid,
     nodes: usize,
-    format: Format,
+    encoding: impl Into<Encoding>,
     mut chain: Option<ErrorChain>,
     out: &mut impl Write,
     mut truth: Option<&mut dyn Write>,
@@ -194,8 +245,12 @@ pub fn run(
     let mut rot =
         vec![crate::generator::RotationTerms::default(); if needs_rot { BLOCK } else { 0 }];
     let mut buf = Vec::with_capacity(BLOCK * 104);
-    if format == Format::Csv {
+    let mut encoding = encoding.into();
+    let format = encoding.side();
+    if matches!(encoding, Encoding::Records(Format::Csv)) {
         out.write_all(output::csv_header().as_bytes())?;
+    }
+    if format == Format::Csv {
         if let Some(t) = truth.as_mut() {
             t.write_all(output::csv_header().as_bytes())?;
         }
@@ -234,7 +289,7 @@ pub fn run(
             w.write_all(&buf)?;
         }
         buf.clear();
-        output::encode(format, &block[..n], &mut buf);
+        encoding.encode(&block[..n], &mut buf);
         out.write_all(&buf)?;
         k += n as u64;
         progress(k - 1);

@@ -59,9 +59,12 @@ struct GenerateArgs {
     /// Start time t₀ (s) [default: the trajectory's start].
     #[arg(long, allow_negative_numbers = true)]
     start: Option<f64>,
-    /// Output format: csv or bin [default: csv].
+    /// Output format: csv, bin, or a protocol's frames (kvh1750, imar-ixcom) [default: csv].
     #[arg(long)]
     format: Option<String>,
+    /// Frames of a protocol described in a spec file (protocols/README.md).
+    #[arg(long)]
+    protocol_file: Option<PathBuf>,
     /// Output file, or - for stdout [default: stdout].
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -142,7 +145,7 @@ struct Resolved {
     rate: f64,
     start: Option<f64>,
     duration: Option<f64>,
-    format: Format,
+    format: Output,
     output: Option<PathBuf>,
     truth: Option<PathBuf>,
     truth_errors: Option<PathBuf>,
@@ -224,8 +227,19 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         .format
         .or(file.output.format)
         .unwrap_or_else(|| "csv".into());
-    let Some(format) = Format::from_name(&format_name) else {
-        bail!("{at}output format `{format_name}`: expected `csv` or `bin`");
+    let protocol_file = a.protocol_file.clone();
+    let format = match (Format::from_name(&format_name), &protocol_file) {
+        (_, Some(p)) => Output::Frames(imu_emu::protocol::load(&p.to_string_lossy())?.1),
+        (Some(f), None) => Output::Records(f),
+        (None, None) => match imu_emu::protocol::load(&format_name) {
+            Ok((_, plan)) if imu_emu::protocol::builtin_names().contains(&format_name.as_str()) => {
+                Output::Frames(plan)
+            }
+            _ => bail!(
+                "{at}output format `{format_name}`: expected `csv`, `bin` or a protocol ({})",
+                imu_emu::protocol::builtin_names().join(", ")
+            ),
+        },
     };
     let at = in_file(
         a.interp.is_some(),
@@ -292,7 +306,15 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         scene_from_file,
         params_from_file,
         file_settings,
-        rate: a.rate.or(file.imu.rate_hz).or(imu.rate_hz).unwrap_or(400.0),
+        rate: a
+            .rate
+            .or(file.imu.rate_hz)
+            .or(match &format {
+                Output::Frames(p) => p.rate_hz,
+                Output::Records(_) => None,
+            })
+            .or(imu.rate_hz)
+            .unwrap_or(400.0),
         start: a.start.or(file.output.start_s),
         duration: a.duration.or(file.output.duration_s),
         format,
@@ -310,7 +332,27 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
     })
 }
 
+/// What `generate` writes: the record contract or a protocol's frames.
+#[derive(Clone, Debug)]
+enum Output {
+    Records(Format),
+    Frames(imu_emu::protocol::Plan),
+}
+
 impl Resolved {
+    /// The job's encoding; side files of a frame stream are CSV.
+    fn encoding(&self) -> job::Encoding {
+        match &self.format {
+            Output::Records(f) => job::Encoding::Records(*f),
+            Output::Frames(plan) => job::Encoding::Frames {
+                plan: Box::new(plan.clone()),
+                state: imu_emu::protocol::EncoderState::default(),
+                temperature: 25.0,
+                side: Format::Csv,
+            },
+        }
+    }
+
     /// Adds the file (and scene-file key) at fault to an error the library reports without it.
     fn locate(&self, e: JobError) -> anyhow::Error {
         let place = match (&e, &self.source, &self.scene_file) {
@@ -438,7 +480,7 @@ fn generate(a: GenerateArgs) -> Result<()> {
                 motion,
                 grid,
                 r.nodes,
-                r.format,
+                r.encoding(),
                 chain,
                 &mut out,
                 truth_w,
@@ -456,7 +498,7 @@ fn generate(a: GenerateArgs) -> Result<()> {
                     motion,
                     grid,
                     r.nodes,
-                    r.format,
+                    r.encoding(),
                     chain,
                     &mut out,
                     truth_w,
