@@ -6,9 +6,11 @@ pub mod check;
 pub mod framing;
 pub mod plan;
 pub mod spec;
+pub mod stream;
 
 pub use plan::{DecodeError, Decoded, EncoderState, Plan};
 pub use spec::{FrameSpec, SpecError};
+pub use stream::{StreamDecoder, StreamStats};
 
 use std::path::Path;
 

@@ -283,6 +283,40 @@ impl Plan {
         state.frames += 1;
     }
 
+    /// True when the constant fields (sync words, fixed IDs) at the start of `bytes` match:
+    /// a frame boundary, whether or not the rest of the frame is intact.
+    pub fn constants_match(&self, bytes: &[u8]) -> bool {
+        bytes.len() >= self.len
+            && self.ops.iter().all(|op| match op.what {
+                What::Constant(v) => {
+                    get_int(
+                        &bytes[op.offset..op.offset + op.ty.bytes()],
+                        op.ty,
+                        op.order,
+                    ) as i64
+                        == v
+                }
+                _ => true,
+            })
+    }
+
+    /// The counter's (modulo, step), if the frame carries one.
+    pub fn counter(&self) -> Option<(u64, u64)> {
+        self.ops.iter().find_map(|op| match op.what {
+            What::Counter { modulo, step } => Some((modulo, step)),
+            _ => None,
+        })
+    }
+
+    /// Names of the decoded values' fields, in the order of [`Decoded::values`].
+    pub fn value_names(&self) -> Vec<&str> {
+        self.ops
+            .iter()
+            .filter(|op| !matches!(op.what, What::Constant(_)))
+            .map(|op| op.name.as_str())
+            .collect()
+    }
+
     /// Decodes one frame at the start of `bytes`, checking constants and the check.
     pub fn decode(&self, bytes: &[u8]) -> Result<Decoded, DecodeError> {
         if bytes.len() < self.len {
