@@ -79,6 +79,10 @@ struct GenerateArgs {
     /// Frames of a protocol described in a spec file (protocols/README.md).
     #[arg(long)]
     protocol_file: Option<PathBuf>,
+    /// GPS time of record time 0 for frames with GPS time fields, as WEEK,SECONDS_OF_WEEK
+    /// [default: 0,0 — record times are GPS seconds since 1980-01-06].
+    #[arg(long, value_parser = parse_gps_time)]
+    gps_time: Option<(u32, f64)>,
     /// Output file, or - for stdout [default: stdout].
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -164,6 +168,7 @@ struct Resolved {
     output: Option<PathBuf>,
     truth: Option<PathBuf>,
     truth_errors: Option<PathBuf>,
+    gps_time: Option<(u32, f64)>,
     imu: imu_emu::errors::ImuModel,
     seed: u64,
     temperature: Option<imu_emu::errors::temperature::TemperatureProfile>,
@@ -336,6 +341,7 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         output: a.output.or(file.output.path),
         truth: a.truth,
         truth_errors: a.truth_errors,
+        gps_time: a.gps_time,
         imu,
         seed,
         temperature,
@@ -345,6 +351,25 @@ fn resolve(a: GenerateArgs) -> Result<Resolved> {
         nodes,
         model: ModelSettings { degree, stencil },
     })
+}
+
+/// Parses `WEEK,SECONDS` (seconds of week in [0, 604800)).
+fn parse_gps_time(s: &str) -> Result<(u32, f64), String> {
+    let (w, sow) = s
+        .split_once(',')
+        .ok_or("expected WEEK,SECONDS_OF_WEEK, e.g. 2209,491674.0")?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("week `{w}` is not a whole number"))?;
+    let sow: f64 = sow
+        .trim()
+        .parse()
+        .map_err(|_| format!("seconds `{sow}` is not a number"))?;
+    if !(0.0..604_800.0).contains(&sow) {
+        return Err(format!("seconds of week {sow} outside [0, 604800)"));
+    }
+    Ok((w, sow))
 }
 
 /// What `generate` writes: the record contract or a protocol's frames.
@@ -361,7 +386,11 @@ impl Resolved {
             Output::Records(f) => job::Encoding::Records(*f),
             Output::Frames(plan) => job::Encoding::Frames {
                 plan: Box::new(plan.clone()),
-                state: imu_emu::protocol::EncoderState::default(),
+                state: imu_emu::protocol::EncoderState {
+                    frames: 0,
+                    gps_week0: self.gps_time.map_or(0, |g| g.0),
+                    gps_sow0: self.gps_time.map_or(0.0, |g| g.1),
+                },
                 temperature: 25.0,
                 side: Format::Csv,
             },

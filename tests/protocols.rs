@@ -55,8 +55,10 @@ fn golden_vectors_decode_and_reencode() {
             let tol = tv.tolerance.unwrap_or(1e-6);
             let mut rec = Record::default();
             let (mut counter, mut temperature) = (0u64, 0.0);
-            // GPS fields rebuild the time tag: week·604800 + seconds (+ µs or ms).
-            let (mut week, mut sow) = (0.0, 0.0);
+            // GPS fields rebuild the time tag from the most precise of them: week·604800 +
+            // seconds of week, else whole seconds + µs, else ms.
+            let (mut week, mut secs, mut whole, mut micros, mut millis) =
+                (0.0, None, None, 0.0, None);
             for (k, v) in &tv.values {
                 let want = v.as_float().or(v.as_integer().map(|i| i as f64)).unwrap();
                 let s =
@@ -77,24 +79,26 @@ fn golden_vectors_decode_and_reencode() {
                     Source::Counter => counter = got as u64,
                     Source::Temperature => temperature = got,
                     Source::GpsWeek => week = got,
-                    Source::GpsSeconds | Source::GpsWholeSeconds => sow += got,
-                    Source::GpsMicros => sow += got * 1e-6,
-                    Source::GpsMillis => sow += got * 1e-3,
+                    Source::GpsSeconds => secs = Some(got),
+                    Source::GpsWholeSeconds => whole = Some(got),
+                    Source::GpsMicros => micros = got,
+                    Source::GpsMillis => millis = Some(got),
                 }
             }
-            if week != 0.0 || sow != 0.0 {
-                rec.t = week * 604_800.0 + sow;
+            let sow = secs
+                .or(whole.map(|w| w + micros * 1e-6))
+                .or(millis.map(|m| m * 1e-3));
+            let mut state = EncoderState {
+                frames: counter,
+                ..Default::default()
+            };
+            if let Some(sow) = sow {
+                // The frame's GPS time becomes the run's reference, at record time 0.
+                state.gps_week0 = week as u32;
+                state.gps_sow0 = sow;
             }
             let mut out = Vec::new();
-            plan.encode(
-                &rec,
-                temperature,
-                &mut EncoderState {
-                    frames: counter,
-                    ..Default::default()
-                },
-                &mut out,
-            );
+            plan.encode(&rec, temperature, &mut state, &mut out);
             assert_eq!(out, bytes, "{name}: re-encoded frame");
         }
     }
@@ -138,11 +142,11 @@ fn random_round_trips_and_corruption() {
                     // Time fields are checked by the golden vectors.
                     _ => continue,
                 };
-                // Single floats keep 24 bits: a relative 6e-8.
-                assert!(
-                    (v - want).abs() <= 1.2e-7 * want.abs() + 1e-30,
-                    "{name} {s:?}: {v} vs {want}"
-                );
+                // Single floats keep 24 bits (a relative 6e-8); integer fields half their step.
+                let tol = plan.quantum(*s).map_or(1.2e-7 * want.abs() + 1e-30, |q| {
+                    0.5 * q + 4.0 * f64::EPSILON * want.abs()
+                });
+                assert!((v - want).abs() <= tol, "{name} {s:?}: {v} vs {want}");
             }
             let mut bad = out.clone();
             let k = i % bad.len();
@@ -274,8 +278,12 @@ fn generate_writes_frames_that_decode() {
                     }
                     _ => continue,
                 };
+                // Floats keep 24 bits; integer fields round to half their step.
+                let tol = plan.quantum(*s).map_or(1.2e-7 * want.abs() + 1e-30, |q| {
+                    0.5 * q + 4.0 * f64::EPSILON * want.abs()
+                });
                 assert!(
-                    (x - want).abs() <= 1.2e-7 * want.abs() + 1e-30,
+                    (x - want).abs() <= tol,
                     "{name} frame {i} {s:?}: {x} vs {want}"
                 );
             }

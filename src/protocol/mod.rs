@@ -22,6 +22,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../protocols/imar-ixcom.toml"),
     ),
     ("kvh1750", include_str!("../../protocols/kvh1750.toml")),
+    (
+        "novatel-rawimusx",
+        include_str!("../../protocols/novatel-rawimusx.toml"),
+    ),
 ];
 
 /// Names of the built-in protocols.

@@ -55,9 +55,12 @@ pub struct Plan {
 pub struct EncoderState {
     /// Frames encoded so far.
     pub frames: u64,
-    /// GPS time (s since the GPS epoch, 1980-01-06) of the record time t = 0; GPS fields carry
-    /// t + this. With the default 0, record times are GPS seconds since the epoch.
-    pub gps_time_of_t0: f64,
+    /// GPS week of the record time t = 0.
+    pub gps_week0: u32,
+    /// GPS seconds of week of the record time t = 0. GPS fields carry (week0, sow0) + t, kept
+    /// split so that seconds of week stay exact to the record's own time resolution. With
+    /// both 0, record times are GPS seconds since the epoch (1980-01-06).
+    pub gps_sow0: f64,
 }
 
 /// Seconds in a GPS week.
@@ -266,7 +269,7 @@ impl Plan {
                     put_int(dst, op.ty, op.order, v as i128);
                 }
                 What::Quantity { source, scale } => {
-                    let x = quantity(r, temperature, state.gps_time_of_t0, source) * scale;
+                    let x = quantity(r, temperature, state, source) * scale;
                     put_value(dst, op.ty, op.order, x);
                 }
             }
@@ -304,6 +307,17 @@ impl Plan {
     pub fn counter(&self) -> Option<(u64, u64)> {
         self.ops.iter().find_map(|op| match op.what {
             What::Counter { modulo, step } => Some((modulo, step)),
+            _ => None,
+        })
+    }
+
+    /// The smallest step an integer field carrying `source` can express (|lsb|), `None` for
+    /// float fields or absent sources.
+    pub fn quantum(&self, source: Source) -> Option<f64> {
+        self.ops.iter().find_map(|op| match op.what {
+            What::Quantity { source: s, scale } if s == source && op.ty.int_range().is_some() => {
+                Some(1.0 / scale.abs())
+            }
             _ => None,
         })
     }
@@ -369,12 +383,12 @@ impl CheckOp {
     }
 }
 
-fn quantity(r: &Record, temperature: f64, gps_t0: f64, s: Source) -> f64 {
-    // GPS fields split the time tag from the integer part, so microseconds stay exact.
+fn quantity(r: &Record, temperature: f64, st: &EncoderState, s: Source) -> f64 {
+    // Seconds of week from the run's reference plus the record time, so they stay exact.
     let gps = || {
-        let t = r.t + gps_t0;
-        let week = (t / GPS_WEEK_S).floor();
-        (week, t - week * GPS_WEEK_S)
+        let sow = st.gps_sow0 + r.t;
+        let weeks = (sow / GPS_WEEK_S).floor();
+        (st.gps_week0 as f64 + weeks, sow - weeks * GPS_WEEK_S)
     };
     match s {
         Source::GpsWeek => gps().0,
