@@ -366,7 +366,7 @@ impl Plan {
                     .push((Source::Counter, get_int(src, op.ty, op.order) as f64)),
                 What::Quantity { source, scale } => out
                     .values
-                    .push((source, get_value(src, op.ty, op.order) / scale)),
+                    .push((source, get_value(src, op.ty, op.order) / scale + 0.0)),
             }
         }
         Ok(out)
