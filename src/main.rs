@@ -38,7 +38,7 @@ enum Command {
 
 #[derive(clap::Args)]
 struct DecodeArgs {
-    /// Built-in protocol (kvh1750, imar-ixcom).
+    /// Built-in protocol (kvh1750, imar-ixcom, novatel-rawimusx, stim300).
     #[arg(long, conflicts_with = "protocol_file")]
     protocol: Option<String>,
     /// A protocol spec file.
@@ -73,7 +73,8 @@ struct GenerateArgs {
     /// Start time t₀ (s) [default: the trajectory's start].
     #[arg(long, allow_negative_numbers = true)]
     start: Option<f64>,
-    /// Output format: csv, bin, or a protocol's frames (kvh1750, imar-ixcom) [default: csv].
+    /// Output format: csv, bin, or a protocol's frames (kvh1750, imar-ixcom, novatel-rawimusx,
+    /// stim300) [default: csv].
     #[arg(long)]
     format: Option<String>,
     /// Frames of a protocol described in a spec file (protocols/README.md).

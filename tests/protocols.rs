@@ -121,7 +121,7 @@ fn random_round_trips_and_corruption() {
             let r = Record {
                 t: i as f64 * 1e-3,
                 gyro: Vec3::new(next(), next(), next()),
-                accel: Vec3::new(next() * 50.0, next() * 50.0, next() * 50.0),
+                accel: Vec3::new(next() * 15.0, next() * 15.0, next() * 15.0), // inside every range (STIM300 inclinometers: ±2 g)
                 dtheta: Vec3::new(next() * 1e-3, next() * 1e-3, next() * 1e-3),
                 dv: Vec3::new(next() * 0.05, next() * 0.05, next() * 0.05),
                 flags: 0,
@@ -345,4 +345,26 @@ fn decode_command_reports_damage() {
         "{err}"
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Values beyond a field's range saturate instead of wrapping (STIM300 inclinometer: 24-bit
+/// at 2^22 counts per g, so ±2 g).
+#[test]
+fn out_of_range_values_saturate() {
+    let (_, plan) = protocol::load("stim300").unwrap();
+    let r = Record {
+        accel: Vec3::new(0.0, 0.0, 40.0),
+        ..Record::default()
+    };
+    let mut out = Vec::new();
+    plan.encode(&r, 25.0, &mut EncoderState::default(), &mut out);
+    assert_eq!(
+        &out[27..30],
+        &[0x7F, 0xFF, 0xFF],
+        "incl z at the positive limit"
+    );
+    // The 10 g accelerometer channel carries 40 m/s² unsaturated (to its 2^-19 g step).
+    let lsb = 1.8704700469970702e-05;
+    let d = plan.decode(&out).unwrap();
+    assert_eq!(d.get(Source::Accel(2)), Some((40.0f64 / lsb).round() * lsb));
 }

@@ -26,6 +26,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "novatel-rawimusx",
         include_str!("../../protocols/novatel-rawimusx.toml"),
     ),
+    ("stim300", include_str!("../../protocols/stim300.toml")),
 ];
 
 /// Names of the built-in protocols.
