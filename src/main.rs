@@ -519,8 +519,24 @@ fn generate(a: GenerateArgs) -> Result<()> {
         let truth_w = truth_out.as_mut().map(|w| w as &mut dyn Write);
         let errors_w = errors_out.as_mut().map(|w| w as &mut dyn Write);
         let to_stdout = r.output.as_deref().is_none_or(|p| p == Path::new("-"));
-        if to_stdout {
-            let mut out = std::io::BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
+        let mut file = match (&r.output, to_stdout) {
+            (Some(path), false) => Some((
+                AtomicFile::create(path).with_context(|| format!("creating {}", path.display()))?,
+                path.clone(),
+            )),
+            _ => None,
+        };
+        let label = file
+            .as_ref()
+            .map_or("stdout".to_string(), |(_, p)| p.display().to_string());
+        {
+            let mut out: Box<dyn Write + '_> = match file.as_mut() {
+                Some((f, _)) => Box::new(std::io::BufWriter::with_capacity(1 << 20, f)),
+                None => Box::new(std::io::BufWriter::with_capacity(
+                    1 << 20,
+                    std::io::stdout().lock(),
+                )),
+            };
             job::run(
                 motion,
                 grid,
@@ -531,29 +547,12 @@ fn generate(a: GenerateArgs) -> Result<()> {
                 truth_w,
                 errors_w,
                 |k| bar.set_position(k),
-            )?;
+            )
+            .with_context(|| format!("writing {label}"))?;
             out.flush()?;
-        } else {
-            let path = r.output.clone().expect("checked above");
-            let mut file = AtomicFile::create(&path)
-                .with_context(|| format!("creating {}", path.display()))?;
-            {
-                let mut out = std::io::BufWriter::with_capacity(1 << 20, &mut file);
-                job::run(
-                    motion,
-                    grid,
-                    r.nodes,
-                    r.encoding(),
-                    chain,
-                    &mut out,
-                    truth_w,
-                    errors_w,
-                    |k| bar.set_position(k),
-                )
-                .with_context(|| format!("writing {}", path.display()))?;
-                out.flush()?;
-            }
-            file.commit()
+        }
+        if let Some((f, path)) = file {
+            f.commit()
                 .with_context(|| format!("finishing {}", path.display()))?;
         }
         for w in [truth_out.as_mut(), errors_out.as_mut()]
