@@ -36,6 +36,9 @@ pub struct IdealImu<M: Motion> {
 impl<M: Motion> IdealImu<M> {
     /// A generator of `count` records at `rate_hz` starting after `t0`, with an `nodes`-point
     /// Gauss–Legendre rule. The caller has checked that the span lies within the motion.
+    ///
+    /// # Panics
+    /// If `nodes` is not in 1..=[`crate::quadrature::MAX_NODES`] (`job::run` checks it first).
     pub fn new(motion: M, rate_hz: f64, t0: f64, count: u64, nodes: usize) -> Self {
         let rule = GaussLegendre::new(nodes).expect("node count validated by the caller");
         IdealImu {

@@ -1,6 +1,8 @@
 //! Measuring the error-free signal: sample an analytic scene into trajectory CSV, rebuild it
 //! with the sampled motion model, and compare the IMU records of both. Used by the accuracy
-//! benchmark (`cargo bench --bench accuracy`) and by the tests.
+//! benchmark (`cargo bench --bench accuracy`) and by the tests. It runs on the built-in cases
+//! and on CSV text it wrote itself, so a failure here is a bug, and it panics rather than
+//! returning errors.
 
 use crate::generator::IdealImu;
 use crate::motion::Motion;
