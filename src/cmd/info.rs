@@ -1,0 +1,81 @@
+//! The listing commands (`scenes`, `templates`) and `trajectory`.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+use imu_emu::job::{self, SourceSpec};
+use imu_emu::motion::sampled::ModelSettings;
+use imu_emu::output::AtomicFile;
+use imu_emu::scenes;
+
+#[derive(clap::Args)]
+pub struct TrajectoryArgs {
+    /// Built-in scene.
+    #[arg(long, default_value = scenes::DEFAULT)]
+    pub scene: String,
+    /// Sample rate (Hz).
+    #[arg(long, default_value_t = 100.0)]
+    pub rate: f64,
+    /// Duration (s) [default: the scene's; 60 s for unbounded scenes].
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Output file, or - for stdout.
+    #[arg(short, long, default_value = "-")]
+    pub output: PathBuf,
+}
+
+/// `imu-emu templates`: the built-in IMU templates and their headline figures.
+pub fn list_templates() -> Result<()> {
+    use std::f64::consts::PI;
+    println!(
+        "{:<11} {:<11} {:>12} {:>13} {:>12} {:>13}  description",
+        "name", "grade", "gyro BI", "ARW", "accel BI", "VRW"
+    );
+    println!(
+        "{:<11} {:<11} {:>12} {:>13} {:>12} {:>13}",
+        "", "", "deg/h", "deg/sqrt(h)", "ug", "m/s/sqrt(h)"
+    );
+    for name in imu_emu::errors::template::builtin_names() {
+        let m = imu_emu::errors::template::load(name)?;
+        let deg_h = 180.0 / PI * 3600.0;
+        println!(
+            "{:<11} {:<11} {:>12.3} {:>13.4} {:>12.1} {:>13.4}  {}",
+            m.name,
+            m.grade,
+            m.gyro.bias_instability[0] * deg_h,
+            m.gyro.noise[0] * 180.0 / PI * 60.0,
+            m.accel.bias_instability[0] / imu_emu::units::G0 * 1e6,
+            m.accel.noise[0] * 60.0,
+            m.description
+        );
+    }
+    Ok(())
+}
+
+pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
+    let params = scenes::SceneParams::defaults_for(&a.scene);
+    let motion = job::build_motion(
+        &SourceSpec::Scene(a.scene.clone(), params),
+        ModelSettings::default(),
+    )?;
+    // Samples at t₀ + k/rate for k = 0..=n, including the start.
+    let grid = job::plan(&motion, a.rate, None, a.duration)?;
+    let text = imu_emu::trajectory::sample_motion(
+        &motion,
+        grid.t0,
+        grid.rate_hz,
+        grid.count,
+        Some(&format!("imu-emu trajectory of scene {}", a.scene)),
+    );
+    if a.output == Path::new("-") {
+        std::io::stdout().write_all(text.as_bytes())?;
+    } else {
+        let mut f = AtomicFile::create(&a.output)
+            .with_context(|| format!("creating {}", a.output.display()))?;
+        f.write_all(text.as_bytes())?;
+        f.commit()?;
+    }
+    Ok(())
+}
