@@ -30,5 +30,6 @@ pub mod rng;
 pub mod scenes;
 pub mod source;
 pub mod trajectory;
+pub mod truth;
 pub mod units;
 pub mod validation;

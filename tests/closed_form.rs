@@ -2,9 +2,10 @@
 //! static IMUs across the planet, constant velocity, level turns, coning, a flight over the
 //! pole — plus the time base, extreme rates and the accuracy of trajectories read from files.
 //!
-//! The closed forms here are written independently of the library's kinematics: from the
-//! DESIGN.md formulas directly, or from the definition (eq. 1–2 in the paper's matrix form
-//! with numerically differentiated attitude and velocity). Tolerances are stated per test.
+//! The closed forms are written independently of the library's kinematics: here from the
+//! DESIGN.md formulas directly, or in `imu_emu::truth` (the definition, eq. 1–2 in the paper's
+//! matrix form with numerically differentiated attitude and velocity; coning and the polar
+//! flight), which `imu-emu validate` reports from too. Tolerances are stated per test.
 
 use imu_emu::generator::IdealImu;
 use imu_emu::math::{Mat3, Quat, Vec3};
@@ -13,6 +14,7 @@ use imu_emu::motion::sampled::ModelSettings;
 use imu_emu::record::Record;
 use imu_emu::scenes::{self, SceneParams};
 use imu_emu::source::AnyMotion;
+use imu_emu::truth::{by_definition, coning_dtheta, polar_meridian};
 use imu_emu::validation::{self, analytic, compare, rebuild, reference_cases, sample_csv};
 
 const OMEGA: f64 = 7.292_115e-5;
@@ -240,50 +242,6 @@ fn mean_over(a: f64, b: f64, f: impl Fn(f64) -> (Vec3, Vec3)) -> (Vec3, Vec3) {
     (g, s)
 }
 
-/// Equations (1)–(2) from the definition, on a scene's pose: Ω_ib^b = C_n^b Ċ_b^n +
-/// C_n^b Ω_in^n C_b^n and f^b = C_n^b(v̇^n + (2Ω_ie^n + Ω_en^n)v^n − g^n), with Ċ_b^n and v̇^n by
-/// 6th-order central differences of step d. Truncation is ~d⁶ f⁽⁷⁾/140 and round-off
-/// ~(pose noise ≈ 2e-15)/d, so each caller picks d for its motion's bandwidth.
-fn by_definition(m: &AnyMotion, t: f64, d: f64) -> (Vec3, Vec3) {
-    let w = [(1.0, 45.0 / 60.0), (2.0, -9.0 / 60.0), (3.0, 1.0 / 60.0)];
-    let pose = m.pose(t);
-    let c = pose.q_b_n.to_mat();
-    let mut cdot = [[0.0; 3]; 3];
-    let mut vdot = Vec3::ZERO;
-    for (k, wk) in w {
-        let (pp, pm) = (m.pose(t + k * d), m.pose(t - k * d));
-        let (cp, cm) = (pp.q_b_n.to_mat(), pm.q_b_n.to_mat());
-        for (row, (rp, rm)) in cdot.iter_mut().zip(cp.0.iter().zip(cm.0.iter())) {
-            for (x, (a, b)) in row.iter_mut().zip(rp.iter().zip(rm.iter())) {
-                *x += wk * (a - b) / d;
-            }
-        }
-        vdot += (pp.v_n - pm.v_n) * (wk / d);
-    }
-    let cdot = Mat3(cdot);
-    let lat = pose.lat;
-    let (rn, re) = radii(lat);
-    let h = pose.h;
-    let v = pose.v_n;
-    let w_ie = Vec3::new(OMEGA * lat.cos(), 0.0, -OMEGA * lat.sin());
-    let w_en = Vec3::new(
-        v.y() / (re + h),
-        -v.x() / (rn + h),
-        -v.y() * lat.tan() / (re + h),
-    );
-    // Ω_nb^b = C_n^b Ċ_b^n; pick its skew entries.
-    let om = c.transpose().mul_mat(&cdot).0;
-    let w_nb = Vec3::new(
-        0.5 * (om[2][1] - om[1][2]),
-        0.5 * (om[0][2] - om[2][0]),
-        0.5 * (om[1][0] - om[0][1]),
-    );
-    let gyro = w_nb + c.tr_mul_vec(w_ie + w_en);
-    let mut a = vdot + (w_ie * 2.0 + w_en).cross(v);
-    a.0[2] -= gamma(lat, h);
-    (gyro, c.tr_mul_vec(a))
-}
-
 /// The slow dynamic scenes sense what the definition says, at instants spread over the run
 /// (climb, turns, transitions); bounds are the 1e-12 rad/s and 1e-10 m/s². Step
 /// d = 10 ms: the survey's motion has no content above ~0.1 Hz, so truncation is < 1e-16
@@ -444,26 +402,10 @@ fn coning_increments_closed_form() {
         let rs = records(scene("coning", p), rate, 1, 200, nodes);
         let (beta, om) = (f64::to_radians(beta_deg), 2.0 * std::f64::consts::PI * hz);
         let lat = 41f64.to_radians();
-        let (wx, wy, wz) = (OMEGA * lat.cos(), 0.0, -OMEGA * lat.sin());
-        // Antiderivatives of cos, sin, cos², sin cos, sin² of Ωt.
-        let prim = |t: f64| -> Vec3 {
-            let (s, c) = (om * t).sin_cos();
-            let (cb, sb) = (beta.cos(), beta.sin());
-            let ic = s / om;
-            let is = -c / om;
-            let icc = t / 2.0 + (2.0 * om * t).sin() / (4.0 * om);
-            let iss = t / 2.0 - (2.0 * om * t).sin() / (4.0 * om);
-            let isc = s * s / (2.0 * om);
-            let x =
-                -2.0 * om * (beta / 2.0).sin().powi(2) * t + wx * cb * t - sb * (wz * ic - wy * is);
-            let y = sb * c + wy * cb * t + (1.0 - cb) * (wy * icc + wz * isc) - sb * (wx * is);
-            let z = sb * s + wz * cb * t + (1.0 - cb) * (wy * isc + wz * iss) + sb * (wx * ic);
-            Vec3::new(x, y, z)
-        };
         let mut worst: f64 = 0.0;
         for (i, r) in rs.iter().enumerate() {
             let k = (i + 1) as f64;
-            let want = prim(k / rate) - prim((k - 1.0) / rate);
+            let want = coning_dtheta(beta, om, lat, (k - 1.0) / rate, k / rate);
             worst = worst.max((r.dtheta - want).max_abs());
         }
         // Both sides evaluate sin β·cos(Ωt): the phase Ωt carries one ulp of its size, so the
@@ -489,17 +431,7 @@ fn polar_flight_closed_form_through_the_pole() {
     let c = p.speed_m_s / rn_pole;
     let mu0 = std::f64::consts::FRAC_PI_2 - 60.0 * c;
     for t in [0.0, 30.0, 59.999, 60.0, 60.0001, 90.0, 119.0] {
-        let mu: f64 = mu0 + c * t;
-        let (rn, _) = radii(mu);
-        let w = 1.0 - e2() * mu.sin().powi(2);
-        let drn = 3.0 * A * (1.0 - e2()) * e2() * mu.sin() * mu.cos() / w.powf(2.5);
-        let vn = (rn + h) * c;
-        let want_g = Vec3::new(OMEGA * mu.cos(), -c, -OMEGA * mu.sin());
-        let want_a = Vec3::new(
-            c * c * drn,
-            -2.0 * OMEGA * mu.sin() * vn,
-            c * vn - gamma(mu, h),
-        );
+        let (want_g, want_a) = polar_meridian(mu0 + c * t, c, h);
         let s = m.sense(0, t);
         assert!(s.omega_ib_b.is_finite() && s.f_b.is_finite());
         assert!((s.omega_ib_b - want_g).max_abs() < 1e-18, "t {t}");
