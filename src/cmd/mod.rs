@@ -4,3 +4,4 @@ pub mod decode;
 pub mod generate;
 pub mod info;
 pub mod setup;
+pub mod validate;
