@@ -21,6 +21,7 @@ pub mod generator;
 pub mod job;
 pub mod kinematics;
 pub mod math;
+pub mod nav;
 pub mod motion;
 pub mod output;
 pub mod protocol;

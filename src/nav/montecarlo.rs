@@ -1,0 +1,1 @@
+//! Monte Carlo comparison of IMU templates (filled below).
