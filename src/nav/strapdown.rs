@@ -284,6 +284,20 @@ impl Navigator {
         self.restore(s);
     }
 
+    /// Vertical-channel aiding (as from a barometer or a known height): removes the height
+    /// and vertical-velocity differences from `reference` along its local vertical, leaving
+    /// the horizontal channels and the attitude free. The free-inertial vertical channel is
+    /// unstable (errors grow as e^{t/570 s}); aiding it isolates the Schuler-bounded
+    /// horizontal behaviour.
+    pub fn aid_vertical(&mut self, reference: &NavState) {
+        let up = ecef_to_geodetic(reference.r_e).up_e();
+        let r = self.origin + self.dr.value();
+        let dh = up.dot(r - reference.r_e);
+        self.dr.add(up * -dh);
+        let dvu = up.dot(self.v.value() - reference.v_e);
+        self.v.add(up * -dvu);
+    }
+
     /// Sets position, velocity and attitude; the Earth frame is frozen anew at record k.
     fn restore(&mut self, s: &NavState) {
         self.origin = s.r_e;
