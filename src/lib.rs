@@ -18,6 +18,7 @@ pub mod config;
 pub mod earth;
 pub mod errors;
 pub mod generator;
+pub mod input;
 pub mod job;
 pub mod kinematics;
 pub mod math;
