@@ -126,10 +126,7 @@ impl RecordReader {
 
     fn read_header(&mut self) -> Result<(), InputError> {
         if !self.next_line()? {
-            return Err(self.at(format!(
-                "no header line (expected `{}`)",
-                COLUMNS.join(",")
-            )));
+            return Err(self.at(format!("no header line (expected `{}`)", COLUMNS.join(","))));
         }
         let header: Vec<String> = self
             .line
@@ -287,20 +284,26 @@ mod tests {
         assert_eq!(got, vec![rec, rec]);
         let mut bin = Vec::new();
         crate::output::encode(Format::Bin, &[rec], &mut bin);
-        let r = RecordReader::new(std::io::Cursor::new(bin), Path::new("x.bin"), Format::Bin)
-            .unwrap();
+        let r =
+            RecordReader::new(std::io::Cursor::new(bin), Path::new("x.bin"), Format::Bin).unwrap();
         assert_eq!(r.collect::<Result<Vec<_>, _>>().unwrap(), vec![rec]);
     }
 
     #[test]
     fn errors_name_file_line_and_column() {
         let e = read("t,gyro_x\n1,2\n").unwrap_err().to_string();
-        assert!(e.contains("x.csv:1") && e.contains("missing column `gyro_y`"), "{e}");
+        assert!(
+            e.contains("x.csv:1") && e.contains("missing column `gyro_y`"),
+            "{e}"
+        );
         let head = COLUMNS.join(",");
         let e = read(&format!("{head}\n0,1,2,3,4,5,6,7,8,9,10,11,zz\n"))
             .unwrap_err()
             .to_string();
-        assert!(e.contains("x.csv:2") && e.contains("`dv_z`") && e.contains("`zz`"), "{e}");
+        assert!(
+            e.contains("x.csv:2") && e.contains("`dv_z`") && e.contains("`zz`"),
+            "{e}"
+        );
         let e = read(&format!("{head}\n0,1\n")).unwrap_err().to_string();
         assert!(e.contains("x.csv:2: 2 fields, expected 13"), "{e}");
         let r = RecordReader::new(

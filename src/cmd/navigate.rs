@@ -24,7 +24,11 @@ pub struct NavigateArgs {
     #[arg(long)]
     pub format: Option<String>,
     /// Reference: the built-in scene (default parameters) the records were generated from.
-    #[arg(long, conflicts_with = "trajectory", required_unless_present = "trajectory")]
+    #[arg(
+        long,
+        conflicts_with = "trajectory",
+        required_unless_present = "trajectory"
+    )]
     pub scene: Option<String>,
     /// Reference: a trajectory CSV (t,lat,lon,h,vn,ve,vd,roll,pitch,yaw).
     #[arg(long)]
@@ -48,18 +52,48 @@ pub struct NavigateArgs {
 }
 
 /// Header of the error CSV.
-const ERROR_HEADER: &str = "t,north_m,east_m,down_m,vn_m_s,ve_m_s,vd_m_s,att_n_rad,att_e_rad,att_d_rad,position_m\n";
+const ERROR_HEADER: &str =
+    "t,north_m,east_m,down_m,vn_m_s,ve_m_s,vd_m_s,att_n_rad,att_e_rad,att_d_rad,position_m\n";
 
-/// A CSV output: a committed-on-success file, or stdout.
-fn writer(path: &Option<PathBuf>) -> Result<Option<(Box<dyn Write>, Option<(AtomicFile, PathBuf)>)>> {
-    Ok(match path {
-        None => None,
-        Some(p) if p == Path::new("-") => Some((Box::new(std::io::stdout().lock()), None)),
-        Some(p) => {
-            let f = AtomicFile::create(p).with_context(|| format!("creating {}", p.display()))?;
-            Some((Box::new(std::io::sink()), Some((f, p.clone()))))
+/// A CSV output: a file committed only when the run succeeds, or stdout.
+enum Sink {
+    Stdout,
+    File(AtomicFile, PathBuf),
+}
+
+impl Sink {
+    fn open(path: &Option<PathBuf>) -> Result<Option<Sink>> {
+        Ok(match path {
+            None => None,
+            Some(p) if p == Path::new("-") => Some(Sink::Stdout),
+            Some(p) => Some(Sink::File(
+                AtomicFile::create(p).with_context(|| format!("creating {}", p.display()))?,
+                p.clone(),
+            )),
+        })
+    }
+
+    /// Writes and clears `text`.
+    fn drain(&mut self, text: &mut String) -> Result<()> {
+        match self {
+            Sink::Stdout => std::io::stdout().lock().write_all(text.as_bytes())?,
+            Sink::File(f, p) => f
+                .write_all(text.as_bytes())
+                .with_context(|| format!("writing {}", p.display()))?,
         }
-    })
+        text.clear();
+        Ok(())
+    }
+
+    fn finish(self) -> Result<()> {
+        match self {
+            Sink::Stdout => std::io::stdout().lock().flush()?,
+            Sink::File(f, p) => f
+                .commit()
+                .with_context(|| format!("finishing {}", p.display()))?,
+        }
+        Ok(())
+    }
 }
 
 pub fn navigate(a: NavigateArgs) -> Result<()> {
@@ -117,8 +151,8 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
     let start = motion.pose(t0);
     let mut nav = Navigator::new(NavState::from_pose(&start), rate, settings)?;
 
-    let mut traj = writer(&a.output)?;
-    let mut errs = writer(&a.errors)?;
+    let mut traj = Sink::open(&a.output)?;
+    let mut errs = Sink::open(&a.errors)?;
     let mut traj_text = String::new();
     let mut err_text = String::new();
     traj_text.push_str(&imu_emu::trajectory::COLUMNS.join(","));
@@ -153,36 +187,20 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
     row(&mut traj_text, &NavState::from_pose(&start));
     err_row(&mut err_text, t0, &StateError::default());
 
-    // Flushes the text buffers to their outputs once they are large.
-    let flush = |text: &mut String,
-                 out: &mut Option<(Box<dyn Write>, Option<(AtomicFile, PathBuf)>)>|
-     -> Result<()> {
-        if let Some((w, file)) = out.as_mut() {
-            match file {
-                Some((f, p)) => f
-                    .write_all(text.as_bytes())
-                    .with_context(|| format!("writing {}", p.display()))?,
-                None => w.write_all(text.as_bytes())?,
-            }
-        }
-        text.clear();
-        Ok(())
-    };
     let (mut max_pos, mut max_vel, mut max_att) = (0.0f64, 0.0f64, 0.0f64);
     let mut last = StateError::default();
     let mut k = 0u64;
     let records = first.into_iter().map(Ok).chain(reader.by_ref());
-    let mut positions: Vec<String> = Vec::new();
     for rec in records {
         let rec = rec?;
         k += 1;
         let want = t0 + k as f64 / rate;
         if (rec.t - want).abs() > 1e-6 / rate + 1e-12 * want.abs() {
-            positions.push(format!(
-                "record {k}: t = {} s, expected {want} s for a {rate} Hz stream starting at {t0} s (gap, or --rate wrong)",
+            bail!(
+                "{}: record {k}: t = {} s, expected {want} s for a {rate} Hz stream starting at {t0} s (gap, or --rate wrong)",
+                a.input.display(),
                 rec.t
-            ));
-            break;
+            );
         }
         nav.step(rec.dtheta, rec.dv);
         let s = nav.state();
@@ -205,28 +223,22 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
         if errs.is_some() {
             err_row(&mut err_text, s.t, &e);
         }
-        if traj_text.len() > 1 << 20 {
-            flush(&mut traj_text, &mut traj)?;
-        }
-        if err_text.len() > 1 << 20 {
-            flush(&mut err_text, &mut errs)?;
-        }
-    }
-    if let Some(p) = positions.first() {
-        bail!("{}: {p}", a.input.display());
-    }
-    flush(&mut traj_text, &mut traj)?;
-    flush(&mut err_text, &mut errs)?;
-    for out in [traj, errs].into_iter().flatten() {
-        let (mut w, file) = out;
-        w.flush()?;
-        if let Some((f, p)) = file {
-            f.commit()
-                .with_context(|| format!("finishing {}", p.display()))?;
+        for (text, sink) in [(&mut traj_text, &mut traj), (&mut err_text, &mut errs)] {
+            if let Some(w) = sink
+                && text.len() > 1 << 20
+            {
+                w.drain(text)?;
+            }
         }
     }
-    let to_stdout = a.output.as_deref() == Some(Path::new("-"))
-        || a.errors.as_deref() == Some(Path::new("-"));
+    for (text, sink) in [(&mut traj_text, traj), (&mut err_text, errs)] {
+        if let Some(mut w) = sink {
+            w.drain(text)?;
+            w.finish()?;
+        }
+    }
+    let to_stdout =
+        a.output.as_deref() == Some(Path::new("-")) || a.errors.as_deref() == Some(Path::new("-"));
     let summary = format!(
         "navigated {k} records at {rate} Hz, {:.3} s from t₀ = {t0} s (samples {}, stages {})\n\
          final error: position NED [{:+.3e}, {:+.3e}, {:+.3e}] m (|{:.3e}| m), velocity |{:.3e}| m/s, attitude NED [{:+.3e}, {:+.3e}, {:+.3e}] rad\n\

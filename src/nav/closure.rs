@@ -37,7 +37,13 @@ pub fn close(
 ) -> Result<Closure, SettingsError> {
     let start = NavState::from_pose(&motion.pose(grid.t0));
     let mut nav = Navigator::new(start, grid.rate_hz, settings)?;
-    let mut imu = IdealImu::new(motion.clone(), grid.rate_hz, grid.t0, grid.count, DEFAULT_NODES);
+    let mut imu = IdealImu::new(
+        motion.clone(),
+        grid.rate_hz,
+        grid.t0,
+        grid.count,
+        DEFAULT_NODES,
+    );
     let mut block = vec![Record::default(); BLOCK];
     let mut out = Closure {
         records: grid.count,

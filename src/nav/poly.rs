@@ -108,7 +108,10 @@ impl Reconstruction {
 /// Horner evaluation of a vector polynomial of `len` coefficients at τ.
 #[inline]
 pub fn eval(c: &[Vec3; MAX_SAMPLES], len: usize, tau: f64) -> Vec3 {
-    c[..len].iter().rev().fold(Vec3::ZERO, |acc, cm| acc * tau + *cm)
+    c[..len]
+        .iter()
+        .rev()
+        .fold(Vec3::ZERO, |acc, cm| acc * tau + *cm)
 }
 
 /// Butcher tableau of the s-stage Gauss–Legendre collocation method on [0, 1] (order 2s).
@@ -185,7 +188,10 @@ mod tests {
                     let want: f64 = (0..n).map(|m| coef[m] * t.powi(m as i32)).sum();
                     let got = eval(&c, n, tau);
                     assert!((got.x() - want).abs() < 1e-10, "n {n}, o {o}, τ {tau}");
-                    assert!((got.y() + 2.0 * want).abs() < 2e-10, "n {n}, o {o}, τ {tau}");
+                    assert!(
+                        (got.y() + 2.0 * want).abs() < 2e-10,
+                        "n {n}, o {o}, τ {tau}"
+                    );
                 }
             }
         }

@@ -381,19 +381,12 @@ impl Navigator {
         }
         let mut vst = [v0; MAX_STAGES];
         for _ in 0..100 {
-            for i in 0..s {
-                let mut vi = v0;
-                for j in 0..s {
-                    vi += kv[j] * (dt * tab.a[i][j]);
-                }
-                vst[i] = vi;
+            for (vi, ai) in vst.iter_mut().zip(&tab.a) {
+                *vi = combine(v0, &kv[..s], ai, dt);
             }
             let mut change: f64 = 0.0;
             for i in 0..s {
-                let mut ri = dr0;
-                for j in 0..s {
-                    ri += vst[j] * (dt * tab.a[i][j]);
-                }
+                let ri = combine(dr0, &vst[..s], &tab.a[i], dt);
                 if (ri - grav_at[i]).max_abs() > GRAVITY_REUSE_M {
                     grav_at[i] = ri;
                     grav[i] = gravity(self.origin + ri);
@@ -434,13 +427,13 @@ fn body_collocation(tab: &Tableau, w: &[Vec3]) -> ([Quat; MAX_STAGES], Quat) {
         let k: [Quat; MAX_STAGES] =
             std::array::from_fn(|j| if j < s { half_rate(y[j], w[j]) } else { one });
         let mut change: f64 = 0.0;
-        for i in 0..s {
-            let mut yi = one;
-            for j in 0..s {
-                yi = yi.add(k[j].scale(tab.a[i][j]));
-            }
-            change = change.max(yi.add(y[i].scale(-1.0)).norm2());
-            y[i] = yi;
+        for (yi, ai) in y.iter_mut().zip(&tab.a) {
+            let new = k[..s]
+                .iter()
+                .zip(ai)
+                .fold(one, |acc, (kj, aij)| acc.add(kj.scale(*aij)));
+            change = change.max(new.add(yi.scale(-1.0)).norm2());
+            *yi = new;
         }
         // Squared change below (1e-17)²: the stages are at round-off.
         if change <= 1e-34 {
@@ -470,6 +463,14 @@ pub fn rotation_vector(settings: Settings, window: &[Vec3]) -> Vec3 {
         .to_rotvec()
 }
 
+/// x₀ + h Σ_j a_j k_j: a collocation stage (or step) value from stage derivatives.
+#[inline]
+fn combine(x0: Vec3, k: &[Vec3], a: &[f64], h: f64) -> Vec3 {
+    k.iter()
+        .zip(a)
+        .fold(x0, |acc, (kj, aj)| acc + *kj * (h * aj))
+}
+
 /// Error-free sum: a + b = s + e exactly (Knuth's TwoSum).
 #[inline]
 fn two_sum(a: f64, b: f64) -> (f64, f64) {
@@ -490,7 +491,10 @@ struct Compensated {
 
 impl Compensated {
     fn new(v: Vec3) -> Compensated {
-        Compensated { hi: v, lo: Vec3::ZERO }
+        Compensated {
+            hi: v,
+            lo: Vec3::ZERO,
+        }
     }
     #[inline]
     fn add(&mut self, d: Vec3) {
@@ -539,7 +543,13 @@ impl QuatSum {
         }
         // |q|² − 1 from both parts; scaling by 1 − ε/2 keeps |q| = 1 to second order.
         let n2 = self.hi.iter().map(|h| h * h).sum::<f64>()
-            + 2.0 * self.hi.iter().zip(&self.lo).map(|(h, l)| h * l).sum::<f64>();
+            + 2.0
+                * self
+                    .hi
+                    .iter()
+                    .zip(&self.lo)
+                    .map(|(h, l)| h * l)
+                    .sum::<f64>();
         let eps = n2 - 1.0;
         if eps.abs() > 1e-15 {
             let f = 1.0 / n2.sqrt();
