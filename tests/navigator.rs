@@ -56,6 +56,16 @@ fn survey_600s_closes() {
     closes("survey", 600.0, 400.0, 2e-6, 1e-8, 4e-12);
 }
 
+/// The convenience entry `validate` uses: unknown scenes are refused with their name.
+#[test]
+fn close_scene_entry_point() {
+    let c = imu_emu::nav::close_scene("straight", 100.0, Some(10.0)).unwrap();
+    assert_eq!(c.records, 1000);
+    assert!(c.last.pos_ned.norm() < 1e-8);
+    let e = imu_emu::nav::close_scene("nosuch", 100.0, None).unwrap_err();
+    assert!(e.to_string().contains("nosuch"), "{e}");
+}
+
 /// Static, straight and circle: round-off level (measured ≈ 1–2e-9 m).
 #[test]
 fn static_straight_circle_600s_close() {

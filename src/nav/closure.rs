@@ -5,9 +5,11 @@
 use super::strapdown::{NavState, Navigator, Settings, SettingsError, StateError};
 use crate::errors::ErrorChain;
 use crate::generator::{DEFAULT_NODES, IdealImu};
-use crate::job::{BLOCK, Grid};
+use crate::job::{self, BLOCK, Grid, JobError, SourceSpec};
 use crate::motion::Motion;
+use crate::motion::sampled::ModelSettings;
 use crate::record::Record;
+use crate::scenes::SceneParams;
 use crate::source::AnyMotion;
 
 /// Outcome of one closure run.
@@ -75,4 +77,25 @@ pub fn close(
         k += n as u64;
     }
     Ok(out)
+}
+
+/// Why a scene closure could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum CloseError {
+    /// Unknown scene, bad span or rate.
+    #[error(transparent)]
+    Job(#[from] JobError),
+    /// Bad navigator settings.
+    #[error(transparent)]
+    Settings(#[from] SettingsError),
+}
+
+/// Navigates built-in scene `name` (default parameters) error-free for `seconds` (default:
+/// the scene's span, 60 s when unbounded) at `rate_hz` with the default navigator, and
+/// returns the closure error — the check `validate` reports.
+pub fn close_scene(name: &str, rate_hz: f64, seconds: Option<f64>) -> Result<Closure, CloseError> {
+    let source = SourceSpec::Scene(name.to_string(), SceneParams::defaults_for(name));
+    let motion = job::build_motion(&source, ModelSettings::default())?;
+    let grid = job::plan(&motion, rate_hz, None, seconds)?;
+    Ok(close(&motion, &grid, Settings::default(), None, 100)?)
 }

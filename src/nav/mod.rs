@@ -8,5 +8,5 @@ pub mod montecarlo;
 pub mod poly;
 pub mod strapdown;
 
-pub use closure::{Closure, close};
+pub use closure::{CloseError, Closure, close, close_scene};
 pub use strapdown::{NavState, Navigator, Settings, SettingsError, StateError};
