@@ -9,12 +9,12 @@ use anyhow::{Context, Result, bail};
 use imu_emu::input::RecordReader;
 use imu_emu::job::{self, SourceSpec};
 use imu_emu::math::euler_from_quat;
-use imu_emu::motion::Motion;
 use imu_emu::motion::sampled::ModelSettings;
+use imu_emu::motion::{Motion, Pose};
 use imu_emu::nav::{NavState, Navigator, Settings, StateError};
 use imu_emu::output::{AtomicFile, Format};
 use imu_emu::record::Record;
-use imu_emu::scenes::{self, SceneParams};
+use imu_emu::scenes::SceneParams;
 
 #[derive(clap::Args)]
 pub struct NavigateArgs {
@@ -108,11 +108,6 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
         (None, Some(t)) => SourceSpec::File(t.clone()),
         (None, None) => bail!("give the reference: --scene NAME or --trajectory FILE"),
     };
-    if let SourceSpec::Scene(s, _) = &source
-        && !scenes::NAMES.contains(&s.as_str())
-    {
-        bail!("--scene: {}", scenes::UnknownScene(s.clone()));
-    }
     let motion = job::build_motion(&source, ModelSettings::default())?;
     let settings = Settings {
         samples: a.samples.unwrap_or(Settings::default().samples),
@@ -158,8 +153,7 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
     traj_text.push_str(&imu_emu::trajectory::COLUMNS.join(","));
     traj_text.push('\n');
     err_text.push_str(ERROR_HEADER);
-    let row = |text: &mut String, s: &NavState| {
-        let p = s.pose();
+    let row = |text: &mut String, p: &Pose| {
         let (r, pi, y) = euler_from_quat(p.q_b_n);
         imu_emu::trajectory::format_row(
             text,
@@ -184,7 +178,7 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
         text.push_str(fmt.format(e.pos_ned.norm()));
         text.push('\n');
     };
-    row(&mut traj_text, &NavState::from_pose(&start));
+    row(&mut traj_text, &start);
     err_row(&mut err_text, t0, &StateError::default());
 
     let (mut max_pos, mut max_vel, mut max_att) = (0.0f64, 0.0f64, 0.0f64);
@@ -218,7 +212,7 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
         max_att = max_att.max(e.att_ned.norm());
         last = e;
         if traj.is_some() {
-            row(&mut traj_text, &s);
+            row(&mut traj_text, &s.pose());
         }
         if errs.is_some() {
             err_row(&mut err_text, s.t, &e);
