@@ -28,6 +28,10 @@ enum Command {
     Decode(cmd::decode::DecodeArgs),
     /// Validate the simulator (paper §4): error-free signal, navigator closure, noise terms.
     Validate(cmd::validate::ValidateArgs),
+    /// Navigate records free-inertially from a reference's initial state; trajectory and errors.
+    Navigate(cmd::navigate::NavigateArgs),
+    /// Compare IMU templates by Monte Carlo free-inertial navigation error over a scene.
+    Compare(cmd::compare::CompareArgs),
 }
 
 fn main() {
@@ -38,6 +42,8 @@ fn main() {
         Command::Templates => cmd::info::list_templates(),
         Command::Decode(a) => cmd::decode::decode(a),
         Command::Validate(a) => cmd::validate::validate(a),
+        Command::Navigate(a) => cmd::navigate::navigate(a),
+        Command::Compare(a) => cmd::compare::compare(a),
         Command::Scenes => {
             for name in scenes::NAMES {
                 println!(

@@ -1,7 +1,9 @@
 //! The subcommands, one module each; `setup` resolves what the simulating commands share.
 
+pub mod compare;
 pub mod decode;
 pub mod generate;
 pub mod info;
+pub mod navigate;
 pub mod setup;
 pub mod validate;

@@ -1,0 +1,261 @@
+//! `imu-emu navigate`: records in, the free-inertial trajectory and its errors against a
+//! reference out.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+
+use imu_emu::input::RecordReader;
+use imu_emu::job::{self, SourceSpec};
+use imu_emu::math::euler_from_quat;
+use imu_emu::motion::sampled::ModelSettings;
+use imu_emu::motion::{Motion, Pose};
+use imu_emu::nav::{NavState, Navigator, Settings, StateError};
+use imu_emu::output::{AtomicFile, Format};
+use imu_emu::record::Record;
+use imu_emu::scenes::SceneParams;
+
+#[derive(clap::Args)]
+pub struct NavigateArgs {
+    /// Records to navigate (`imu-emu generate` output, CSV or binary), or - for stdin.
+    pub input: PathBuf,
+    /// Input format: csv or bin [default: bin for a .bin file, else csv].
+    #[arg(long)]
+    pub format: Option<String>,
+    /// Reference: the built-in scene (default parameters) the records were generated from.
+    #[arg(
+        long,
+        conflicts_with = "trajectory",
+        required_unless_present = "trajectory"
+    )]
+    pub scene: Option<String>,
+    /// Reference: a trajectory CSV (t,lat,lon,h,vn,ve,vd,roll,pitch,yaw).
+    #[arg(long)]
+    pub trajectory: Option<PathBuf>,
+    /// IMU rate (Hz) [default: from the first two record times].
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Write the navigated trajectory here (trajectory CSV), or - for stdout.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Write the errors against the reference here (CSV: position m NED, velocity m/s NED,
+    /// attitude rad NED).
+    #[arg(long)]
+    pub errors: Option<PathBuf>,
+    /// Navigator reconstruction window (intervals, 1–8) [default: 6].
+    #[arg(long)]
+    pub samples: Option<usize>,
+    /// Navigator collocation stages (1–4, order 2s) [default: 3].
+    #[arg(long)]
+    pub stages: Option<usize>,
+}
+
+/// Header of the error CSV.
+const ERROR_HEADER: &str =
+    "t,north_m,east_m,down_m,vn_m_s,ve_m_s,vd_m_s,att_n_rad,att_e_rad,att_d_rad,position_m\n";
+
+/// A CSV output: a file committed only when the run succeeds, or stdout.
+enum Sink {
+    Stdout,
+    File(AtomicFile, PathBuf),
+}
+
+impl Sink {
+    fn open(path: &Option<PathBuf>) -> Result<Option<Sink>> {
+        Ok(match path {
+            None => None,
+            Some(p) if p == Path::new("-") => Some(Sink::Stdout),
+            Some(p) => Some(Sink::File(
+                AtomicFile::create(p).with_context(|| format!("creating {}", p.display()))?,
+                p.clone(),
+            )),
+        })
+    }
+
+    /// Writes and clears `text`.
+    fn drain(&mut self, text: &mut String) -> Result<()> {
+        match self {
+            Sink::Stdout => std::io::stdout().lock().write_all(text.as_bytes())?,
+            Sink::File(f, p) => f
+                .write_all(text.as_bytes())
+                .with_context(|| format!("writing {}", p.display()))?,
+        }
+        text.clear();
+        Ok(())
+    }
+
+    fn finish(self) -> Result<()> {
+        match self {
+            Sink::Stdout => std::io::stdout().lock().flush()?,
+            Sink::File(f, p) => f
+                .commit()
+                .with_context(|| format!("finishing {}", p.display()))?,
+        }
+        Ok(())
+    }
+}
+
+pub fn navigate(a: NavigateArgs) -> Result<()> {
+    let format = match a.format.as_deref() {
+        Some(f) => Format::from_name(f)
+            .with_context(|| format!("--format `{f}`: expected `csv` or `bin`"))?,
+        None if a.input.extension().is_some_and(|e| e == "bin") => Format::Bin,
+        None => Format::Csv,
+    };
+    let source = match (&a.scene, &a.trajectory) {
+        (Some(s), _) => SourceSpec::Scene(s.clone(), SceneParams::defaults_for(s)),
+        (None, Some(t)) => SourceSpec::File(t.clone()),
+        (None, None) => bail!("give the reference: --scene NAME or --trajectory FILE"),
+    };
+    let motion = job::build_motion(&source, ModelSettings::default())?;
+    let settings = Settings {
+        samples: a.samples.unwrap_or(Settings::default().samples),
+        stages: a.stages.unwrap_or(Settings::default().stages),
+    };
+    let mut reader = RecordReader::open(&a.input, format)?;
+    let first: Vec<Record> = reader.by_ref().take(2).collect::<Result<_, _>>()?;
+    let Some(r1) = first.first() else {
+        bail!("{}: no records", a.input.display());
+    };
+    let rate = match (a.rate, first.get(1)) {
+        (Some(r), _) => r,
+        (None, Some(r2)) => 1.0 / (r2.t - r1.t),
+        (None, None) => bail!(
+            "{}: one record only; give --rate to navigate it",
+            a.input.display()
+        ),
+    };
+    if !(rate.is_finite() && rate > 0.0) {
+        bail!(
+            "{}: record times {} and {} do not increase; give --rate",
+            a.input.display(),
+            r1.t,
+            first.get(1).map_or(f64::NAN, |r| r.t)
+        );
+    }
+    let t0 = r1.t - 1.0 / rate;
+    if t0 < motion.start() - 1e-9 || t0 > motion.end() {
+        bail!(
+            "{}: the records start at t₀ = {t0} s, outside the reference [{}, {}] s",
+            a.input.display(),
+            motion.start(),
+            motion.end()
+        );
+    }
+    let start = motion.pose(t0);
+    let mut nav = Navigator::new(NavState::from_pose(&start), rate, settings)?;
+
+    let mut traj = Sink::open(&a.output)?;
+    let mut errs = Sink::open(&a.errors)?;
+    let mut traj_text = String::new();
+    let mut err_text = String::new();
+    traj_text.push_str(&imu_emu::trajectory::COLUMNS.join(","));
+    traj_text.push('\n');
+    err_text.push_str(ERROR_HEADER);
+    let row = |text: &mut String, p: &Pose| {
+        let (r, pi, y) = euler_from_quat(p.q_b_n);
+        imu_emu::trajectory::format_row(
+            text,
+            p.t,
+            p.lat.to_degrees(),
+            p.lon.to_degrees(),
+            p.h,
+            p.v_n,
+            (r.to_degrees(), pi.to_degrees(), y.to_degrees()),
+        );
+    };
+    let mut fmt = ryu::Buffer::new();
+    let mut err_row = |text: &mut String, t: f64, e: &StateError| {
+        text.push_str(fmt.format(t));
+        for v in [e.pos_ned, e.vel_ned, e.att_ned] {
+            for x in v.0 {
+                text.push(',');
+                text.push_str(fmt.format(x));
+            }
+        }
+        text.push(',');
+        text.push_str(fmt.format(e.pos_ned.norm()));
+        text.push('\n');
+    };
+    row(&mut traj_text, &start);
+    err_row(&mut err_text, t0, &StateError::default());
+
+    let (mut max_pos, mut max_vel, mut max_att) = (0.0f64, 0.0f64, 0.0f64);
+    let mut last = StateError::default();
+    let mut k = 0u64;
+    let records = first.into_iter().map(Ok).chain(reader.by_ref());
+    for rec in records {
+        let rec = rec?;
+        k += 1;
+        let want = t0 + k as f64 / rate;
+        if (rec.t - want).abs() > 1e-6 / rate + 1e-12 * want.abs() {
+            bail!(
+                "{}: record {k}: t = {} s, expected {want} s for a {rate} Hz stream starting at {t0} s (gap, or --rate wrong)",
+                a.input.display(),
+                rec.t
+            );
+        }
+        nav.step(rec.dtheta, rec.dv);
+        let s = nav.state();
+        if s.t > motion.end() + 1e-9 {
+            bail!(
+                "{}: record {k} at t = {} s is past the end of the reference ({} s)",
+                a.input.display(),
+                s.t,
+                motion.end()
+            );
+        }
+        let e = StateError::of(&s, &motion.pose(s.t));
+        max_pos = max_pos.max(e.pos_ned.norm());
+        max_vel = max_vel.max(e.vel_ned.norm());
+        max_att = max_att.max(e.att_ned.norm());
+        last = e;
+        if traj.is_some() {
+            row(&mut traj_text, &s.pose());
+        }
+        if errs.is_some() {
+            err_row(&mut err_text, s.t, &e);
+        }
+        for (text, sink) in [(&mut traj_text, &mut traj), (&mut err_text, &mut errs)] {
+            if let Some(w) = sink
+                && text.len() > 1 << 20
+            {
+                w.drain(text)?;
+            }
+        }
+    }
+    for (text, sink) in [(&mut traj_text, traj), (&mut err_text, errs)] {
+        if let Some(mut w) = sink {
+            w.drain(text)?;
+            w.finish()?;
+        }
+    }
+    let to_stdout =
+        a.output.as_deref() == Some(Path::new("-")) || a.errors.as_deref() == Some(Path::new("-"));
+    let summary = format!(
+        "navigated {k} records at {rate} Hz, {:.3} s from t₀ = {t0} s (samples {}, stages {})\n\
+         final error: position NED [{:+.3e}, {:+.3e}, {:+.3e}] m (|{:.3e}| m), velocity |{:.3e}| m/s, attitude NED [{:+.3e}, {:+.3e}, {:+.3e}] rad\n\
+         max error:   position {:.3e} m, velocity {:.3e} m/s, attitude {:.3e} rad\n",
+        k as f64 / rate,
+        settings.samples,
+        settings.stages,
+        last.pos_ned.x(),
+        last.pos_ned.y(),
+        last.pos_ned.z(),
+        last.pos_ned.norm(),
+        last.vel_ned.norm(),
+        last.att_ned.x(),
+        last.att_ned.y(),
+        last.att_ned.z(),
+        max_pos,
+        max_vel,
+        max_att,
+    );
+    if to_stdout {
+        eprint!("{summary}");
+    } else {
+        print!("{summary}");
+    }
+    Ok(())
+}

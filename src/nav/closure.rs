@@ -1,0 +1,101 @@
+//! Closure runs: generate a motion's records block by block (error-free, or through an error
+//! chain), navigate them from the true initial state and measure the error against the
+//! truth — what the closure tests and `validate` need.
+
+use super::strapdown::{NavState, Navigator, Settings, SettingsError, StateError};
+use crate::errors::ErrorChain;
+use crate::generator::{DEFAULT_NODES, IdealImu};
+use crate::job::{self, BLOCK, Grid, JobError, SourceSpec};
+use crate::motion::Motion;
+use crate::motion::sampled::ModelSettings;
+use crate::record::Record;
+use crate::scenes::SceneParams;
+use crate::source::AnyMotion;
+
+/// Outcome of one closure run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Closure {
+    /// Records navigated.
+    pub records: u64,
+    /// Error at the last record.
+    pub last: StateError,
+    /// Largest 3-D position error over the run (m).
+    pub max_pos: f64,
+    /// Largest 3-D velocity error over the run (m/s).
+    pub max_vel: f64,
+    /// Largest attitude error angle over the run (rad).
+    pub max_att: f64,
+}
+
+/// Navigates the records of `motion` on `grid` (corrupted by `chain` when given) from the
+/// true state at t₀ and returns the errors against the truth, checked at every
+/// `check_every`-th record and at the last.
+pub fn close(
+    motion: &AnyMotion,
+    grid: &Grid,
+    settings: Settings,
+    mut chain: Option<&mut ErrorChain>,
+    check_every: u64,
+) -> Result<Closure, SettingsError> {
+    let start = NavState::from_pose(&motion.pose(grid.t0));
+    let mut nav = Navigator::new(start, grid.rate_hz, settings)?;
+    let mut imu = IdealImu::new(
+        motion.clone(),
+        grid.rate_hz,
+        grid.t0,
+        grid.count,
+        DEFAULT_NODES,
+    );
+    let mut block = vec![Record::default(); BLOCK];
+    let mut out = Closure {
+        records: grid.count,
+        last: StateError::default(),
+        max_pos: 0.0,
+        max_vel: 0.0,
+        max_att: 0.0,
+    };
+    let every = check_every.max(1);
+    let mut k = 1u64;
+    while k <= grid.count {
+        let n = ((grid.count - k + 1) as usize).min(BLOCK);
+        imu.fill(k, &mut block[..n]);
+        if let Some(c) = chain.as_deref_mut() {
+            c.apply(&mut block[..n]);
+        }
+        for (i, r) in block[..n].iter().enumerate() {
+            nav.step(r.dtheta, r.dv);
+            let kk = k + i as u64;
+            if kk % every == 0 || kk == grid.count {
+                let s = nav.state();
+                let e = StateError::of(&s, &motion.pose(s.t));
+                out.max_pos = out.max_pos.max(e.pos_ned.norm());
+                out.max_vel = out.max_vel.max(e.vel_ned.norm());
+                out.max_att = out.max_att.max(e.att_ned.norm());
+                out.last = e;
+            }
+        }
+        k += n as u64;
+    }
+    Ok(out)
+}
+
+/// Why a scene closure could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum CloseError {
+    /// Unknown scene, bad span or rate.
+    #[error(transparent)]
+    Job(#[from] JobError),
+    /// Bad navigator settings.
+    #[error(transparent)]
+    Settings(#[from] SettingsError),
+}
+
+/// Navigates built-in scene `name` (default parameters) error-free for `seconds` (default:
+/// the scene's span, 60 s when unbounded) at `rate_hz` with the default navigator, and
+/// returns the closure error — the check `validate` reports.
+pub fn close_scene(name: &str, rate_hz: f64, seconds: Option<f64>) -> Result<Closure, CloseError> {
+    let source = SourceSpec::Scene(name.to_string(), SceneParams::defaults_for(name));
+    let motion = job::build_motion(&source, ModelSettings::default())?;
+    let grid = job::plan(&motion, rate_hz, None, seconds)?;
+    Ok(close(&motion, &grid, Settings::default(), None, 100)?)
+}

@@ -1,0 +1,12 @@
+//! The reference strapdown navigator: free-inertial navigation on WGS-84 from our own
+//! increments (`strapdown`), the causal signal reconstruction and collocation tableau it uses
+//! (`poly`), closure runs on the built-in scenes (`closure`) and Monte Carlo comparison of
+//! IMU templates (`montecarlo`). Pure computation, no I/O.
+
+pub mod closure;
+pub mod montecarlo;
+pub mod poly;
+pub mod strapdown;
+
+pub use closure::{CloseError, Closure, close, close_scene};
+pub use strapdown::{NavState, Navigator, Settings, SettingsError, StateError};
