@@ -110,7 +110,45 @@ fn error_free() -> Section {
         &truth::scene_checks(),
         "rad/s; rad for Δθ",
     );
+    closure(&mut s);
     s
+}
+
+/// Closure through the reference navigator: each scene's error-free records at 400 Hz,
+/// navigated free-inertially from the true initial state, must end within 1 mm of the truth.
+fn closure(s: &mut Section) {
+    const RATE: f64 = 400.0;
+    const BOUND_M: f64 = 1e-3;
+    let _ = writeln!(
+        s.markdown,
+        "### Closure through the reference navigator ({RATE} Hz, `src/nav/`)\n\n\
+         | scene | records | final position error (m) | max position error (m) | max velocity error (m/s) | max attitude error (rad) | bound (m) | result |\n\
+         | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |"
+    );
+    for name in imu_emu::scenes::NAMES {
+        let seconds = match name {
+            "coning" => Some(60.0),
+            "polar" => Some(120.0),
+            "survey" => None,
+            _ => Some(600.0),
+        };
+        match imu_emu::nav::closure::close_scene(name, RATE, seconds) {
+            Ok(c) => {
+                let last = c.last.pos_ned.norm();
+                let v = s.verdict(&format!("closure {name}"), c.max_pos <= BOUND_M);
+                let _ = writeln!(
+                    s.markdown,
+                    "| {name} | {} | {last:.1e} | {:.1e} | {:.1e} | {:.1e} | {BOUND_M:.0e} | {v} |",
+                    c.records, c.max_pos, c.max_vel, c.max_att
+                );
+            }
+            Err(e) => {
+                let v = s.verdict(&format!("closure {name}"), false);
+                let _ = writeln!(s.markdown, "| {name} | — | {e} | | | | | {v} |");
+            }
+        }
+    }
+    s.markdown.push('\n');
 }
 
 /// Runs `validate`; exits with an error when any check failed (the report is written either way).
