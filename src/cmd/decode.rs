@@ -7,7 +7,7 @@ use anyhow::{Context, Result, bail};
 
 #[derive(clap::Args)]
 pub struct DecodeArgs {
-    /// Built-in protocol (kvh1750, imar-ixcom, novatel-rawimusx, stim300).
+    /// Built-in protocol: ln200, ln200-sdlc, kvh1750, imar-ixcom, novatel-rawimusx, stim300.
     #[arg(long, conflicts_with = "protocol_file")]
     pub protocol: Option<String>,
     /// A protocol spec file.
@@ -64,10 +64,17 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         err?;
     }
     out.flush()?;
-    let s = dec.stats;
+    let s = dec.stats();
     eprintln!(
-        "imu-emu decode: {} frames, {} check failures, {} counter gaps, {} bytes skipped",
-        s.frames, s.check_failures, s.counter_gaps, s.skipped_bytes
+        "imu-emu decode: {} frames, {} check failures, {} counter gaps, {} duplicates, {} stale counters, {} status flagged, {} bytes skipped, {} framing errors",
+        s.frames,
+        s.check_failures,
+        s.counter_gaps,
+        s.duplicates,
+        s.stale_counters,
+        s.status_flagged,
+        s.skipped_bytes,
+        s.framing_errors
     );
     Ok(())
 }

@@ -3,12 +3,14 @@
 //! frames back (DESIGN §5). Pure: no I/O.
 
 pub mod check;
+pub mod faults;
 pub mod framing;
 pub mod plan;
 pub mod spec;
 pub mod stream;
 
-pub use plan::{DecodeError, Decoded, EncoderState, Plan};
+pub use faults::{FaultInjector, FaultKind, FaultSpec, FaultTally};
+pub use plan::{DecodeError, Decoded, EncoderState, Plan, Transport};
 pub use spec::{FrameSpec, SpecError};
 pub use stream::{StreamDecoder, StreamStats};
 
@@ -22,6 +24,8 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../protocols/imar-ixcom.toml"),
     ),
     ("kvh1750", include_str!("../../protocols/kvh1750.toml")),
+    ("ln200", include_str!("../../protocols/ln200.toml")),
+    ("ln200-sdlc", include_str!("../../protocols/ln200-sdlc.toml")),
     (
         "novatel-rawimusx",
         include_str!("../../protocols/novatel-rawimusx.toml"),

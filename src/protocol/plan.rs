@@ -5,7 +5,10 @@
 use std::path::Path;
 
 use super::check::Check;
-use super::spec::{ByteOrder, FrameSpec, Source, SpecError, WireType};
+use super::faults::{FaultError, FaultInjector, FaultKind, FrameFaults};
+use super::framing::{self, BitWriter, Fcs, HdlcOptions, SdlcOptions};
+use super::spec::{BitEdit, ByteOrder, FrameSpec, Source, SpecError, StatusSpec, WireType};
+use crate::errors::chain::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED};
 use crate::record::Record;
 
 /// One compiled field.
@@ -21,8 +24,55 @@ struct Op {
 #[derive(Clone, Debug)]
 enum What {
     Constant(i64),
-    Quantity { source: Source, scale: f64 },
-    Counter { modulo: u64, step: u64 },
+    /// A quantity; `flag` is the record flag its saturation at the field's range raises (0:
+    /// none).
+    Quantity {
+        source: Source,
+        scale: f64,
+        flag: u8,
+    },
+    Counter {
+        modulo: u64,
+        step: u64,
+    },
+    Status(Box<StatusModel>),
+}
+
+/// A compiled `[field.status]`.
+#[derive(Clone, Debug)]
+struct StatusModel {
+    ok: i64,
+    gyro: BitEdit,
+    accel: BitEdit,
+    failure: Option<BitEdit>,
+}
+
+impl StatusModel {
+    fn value(&self, flags: u8, failure: bool) -> i64 {
+        let mut v = self.ok;
+        if flags & FLAG_GYRO_SATURATED != 0 {
+            v = self.gyro.apply(v);
+        }
+        if flags & FLAG_ACCEL_SATURATED != 0 {
+            v = self.accel.apply(v);
+        }
+        if failure && let Some(e) = self.failure {
+            v = e.apply(v);
+        }
+        v
+    }
+}
+
+/// What carries the frame on the line.
+#[derive(Clone, Debug)]
+pub enum Transport {
+    /// The frame bytes as they are (byte-synchronised by constants).
+    Plain,
+    /// Bit-stuffed synchronous SDLC packed into bytes; each frame ends with marks to a byte
+    /// boundary.
+    Sdlc(SdlcOptions),
+    /// Byte-stuffed asynchronous HDLC.
+    Hdlc(HdlcOptions),
 }
 
 /// The compiled check.
@@ -45,6 +95,8 @@ pub struct Plan {
     pub rate_hz: Option<f64>,
     /// Nominal link speed (bit/s), if given.
     pub baud: Option<u64>,
+    /// How frames travel on the line.
+    pub transport: Transport,
     ops: Vec<Op>,
     check: Option<CheckOp>,
     len: usize,
@@ -53,8 +105,16 @@ pub struct Plan {
 /// Encoder state carried from frame to frame (the counter) and the run's time reference.
 #[derive(Clone, Debug, Default)]
 pub struct EncoderState {
-    /// Frames encoded so far.
+    /// Frames encoded so far (dropped ones included).
     pub frames: u64,
+    /// Frames on which the counter did not advance (stale-counter faults).
+    pub stalled: u64,
+    /// Faults to inject, if any.
+    pub faults: Option<FaultInjector>,
+    /// The synchronous line of an SDLC transport (NRZI level across frames).
+    pub line: Option<BitWriter>,
+    /// Reused buffer of a frame before its transport.
+    pub scratch: Vec<u8>,
     /// GPS week of the record time t = 0.
     pub gps_week0: u32,
     /// GPS seconds of week of the record time t = 0. GPS fields carry (week0, sow0) + t, kept
@@ -100,8 +160,10 @@ pub enum DecodeError {
 /// A decoded frame: every quantity field's value in SI, by field order.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Decoded {
-    /// (source, value) of each quantity and counter field, in wire order.
+    /// (source, value) of each quantity, counter and status field, in wire order.
     pub values: Vec<(Source, f64)>,
+    /// Some status word differs from its healthy value.
+    pub flagged: bool,
 }
 
 impl Decoded {
@@ -151,7 +213,20 @@ impl Plan {
                     let source = Source::from_name(name).ok_or_else(|| {
                         ferr(&f.name, format!("unknown source quantity `{name}` (gyro.x…z, accel.*, dtheta.*, dv.*, time, counter, temperature)"))
                     })?;
-                    if source == Source::Counter {
+                    if source == Source::Status {
+                        let st: &StatusSpec = f.status.as_ref().ok_or_else(|| {
+                            ferr(&f.name, "a `status` field needs a `[field.status]` table with `ok`".into())
+                        })?;
+                        if f.ty.int_range().is_none() {
+                            return Err(ferr(&f.name, "a status word needs an integer type".into()));
+                        }
+                        What::Status(Box::new(StatusModel {
+                            ok: st.ok,
+                            gyro: st.gyro_overrange.unwrap_or_default(),
+                            accel: st.accel_overrange.unwrap_or_default(),
+                            failure: st.failure,
+                        }))
+                    } else if source == Source::Counter {
                         let range = f.ty.int_range().ok_or_else(|| {
                             ferr(&f.name, "a counter needs an integer type".into())
                         })?;
@@ -174,13 +249,26 @@ impl Plan {
                                 format!("lsb {lsb} must be finite and non-zero"),
                             ));
                         }
+                        let flag = match source {
+                            _ if f.flags_overrange == Some(false) => 0,
+                            Source::Gyro(_) | Source::DTheta(_) => FLAG_GYRO_SATURATED,
+                            Source::Accel(_) | Source::Dv(_) => FLAG_ACCEL_SATURATED,
+                            _ => 0,
+                        };
                         What::Quantity {
                             source,
                             scale: f.sign.unwrap_or(1.0) / lsb,
+                            flag,
                         }
                     }
                 }
             };
+            if f.status.is_some() && !matches!(what, What::Status(_)) {
+                return Err(ferr(
+                    &f.name,
+                    "`[field.status]` belongs to a field with `source = \"status\"`".into(),
+                ));
+            }
             ops.push(Op {
                 name: f.name.clone(),
                 offset,
@@ -228,10 +316,22 @@ impl Plan {
             }
         };
         let len = offset + check.as_ref().map_or(0, |c| c.ty.bytes());
+        let transport = match (spec.sdlc, spec.hdlc) {
+            (Some(_), Some(_)) => {
+                return Err(SpecError::Syntax {
+                    path: path.to_path_buf(),
+                    message: "give `[sdlc]` or `[hdlc]`, not both".into(),
+                });
+            }
+            (Some(o), None) => Transport::Sdlc(o),
+            (None, Some(o)) => Transport::Hdlc(o),
+            (None, None) => Transport::Plain,
+        };
         Ok(Plan {
             name: spec.name.clone(),
             rate_hz: spec.rate_hz,
             baud: spec.baud,
+            transport,
             ops,
             check,
             len,
@@ -248,7 +348,9 @@ impl Plan {
         self.len == 0
     }
 
-    /// Appends the frame of `r` to `out`; values beyond a field's range saturate.
+    /// Appends the line bytes of the frame of `r` to `out`, with the faults the state's
+    /// injector decides (none, one frame, two identical frames). Values beyond a field's range
+    /// saturate and raise the status overrange bits, as do the record's saturation flags.
     /// `temperature` is the sensor temperature (°C) if the frame carries one.
     pub fn encode(
         &self,
@@ -257,25 +359,94 @@ impl Plan {
         state: &mut EncoderState,
         out: &mut Vec<u8>,
     ) {
+        let f = match state.faults.as_mut() {
+            Some(inj) => inj.frame(r.t),
+            None => FrameFaults::default(),
+        };
+        if f.stale {
+            state.stalled += 1;
+        }
+        if f.drop {
+            state.frames += 1;
+            return;
+        }
+        // A corrupted frame carries a wrong check; without one, its transport FCS is wrong.
+        let corrupt_fcs = f.corrupt && self.check.is_none();
+        match &self.transport {
+            Transport::Plain => {
+                let start = out.len();
+                self.encode_frame(r, temperature, state, f, out);
+                if f.duplicate {
+                    out.extend_from_within(start..);
+                }
+            }
+            transport => {
+                let mut frame = std::mem::take(&mut state.scratch);
+                frame.clear();
+                self.encode_frame(r, temperature, state, f, &mut frame);
+                for _ in 0..1 + usize::from(f.duplicate) {
+                    match transport {
+                        Transport::Sdlc(o) => {
+                            let w = state.line.get_or_insert_with(|| BitWriter::for_options(o));
+                            sdlc_frame(&frame, o, corrupt_fcs, w);
+                            w.drain_into(out);
+                        }
+                        Transport::Hdlc(o) => hdlc_frame(&frame, o, corrupt_fcs, out),
+                        Transport::Plain => unreachable!("handled above"),
+                    }
+                }
+                state.scratch = frame;
+            }
+        }
+        state.frames += 1;
+    }
+
+    /// Appends the frame's fields and check (before any transport).
+    fn encode_frame(
+        &self,
+        r: &Record,
+        temperature: f64,
+        state: &EncoderState,
+        faults: FrameFaults,
+        out: &mut Vec<u8>,
+    ) {
         let start = out.len();
         out.resize(start + self.len, 0);
         let frame = &mut out[start..];
+        let mut flags = r.flags;
         for op in &self.ops {
             let dst = &mut frame[op.offset..op.offset + op.ty.bytes()];
-            match op.what {
-                What::Constant(v) => put_int(dst, op.ty, op.order, v as i128),
+            match &op.what {
+                What::Constant(v) => put_int(dst, op.ty, op.order, *v as i128),
                 What::Counter { modulo, step } => {
-                    let v = (state.frames.wrapping_mul(step)) % modulo;
+                    let n = state.frames.wrapping_sub(state.stalled);
+                    let v = (n.wrapping_mul(*step)) % modulo;
                     put_int(dst, op.ty, op.order, v as i128);
                 }
-                What::Quantity { source, scale } => {
-                    let x = quantity(r, temperature, state, source) * scale;
-                    put_value(dst, op.ty, op.order, x);
+                What::Quantity {
+                    source,
+                    scale,
+                    flag,
+                } => {
+                    let x = quantity(r, temperature, state, *source) * scale;
+                    if put_value(dst, op.ty, op.order, x) {
+                        flags |= flag;
+                    }
                 }
+                What::Status(_) => {}
+            }
+        }
+        for op in &self.ops {
+            if let What::Status(m) = &op.what {
+                let dst = &mut frame[op.offset..op.offset + op.ty.bytes()];
+                put_int(dst, op.ty, op.order, m.value(flags, faults.status).into());
             }
         }
         if let Some(c) = &self.check {
-            let v = c.compute(frame);
+            let mut v = c.compute(frame);
+            if faults.corrupt {
+                v ^= 1;
+            }
             put_int(
                 &mut frame[c.offset..c.offset + c.ty.bytes()],
                 c.ty,
@@ -283,7 +454,38 @@ impl Plan {
                 v as i128,
             );
         }
-        state.frames += 1;
+    }
+
+    /// Whether frames of this plan can show a fault kind (a counter to freeze or to reveal a
+    /// drop, a check or FCS to corrupt, a status word with a failure model).
+    pub fn supports(&self, kind: FaultKind) -> Result<(), FaultError> {
+        let why = match kind {
+            FaultKind::Drop | FaultKind::StaleCounter if self.counter().is_none() => {
+                "the frame has no counter"
+            }
+            FaultKind::CorruptCheck
+                if self.check.is_none()
+                    && !matches!(&self.transport,
+                        Transport::Sdlc(o) if o.fcs != Fcs::None)
+                    && !matches!(&self.transport,
+                        Transport::Hdlc(o) if o.fcs != Fcs::None) =>
+            {
+                "the frame has no check and no FCS"
+            }
+            FaultKind::Status
+                if !self.ops.iter().any(
+                    |op| matches!(&op.what, What::Status(m) if m.failure.is_some()),
+                ) =>
+            {
+                "no status field has a `failure` model"
+            }
+            _ => return Ok(()),
+        };
+        Err(FaultError::Unsupported {
+            protocol: self.name.clone(),
+            kind: kind.name(),
+            why,
+        })
     }
 
     /// True when the constant fields (sync words, fixed IDs) at the start of `bytes` match:
@@ -315,7 +517,9 @@ impl Plan {
     /// float fields or absent sources.
     pub fn quantum(&self, source: Source) -> Option<f64> {
         self.ops.iter().find_map(|op| match op.what {
-            What::Quantity { source: s, scale } if s == source && op.ty.int_range().is_some() => {
+            What::Quantity {
+                source: s, scale, ..
+            } if s == source && op.ty.int_range().is_some() => {
                 Some(1.0 / scale.abs())
             }
             _ => None,
@@ -364,9 +568,14 @@ impl Plan {
                 What::Counter { .. } => out
                     .values
                     .push((Source::Counter, get_int(src, op.ty, op.order) as f64)),
-                What::Quantity { source, scale } => out
+                What::Quantity { source, scale, .. } => out
                     .values
                     .push((source, get_value(src, op.ty, op.order) / scale + 0.0)),
+                What::Status(ref m) => {
+                    let v = get_int(src, op.ty, op.order) as i64;
+                    out.flagged |= v != m.ok;
+                    out.values.push((Source::Status, v as f64));
+                }
             }
         }
         Ok(out)
@@ -405,24 +614,69 @@ fn quantity(r: &Record, temperature: f64, st: &EncoderState, s: Source) -> f64 {
         Source::Dv(i) => r.dv.0[i],
         Source::Time => r.t,
         Source::Temperature => temperature,
-        Source::Counter => 0.0,
+        Source::Counter | Source::Status => 0.0,
+    }
+}
+
+/// One SDLC frame on the line, then marks to the next byte boundary (idle), optionally with a
+/// wrong FCS.
+fn sdlc_frame(frame: &[u8], o: &SdlcOptions, corrupt_fcs: bool, w: &mut BitWriter) {
+    if corrupt_fcs {
+        let mut bad = frame.to_vec();
+        let mut fcs = o.fcs.bytes(frame);
+        fcs[0] ^= 1;
+        bad.extend_from_slice(&fcs[..o.fcs.len()]);
+        framing::sdlc_encode(
+            &bad,
+            &SdlcOptions {
+                fcs: Fcs::None,
+                ..*o
+            },
+            w,
+        );
+    } else {
+        framing::sdlc_encode(frame, o, w);
+    }
+    w.write_marks((8 - w.bit_len() % 8) % 8);
+}
+
+/// One asynchronous HDLC frame, optionally with a wrong FCS.
+fn hdlc_frame(frame: &[u8], o: &HdlcOptions, corrupt_fcs: bool, out: &mut Vec<u8>) {
+    if corrupt_fcs {
+        let mut bad = frame.to_vec();
+        let mut fcs = o.fcs.bytes(frame);
+        fcs[0] ^= 1;
+        bad.extend_from_slice(&fcs[..o.fcs.len()]);
+        framing::hdlc_encode(
+            &bad,
+            &HdlcOptions {
+                fcs: Fcs::None,
+                ..*o
+            },
+            out,
+        );
+    } else {
+        framing::hdlc_encode(frame, o, out);
     }
 }
 
 /// Writes a physical value: floats as they are, integers rounded and saturated at the type's
-/// range (a real unit flags overrange rather than wrapping).
-fn put_value(dst: &mut [u8], ty: WireType, order: ByteOrder, x: f64) {
+/// range (a real unit flags overrange rather than wrapping). Returns whether it saturated.
+fn put_value(dst: &mut [u8], ty: WireType, order: ByteOrder, x: f64) -> bool {
     match ty {
-        WireType::F32 => put_bytes(dst, &(x as f32).to_be_bytes(), order),
-        WireType::F64 => put_bytes(dst, &x.to_be_bytes(), order),
+        WireType::F32 => {
+            put_bytes(dst, &(x as f32).to_be_bytes(), order);
+            x.is_finite() && (x as f32).is_infinite()
+        }
+        WireType::F64 => {
+            put_bytes(dst, &x.to_be_bytes(), order);
+            false
+        }
         _ => {
             let (lo, hi) = ty.int_range().expect("integer type");
-            let v = if x.is_nan() {
-                0
-            } else {
-                (x.round() as i128).clamp(lo, hi)
-            };
-            put_int(dst, ty, order, v);
+            let v = if x.is_nan() { 0 } else { x.round() as i128 };
+            put_int(dst, ty, order, v.clamp(lo, hi));
+            v < lo || v > hi
         }
     }
 }
