@@ -505,6 +505,11 @@ impl Plan {
             })
     }
 
+    /// Whether the frame has constant fields (sync words, IDs) that mark its start.
+    pub fn has_sync(&self) -> bool {
+        self.ops.iter().any(|op| matches!(op.what, What::Constant(_)))
+    }
+
     /// The counter's (modulo, step), if the frame carries one.
     pub fn counter(&self) -> Option<(u64, u64)> {
         self.ops.iter().find_map(|op| match op.what {

@@ -35,6 +35,9 @@ struct Tally {
     last_frame: Vec<u8>,
     /// Check failures since the last good frame: frames that took a counter value.
     lost: u64,
+    /// The previous window was a good frame (or a check failure right after one): the next
+    /// frame boundary is known even without sync constants.
+    locked: bool,
     stats: StreamStats,
 }
 
@@ -95,14 +98,19 @@ impl StreamDecoder {
                             frame(&d);
                             p += len;
                         }
-                        Err(DecodeError::Check { .. }) if plan.constants_match(window) => {
-                            // A frame boundary with a damaged body: skip the frame, as a
-                            // receiver would.
+                        // A frame boundary with a damaged body: skip the frame, as a receiver
+                        // would. Without sync constants the boundary is only known right after
+                        // a good frame; otherwise hunt byte by byte for a frame whose check holds.
+                        Err(DecodeError::Check { .. })
+                            if plan.constants_match(window) && (plan.has_sync() || tally.locked) =>
+                        {
                             tally.check_failure();
+                            tally.locked = false;
                             p += len;
                         }
                         Err(_) => {
                             tally.stats.skipped_bytes += 1;
+                            tally.locked = false;
                             p += 1;
                         }
                     }
@@ -147,6 +155,7 @@ impl Tally {
     /// A frame that decoded: duplicates, stale counters, gaps and status.
     fn good(&mut self, plan: &Plan, bytes: &[u8], d: &Decoded) {
         self.stats.frames += 1;
+        self.locked = true;
         let counter = d.get(Source::Counter).map(|c| c as u64);
         let same_bytes = self.last_frame == bytes;
         let repeated = match (counter, self.last_counter) {
