@@ -1,14 +1,18 @@
-//! A frame specification compiled once into a flat plan of byte offsets and conversions, run
-//! per frame to encode records and decode frames (RUST-NOTES §3.2: as fast as hand-written
-//! code, and a user's TOML file needs no recompiling).
+//! A frame specification compiled once into flat plans of byte offsets and conversions (one
+//! per message layout), run per frame to encode records and decode frames (RUST-NOTES §3.2: as
+//! fast as hand-written code, and a user's TOML file needs no recompiling).
 
 use std::path::Path;
 
 use super::check::Check;
 use super::faults::{FaultError, FaultInjector, FaultKind, FrameFaults};
 use super::framing::{self, BitWriter, Fcs, HdlcOptions, SdlcOptions};
-use super::spec::{BitEdit, ByteOrder, FrameSpec, Source, SpecError, StatusSpec, WireType};
+use super::spec::{
+    BitEdit, ByteOrder, CheckSpec, FieldSpec, FrameSpec, Source, SpecError, TruncateSpec,
+    WireType,
+};
 use crate::errors::chain::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED};
+use crate::math::Vec3;
 use crate::record::Record;
 
 /// One compiled field.
@@ -31,11 +35,15 @@ enum What {
         scale: f64,
         flag: u8,
     },
+    /// A counter, possibly sharing its word with status bits above it.
     Counter {
         modulo: u64,
         step: u64,
+        status: Option<Box<StatusModel>>,
     },
     Status(Box<StatusModel>),
+    /// The sent payload length of a truncated frame.
+    Length,
 }
 
 /// A compiled `[field.status]`.
@@ -84,9 +92,33 @@ struct CheckOp {
     order: ByteOrder,
     from: usize,
     pad_to: usize,
+    append: Vec<u8>,
 }
 
-/// A compiled frame: encode records, decode frames.
+/// Compiled `[truncate]`.
+#[derive(Clone, Copy, Debug)]
+struct Truncate {
+    /// Offset and type of the length field.
+    len_at: usize,
+    len_ty: WireType,
+    len_order: ByteOrder,
+    /// First payload byte.
+    from: usize,
+}
+
+/// One message layout: fixed offsets, optional check, optional truncation.
+#[derive(Clone, Debug)]
+struct Layout {
+    name: String,
+    ops: Vec<Op>,
+    check: Option<CheckOp>,
+    truncate: Option<Truncate>,
+    accumulate: bool,
+    /// Full (untruncated) length.
+    len: usize,
+}
+
+/// A compiled protocol: encode records, decode frames.
 #[derive(Clone, Debug)]
 pub struct Plan {
     /// Protocol name.
@@ -97,9 +129,9 @@ pub struct Plan {
     pub baud: Option<u64>,
     /// How frames travel on the line.
     pub transport: Transport,
-    ops: Vec<Op>,
-    check: Option<CheckOp>,
-    len: usize,
+    layouts: Vec<Layout>,
+    /// Layout index of each frame, repeating.
+    schedule: Vec<usize>,
 }
 
 /// Encoder state carried from frame to frame (the counter) and the run's time reference.
@@ -115,6 +147,8 @@ pub struct EncoderState {
     pub line: Option<BitWriter>,
     /// Reused buffer of a frame before its transport.
     pub scratch: Vec<u8>,
+    /// Δθ and ΔV summed since an accumulating message was last sent.
+    pub sums: [Vec3; 2],
     /// GPS week of the record time t = 0.
     pub gps_week0: u32,
     /// GPS seconds of week of the record time t = 0. GPS fields carry (week0, sow0) + t, kept
@@ -147,6 +181,14 @@ pub enum DecodeError {
         /// Value expected.
         expected: i64,
     },
+    /// A truncated frame's length field is out of range.
+    #[error("length field {got}: expected 1 to {max}")]
+    Length {
+        /// Value found.
+        got: i64,
+        /// Full payload length.
+        max: usize,
+    },
     /// The integrity check does not match.
     #[error("check: frame carries {got:#x}, computed {computed:#x}")]
     Check {
@@ -154,6 +196,8 @@ pub enum DecodeError {
         got: u64,
         /// Computed.
         computed: u64,
+        /// Length of the frame whose boundary was found.
+        len: usize,
     },
 }
 
@@ -164,6 +208,10 @@ pub struct Decoded {
     pub values: Vec<(Source, f64)>,
     /// Some status word differs from its healthy value.
     pub flagged: bool,
+    /// Index of the message layout (0 for single-layout protocols).
+    pub message: usize,
+    /// Bytes the frame took (before any transport).
+    pub len: usize,
 }
 
 impl Decoded {
@@ -173,60 +221,92 @@ impl Decoded {
     }
 }
 
-impl Plan {
-    /// Validates and compiles a spec (`path` for messages).
-    pub fn compile(spec: &FrameSpec, path: &Path) -> Result<Plan, SpecError> {
-        let ferr = |field: &str, message: String| SpecError::Field {
-            path: path.to_path_buf(),
-            field: field.to_string(),
-            message,
-        };
-        let mut ops = Vec::with_capacity(spec.field.len());
-        let mut offset = 0;
-        for f in &spec.field {
-            let order = f.byte_order.unwrap_or(spec.byte_order);
-            let what = match (&f.value, &f.source) {
-                (Some(_), Some(_)) => {
+/// Compiles one layout's fields, check and truncation.
+fn compile_layout(
+    name: &str,
+    fields: &[FieldSpec],
+    check: Option<&CheckSpec>,
+    truncate: Option<&TruncateSpec>,
+    accumulate: bool,
+    default_order: ByteOrder,
+    path: &Path,
+) -> Result<Layout, SpecError> {
+    let ferr = |field: &str, message: String| SpecError::Field {
+        path: path.to_path_buf(),
+        field: field.to_string(),
+        message,
+    };
+    let status_model = |f: &FieldSpec| {
+        f.status.as_ref().map(|st| {
+            Box::new(StatusModel {
+                ok: st.ok,
+                gyro: st.gyro_overrange.unwrap_or_default(),
+                accel: st.accel_overrange.unwrap_or_default(),
+                failure: st.failure,
+            })
+        })
+    };
+    let mut ops = Vec::with_capacity(fields.len());
+    let mut offset = 0;
+    for f in fields {
+        let order = f.byte_order.unwrap_or(default_order);
+        let is_length = truncate.is_some_and(|t| t.length_field == f.name);
+        let what = match (&f.value, &f.source) {
+            _ if is_length => {
+                if f.value.is_some() || f.source.is_some() || f.ty.int_range().is_none() {
                     return Err(ferr(
                         &f.name,
-                        "give either `value` or `source`, not both".into(),
+                        "the truncation length field is an integer with no `value` or `source`"
+                            .into(),
                     ));
                 }
-                (None, None) => {
+                What::Length
+            }
+            (Some(_), Some(_)) => {
+                return Err(ferr(
+                    &f.name,
+                    "give either `value` or `source`, not both".into(),
+                ));
+            }
+            (None, None) => {
+                return Err(ferr(
+                    &f.name,
+                    "needs a `value` (constant) or a `source` (quantity)".into(),
+                ));
+            }
+            (Some(v), None) => {
+                if let Some((lo, hi)) = f.ty.int_range()
+                    && ((*v as i128) < lo || (*v as i128) > hi)
+                {
                     return Err(ferr(
                         &f.name,
-                        "needs a `value` (constant) or a `source` (quantity)".into(),
+                        format!("constant {v} does not fit in {:?}", f.ty),
                     ));
                 }
-                (Some(v), None) => {
-                    if let Some((lo, hi)) = f.ty.int_range()
-                        && ((*v as i128) < lo || (*v as i128) > hi)
-                    {
-                        return Err(ferr(
-                            &f.name,
-                            format!("constant {v} does not fit in {:?}", f.ty),
-                        ));
-                    }
-                    What::Constant(*v)
-                }
-                (None, Some(name)) => {
-                    let source = Source::from_name(name).ok_or_else(|| {
-                        ferr(&f.name, format!("unknown source quantity `{name}` (gyro.x…z, accel.*, dtheta.*, dv.*, time, counter, temperature)"))
-                    })?;
-                    if source == Source::Status {
-                        let st: &StatusSpec = f.status.as_ref().ok_or_else(|| {
-                            ferr(&f.name, "a `status` field needs a `[field.status]` table with `ok`".into())
+                What::Constant(*v)
+            }
+            (None, Some(src)) => {
+                let source = Source::from_name(src).ok_or_else(|| {
+                    ferr(&f.name, format!("unknown source quantity `{src}` (gyro.x…z, accel.*, dtheta.*, dv.*, time, counter, temperature, status, gps.*)"))
+                })?;
+                match source {
+                    Source::Status => {
+                        let m = status_model(f).ok_or_else(|| {
+                            ferr(
+                                &f.name,
+                                "a `status` field needs a `[field.status]` table with `ok`"
+                                    .into(),
+                            )
                         })?;
                         if f.ty.int_range().is_none() {
-                            return Err(ferr(&f.name, "a status word needs an integer type".into()));
+                            return Err(ferr(
+                                &f.name,
+                                "a status word needs an integer type".into(),
+                            ));
                         }
-                        What::Status(Box::new(StatusModel {
-                            ok: st.ok,
-                            gyro: st.gyro_overrange.unwrap_or_default(),
-                            accel: st.accel_overrange.unwrap_or_default(),
-                            failure: st.failure,
-                        }))
-                    } else if source == Source::Counter {
+                        What::Status(m)
+                    }
+                    Source::Counter => {
                         let range = f.ty.int_range().ok_or_else(|| {
                             ferr(&f.name, "a counter needs an integer type".into())
                         })?;
@@ -237,11 +317,22 @@ impl Plan {
                                 format!("modulo {modulo} does not fit in {:?}", f.ty),
                             ));
                         }
+                        let status = status_model(f);
+                        if let Some(m) = &status
+                            && (!modulo.is_power_of_two() || (m.ok as u64) % modulo != 0)
+                        {
+                            return Err(ferr(
+                                &f.name,
+                                format!("a counter sharing its word with status bits needs a power-of-two modulo and status bits above it (ok = {:#x}, modulo {modulo})", m.ok),
+                            ));
+                        }
                         What::Counter {
                             modulo,
                             step: f.step.unwrap_or(1),
+                            status,
                         }
-                    } else {
+                    }
+                    _ => {
                         let lsb = f.lsb.unwrap_or(1.0);
                         if !(lsb.is_finite() && lsb != 0.0) {
                             return Err(ferr(
@@ -262,67 +353,162 @@ impl Plan {
                         }
                     }
                 }
-            };
-            if f.status.is_some() && !matches!(what, What::Status(_)) {
-                return Err(ferr(
-                    &f.name,
-                    "`[field.status]` belongs to a field with `source = \"status\"`".into(),
-                ));
-            }
-            ops.push(Op {
-                name: f.name.clone(),
-                offset,
-                ty: f.ty,
-                order,
-                what,
-            });
-            offset += f.ty.bytes();
-        }
-        let check = match &spec.check {
-            None => None,
-            Some(c) => {
-                let cerr = |message: String| SpecError::Check {
-                    path: path.to_path_buf(),
-                    message,
-                };
-                let check = Check::from_toml(&c.kind).map_err(|e| cerr(e.to_string()))?;
-                let from = c.from.unwrap_or(0);
-                let pad_to = c.pad_to_multiple_of.unwrap_or(1);
-                if !(1..=16).contains(&pad_to) {
-                    return Err(cerr(format!(
-                        "pad_to_multiple_of = {pad_to}: expected 1 to 16"
-                    )));
-                }
-                if from >= offset {
-                    return Err(cerr(format!(
-                        "coverage starts at byte {from}, outside the {offset}-byte frame"
-                    )));
-                }
-                if c.ty.bytes() < check.width_bytes() || c.ty.int_range().is_none() {
-                    return Err(cerr(format!(
-                        "a {}-byte check does not fit in {:?}",
-                        check.width_bytes(),
-                        c.ty
-                    )));
-                }
-                Some(CheckOp {
-                    check,
-                    offset,
-                    ty: c.ty,
-                    order: c.byte_order.unwrap_or(spec.byte_order),
-                    from,
-                    pad_to,
-                })
             }
         };
-        let len = offset + check.as_ref().map_or(0, |c| c.ty.bytes());
-        let transport = match (spec.sdlc, spec.hdlc) {
-            (Some(_), Some(_)) => {
-                return Err(SpecError::Syntax {
-                    path: path.to_path_buf(),
-                    message: "give `[sdlc]` or `[hdlc]`, not both".into(),
-                });
+        if f.status.is_some() && !matches!(what, What::Status(_) | What::Counter { .. }) {
+            return Err(ferr(
+                &f.name,
+                "`[field.status]` belongs to a field with `source = \"status\"` or `\"counter\"`"
+                    .into(),
+            ));
+        }
+        ops.push(Op {
+            name: f.name.clone(),
+            offset,
+            ty: f.ty,
+            order,
+            what,
+        });
+        offset += f.ty.bytes();
+    }
+    let cerr = |message: String| SpecError::Check {
+        path: path.to_path_buf(),
+        message,
+    };
+    let check = match check {
+        None => None,
+        Some(c) => {
+            let check = Check::from_toml(&c.kind).map_err(|e| cerr(e.to_string()))?;
+            let from = c.from.unwrap_or(0);
+            let pad_to = c.pad_to_multiple_of.unwrap_or(1);
+            if !(1..=16).contains(&pad_to) {
+                return Err(cerr(format!(
+                    "pad_to_multiple_of = {pad_to}: expected 1 to 16"
+                )));
             }
+            if from >= offset {
+                return Err(cerr(format!(
+                    "coverage starts at byte {from}, outside the {offset}-byte frame"
+                )));
+            }
+            if c.ty.bytes() < check.width_bytes() || c.ty.int_range().is_none() {
+                return Err(cerr(format!(
+                    "a {}-byte check does not fit in {:?}",
+                    check.width_bytes(),
+                    c.ty
+                )));
+            }
+            Some(CheckOp {
+                check,
+                offset,
+                ty: c.ty,
+                order: c.byte_order.unwrap_or(default_order),
+                from,
+                pad_to,
+                append: c.append.clone(),
+            })
+        }
+    };
+    let truncate = match truncate {
+        None => None,
+        Some(t) => {
+            let find = |n: &str| ops.iter().find(|op| op.name == n);
+            let terr = |message: String| SpecError::Syntax {
+                path: path.to_path_buf(),
+                message: format!("`truncate`: {message}"),
+            };
+            let l = find(&t.length_field)
+                .ok_or_else(|| terr(format!("no field `{}`", t.length_field)))?;
+            let p = find(&t.payload_from)
+                .ok_or_else(|| terr(format!("no field `{}`", t.payload_from)))?;
+            if l.offset >= p.offset {
+                return Err(terr("the length field must come before the payload".into()));
+            }
+            if check.as_ref().is_some_and(|c| c.from > p.offset) {
+                return Err(cerr("coverage must include the payload".into()));
+            }
+            Some(Truncate {
+                len_at: l.offset,
+                len_ty: l.ty,
+                len_order: l.order,
+                from: p.offset,
+            })
+        }
+    };
+    let len = offset + check.as_ref().map_or(0, |c| c.ty.bytes());
+    if offset == 0 {
+        return Err(SpecError::Syntax {
+            path: path.to_path_buf(),
+            message: format!("message `{name}` has no fields"),
+        });
+    }
+    Ok(Layout {
+        name: name.to_string(),
+        ops,
+        check,
+        truncate,
+        accumulate,
+        len,
+    })
+}
+
+impl Plan {
+    /// Validates and compiles a spec (`path` for messages).
+    pub fn compile(spec: &FrameSpec, path: &Path) -> Result<Plan, SpecError> {
+        let syntax = |message: String| SpecError::Syntax {
+            path: path.to_path_buf(),
+            message,
+        };
+        let layouts = if spec.message.is_empty() {
+            vec![compile_layout(
+                &spec.name,
+                &spec.field,
+                spec.check.as_ref(),
+                spec.truncate.as_ref(),
+                false,
+                spec.byte_order,
+                path,
+            )?]
+        } else {
+            if !spec.field.is_empty() || spec.check.is_some() || spec.truncate.is_some() {
+                return Err(syntax(
+                    "give the fields in `[[message]]` entries or at the top level, not both"
+                        .into(),
+                ));
+            }
+            spec.message
+                .iter()
+                .map(|m| {
+                    compile_layout(
+                        &m.name,
+                        &m.field,
+                        m.check.as_ref(),
+                        m.truncate.as_ref(),
+                        m.accumulate,
+                        spec.byte_order,
+                        path,
+                    )
+                })
+                .collect::<Result<Vec<_>, _>>()?
+        };
+        let schedule = match &spec.schedule {
+            None => (0..layouts.len()).collect(),
+            Some(names) => {
+                if names.is_empty() {
+                    return Err(syntax("`schedule` is empty".into()));
+                }
+                names
+                    .iter()
+                    .map(|n| {
+                        layouts.iter().position(|l| &l.name == n).ok_or_else(|| {
+                            syntax(format!("`schedule`: no message named `{n}`"))
+                        })
+                    })
+                    .collect::<Result<Vec<_>, _>>()?
+            }
+        };
+        let transport = match (spec.sdlc, spec.hdlc) {
+            (Some(_), Some(_)) => return Err(syntax("give `[sdlc]` or `[hdlc]`, not both".into())),
             (Some(o), None) => Transport::Sdlc(o),
             (None, Some(o)) => Transport::Hdlc(o),
             (None, None) => Transport::Plain,
@@ -332,20 +518,45 @@ impl Plan {
             rate_hz: spec.rate_hz,
             baud: spec.baud,
             transport,
-            ops,
-            check,
-            len,
+            layouts,
+            schedule,
         })
     }
 
-    /// Frame length in bytes.
+    /// Full length in bytes of the first message (the only one of most protocols).
     pub fn len(&self) -> usize {
-        self.len
+        self.layouts[0].len
     }
 
     /// Always false: a frame has at least one field.
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        false
+    }
+
+    /// Number of message layouts.
+    pub fn messages(&self) -> usize {
+        self.layouts.len()
+    }
+
+    /// Whether every frame has the same length on the line (one layout, no truncation, no
+    /// bit stuffing).
+    pub fn fixed_len(&self) -> Option<usize> {
+        (self.layouts.len() == 1
+            && self.layouts[0].truncate.is_none()
+            && matches!(self.transport, Transport::Plain))
+        .then_some(self.layouts[0].len)
+    }
+
+    /// Shortest frame a decoder can meet (a truncated frame keeps one payload byte).
+    fn min_len(&self) -> usize {
+        self.layouts
+            .iter()
+            .map(|l| match l.truncate {
+                Some(t) => l.len - (l.check.as_ref().map_or(l.len, |c| c.offset) - t.from) + 1,
+                None => l.len,
+            })
+            .min()
+            .unwrap_or(1)
     }
 
     /// Appends the line bytes of the frame of `r` to `out`, with the faults the state's
@@ -359,6 +570,17 @@ impl Plan {
         state: &mut EncoderState,
         out: &mut Vec<u8>,
     ) {
+        let layout = &self.layouts[self.schedule[(state.frames % self.schedule.len() as u64) as usize]];
+        let mut rec = *r;
+        if self.layouts.iter().any(|l| l.accumulate) {
+            state.sums[0] = state.sums[0] + r.dtheta;
+            state.sums[1] = state.sums[1] + r.dv;
+            if layout.accumulate {
+                rec.dtheta = state.sums[0];
+                rec.dv = state.sums[1];
+                state.sums = [Vec3::default(); 2];
+            }
+        }
         let f = match state.faults.as_mut() {
             Some(inj) => inj.frame(r.t),
             None => FrameFaults::default(),
@@ -371,11 +593,11 @@ impl Plan {
             return;
         }
         // A corrupted frame carries a wrong check; without one, its transport FCS is wrong.
-        let corrupt_fcs = f.corrupt && self.check.is_none();
+        let corrupt_fcs = f.corrupt && layout.check.is_none();
         match &self.transport {
             Transport::Plain => {
                 let start = out.len();
-                self.encode_frame(r, temperature, state, f, out);
+                layout.encode(&rec, temperature, state, f, out);
                 if f.duplicate {
                     out.extend_from_within(start..);
                 }
@@ -383,7 +605,7 @@ impl Plan {
             transport => {
                 let mut frame = std::mem::take(&mut state.scratch);
                 frame.clear();
-                self.encode_frame(r, temperature, state, f, &mut frame);
+                layout.encode(&rec, temperature, state, f, &mut frame);
                 for _ in 0..1 + usize::from(f.duplicate) {
                     match transport {
                         Transport::Sdlc(o) => {
@@ -401,81 +623,31 @@ impl Plan {
         state.frames += 1;
     }
 
-    /// Appends the frame's fields and check (before any transport).
-    fn encode_frame(
-        &self,
-        r: &Record,
-        temperature: f64,
-        state: &EncoderState,
-        faults: FrameFaults,
-        out: &mut Vec<u8>,
-    ) {
-        let start = out.len();
-        out.resize(start + self.len, 0);
-        let frame = &mut out[start..];
-        let mut flags = r.flags;
-        for op in &self.ops {
-            let dst = &mut frame[op.offset..op.offset + op.ty.bytes()];
-            match &op.what {
-                What::Constant(v) => put_int(dst, op.ty, op.order, *v as i128),
-                What::Counter { modulo, step } => {
-                    let n = state.frames.wrapping_sub(state.stalled);
-                    let v = (n.wrapping_mul(*step)) % modulo;
-                    put_int(dst, op.ty, op.order, v as i128);
-                }
-                What::Quantity {
-                    source,
-                    scale,
-                    flag,
-                } => {
-                    let x = quantity(r, temperature, state, *source) * scale;
-                    if put_value(dst, op.ty, op.order, x) {
-                        flags |= flag;
-                    }
-                }
-                What::Status(_) => {}
-            }
-        }
-        for op in &self.ops {
-            if let What::Status(m) = &op.what {
-                let dst = &mut frame[op.offset..op.offset + op.ty.bytes()];
-                put_int(dst, op.ty, op.order, m.value(flags, faults.status).into());
-            }
-        }
-        if let Some(c) = &self.check {
-            let mut v = c.compute(frame);
-            if faults.corrupt {
-                v ^= 1;
-            }
-            put_int(
-                &mut frame[c.offset..c.offset + c.ty.bytes()],
-                c.ty,
-                c.order,
-                v as i128,
-            );
-        }
-    }
-
     /// Whether frames of this plan can show a fault kind (a counter to freeze or to reveal a
     /// drop, a check or FCS to corrupt, a status word with a failure model).
     pub fn supports(&self, kind: FaultKind) -> Result<(), FaultError> {
+        let fcs = match &self.transport {
+            Transport::Sdlc(o) => o.fcs != Fcs::None,
+            Transport::Hdlc(o) => o.fcs != Fcs::None,
+            Transport::Plain => false,
+        };
+        let failure = |w: &What| match w {
+            What::Status(m) => m.failure.is_some(),
+            What::Counter { status: Some(m), .. } => m.failure.is_some(),
+            _ => false,
+        };
         let why = match kind {
             FaultKind::Drop | FaultKind::StaleCounter if self.counter().is_none() => {
                 "the frame has no counter"
             }
-            FaultKind::CorruptCheck
-                if self.check.is_none()
-                    && !matches!(&self.transport,
-                        Transport::Sdlc(o) if o.fcs != Fcs::None)
-                    && !matches!(&self.transport,
-                        Transport::Hdlc(o) if o.fcs != Fcs::None) =>
-            {
+            FaultKind::CorruptCheck if !fcs && self.layouts.iter().any(|l| l.check.is_none()) => {
                 "the frame has no check and no FCS"
             }
             FaultKind::Status
-                if !self.ops.iter().any(
-                    |op| matches!(&op.what, What::Status(m) if m.failure.is_some()),
-                ) =>
+                if !self
+                    .layouts
+                    .iter()
+                    .all(|l| l.ops.iter().any(|op| failure(&op.what))) =>
             {
                 "no status field has a `failure` model"
             }
@@ -488,32 +660,23 @@ impl Plan {
         })
     }
 
-    /// True when the constant fields (sync words, fixed IDs) at the start of `bytes` match:
-    /// a frame boundary, whether or not the rest of the frame is intact.
-    pub fn constants_match(&self, bytes: &[u8]) -> bool {
-        bytes.len() >= self.len
-            && self.ops.iter().all(|op| match op.what {
-                What::Constant(v) => {
-                    get_int(
-                        &bytes[op.offset..op.offset + op.ty.bytes()],
-                        op.ty,
-                        op.order,
-                    ) as i64
-                        == v
-                }
-                _ => true,
-            })
-    }
-
-    /// Whether the frame has constant fields (sync words, IDs) that mark its start.
+    /// Whether the frames have constant fields (sync words, IDs) that mark their start.
     pub fn has_sync(&self) -> bool {
-        self.ops.iter().any(|op| matches!(op.what, What::Constant(_)))
+        self.layouts
+            .iter()
+            .all(|l| l.ops.iter().any(|op| matches!(op.what, What::Constant(_))))
     }
 
-    /// The counter's (modulo, step), if the frame carries one.
+    /// True when the constant fields (sync words, fixed IDs) at the start of `bytes` match
+    /// some message's: a frame boundary, whether or not the rest of the frame is intact.
+    pub fn constants_match(&self, bytes: &[u8]) -> bool {
+        self.layouts.iter().any(|l| l.constants_match(bytes).is_ok())
+    }
+
+    /// The counter's (modulo, step), if the frames carry one.
     pub fn counter(&self) -> Option<(u64, u64)> {
-        self.ops.iter().find_map(|op| match op.what {
-            What::Counter { modulo, step } => Some((modulo, step)),
+        self.layouts.iter().flat_map(|l| &l.ops).find_map(|op| match op.what {
+            What::Counter { modulo, step, .. } => Some((modulo, step)),
             _ => None,
         })
     }
@@ -521,62 +684,249 @@ impl Plan {
     /// The smallest step an integer field carrying `source` can express (|lsb|), `None` for
     /// float fields or absent sources.
     pub fn quantum(&self, source: Source) -> Option<f64> {
-        self.ops.iter().find_map(|op| match op.what {
+        self.layouts.iter().flat_map(|l| &l.ops).find_map(|op| match op.what {
             What::Quantity {
                 source: s, scale, ..
-            } if s == source && op.ty.int_range().is_some() => {
-                Some(1.0 / scale.abs())
-            }
+            } if s == source && op.ty.int_range().is_some() => Some(1.0 / scale.abs()),
             _ => None,
         })
     }
 
-    /// Names of the decoded values' fields, in the order of [`Decoded::values`].
-    pub fn value_names(&self) -> Vec<&str> {
-        self.ops
+    /// Names of the decoded values' fields of message `m`, in the order of
+    /// [`Decoded::values`].
+    pub fn value_names_of(&self, m: usize) -> Vec<&str> {
+        self.layouts[m]
+            .ops
             .iter()
-            .filter(|op| !matches!(op.what, What::Constant(_)))
+            .filter(|op| !matches!(op.what, What::Constant(_) | What::Length))
             .map(|op| op.name.as_str())
             .collect()
     }
 
-    /// Decodes one frame at the start of `bytes`, checking constants and the check.
+    /// Names of the decoded values' fields of the first message.
+    pub fn value_names(&self) -> Vec<&str> {
+        self.value_names_of(0)
+    }
+
+    /// Name of message `m`.
+    pub fn message_name(&self, m: usize) -> &str {
+        &self.layouts[m].name
+    }
+
+    /// Decodes one frame at the start of `bytes` (after any transport), trying each message
+    /// layout: a good frame, else the most telling error (a check failure at a frame
+    /// boundary, then too few bytes, then a constant mismatch).
     pub fn decode(&self, bytes: &[u8]) -> Result<Decoded, DecodeError> {
-        if bytes.len() < self.len {
-            return Err(DecodeError::Short {
-                got: bytes.len(),
-                need: self.len,
-            });
-        }
-        let frame = &bytes[..self.len];
-        if let Some(c) = &self.check {
-            let got = get_int(&frame[c.offset..c.offset + c.ty.bytes()], c.ty, c.order) as u64;
-            let computed = c.compute(frame);
-            if got != computed {
-                return Err(DecodeError::Check { got, computed });
-            }
-        }
-        let mut out = Decoded::default();
-        for op in &self.ops {
-            let src = &frame[op.offset..op.offset + op.ty.bytes()];
-            match op.what {
-                What::Constant(expected) => {
-                    let got = get_int(src, op.ty, op.order) as i64;
-                    if got != expected {
-                        return Err(DecodeError::Constant {
-                            field: op.name.clone(),
-                            got,
-                            expected,
-                        });
+        let mut best: Option<DecodeError> = None;
+        for (i, l) in self.layouts.iter().enumerate() {
+            match l.decode(bytes) {
+                Ok(mut d) => {
+                    d.message = i;
+                    return Ok(d);
+                }
+                Err(e) => {
+                    let rank = |e: &DecodeError| match e {
+                        DecodeError::Check { .. } => 3,
+                        DecodeError::Short { .. } => 2,
+                        DecodeError::Length { .. } => 1,
+                        DecodeError::Constant { .. } => 0,
+                    };
+                    if best.as_ref().is_none_or(|b| rank(&e) > rank(b)) {
+                        best = Some(e);
                     }
                 }
-                What::Counter { .. } => out
-                    .values
-                    .push((Source::Counter, get_int(src, op.ty, op.order) as f64)),
+            }
+        }
+        Err(best.expect("a plan has at least one layout"))
+    }
+
+    /// Bytes a decoder must hold before giving up on a frame start (the longest frame).
+    pub fn max_len(&self) -> usize {
+        self.layouts.iter().map(|l| l.len).max().unwrap_or(0)
+    }
+
+    /// Bytes below which no frame can be complete.
+    pub fn shortest(&self) -> usize {
+        self.min_len()
+    }
+}
+
+impl Layout {
+    /// Appends the frame's fields and check (before any transport).
+    fn encode(
+        &self,
+        r: &Record,
+        temperature: f64,
+        state: &EncoderState,
+        faults: FrameFaults,
+        out: &mut Vec<u8>,
+    ) {
+        let start = out.len();
+        out.resize(start + self.len, 0);
+        let frame = &mut out[start..];
+        let mut flags = r.flags;
+        let counter = |modulo: u64, step: u64| {
+            let n = state.frames.wrapping_sub(state.stalled);
+            n.wrapping_mul(step) % modulo
+        };
+        for op in &self.ops {
+            let dst = &mut frame[op.offset..op.offset + op.ty.bytes()];
+            match &op.what {
+                What::Constant(v) => put_int(dst, op.ty, op.order, *v as i128),
+                What::Counter {
+                    modulo,
+                    step,
+                    status: None,
+                } => put_int(dst, op.ty, op.order, counter(*modulo, *step) as i128),
+                What::Quantity {
+                    source,
+                    scale,
+                    flag,
+                } => {
+                    let x = quantity(r, temperature, state, *source) * scale;
+                    if put_value(dst, op.ty, op.order, x) {
+                        flags |= flag;
+                    }
+                }
+                What::Status(_) | What::Counter { .. } | What::Length => {}
+            }
+        }
+        for op in &self.ops {
+            let dst = &mut frame[op.offset..op.offset + op.ty.bytes()];
+            match &op.what {
+                What::Status(m) => {
+                    put_int(dst, op.ty, op.order, m.value(flags, faults.status).into())
+                }
+                What::Counter {
+                    modulo,
+                    step,
+                    status: Some(m),
+                } => {
+                    let v = m.value(flags, faults.status) as u64 | counter(*modulo, *step);
+                    put_int(dst, op.ty, op.order, v as i128)
+                }
+                _ => {}
+            }
+        }
+        let mut end = self.len;
+        if let Some(t) = self.truncate {
+            // MAVLink 2: trailing zeros of the payload are not sent; at least one byte is.
+            let pend = self.check.as_ref().map_or(self.len, |c| c.offset);
+            let sent = frame[t.from..pend]
+                .iter()
+                .rposition(|b| *b != 0)
+                .map_or(1, |i| i + 1);
+            put_int(
+                &mut frame[t.len_at..t.len_at + t.len_ty.bytes()],
+                t.len_ty,
+                t.len_order,
+                sent as i128,
+            );
+            end = t.from + sent + self.check.as_ref().map_or(0, |c| c.ty.bytes());
+        }
+        if let Some(c) = &self.check {
+            let at = end - c.ty.bytes();
+            let mut v = c.compute(&frame[c.from..at]);
+            if faults.corrupt {
+                v ^= 1;
+            }
+            put_int(&mut frame[at..end], c.ty, c.order, v as i128);
+        }
+        out.truncate(start + end);
+    }
+
+    /// `Ok` when the constants inside `bytes` match (all of them, or the ones present).
+    fn constants_match(&self, bytes: &[u8]) -> Result<(), DecodeError> {
+        for op in &self.ops {
+            if let What::Constant(expected) = op.what {
+                let Some(src) = bytes.get(op.offset..op.offset + op.ty.bytes()) else {
+                    continue;
+                };
+                let got = get_int(src, op.ty, op.order) as i64;
+                if got != expected {
+                    return Err(DecodeError::Constant {
+                        field: op.name.clone(),
+                        got,
+                        expected,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Length of the frame at the start of `bytes` (a truncated frame's from its length field).
+    fn frame_len(&self, bytes: &[u8]) -> Result<usize, DecodeError> {
+        let Some(t) = self.truncate else {
+            return Ok(self.len);
+        };
+        let short = DecodeError::Short {
+            got: bytes.len(),
+            need: t.len_at + t.len_ty.bytes(),
+        };
+        let src = bytes.get(t.len_at..t.len_at + t.len_ty.bytes()).ok_or(short)?;
+        let sent = get_int(src, t.len_ty, t.len_order) as i64;
+        let pend = self.check.as_ref().map_or(self.len, |c| c.offset);
+        let max = pend - t.from;
+        if sent < 1 || sent as usize > max {
+            return Err(DecodeError::Length { got: sent, max });
+        }
+        Ok(self.len - (max - sent as usize))
+    }
+
+    fn decode(&self, bytes: &[u8]) -> Result<Decoded, DecodeError> {
+        self.constants_match(bytes)?;
+        let n = self.frame_len(bytes)?;
+        if bytes.len() < n {
+            return Err(DecodeError::Short {
+                got: bytes.len(),
+                need: n,
+            });
+        }
+        let wire = &bytes[..n];
+        if let Some(c) = &self.check {
+            let at = n - c.ty.bytes();
+            let got = get_int(&wire[at..], c.ty, c.order) as u64;
+            let computed = c.compute(&wire[c.from..at]);
+            if got != computed {
+                return Err(DecodeError::Check {
+                    got,
+                    computed,
+                    len: n,
+                });
+            }
+        }
+        // A truncated frame: the fields read from the payload zero-extended to full length.
+        let full;
+        let frame: &[u8] = if n < self.len {
+            let mut v = wire.to_vec();
+            let at = n - self.check.as_ref().map_or(0, |c| c.ty.bytes());
+            v.splice(at..at, std::iter::repeat_n(0u8, self.len - n));
+            full = v;
+            &full
+        } else {
+            wire
+        };
+        let mut out = Decoded {
+            len: n,
+            ..Decoded::default()
+        };
+        for op in &self.ops {
+            let src = &frame[op.offset..op.offset + op.ty.bytes()];
+            match &op.what {
+                What::Constant(_) | What::Length => {}
+                What::Counter { modulo, status, .. } => {
+                    let raw = get_int(src, op.ty, op.order) as u64;
+                    let c = raw % modulo;
+                    if let Some(m) = status {
+                        out.flagged |= (raw - c) as i64 != m.ok;
+                    }
+                    out.values.push((Source::Counter, c as f64));
+                }
                 What::Quantity { source, scale, .. } => out
                     .values
-                    .push((source, get_value(src, op.ty, op.order) / scale + 0.0)),
-                What::Status(ref m) => {
+                    .push((*source, get_value(src, op.ty, op.order) / scale + 0.0)),
+                What::Status(m) => {
                     let v = get_int(src, op.ty, op.order) as i64;
                     out.flagged |= v != m.ok;
                     out.values.push((Source::Status, v as f64));
@@ -588,12 +938,13 @@ impl Plan {
 }
 
 impl CheckOp {
-    /// The check over the covered bytes, zero-padded (not transmitted) when the protocol says so.
-    fn compute(&self, frame: &[u8]) -> u64 {
-        let covered = &frame[self.from..self.offset];
+    /// The check over the covered bytes, zero-padded and extended (neither transmitted) when
+    /// the protocol says so.
+    fn compute(&self, covered: &[u8]) -> u64 {
         let pad = (self.pad_to - covered.len() % self.pad_to) % self.pad_to;
         const ZEROS: [u8; 16] = [0; 16];
-        self.check.compute_parts(&[covered, &ZEROS[..pad.min(16)]])
+        self.check
+            .compute_parts(&[covered, &ZEROS[..pad.min(16)], &self.append])
     }
 }
 

@@ -237,6 +237,39 @@ pub struct CheckSpec {
     pub from: Option<usize>,
     /// Zero bytes appended to the covered data before computing (not transmitted).
     pub pad_to_multiple_of: Option<usize>,
+    /// Bytes appended to the covered data (after any padding) before computing, not
+    /// transmitted: MAVLink's CRC_EXTRA.
+    #[serde(default)]
+    pub append: Vec<u8>,
+}
+
+/// `[truncate]`: trailing zero bytes of the payload are not sent (MAVLink 2); a length field
+/// carries the payload bytes sent (at least 1).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TruncateSpec {
+    /// The field carrying the sent payload length (an unsigned integer, not a source).
+    pub length_field: String,
+    /// The first field of the payload; the payload runs to the check.
+    pub payload_from: String,
+}
+
+/// One `[[message]]` of a protocol that interleaves several frame layouts.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MessageSpec {
+    /// Name (used by `schedule`).
+    pub name: String,
+    /// Its Δθ and ΔV fields carry the sums over every record since this message was last
+    /// sent (e.g. HG4930's 100 Hz inertial message in a 600 Hz stream).
+    #[serde(default)]
+    pub accumulate: bool,
+    /// The fields in wire order.
+    pub field: Vec<FieldSpec>,
+    /// The integrity check.
+    pub check: Option<CheckSpec>,
+    /// Trailing-zero truncation.
+    pub truncate: Option<TruncateSpec>,
 }
 
 /// A golden test vector: bytes and the values they decode to.
@@ -251,6 +284,8 @@ pub struct TestVector {
     pub values: toml::Table,
     /// Relative tolerance of the value comparison (default 1e-6: single floats).
     pub tolerance: Option<f64>,
+    /// Index of the frame in the stream (selects the scheduled message; default: the counter).
+    pub frame: Option<u64>,
 }
 
 /// A frame specification as written.
@@ -271,10 +306,18 @@ pub struct FrameSpec {
     /// Default byte order.
     #[serde(default)]
     pub byte_order: ByteOrder,
-    /// The fields in wire order.
+    /// The fields in wire order (a single-layout protocol).
+    #[serde(default)]
     pub field: Vec<FieldSpec>,
     /// The integrity check, appended after the fields.
     pub check: Option<CheckSpec>,
+    /// Trailing-zero truncation of a single-layout protocol.
+    pub truncate: Option<TruncateSpec>,
+    /// Several interleaved layouts (instead of `field`/`check`).
+    #[serde(default)]
+    pub message: Vec<MessageSpec>,
+    /// The repeating order of messages by name, one per record (default: each once, in order).
+    pub schedule: Option<Vec<String>>,
     /// Synchronous SDLC transport: the frame (fields and check) is the payload of a bit-stuffed
     /// SDLC frame packed into bytes (`framing::SdlcOptions`).
     pub sdlc: Option<crate::protocol::framing::SdlcOptions>,

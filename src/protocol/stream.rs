@@ -88,22 +88,21 @@ impl StreamDecoder {
         match &mut self.deframer {
             Deframer::Plain(buf) => {
                 buf.extend_from_slice(bytes);
-                let len = plan.len();
                 let mut p = 0;
-                while buf.len() - p >= len {
+                while buf.len() - p >= plan.shortest() {
                     let window = &buf[p..];
                     match plan.decode(window) {
                         Ok(d) => {
-                            tally.good(plan, &window[..len], &d);
+                            tally.good(plan, &window[..d.len], &d);
                             frame(&d);
-                            p += len;
+                            p += d.len;
                         }
+                        // A frame start whose end has not arrived yet.
+                        Err(DecodeError::Short { .. }) => break,
                         // A frame boundary with a damaged body: skip the frame, as a receiver
                         // would. Without sync constants the boundary is only known right after
                         // a good frame; otherwise hunt byte by byte for a frame whose check holds.
-                        Err(DecodeError::Check { .. })
-                            if plan.constants_match(window) && (plan.has_sync() || tally.locked) =>
-                        {
+                        Err(DecodeError::Check { len, .. }) if plan.has_sync() || tally.locked => {
                             tally.check_failure();
                             tally.locked = false;
                             p += len;
@@ -137,15 +136,15 @@ impl Tally {
         frame: &mut impl FnMut(&Decoded),
     ) {
         match r {
-            Ok(payload) if payload.len() == plan.len() => match plan.decode(payload) {
-                Ok(d) => {
+            Ok(payload) => match plan.decode(payload) {
+                Ok(d) if d.len == payload.len() => {
                     self.good(plan, payload, &d);
                     frame(&d);
                 }
-                Err(DecodeError::Check { .. }) if plan.constants_match(payload) => {
+                Err(DecodeError::Check { len, .. }) if len == payload.len() => {
                     self.check_failure()
                 }
-                Err(_) => self.stats.framing_errors += 1,
+                _ => self.stats.framing_errors += 1,
             },
             Err(FrameError::FcsMismatch { .. }) => self.check_failure(),
             _ => self.stats.framing_errors += 1,
