@@ -30,9 +30,10 @@ fn vec3(r: f64) -> impl Strategy<Value = Vec3> {
 }
 
 /// Records inside every protocol's range: rates ±3 rad/s, specific force ±15 m/s² (STIM300
-/// inclinometers: ±2 g), Δθ ±0.05 rad and ΔV ±1.5 m/s (LN-200: ±0.0625 rad, ±2 m/s).
+/// inclinometers: ±2 g), Δθ ±0.04 rad and ΔV ±0.75 m/s (LN-200: ±0.0625 rad, ±2 m/s; HG4930
+/// inertial sums of six: ±0.25 rad, ±4.9 m/s).
 fn record() -> impl Strategy<Value = Record> {
-    (0.0..1e6f64, vec3(3.0), vec3(15.0), vec3(0.05), vec3(1.5)).prop_map(
+    (0.0..1e6f64, vec3(3.0), vec3(15.0), vec3(0.04), vec3(0.75)).prop_map(
         |(t, gyro, accel, dtheta, dv)| Record {
             t,
             gyro,
@@ -69,14 +70,22 @@ proptest! {
             }
             let got = decode_all(&plan, &bytes, 4096);
             prop_assert_eq!(got.len(), recs.len(), "{}", plan.name);
+            let mut sums = [Vec3::default(); 2];
             for (k, (d, r)) in got.iter().zip(&recs).enumerate() {
                 prop_assert!(!d.flagged, "{}: status flagged", plan.name);
+                // An accumulating message carries Δθ, ΔV summed since it was last sent.
+                sums = [sums[0] + r.dtheta, sums[1] + r.dv];
+                let [dtheta, dv] = if plan.accumulates(d.message) {
+                    std::mem::take(&mut sums)
+                } else {
+                    [r.dtheta, r.dv]
+                };
                 for (s, v) in &d.values {
                     let want = match *s {
                         Source::Gyro(i) => r.gyro.0[i],
                         Source::Accel(i) => r.accel.0[i],
-                        Source::DTheta(i) => r.dtheta.0[i],
-                        Source::Dv(i) => r.dv.0[i],
+                        Source::DTheta(i) => dtheta.0[i],
+                        Source::Dv(i) => dv.0[i],
                         Source::Temperature => 25.0,
                         Source::Counter => {
                             let (modulo, step) = plan.counter().unwrap();

@@ -136,6 +136,7 @@ fn random_round_trips_and_corruption() {
     for name in protocol::builtin_names() {
         let (_, plan) = protocol::load(name).unwrap();
         let mut state = EncoderState::default();
+        let mut sums = [Vec3::default(); 2];
         for i in 0..1000 {
             let r = Record {
                 t: i as f64 * 1e-3,
@@ -151,12 +152,21 @@ fn random_round_trips_and_corruption() {
             assert_eq!(stats.frames, 1, "{name}: {stats:?}");
             let d = &frames[0];
             assert!(!d.flagged, "{name}: status flagged without saturation");
+            // An accumulating message carries the sums since it was last sent.
+            sums = [sums[0] + r.dtheta, sums[1] + r.dv];
+            let (dtheta, dv) = if plan.accumulates(d.message) {
+                let s = sums;
+                sums = [Vec3::default(); 2];
+                (s[0], s[1])
+            } else {
+                (r.dtheta, r.dv)
+            };
             for (s, v) in &d.values {
                 let want = match *s {
                     Source::Gyro(i) => r.gyro.0[i],
                     Source::Accel(i) => r.accel.0[i],
-                    Source::DTheta(i) => r.dtheta.0[i],
-                    Source::Dv(i) => r.dv.0[i],
+                    Source::DTheta(i) => dtheta.0[i],
+                    Source::Dv(i) => dv.0[i],
                     Source::Time => r.t,
                     // Counters are checked by the golden vectors and the stream tests.
                     Source::Counter | Source::Status => continue,
@@ -288,11 +298,20 @@ fn generate_writes_frames_that_decode() {
         }
         assert_eq!(bin.stdout.len(), n * 104);
         let mut last: Option<f64> = None;
+        let mut sums = [0.0f64; 6];
         for (i, (d, b)) in decoded.iter().zip(bin.stdout.chunks(104)).enumerate() {
-            let v: Vec<f64> = b
+            let mut v: Vec<f64> = b
                 .chunks(8)
                 .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
                 .collect();
+            // An accumulating message carries Δθ, ΔV summed since it was last sent.
+            for (s, x) in sums.iter_mut().zip(&v[7..13]) {
+                *s += x;
+            }
+            if plan.accumulates(d.message) {
+                v[7..13].copy_from_slice(&sums);
+                sums = [0.0; 6];
+            }
             for (s, x) in &d.values {
                 let want = match *s {
                     Source::Gyro(a) => v[1 + a],

@@ -19,6 +19,8 @@ use std::path::Path;
 /// The built-in specifications, embedded at compile time (a test checks every file in
 /// `protocols/` is listed).
 pub const BUILTIN: &[(&str, &str)] = &[
+    ("hg1700-sdlc", include_str!("../../protocols/hg1700-sdlc.toml")),
+    ("hg4930", include_str!("../../protocols/hg4930.toml")),
     (
         "imar-ixcom",
         include_str!("../../protocols/imar-ixcom.toml"),

@@ -708,6 +708,11 @@ impl Plan {
         self.value_names_of(0)
     }
 
+    /// Whether message `m` carries Δθ/ΔV summed since it was last sent.
+    pub fn accumulates(&self, m: usize) -> bool {
+        self.layouts[m].accumulate
+    }
+
     /// Name of message `m`.
     pub fn message_name(&self, m: usize) -> &str {
         &self.layouts[m].name
