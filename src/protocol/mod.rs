@@ -29,6 +29,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("ln200", include_str!("../../protocols/ln200.toml")),
     ("ln200-sdlc", include_str!("../../protocols/ln200-sdlc.toml")),
     (
+        "mavlink-hil-sensor",
+        include_str!("../../protocols/mavlink-hil-sensor.toml"),
+    ),
+    (
         "novatel-rawimusx",
         include_str!("../../protocols/novatel-rawimusx.toml"),
     ),

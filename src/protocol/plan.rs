@@ -840,9 +840,16 @@ impl Layout {
         out.truncate(start + end);
     }
 
-    /// `Ok` when the constants inside `bytes` match (all of them, or the ones present).
+    /// `Ok` when the constants inside `bytes` match (all of them, or the ones present). Of a
+    /// truncating layout only the header's: the payload's are checked once it is rebuilt.
     fn constants_match(&self, bytes: &[u8]) -> Result<(), DecodeError> {
-        for op in &self.ops {
+        let end = self.truncate.map_or(usize::MAX, |t| t.from);
+        self.constants_in(bytes, end)
+    }
+
+    /// Checks the constants that lie before byte `end` and inside `bytes`.
+    fn constants_in(&self, bytes: &[u8], end: usize) -> Result<(), DecodeError> {
+        for op in self.ops.iter().filter(|op| op.offset < end) {
             if let What::Constant(expected) = op.what {
                 let Some(src) = bytes.get(op.offset..op.offset + op.ty.bytes()) else {
                     continue;
@@ -908,6 +915,7 @@ impl Layout {
             let at = n - self.check.as_ref().map_or(0, |c| c.ty.bytes());
             v.splice(at..at, std::iter::repeat_n(0u8, self.len - n));
             full = v;
+            self.constants_in(&full, usize::MAX)?;
             &full
         } else {
             wire
