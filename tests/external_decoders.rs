@@ -112,18 +112,27 @@ fn cross_check(
         .collect()
 }
 
-/// pymavlink accepts every intact HIL_SENSOR frame (CRC with CRC_EXTRA, truncated payload)
-/// and rejects the two with corrupted CRCs; its values are ours exactly: the time in µs,
-/// accelerations and rates as single floats, temperature, sequence numbers.
+/// pymavlink accepts every intact HIL_SENSOR and HIGHRES_IMU frame (CRC with CRC_EXTRA,
+/// truncated payload) and rejects the two with corrupted CRCs; its values are ours exactly:
+/// the time in µs, accelerations and rates as single floats, temperature, sequence numbers.
 #[test]
 #[ignore = "needs IMU_EMU_PYTHON: a Python with pymavlink and novatel-edie (.ci/run)"]
-fn pymavlink_decodes_our_hil_sensor_frames() {
+fn pymavlink_decodes_our_frames() {
+    for (name, kind) in [
+        ("mavlink-hil-sensor", "HIL_SENSOR"),
+        ("mavlink-highres-imu", "HIGHRES_IMU"),
+    ] {
+        pymavlink_check(name, kind);
+    }
+}
+
+fn pymavlink_check(name: &str, kind: &str) {
     let recs = records(600, 250.0);
     let bad = [100, 333];
-    let msgs = cross_check("mavlink-hil-sensor", "mavlink", &recs, &bad, EncoderState::default());
+    let msgs = cross_check(name, "mavlink", &recs, &bad, EncoderState::default());
     let good: Vec<&Msg> = msgs
         .iter()
-        .filter(|m| m.s("mavpackettype") == "HIL_SENSOR")
+        .filter(|m| m.s("mavpackettype") == kind)
         .collect();
     assert_eq!(good.len(), recs.len() - bad.len());
     assert!(msgs.iter().any(|m| m.s("mavpackettype") == "BAD_DATA"));

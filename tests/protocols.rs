@@ -422,3 +422,50 @@ fn out_of_range_values_saturate() {
     let d = plan.decode(&out).unwrap();
     assert_eq!(d.get(Source::Accel(2)), Some((40.0f64 / lsb).round() * lsb));
 }
+
+/// STIM300 counts internal 2000 Hz samples: at 125 datagrams/s the counter advances by 16.
+/// `decode --rate 125` expects that step (no gaps); at the nominal 2000 Hz every datagram
+/// looks like a gap; a rate that does not divide 2000 is refused.
+#[test]
+fn stim300_counter_follows_the_run_rate() {
+    let exe = env!("CARGO_BIN_EXE_imu-emu");
+    let out = std::process::Command::new(exe)
+        .args(["generate", "--scene", "static", "--duration", "0.2"])
+        .args(["--format", "stim300-91", "--rate", "125"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let frames: Vec<&[u8]> = out.stdout.chunks(28).collect();
+    assert_eq!(frames.len(), 25);
+    let counters: Vec<u8> = frames.iter().map(|f| f[21]).collect();
+    assert_eq!(&counters[..4], &[0, 16, 32, 48]);
+    assert_eq!(counters[24], (24 * 16 % 256) as u8);
+    let decode = |rate: Option<&str>| {
+        let mut c = std::process::Command::new(exe);
+        c.args(["decode", "--protocol", "stim300-91"]);
+        if let Some(r) = rate {
+            c.args(["--rate", r]);
+        }
+        let mut child = c
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        use std::io::Write;
+        child.stdin.take().unwrap().write_all(&out.stdout).unwrap();
+        String::from_utf8(child.wait_with_output().unwrap().stderr).unwrap()
+    };
+    assert!(decode(Some("125")).contains("25 frames, 0 check failures, 0 counter gaps"));
+    assert!(decode(None).contains("25 frames, 0 check failures, 24 counter gaps"));
+    let bad = std::process::Command::new(exe)
+        .args(["generate", "--scene", "static", "--duration", "0.1"])
+        .args(["--format", "stim300", "--rate", "300"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("must divide 2000") && err.contains("300"),
+        "{err}"
+    );
+}

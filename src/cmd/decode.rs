@@ -14,6 +14,10 @@ pub struct DecodeArgs {
     /// A protocol spec file.
     #[arg(long)]
     pub protocol_file: Option<PathBuf>,
+    /// The stream's frame rate (Hz), for counters that advance with it (STIM300)
+    /// [default: the protocol's nominal rate].
+    #[arg(long)]
+    pub rate: Option<f64>,
     /// Input file, or - for stdin [default: stdin].
     pub input: Option<PathBuf>,
 }
@@ -29,7 +33,10 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
             imu_emu::protocol::builtin_names().join(", ")
         ),
     };
-    let (_, plan) = imu_emu::protocol::load(&spec)?;
+    let (_, mut plan) = imu_emu::protocol::load(&spec)?;
+    if let Some(rate) = a.rate {
+        plan.set_rate(rate).map_err(|e| anyhow::anyhow!("--rate: {e}"))?;
+    }
     let mut input: Box<dyn Read> = match a.input.as_deref() {
         None => Box::new(std::io::stdin().lock()),
         Some(p) if p == Path::new("-") => Box::new(std::io::stdin().lock()),

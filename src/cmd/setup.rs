@@ -176,7 +176,7 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
         .or(file.output.format)
         .unwrap_or_else(|| "csv".into());
     let protocol_file = a.protocol_file.clone();
-    let format = match (Format::from_name(&format_name), &protocol_file) {
+    let mut format = match (Format::from_name(&format_name), &protocol_file) {
         (_, Some(p)) => Output::Frames(imu_emu::protocol::load(&p.to_string_lossy())?.1),
         (Some(f), None) => Output::Records(f),
         (None, None) => match imu_emu::protocol::load(&format_name) {
@@ -236,6 +236,10 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
         })
         .or(imu.rate_hz)
         .unwrap_or(400.0);
+    if let Output::Frames(plan) = &mut format {
+        let at = in_file(a.rate.is_some(), file.imu.rate_hz.is_some(), "imu.rate_hz");
+        plan.set_rate(rate).map_err(|e| anyhow::anyhow!("{at}{e}"))?;
+    }
     let faults = resolve_faults(&file.faults, &file_path, a.faults, &format, rate, seed)?;
     let file_settings = [
         (

@@ -29,6 +29,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("ln200", include_str!("../../protocols/ln200.toml")),
     ("ln200-sdlc", include_str!("../../protocols/ln200-sdlc.toml")),
     (
+        "mavlink-highres-imu",
+        include_str!("../../protocols/mavlink-highres-imu.toml"),
+    ),
+    (
         "mavlink-hil-sensor",
         include_str!("../../protocols/mavlink-hil-sensor.toml"),
     ),
@@ -37,6 +41,9 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../protocols/novatel-rawimusx.toml"),
     ),
     ("stim300", include_str!("../../protocols/stim300.toml")),
+    ("stim300-90", include_str!("../../protocols/stim300-90.toml")),
+    ("stim300-91", include_str!("../../protocols/stim300-91.toml")),
+    ("stim300-a7", include_str!("../../protocols/stim300-a7.toml")),
 ];
 
 /// Names of the built-in protocols.

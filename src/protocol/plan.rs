@@ -40,6 +40,8 @@ enum What {
         modulo: u64,
         step: u64,
         status: Option<Box<StatusModel>>,
+        /// Internal tick rate (Hz): `step` = ticks / frame rate.
+        ticks: Option<u64>,
     },
     Status(Box<StatusModel>),
     /// The sent payload length of a truncated frame.
@@ -221,7 +223,14 @@ impl Decoded {
     }
 }
 
+/// The step of a counter of `ticks` per second in frames at `rate` Hz, if whole.
+fn tick_step(ticks: u64, rate: f64) -> Option<u64> {
+    let step = ticks as f64 / rate;
+    (rate > 0.0 && step >= 1.0 && (step - step.round()).abs() < 1e-9).then(|| step.round() as u64)
+}
+
 /// Compiles one layout's fields, check and truncation.
+#[allow(clippy::too_many_arguments)] // the parts of one layout, each distinct
 fn compile_layout(
     name: &str,
     fields: &[FieldSpec],
@@ -229,6 +238,7 @@ fn compile_layout(
     truncate: Option<&TruncateSpec>,
     accumulate: bool,
     default_order: ByteOrder,
+    rate_hz: Option<f64>,
     path: &Path,
 ) -> Result<Layout, SpecError> {
     let ferr = |field: &str, message: String| SpecError::Field {
@@ -326,10 +336,28 @@ fn compile_layout(
                                 format!("a counter sharing its word with status bits needs a power-of-two modulo and status bits above it (ok = {:#x}, modulo {modulo})", m.ok),
                             ));
                         }
+                        let step = match (f.ticks_per_second, f.step) {
+                            (Some(_), Some(_)) => {
+                                return Err(ferr(
+                                    &f.name,
+                                    "give `step` or `ticks_per_second`, not both".into(),
+                                ));
+                            }
+                            (Some(t), None) => {
+                                let rate = rate_hz.ok_or_else(|| {
+                                    ferr(&f.name, "`ticks_per_second` needs the spec's `rate_hz`".into())
+                                })?;
+                                tick_step(t, rate).ok_or_else(|| {
+                                    ferr(&f.name, format!("{t} ticks/s is not a whole number of ticks per frame at {rate} Hz"))
+                                })?
+                            }
+                            (None, s) => s.unwrap_or(1),
+                        };
                         What::Counter {
                             modulo,
-                            step: f.step.unwrap_or(1),
+                            step,
                             status,
+                            ticks: f.ticks_per_second,
                         }
                     }
                     _ => {
@@ -467,6 +495,7 @@ impl Plan {
                 spec.truncate.as_ref(),
                 false,
                 spec.byte_order,
+                spec.rate_hz,
                 path,
             )?]
         } else {
@@ -486,6 +515,7 @@ impl Plan {
                         m.truncate.as_ref(),
                         m.accumulate,
                         spec.byte_order,
+                        spec.rate_hz,
                         path,
                     )
                 })
@@ -521,6 +551,27 @@ impl Plan {
             layouts,
             schedule,
         })
+    }
+
+    /// Sets the frame rate of a run (Hz): counters of internal ticks advance by ticks/rate per
+    /// frame. Refuses a rate that does not divide their tick rate.
+    pub fn set_rate(&mut self, rate: f64) -> Result<(), String> {
+        for op in self.layouts.iter_mut().flat_map(|l| &mut l.ops) {
+            if let What::Counter {
+                step,
+                ticks: Some(t),
+                ..
+            } = &mut op.what
+            {
+                *step = tick_step(*t, rate).ok_or_else(|| {
+                    format!(
+                        "`{}` counts {t} ticks/s, so the rate must divide {t} (got {rate} Hz)",
+                        self.name
+                    )
+                })?;
+            }
+        }
+        Ok(())
     }
 
     /// Full length in bytes of the first message (the only one of most protocols).
@@ -782,6 +833,7 @@ impl Layout {
                     modulo,
                     step,
                     status: None,
+                    ..
                 } => put_int(dst, op.ty, op.order, counter(*modulo, *step) as i128),
                 What::Quantity {
                     source,
@@ -806,6 +858,7 @@ impl Layout {
                     modulo,
                     step,
                     status: Some(m),
+                    ..
                 } => {
                     let v = m.value(flags, faults.status) as u64 | counter(*modulo, *step);
                     put_int(dst, op.ty, op.order, v as i128)

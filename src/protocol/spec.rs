@@ -180,6 +180,9 @@ pub struct FieldSpec {
     pub modulo: Option<u64>,
     /// Counter increment per frame (default 1).
     pub step: Option<u64>,
+    /// A counter of internal ticks at this rate (Hz): it advances by ticks/output-rate per
+    /// frame, set from the run's rate (STIM300: 2000).
+    pub ticks_per_second: Option<u64>,
     /// The status model of a `source = "status"` field.
     pub status: Option<StatusSpec>,
     /// Whether a value beyond this field's range raises the status overrange bits of its
