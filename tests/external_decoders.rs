@@ -78,7 +78,7 @@ fn cross_check(
         1,
     );
     let mut st = EncoderState {
-        faults: Some(inj),
+        faults: Some(Box::new(inj)),
         ..st
     };
     let mut bytes = Vec::new();

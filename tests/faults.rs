@@ -37,7 +37,7 @@ fn decode_reports_exactly_the_injected_faults() {
         let inj = FaultInjector::new(specs, rate, 1);
         let tally = inj.tally();
         let mut st = EncoderState {
-            faults: Some(inj),
+            faults: Some(Box::new(inj)),
             ..Default::default()
         };
         let mut bytes = Vec::new();

@@ -469,3 +469,16 @@ fn stim300_counter_follows_the_run_rate() {
         "{err}"
     );
 }
+
+/// `decode --help` names every built-in protocol.
+#[test]
+fn decode_help_lists_every_built_in() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+        .args(["decode", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8(out.stdout).unwrap();
+    for name in protocol::builtin_names() {
+        assert!(help.contains(name), "decode --help lacks {name}");
+    }
+}

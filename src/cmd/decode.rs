@@ -8,7 +8,8 @@ use anyhow::{Context, Result, bail};
 #[derive(clap::Args)]
 pub struct DecodeArgs {
     /// Built-in protocol: ln200, ln200-sdlc, hg4930, hg1700-sdlc, kvh1750, imar-ixcom,
-    /// novatel-rawimusx, stim300, mavlink-hil-sensor.
+    /// novatel-rawimusx, stim300 (0x93), stim300-90, stim300-91, stim300-a7,
+    /// mavlink-hil-sensor, mavlink-highres-imu.
     #[arg(long, conflicts_with = "protocol_file")]
     pub protocol: Option<String>,
     /// A protocol spec file.
@@ -35,7 +36,8 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     };
     let (_, mut plan) = imu_emu::protocol::load(&spec)?;
     if let Some(rate) = a.rate {
-        plan.set_rate(rate).map_err(|e| anyhow::anyhow!("--rate: {e}"))?;
+        plan.set_rate(rate)
+            .map_err(|e| anyhow::anyhow!("--rate: {e}"))?;
     }
     let mut input: Box<dyn Read> = match a.input.as_deref() {
         None => Box::new(std::io::stdin().lock()),

@@ -238,7 +238,8 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
         .unwrap_or(400.0);
     if let Output::Frames(plan) = &mut format {
         let at = in_file(a.rate.is_some(), file.imu.rate_hz.is_some(), "imu.rate_hz");
-        plan.set_rate(rate).map_err(|e| anyhow::anyhow!("{at}{e}"))?;
+        plan.set_rate(rate)
+            .map_err(|e| anyhow::anyhow!("{at}{e}"))?;
     }
     let faults = resolve_faults(&file.faults, &file_path, a.faults, &format, rate, seed)?;
     let file_settings = [
@@ -420,7 +421,7 @@ impl Resolved {
                 state: imu_emu::protocol::EncoderState {
                     gps_week0: self.gps_time.map_or(0, |g| g.0),
                     gps_sow0: self.gps_time.map_or(0.0, |g| g.1),
-                    faults: self.faults.clone(),
+                    faults: self.faults.clone().map(Box::new),
                     ..Default::default()
                 },
                 temperature: 25.0,

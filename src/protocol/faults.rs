@@ -7,7 +7,6 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-
 /// What can go wrong with a frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum FaultKind {
@@ -359,7 +358,10 @@ mod tests {
         assert_eq!(run(7), run(7));
         assert_ne!(run(7), run(8));
         let n = run(7).iter().filter(|x| **x).count() as f64;
-        assert!((n - 500.0).abs() < 5.0 * (10_000.0f64 * 0.05 * 0.95).sqrt(), "{n}");
+        assert!(
+            (n - 500.0).abs() < 5.0 * (10_000.0f64 * 0.05 * 0.95).sqrt(),
+            "{n}"
+        );
     }
 
     #[test]

@@ -19,7 +19,10 @@ use std::path::Path;
 /// The built-in specifications, embedded at compile time (a test checks every file in
 /// `protocols/` is listed).
 pub const BUILTIN: &[(&str, &str)] = &[
-    ("hg1700-sdlc", include_str!("../../protocols/hg1700-sdlc.toml")),
+    (
+        "hg1700-sdlc",
+        include_str!("../../protocols/hg1700-sdlc.toml"),
+    ),
     ("hg4930", include_str!("../../protocols/hg4930.toml")),
     (
         "imar-ixcom",
@@ -27,7 +30,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ),
     ("kvh1750", include_str!("../../protocols/kvh1750.toml")),
     ("ln200", include_str!("../../protocols/ln200.toml")),
-    ("ln200-sdlc", include_str!("../../protocols/ln200-sdlc.toml")),
+    (
+        "ln200-sdlc",
+        include_str!("../../protocols/ln200-sdlc.toml"),
+    ),
     (
         "mavlink-highres-imu",
         include_str!("../../protocols/mavlink-highres-imu.toml"),
@@ -41,9 +47,18 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../protocols/novatel-rawimusx.toml"),
     ),
     ("stim300", include_str!("../../protocols/stim300.toml")),
-    ("stim300-90", include_str!("../../protocols/stim300-90.toml")),
-    ("stim300-91", include_str!("../../protocols/stim300-91.toml")),
-    ("stim300-a7", include_str!("../../protocols/stim300-a7.toml")),
+    (
+        "stim300-90",
+        include_str!("../../protocols/stim300-90.toml"),
+    ),
+    (
+        "stim300-91",
+        include_str!("../../protocols/stim300-91.toml"),
+    ),
+    (
+        "stim300-a7",
+        include_str!("../../protocols/stim300-a7.toml"),
+    ),
 ];
 
 /// Names of the built-in protocols.

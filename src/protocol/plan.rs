@@ -8,8 +8,7 @@ use super::check::Check;
 use super::faults::{FaultError, FaultInjector, FaultKind, FrameFaults};
 use super::framing::{self, BitWriter, Fcs, HdlcOptions, SdlcOptions};
 use super::spec::{
-    BitEdit, ByteOrder, CheckSpec, FieldSpec, FrameSpec, Source, SpecError, TruncateSpec,
-    WireType,
+    BitEdit, ByteOrder, CheckSpec, FieldSpec, FrameSpec, Source, SpecError, TruncateSpec, WireType,
 };
 use crate::errors::chain::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED};
 use crate::math::Vec3;
@@ -143,10 +142,10 @@ pub struct EncoderState {
     pub frames: u64,
     /// Frames on which the counter did not advance (stale-counter faults).
     pub stalled: u64,
-    /// Faults to inject, if any.
-    pub faults: Option<FaultInjector>,
+    /// Faults to inject, if any (boxed: the state travels inside the job's encoding).
+    pub faults: Option<Box<FaultInjector>>,
     /// The synchronous line of an SDLC transport (NRZI level across frames).
-    pub line: Option<BitWriter>,
+    pub line: Option<Box<BitWriter>>,
     /// Reused buffer of a frame before its transport.
     pub scratch: Vec<u8>,
     /// Δθ and ΔV summed since an accumulating message was last sent.
@@ -304,8 +303,7 @@ fn compile_layout(
                         let m = status_model(f).ok_or_else(|| {
                             ferr(
                                 &f.name,
-                                "a `status` field needs a `[field.status]` table with `ok`"
-                                    .into(),
+                                "a `status` field needs a `[field.status]` table with `ok`".into(),
                             )
                         })?;
                         if f.ty.int_range().is_none() {
@@ -333,7 +331,10 @@ fn compile_layout(
                         {
                             return Err(ferr(
                                 &f.name,
-                                format!("a counter sharing its word with status bits needs a power-of-two modulo and status bits above it (ok = {:#x}, modulo {modulo})", m.ok),
+                                format!(
+                                    "a counter sharing its word with status bits needs a power-of-two modulo and status bits above it (ok = {:#x}, modulo {modulo})",
+                                    m.ok
+                                ),
                             ));
                         }
                         let step = match (f.ticks_per_second, f.step) {
@@ -345,7 +346,10 @@ fn compile_layout(
                             }
                             (Some(t), None) => {
                                 let rate = rate_hz.ok_or_else(|| {
-                                    ferr(&f.name, "`ticks_per_second` needs the spec's `rate_hz`".into())
+                                    ferr(
+                                        &f.name,
+                                        "`ticks_per_second` needs the spec's `rate_hz`".into(),
+                                    )
                                 })?;
                                 tick_step(t, rate).ok_or_else(|| {
                                     ferr(&f.name, format!("{t} ticks/s is not a whole number of ticks per frame at {rate} Hz"))
@@ -501,8 +505,7 @@ impl Plan {
         } else {
             if !spec.field.is_empty() || spec.check.is_some() || spec.truncate.is_some() {
                 return Err(syntax(
-                    "give the fields in `[[message]]` entries or at the top level, not both"
-                        .into(),
+                    "give the fields in `[[message]]` entries or at the top level, not both".into(),
                 ));
             }
             spec.message
@@ -530,9 +533,10 @@ impl Plan {
                 names
                     .iter()
                     .map(|n| {
-                        layouts.iter().position(|l| &l.name == n).ok_or_else(|| {
-                            syntax(format!("`schedule`: no message named `{n}`"))
-                        })
+                        layouts
+                            .iter()
+                            .position(|l| &l.name == n)
+                            .ok_or_else(|| syntax(format!("`schedule`: no message named `{n}`")))
                     })
                     .collect::<Result<Vec<_>, _>>()?
             }
@@ -621,11 +625,12 @@ impl Plan {
         state: &mut EncoderState,
         out: &mut Vec<u8>,
     ) {
-        let layout = &self.layouts[self.schedule[(state.frames % self.schedule.len() as u64) as usize]];
+        let layout =
+            &self.layouts[self.schedule[(state.frames % self.schedule.len() as u64) as usize]];
         let mut rec = *r;
         if self.layouts.iter().any(|l| l.accumulate) {
-            state.sums[0] = state.sums[0] + r.dtheta;
-            state.sums[1] = state.sums[1] + r.dv;
+            state.sums[0] += r.dtheta;
+            state.sums[1] += r.dv;
             if layout.accumulate {
                 rec.dtheta = state.sums[0];
                 rec.dv = state.sums[1];
@@ -660,7 +665,9 @@ impl Plan {
                 for _ in 0..1 + usize::from(f.duplicate) {
                     match transport {
                         Transport::Sdlc(o) => {
-                            let w = state.line.get_or_insert_with(|| BitWriter::for_options(o));
+                            let w = state
+                                .line
+                                .get_or_insert_with(|| Box::new(BitWriter::for_options(o)));
                             sdlc_frame(&frame, o, corrupt_fcs, w);
                             w.drain_into(out);
                         }
@@ -684,7 +691,9 @@ impl Plan {
         };
         let failure = |w: &What| match w {
             What::Status(m) => m.failure.is_some(),
-            What::Counter { status: Some(m), .. } => m.failure.is_some(),
+            What::Counter {
+                status: Some(m), ..
+            } => m.failure.is_some(),
             _ => false,
         };
         let why = match kind {
@@ -721,26 +730,34 @@ impl Plan {
     /// True when the constant fields (sync words, fixed IDs) at the start of `bytes` match
     /// some message's: a frame boundary, whether or not the rest of the frame is intact.
     pub fn constants_match(&self, bytes: &[u8]) -> bool {
-        self.layouts.iter().any(|l| l.constants_match(bytes).is_ok())
+        self.layouts
+            .iter()
+            .any(|l| l.constants_match(bytes).is_ok())
     }
 
     /// The counter's (modulo, step), if the frames carry one.
     pub fn counter(&self) -> Option<(u64, u64)> {
-        self.layouts.iter().flat_map(|l| &l.ops).find_map(|op| match op.what {
-            What::Counter { modulo, step, .. } => Some((modulo, step)),
-            _ => None,
-        })
+        self.layouts
+            .iter()
+            .flat_map(|l| &l.ops)
+            .find_map(|op| match op.what {
+                What::Counter { modulo, step, .. } => Some((modulo, step)),
+                _ => None,
+            })
     }
 
     /// The smallest step an integer field carrying `source` can express (|lsb|), `None` for
     /// float fields or absent sources.
     pub fn quantum(&self, source: Source) -> Option<f64> {
-        self.layouts.iter().flat_map(|l| &l.ops).find_map(|op| match op.what {
-            What::Quantity {
-                source: s, scale, ..
-            } if s == source && op.ty.int_range().is_some() => Some(1.0 / scale.abs()),
-            _ => None,
-        })
+        self.layouts
+            .iter()
+            .flat_map(|l| &l.ops)
+            .find_map(|op| match op.what {
+                What::Quantity {
+                    source: s, scale, ..
+                } if s == source && op.ty.int_range().is_some() => Some(1.0 / scale.abs()),
+                _ => None,
+            })
     }
 
     /// Names of the decoded values' fields of message `m`, in the order of
@@ -929,7 +946,9 @@ impl Layout {
             got: bytes.len(),
             need: t.len_at + t.len_ty.bytes(),
         };
-        let src = bytes.get(t.len_at..t.len_at + t.len_ty.bytes()).ok_or(short)?;
+        let src = bytes
+            .get(t.len_at..t.len_at + t.len_ty.bytes())
+            .ok_or(short)?;
         let sent = get_int(src, t.len_ty, t.len_order) as i64;
         let pend = self.check.as_ref().map_or(self.len, |c| c.offset);
         let max = pend - t.from;

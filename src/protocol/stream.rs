@@ -141,9 +141,7 @@ impl Tally {
                     self.good(plan, payload, &d);
                     frame(&d);
                 }
-                Err(DecodeError::Check { len, .. }) if len == payload.len() => {
-                    self.check_failure()
-                }
+                Err(DecodeError::Check { len, .. }) if len == payload.len() => self.check_failure(),
                 _ => self.stats.framing_errors += 1,
             },
             Err(FrameError::FcsMismatch { .. }) => self.check_failure(),
