@@ -482,3 +482,26 @@ fn decode_help_lists_every_built_in() {
         assert!(help.contains(name), "decode --help lacks {name}");
     }
 }
+
+/// A `wrap = true` field (KVH Format B's µs timestamp) wraps at its type's range like the
+/// unit's free-running clock, instead of saturating.
+#[test]
+fn timestamps_wrap() {
+    let (_, plan) = protocol::load("kvh1750-b").unwrap();
+    let t = 4_294.967_296 + 1.5; // 2^32 µs + 1.5 s
+    let mut out = Vec::new();
+    plan.encode(
+        &Record {
+            t,
+            ..Record::default()
+        },
+        25.0,
+        &mut EncoderState::default(),
+        &mut out,
+    );
+    assert_eq!(
+        u32::from_be_bytes(out[28..32].try_into().unwrap()),
+        1_500_000
+    );
+    assert_eq!(out[32], 0x77, "wrapping is not an overrange");
+}

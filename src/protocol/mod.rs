@@ -29,6 +29,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../protocols/imar-ixcom.toml"),
     ),
     ("kvh1750", include_str!("../../protocols/kvh1750.toml")),
+    ("kvh1750-b", include_str!("../../protocols/kvh1750-b.toml")),
     ("ln200", include_str!("../../protocols/ln200.toml")),
     (
         "ln200-sdlc",

@@ -33,6 +33,8 @@ enum What {
         source: Source,
         scale: f64,
         flag: u8,
+        /// Wraps at the type's range (free-running timestamps) instead of saturating.
+        wrap: bool,
     },
     /// A counter, possibly sharing its word with status bits above it.
     Counter {
@@ -378,10 +380,15 @@ fn compile_layout(
                             Source::Accel(_) | Source::Dv(_) => FLAG_ACCEL_SATURATED,
                             _ => 0,
                         };
+                        let wrap = f.wrap.unwrap_or(false);
+                        if wrap && f.ty.int_range().is_none() {
+                            return Err(ferr(&f.name, "`wrap` needs an integer type".into()));
+                        }
                         What::Quantity {
                             source,
                             scale: f.sign.unwrap_or(1.0) / lsb,
                             flag,
+                            wrap,
                         }
                     }
                 }
@@ -856,9 +863,14 @@ impl Layout {
                     source,
                     scale,
                     flag,
+                    wrap,
                 } => {
                     let x = quantity(r, temperature, state, *source) * scale;
-                    if put_value(dst, op.ty, op.order, x) {
+                    if *wrap {
+                        let (lo, hi) = op.ty.int_range().expect("checked at compile");
+                        let v = if x.is_finite() { x.round() as i128 } else { 0 };
+                        put_int(dst, op.ty, op.order, (v - lo).rem_euclid(hi - lo + 1) + lo);
+                    } else if put_value(dst, op.ty, op.order, x) {
                         flags |= flag;
                     }
                 }

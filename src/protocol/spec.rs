@@ -180,6 +180,8 @@ pub struct FieldSpec {
     pub modulo: Option<u64>,
     /// Counter increment per frame (default 1).
     pub step: Option<u64>,
+    /// The value wraps at the type's range instead of saturating (a free-running timestamp).
+    pub wrap: Option<bool>,
     /// A counter of internal ticks at this rate (Hz): it advances by ticks/output-rate per
     /// frame, set from the run's rate (STIM300: 2000).
     pub ticks_per_second: Option<u64>,
