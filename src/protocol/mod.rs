@@ -5,6 +5,7 @@
 pub mod check;
 pub mod faults;
 pub mod framing;
+pub mod layout;
 pub mod plan;
 pub mod spec;
 pub mod stream;
