@@ -30,6 +30,93 @@ pub struct SceneFile {
     /// Vibration of the IMU (sinusoids and random from PSD tables), in the case axes.
     #[serde(default)]
     pub vibration: VibrationSection,
+    /// Faults injected into protocol frames.
+    #[serde(default)]
+    pub faults: FaultsSection,
+}
+
+/// `[faults]`: faults injected into protocol frames (`[[faults.event]]` entries).
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FaultsSection {
+    /// Seed of the rate-based faults (default: the IMU seed).
+    pub seed: Option<u64>,
+    /// The fault entries.
+    #[serde(default)]
+    pub event: Vec<FaultEntry>,
+}
+
+/// One `[[faults.event]]`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FaultEntry {
+    /// `corrupt-check`, `drop`, `duplicate`, `stale-counter` or `status`.
+    pub kind: String,
+    /// Record times (s) at which the fault hits the first frame at or after each.
+    pub at_s: Option<Vec<f64>>,
+    /// Mean events per second, drawn independently per frame.
+    pub rate_per_s: Option<f64>,
+    /// `status` only: how long each failure lasts (s); default one frame.
+    pub duration_s: Option<f64>,
+}
+
+impl FaultsSection {
+    /// The fault specs, checked against the frame rate (Hz); errors name `faults.event[i].key`.
+    pub fn specs(
+        &self,
+        path: &Path,
+        frame_rate: f64,
+    ) -> Result<Vec<crate::protocol::FaultSpec>, ConfigError> {
+        use crate::protocol::faults::{FaultKind, FaultSpec, When};
+        let bad = |key: String, message: String| ConfigError::Value {
+            path: path.to_path_buf(),
+            key,
+            message,
+        };
+        let mut out = Vec::new();
+        for (i, e) in self.event.iter().enumerate() {
+            let key = format!("faults.event[{i}]");
+            let kind = FaultKind::from_name(&e.kind).ok_or_else(|| {
+                bad(
+                    format!("{key}.kind"),
+                    format!(
+                        "`{}`: expected one of {}",
+                        e.kind,
+                        FaultKind::ALL.map(|k| k.name()).join(", ")
+                    ),
+                )
+            })?;
+            let when = match (&e.at_s, e.rate_per_s) {
+                (Some(t), None) => When::At(t.clone()),
+                (None, Some(r)) => When::Rate(r),
+                _ => {
+                    return Err(bad(
+                        key,
+                        "give either `at_s = [times]` or `rate_per_s`".into(),
+                    ));
+                }
+            };
+            let field = match when {
+                When::At(_) => "at_s",
+                When::Rate(_) => "rate_per_s",
+            };
+            let spec = FaultSpec {
+                kind,
+                when,
+                duration_s: e.duration_s.unwrap_or(0.0),
+            };
+            spec.validate(frame_rate).map_err(|m| {
+                let field = if e.duration_s.is_some() && m.to_string().contains("duration") {
+                    "duration_s"
+                } else {
+                    field
+                };
+                bad(format!("{key}.{field}"), m.to_string())
+            })?;
+            out.push(spec);
+        }
+        Ok(out)
+    }
 }
 
 /// `[vibration]`: `[[vibration.sine]]` and `[[vibration.random]]` entries.

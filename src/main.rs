@@ -24,7 +24,8 @@ enum Command {
     Scenes,
     /// List the built-in IMU templates with their headline figures.
     Templates,
-    /// Decode a frame stream (file or stdin) to CSV, counting check failures and counter gaps.
+    /// Decode a frame stream (file or stdin) to CSV, counting check failures, counter gaps,
+    /// duplicates, stale counters and status failures.
     Decode(cmd::decode::DecodeArgs),
     /// Validate the simulator (paper §4): error-free signal, navigator closure, noise terms.
     Validate(cmd::validate::ValidateArgs),

@@ -6,8 +6,18 @@ use std::path::Path;
 
 use imu_emu::math::Vec3;
 use imu_emu::protocol::spec::Source;
-use imu_emu::protocol::{self, EncoderState, FrameSpec, Plan};
+use imu_emu::protocol::{
+    self, Decoded, EncoderState, FrameSpec, Plan, StreamDecoder, StreamStats, Transport,
+};
 use imu_emu::record::Record;
+
+/// Every frame of a byte stream, through the protocol's transport, and the decoder's tally.
+fn decode_stream(plan: &Plan, bytes: &[u8]) -> (Vec<Decoded>, StreamStats) {
+    let mut d = StreamDecoder::new(plan.clone());
+    let mut out = Vec::new();
+    d.feed(bytes, |f| out.push(f.clone()));
+    (out, d.stats())
+}
 
 fn hex(s: &str) -> Vec<u8> {
     let s: String = s.chars().filter(|c| !c.is_whitespace()).collect();
@@ -48,10 +58,17 @@ fn golden_vectors_decode_and_reencode() {
         assert!(!spec.test_vector.is_empty(), "{name} has no golden vector");
         for tv in &spec.test_vector {
             let bytes = hex(&tv.hex);
-            assert_eq!(bytes.len(), plan.len(), "{name}: vector length");
-            let d = plan
-                .decode(&bytes)
-                .unwrap_or_else(|e| panic!("{name}: {e}"));
+            let d = if matches!(plan.transport, Transport::Plain) {
+                let d = plan
+                    .decode(&bytes)
+                    .unwrap_or_else(|e| panic!("{name}: {e}"));
+                assert_eq!(bytes.len(), d.len, "{name}: vector length");
+                d
+            } else {
+                let (mut frames, stats) = decode_stream(&plan, &bytes);
+                assert_eq!(stats.frames, 1, "{name}: {stats:?}");
+                frames.remove(0)
+            };
             let tol = tv.tolerance.unwrap_or(1e-6);
             let mut rec = Record::default();
             let (mut counter, mut temperature) = (0u64, 0.0);
@@ -77,6 +94,8 @@ fn golden_vectors_decode_and_reencode() {
                     Source::Dv(i) => rec.dv.0[i] = got,
                     Source::Time => rec.t = got,
                     Source::Counter => counter = got as u64,
+                    // Re-encoding without flags or faults gives the healthy value.
+                    Source::Status => assert!(!d.flagged, "{name}: status flagged"),
                     Source::Temperature => temperature = got,
                     Source::GpsWeek => week = got,
                     Source::GpsSeconds => secs = Some(got),
@@ -89,7 +108,7 @@ fn golden_vectors_decode_and_reencode() {
                 .or(whole.map(|w| w + micros * 1e-6))
                 .or(millis.map(|m| m * 1e-3));
             let mut state = EncoderState {
-                frames: counter,
+                frames: tv.frame.unwrap_or(counter),
                 ..Default::default()
             };
             if let Some(sow) = sow {
@@ -117,6 +136,7 @@ fn random_round_trips_and_corruption() {
     for name in protocol::builtin_names() {
         let (_, plan) = protocol::load(name).unwrap();
         let mut state = EncoderState::default();
+        let mut sums = [Vec3::default(); 2];
         for i in 0..1000 {
             let r = Record {
                 t: i as f64 * 1e-3,
@@ -128,16 +148,28 @@ fn random_round_trips_and_corruption() {
             };
             let mut out = Vec::new();
             plan.encode(&r, 25.0, &mut state, &mut out);
-            let d = plan.decode(&out).unwrap();
+            let (frames, stats) = decode_stream(&plan, &out);
+            assert_eq!(stats.frames, 1, "{name}: {stats:?}");
+            let d = &frames[0];
+            assert!(!d.flagged, "{name}: status flagged without saturation");
+            // An accumulating message carries the sums since it was last sent.
+            sums = [sums[0] + r.dtheta, sums[1] + r.dv];
+            let (dtheta, dv) = if plan.accumulates(d.message) {
+                let s = sums;
+                sums = [Vec3::default(); 2];
+                (s[0], s[1])
+            } else {
+                (r.dtheta, r.dv)
+            };
             for (s, v) in &d.values {
                 let want = match *s {
                     Source::Gyro(i) => r.gyro.0[i],
                     Source::Accel(i) => r.accel.0[i],
-                    Source::DTheta(i) => r.dtheta.0[i],
-                    Source::Dv(i) => r.dv.0[i],
+                    Source::DTheta(i) => dtheta.0[i],
+                    Source::Dv(i) => dv.0[i],
                     Source::Time => r.t,
                     // Counters are checked by the golden vectors and the stream tests.
-                    Source::Counter => continue,
+                    Source::Counter | Source::Status => continue,
                     Source::Temperature => 25.0,
                     // Time fields are checked by the golden vectors.
                     _ => continue,
@@ -149,10 +181,15 @@ fn random_round_trips_and_corruption() {
                 assert!((v - want).abs() <= tol, "{name} {s:?}: {v} vs {want}");
             }
             let mut bad = out.clone();
-            let k = i % bad.len();
+            // SDLC: the last two bytes hold the closing flag and idle marks, outside the frame.
+            let k = match plan.transport {
+                Transport::Plain => i % bad.len(),
+                _ => i % (bad.len() - 2),
+            };
             bad[k] ^= 0x10;
-            assert!(
-                plan.decode(&bad).is_err(),
+            assert_eq!(
+                decode_stream(&plan, &bad).1.frames,
+                0,
                 "{name}: flipped bit in byte {k} not caught"
             );
         }
@@ -247,22 +284,34 @@ fn generate_writes_frames_that_decode() {
             .unwrap();
         assert!(bin.status.success());
         let n = (0.5 * rate) as usize;
-        assert_eq!(frames.stdout.len(), n * plan.len(), "{name}");
+        let (decoded, stats) = decode_stream(&plan, &frames.stdout);
+        assert_eq!(
+            stats,
+            StreamStats {
+                frames: n as u64,
+                ..StreamStats::default()
+            },
+            "{name}"
+        );
+        if let Some(len) = plan.fixed_len() {
+            assert_eq!(frames.stdout.len(), n * len, "{name}");
+        }
         assert_eq!(bin.stdout.len(), n * 104);
         let mut last: Option<f64> = None;
-        for (i, (f, b)) in frames
-            .stdout
-            .chunks(plan.len())
-            .zip(bin.stdout.chunks(104))
-            .enumerate()
-        {
-            let d = plan
-                .decode(f)
-                .unwrap_or_else(|e| panic!("{name} frame {i}: {e}"));
-            let v: Vec<f64> = b
+        let mut sums = [0.0f64; 6];
+        for (i, (d, b)) in decoded.iter().zip(bin.stdout.chunks(104)).enumerate() {
+            let mut v: Vec<f64> = b
                 .chunks(8)
                 .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
                 .collect();
+            // An accumulating message carries Δθ, ΔV summed since it was last sent.
+            for (s, x) in sums.iter_mut().zip(&v[7..13]) {
+                *s += x;
+            }
+            if plan.accumulates(d.message) {
+                v[7..13].copy_from_slice(&sums);
+                sums = [0.0; 6];
+            }
             for (s, x) in &d.values {
                 let want = match *s {
                     Source::Gyro(a) => v[1 + a],
@@ -274,6 +323,10 @@ fn generate_writes_frames_that_decode() {
                             assert!(*x == l + 1.0 || *x == 0.0, "{name}: counter {l} then {x}");
                         }
                         last = Some(*x);
+                        continue;
+                    }
+                    Source::Status => {
+                        assert!(!d.flagged, "{name} frame {i}: status flagged");
                         continue;
                     }
                     _ => continue,
@@ -336,12 +389,13 @@ fn decode_command_reports_damage() {
     let text = String::from_utf8(dec.stdout).unwrap();
     assert_eq!(
         text.lines().next().unwrap(),
-        "rot_x,rot_y,rot_z,accel_x,accel_y,accel_z,sequence,temperature"
+        "rot_x,rot_y,rot_z,accel_x,accel_y,accel_z,status,sequence,temperature"
     );
     assert_eq!(text.lines().count(), 1 + 18);
     let err = String::from_utf8(dec.stderr).unwrap();
+    // The corrupted frame took its counter value: only the dropped frame is a gap.
     assert!(
-        err.contains("18 frames, 1 check failures, 2 counter gaps, 4 bytes skipped"),
+        err.contains("18 frames, 1 check failures, 1 counter gaps, 0 duplicates, 0 stale counters, 0 status flagged, 4 bytes skipped"),
         "{err}"
     );
     let _ = std::fs::remove_dir_all(&dir);
@@ -367,4 +421,87 @@ fn out_of_range_values_saturate() {
     let lsb = 1.8704700469970702e-05;
     let d = plan.decode(&out).unwrap();
     assert_eq!(d.get(Source::Accel(2)), Some((40.0f64 / lsb).round() * lsb));
+}
+
+/// STIM300 counts internal 2000 Hz samples: at 125 datagrams/s the counter advances by 16.
+/// `decode --rate 125` expects that step (no gaps); at the nominal 2000 Hz every datagram
+/// looks like a gap; a rate that does not divide 2000 is refused.
+#[test]
+fn stim300_counter_follows_the_run_rate() {
+    let exe = env!("CARGO_BIN_EXE_imu-emu");
+    let out = std::process::Command::new(exe)
+        .args(["generate", "--scene", "static", "--duration", "0.2"])
+        .args(["--format", "stim300-91", "--rate", "125"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let frames: Vec<&[u8]> = out.stdout.chunks(28).collect();
+    assert_eq!(frames.len(), 25);
+    let counters: Vec<u8> = frames.iter().map(|f| f[21]).collect();
+    assert_eq!(&counters[..4], &[0, 16, 32, 48]);
+    assert_eq!(counters[24], (24 * 16 % 256) as u8);
+    let decode = |rate: Option<&str>| {
+        let mut c = std::process::Command::new(exe);
+        c.args(["decode", "--protocol", "stim300-91"]);
+        if let Some(r) = rate {
+            c.args(["--rate", r]);
+        }
+        let mut child = c
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        use std::io::Write;
+        child.stdin.take().unwrap().write_all(&out.stdout).unwrap();
+        String::from_utf8(child.wait_with_output().unwrap().stderr).unwrap()
+    };
+    assert!(decode(Some("125")).contains("25 frames, 0 check failures, 0 counter gaps"));
+    assert!(decode(None).contains("25 frames, 0 check failures, 24 counter gaps"));
+    let bad = std::process::Command::new(exe)
+        .args(["generate", "--scene", "static", "--duration", "0.1"])
+        .args(["--format", "stim300", "--rate", "300"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("must divide 2000") && err.contains("300"),
+        "{err}"
+    );
+}
+
+/// `decode --help` names every built-in protocol.
+#[test]
+fn decode_help_lists_every_built_in() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+        .args(["decode", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8(out.stdout).unwrap();
+    for name in protocol::builtin_names() {
+        assert!(help.contains(name), "decode --help lacks {name}");
+    }
+}
+
+/// A `wrap = true` field (KVH Format B's µs timestamp) wraps at its type's range like the
+/// unit's free-running clock, instead of saturating.
+#[test]
+fn timestamps_wrap() {
+    let (_, plan) = protocol::load("kvh1750-b").unwrap();
+    let t = 4_294.967_296 + 1.5; // 2^32 µs + 1.5 s
+    let mut out = Vec::new();
+    plan.encode(
+        &Record {
+            t,
+            ..Record::default()
+        },
+        25.0,
+        &mut EncoderState::default(),
+        &mut out,
+    );
+    assert_eq!(
+        u32::from_be_bytes(out[28..32].try_into().unwrap()),
+        1_500_000
+    );
+    assert_eq!(out[32], 0x77, "wrapping is not an overrange");
 }

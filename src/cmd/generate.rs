@@ -95,6 +95,9 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
             .with_context(|| format!("finishing {}", p.display()))?;
     }
     bar.finish_and_clear();
+    if let Some(f) = &r.faults {
+        eprintln!("imu-emu: faults injected: {}", f.tally().summary());
+    }
     if show {
         let s = started.elapsed().as_secs_f64();
         eprintln!(

@@ -37,8 +37,8 @@ pub struct GenerateArgs {
     /// Start time t₀ (s) [default: the trajectory's start].
     #[arg(long, allow_negative_numbers = true)]
     pub start: Option<f64>,
-    /// Output format: csv, bin, or a protocol's frames (kvh1750, imar-ixcom, novatel-rawimusx,
-    /// stim300) [default: csv].
+    /// Output format: csv, bin, or a protocol's frames (`imu-emu decode --help` lists the
+    /// built-in protocols) [default: csv].
     #[arg(long)]
     pub format: Option<String>,
     /// Frames of a protocol described in a spec file (protocols/README.md).
@@ -48,6 +48,11 @@ pub struct GenerateArgs {
     /// [default: 0,0 — record times are GPS seconds since 1980-01-06].
     #[arg(long, value_parser = parse_gps_time)]
     pub gps_time: Option<(u32, f64)>,
+    /// Inject a fault into protocol frames: KIND@T1,T2,… (record times, s) or KIND~RATE (mean
+    /// events per second); KIND is corrupt-check, drop, duplicate, stale-counter or status.
+    /// Repeatable; adds to the scene file's [faults].
+    #[arg(long = "fault", value_parser = imu_emu::protocol::FaultSpec::parse_flag)]
+    pub faults: Vec<imu_emu::protocol::FaultSpec>,
     /// Output file, or - for stdout [default: stdout].
     #[arg(short, long)]
     pub output: Option<PathBuf>,
@@ -90,6 +95,8 @@ pub struct Resolved {
     pub truth: Option<PathBuf>,
     pub truth_errors: Option<PathBuf>,
     pub gps_time: Option<(u32, f64)>,
+    /// Faults injected into protocol frames (the tally is shared with the job's copy).
+    pub faults: Option<imu_emu::protocol::FaultInjector>,
     pub imu: imu_emu::errors::ImuModel,
     pub seed: u64,
     pub temperature: Option<imu_emu::errors::temperature::TemperatureProfile>,
@@ -169,7 +176,7 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
         .or(file.output.format)
         .unwrap_or_else(|| "csv".into());
     let protocol_file = a.protocol_file.clone();
-    let format = match (Format::from_name(&format_name), &protocol_file) {
+    let mut format = match (Format::from_name(&format_name), &protocol_file) {
         (_, Some(p)) => Output::Frames(imu_emu::protocol::load(&p.to_string_lossy())?.1),
         (Some(f), None) => Output::Records(f),
         (None, None) => match imu_emu::protocol::load(&format_name) {
@@ -220,6 +227,21 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
     if !(1..=imu_emu::quadrature::MAX_NODES).contains(&nodes) {
         bail!("{at}quadrature {nodes}: expected 1 to 16 Gauss–Legendre nodes");
     }
+    let rate = a
+        .rate
+        .or(file.imu.rate_hz)
+        .or(match &format {
+            Output::Frames(p) => p.rate_hz,
+            Output::Records(_) => None,
+        })
+        .or(imu.rate_hz)
+        .unwrap_or(400.0);
+    if let Output::Frames(plan) = &mut format {
+        let at = in_file(a.rate.is_some(), file.imu.rate_hz.is_some(), "imu.rate_hz");
+        plan.set_rate(rate)
+            .map_err(|e| anyhow::anyhow!("{at}{e}"))?;
+    }
+    let faults = resolve_faults(&file.faults, &file_path, a.faults, &format, rate, seed)?;
     let file_settings = [
         (
             "rate",
@@ -247,15 +269,7 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
         scene_from_file,
         params_from_file,
         file_settings,
-        rate: a
-            .rate
-            .or(file.imu.rate_hz)
-            .or(match &format {
-                Output::Frames(p) => p.rate_hz,
-                Output::Records(_) => None,
-            })
-            .or(imu.rate_hz)
-            .unwrap_or(400.0),
+        rate,
         start: a.start.or(file.output.start_s),
         duration: a.duration.or(file.output.duration_s),
         format,
@@ -263,6 +277,7 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
         truth: a.truth,
         truth_errors: a.truth_errors,
         gps_time: a.gps_time,
+        faults,
         imu,
         seed,
         temperature,
@@ -272,6 +287,43 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
         nodes,
         model: ModelSettings { degree, stencil },
     })
+}
+
+/// The scene file's `[faults]` plus the `--fault` flags, checked against the protocol.
+fn resolve_faults(
+    section: &config::FaultsSection,
+    file_path: &Path,
+    flags: Vec<imu_emu::protocol::FaultSpec>,
+    format: &Output,
+    rate: f64,
+    seed: u64,
+) -> Result<Option<imu_emu::protocol::FaultInjector>> {
+    let mut specs = section.specs(file_path, rate)?;
+    let from_file = specs.len();
+    for f in &flags {
+        f.validate(rate)
+            .map_err(|e| anyhow::anyhow!("--fault {}: {e}", f.kind.name()))?;
+    }
+    specs.extend(flags);
+    if specs.is_empty() {
+        return Ok(None);
+    }
+    let Output::Frames(plan) = format else {
+        bail!("faults apply to protocol frames: give --format PROTOCOL or --protocol-file");
+    };
+    for (i, s) in specs.iter().enumerate() {
+        if let Err(e) = plan.supports(s.kind) {
+            if i < from_file {
+                bail!("{}: `faults.event[{i}].kind`: {e}", file_path.display());
+            }
+            bail!("--fault {}: {e}", s.kind.name());
+        }
+    }
+    Ok(Some(imu_emu::protocol::FaultInjector::new(
+        specs,
+        rate,
+        section.seed.unwrap_or(seed),
+    )))
 }
 
 /// Parses `WEEK,SECONDS` (seconds of week in [0, 604800)).
@@ -367,9 +419,10 @@ impl Resolved {
             Output::Frames(plan) => job::Encoding::Frames {
                 plan: Box::new(plan.clone()),
                 state: imu_emu::protocol::EncoderState {
-                    frames: 0,
                     gps_week0: self.gps_time.map_or(0, |g| g.0),
                     gps_sow0: self.gps_time.map_or(0.0, |g| g.1),
+                    faults: self.faults.clone().map(Box::new),
+                    ..Default::default()
                 },
                 temperature: 25.0,
                 side: Format::Csv,

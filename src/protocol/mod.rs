@@ -3,12 +3,15 @@
 //! frames back (DESIGN §5). Pure: no I/O.
 
 pub mod check;
+pub mod faults;
 pub mod framing;
+pub mod layout;
 pub mod plan;
 pub mod spec;
 pub mod stream;
 
-pub use plan::{DecodeError, Decoded, EncoderState, Plan};
+pub use faults::{FaultInjector, FaultKind, FaultSpec, FaultTally};
+pub use plan::{DecodeError, Decoded, EncoderState, Plan, Transport};
 pub use spec::{FrameSpec, SpecError};
 pub use stream::{StreamDecoder, StreamStats};
 
@@ -18,15 +21,46 @@ use std::path::Path;
 /// `protocols/` is listed).
 pub const BUILTIN: &[(&str, &str)] = &[
     (
+        "hg1700-sdlc",
+        include_str!("../../protocols/hg1700-sdlc.toml"),
+    ),
+    ("hg4930", include_str!("../../protocols/hg4930.toml")),
+    (
         "imar-ixcom",
         include_str!("../../protocols/imar-ixcom.toml"),
     ),
     ("kvh1750", include_str!("../../protocols/kvh1750.toml")),
+    ("kvh1750-b", include_str!("../../protocols/kvh1750-b.toml")),
+    ("ln200", include_str!("../../protocols/ln200.toml")),
+    (
+        "ln200-sdlc",
+        include_str!("../../protocols/ln200-sdlc.toml"),
+    ),
+    (
+        "mavlink-highres-imu",
+        include_str!("../../protocols/mavlink-highres-imu.toml"),
+    ),
+    (
+        "mavlink-hil-sensor",
+        include_str!("../../protocols/mavlink-hil-sensor.toml"),
+    ),
     (
         "novatel-rawimusx",
         include_str!("../../protocols/novatel-rawimusx.toml"),
     ),
     ("stim300", include_str!("../../protocols/stim300.toml")),
+    (
+        "stim300-90",
+        include_str!("../../protocols/stim300-90.toml"),
+    ),
+    (
+        "stim300-91",
+        include_str!("../../protocols/stim300-91.toml"),
+    ),
+    (
+        "stim300-a7",
+        include_str!("../../protocols/stim300-a7.toml"),
+    ),
 ];
 
 /// Names of the built-in protocols.

@@ -1,42 +1,31 @@
-//! A frame specification compiled once into a flat plan of byte offsets and conversions, run
-//! per frame to encode records and decode frames (RUST-NOTES §3.2: as fast as hand-written
-//! code, and a user's TOML file needs no recompiling).
+//! A frame specification compiled once into flat plans of byte offsets and conversions (one
+//! per message layout, [`super::layout`]), run per frame to encode records and decode frames
+//! (RUST-NOTES §3.2: as fast as hand-written code, and a user's TOML file needs no
+//! recompiling). The plan strings the layouts together: the schedule of messages, Δθ/ΔV
+//! accumulation, the SDLC/HDLC transport and injected faults.
 
 use std::path::Path;
 
-use super::check::Check;
-use super::spec::{ByteOrder, FrameSpec, Source, SpecError, WireType};
+use super::faults::{FaultError, FaultInjector, FaultKind, FrameFaults};
+use super::framing::{self, BitWriter, Fcs, HdlcOptions, SdlcOptions};
+use super::layout::{Layout, What, compile_layout, tick_step};
+use super::spec::{FrameSpec, Source, SpecError};
+use crate::math::Vec3;
 use crate::record::Record;
 
-/// One compiled field.
+/// What carries the frame on the line.
 #[derive(Clone, Debug)]
-struct Op {
-    name: String,
-    offset: usize,
-    ty: WireType,
-    order: ByteOrder,
-    what: What,
+pub enum Transport {
+    /// The frame bytes as they are (byte-synchronised by constants).
+    Plain,
+    /// Bit-stuffed synchronous SDLC packed into bytes; each frame ends with marks to a byte
+    /// boundary.
+    Sdlc(SdlcOptions),
+    /// Byte-stuffed asynchronous HDLC.
+    Hdlc(HdlcOptions),
 }
 
-#[derive(Clone, Debug)]
-enum What {
-    Constant(i64),
-    Quantity { source: Source, scale: f64 },
-    Counter { modulo: u64, step: u64 },
-}
-
-/// The compiled check.
-#[derive(Clone, Debug)]
-struct CheckOp {
-    check: Check,
-    offset: usize,
-    ty: WireType,
-    order: ByteOrder,
-    from: usize,
-    pad_to: usize,
-}
-
-/// A compiled frame: encode records, decode frames.
+/// A compiled protocol: encode records, decode frames.
 #[derive(Clone, Debug)]
 pub struct Plan {
     /// Protocol name.
@@ -45,16 +34,28 @@ pub struct Plan {
     pub rate_hz: Option<f64>,
     /// Nominal link speed (bit/s), if given.
     pub baud: Option<u64>,
-    ops: Vec<Op>,
-    check: Option<CheckOp>,
-    len: usize,
+    /// How frames travel on the line.
+    pub transport: Transport,
+    layouts: Vec<Layout>,
+    /// Layout index of each frame, repeating.
+    schedule: Vec<usize>,
 }
 
 /// Encoder state carried from frame to frame (the counter) and the run's time reference.
 #[derive(Clone, Debug, Default)]
 pub struct EncoderState {
-    /// Frames encoded so far.
+    /// Frames encoded so far (dropped ones included).
     pub frames: u64,
+    /// Frames on which the counter did not advance (stale-counter faults).
+    pub stalled: u64,
+    /// Faults to inject, if any (boxed: the state travels inside the job's encoding).
+    pub faults: Option<Box<FaultInjector>>,
+    /// The synchronous line of an SDLC transport (NRZI level across frames).
+    pub line: Option<Box<BitWriter>>,
+    /// Reused buffer of a frame before its transport.
+    pub scratch: Vec<u8>,
+    /// Δθ and ΔV summed since an accumulating message was last sent.
+    pub sums: [Vec3; 2],
     /// GPS week of the record time t = 0.
     pub gps_week0: u32,
     /// GPS seconds of week of the record time t = 0. GPS fields carry (week0, sow0) + t, kept
@@ -87,6 +88,14 @@ pub enum DecodeError {
         /// Value expected.
         expected: i64,
     },
+    /// A truncated frame's length field is out of range.
+    #[error("length field {got}: expected 1 to {max}")]
+    Length {
+        /// Value found.
+        got: i64,
+        /// Full payload length.
+        max: usize,
+    },
     /// The integrity check does not match.
     #[error("check: frame carries {got:#x}, computed {computed:#x}")]
     Check {
@@ -94,14 +103,22 @@ pub enum DecodeError {
         got: u64,
         /// Computed.
         computed: u64,
+        /// Length of the frame whose boundary was found.
+        len: usize,
     },
 }
 
 /// A decoded frame: every quantity field's value in SI, by field order.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Decoded {
-    /// (source, value) of each quantity and counter field, in wire order.
+    /// (source, value) of each quantity, counter and status field, in wire order.
     pub values: Vec<(Source, f64)>,
+    /// Some status word differs from its healthy value.
+    pub flagged: bool,
+    /// Index of the message layout (0 for single-layout protocols).
+    pub message: usize,
+    /// Bytes the frame took (before any transport).
+    pub len: usize,
 }
 
 impl Decoded {
@@ -114,141 +131,124 @@ impl Decoded {
 impl Plan {
     /// Validates and compiles a spec (`path` for messages).
     pub fn compile(spec: &FrameSpec, path: &Path) -> Result<Plan, SpecError> {
-        let ferr = |field: &str, message: String| SpecError::Field {
+        let syntax = |message: String| SpecError::Syntax {
             path: path.to_path_buf(),
-            field: field.to_string(),
             message,
         };
-        let mut ops = Vec::with_capacity(spec.field.len());
-        let mut offset = 0;
-        for f in &spec.field {
-            let order = f.byte_order.unwrap_or(spec.byte_order);
-            let what = match (&f.value, &f.source) {
-                (Some(_), Some(_)) => {
-                    return Err(ferr(
-                        &f.name,
-                        "give either `value` or `source`, not both".into(),
-                    ));
-                }
-                (None, None) => {
-                    return Err(ferr(
-                        &f.name,
-                        "needs a `value` (constant) or a `source` (quantity)".into(),
-                    ));
-                }
-                (Some(v), None) => {
-                    if let Some((lo, hi)) = f.ty.int_range()
-                        && ((*v as i128) < lo || (*v as i128) > hi)
-                    {
-                        return Err(ferr(
-                            &f.name,
-                            format!("constant {v} does not fit in {:?}", f.ty),
-                        ));
-                    }
-                    What::Constant(*v)
-                }
-                (None, Some(name)) => {
-                    let source = Source::from_name(name).ok_or_else(|| {
-                        ferr(&f.name, format!("unknown source quantity `{name}` (gyro.x…z, accel.*, dtheta.*, dv.*, time, counter, temperature)"))
-                    })?;
-                    if source == Source::Counter {
-                        let range = f.ty.int_range().ok_or_else(|| {
-                            ferr(&f.name, "a counter needs an integer type".into())
-                        })?;
-                        let modulo = f.modulo.unwrap_or((range.1 + 1) as u64);
-                        if modulo == 0 || modulo as i128 > range.1 + 1 {
-                            return Err(ferr(
-                                &f.name,
-                                format!("modulo {modulo} does not fit in {:?}", f.ty),
-                            ));
-                        }
-                        What::Counter {
-                            modulo,
-                            step: f.step.unwrap_or(1),
-                        }
-                    } else {
-                        let lsb = f.lsb.unwrap_or(1.0);
-                        if !(lsb.is_finite() && lsb != 0.0) {
-                            return Err(ferr(
-                                &f.name,
-                                format!("lsb {lsb} must be finite and non-zero"),
-                            ));
-                        }
-                        What::Quantity {
-                            source,
-                            scale: f.sign.unwrap_or(1.0) / lsb,
-                        }
-                    }
-                }
-            };
-            ops.push(Op {
-                name: f.name.clone(),
-                offset,
-                ty: f.ty,
-                order,
-                what,
-            });
-            offset += f.ty.bytes();
-        }
-        let check = match &spec.check {
-            None => None,
-            Some(c) => {
-                let cerr = |message: String| SpecError::Check {
-                    path: path.to_path_buf(),
-                    message,
-                };
-                let check = Check::from_toml(&c.kind).map_err(|e| cerr(e.to_string()))?;
-                let from = c.from.unwrap_or(0);
-                let pad_to = c.pad_to_multiple_of.unwrap_or(1);
-                if !(1..=16).contains(&pad_to) {
-                    return Err(cerr(format!(
-                        "pad_to_multiple_of = {pad_to}: expected 1 to 16"
-                    )));
-                }
-                if from >= offset {
-                    return Err(cerr(format!(
-                        "coverage starts at byte {from}, outside the {offset}-byte frame"
-                    )));
-                }
-                if c.ty.bytes() < check.width_bytes() || c.ty.int_range().is_none() {
-                    return Err(cerr(format!(
-                        "a {}-byte check does not fit in {:?}",
-                        check.width_bytes(),
-                        c.ty
-                    )));
-                }
-                Some(CheckOp {
-                    check,
-                    offset,
-                    ty: c.ty,
-                    order: c.byte_order.unwrap_or(spec.byte_order),
-                    from,
-                    pad_to,
+        let layouts = if spec.message.is_empty() {
+            vec![compile_layout(
+                &spec.name,
+                &spec.field,
+                spec.check.as_ref(),
+                spec.truncate.as_ref(),
+                false,
+                spec.byte_order,
+                spec.rate_hz,
+                path,
+            )?]
+        } else {
+            if !spec.field.is_empty() || spec.check.is_some() || spec.truncate.is_some() {
+                return Err(syntax(
+                    "give the fields in `[[message]]` entries or at the top level, not both".into(),
+                ));
+            }
+            spec.message
+                .iter()
+                .map(|m| {
+                    compile_layout(
+                        &m.name,
+                        &m.field,
+                        m.check.as_ref(),
+                        m.truncate.as_ref(),
+                        m.accumulate,
+                        spec.byte_order,
+                        spec.rate_hz,
+                        path,
+                    )
                 })
+                .collect::<Result<Vec<_>, _>>()?
+        };
+        let schedule = match &spec.schedule {
+            None => (0..layouts.len()).collect(),
+            Some(names) => {
+                if names.is_empty() {
+                    return Err(syntax("`schedule` is empty".into()));
+                }
+                names
+                    .iter()
+                    .map(|n| {
+                        layouts
+                            .iter()
+                            .position(|l| &l.name == n)
+                            .ok_or_else(|| syntax(format!("`schedule`: no message named `{n}`")))
+                    })
+                    .collect::<Result<Vec<_>, _>>()?
             }
         };
-        let len = offset + check.as_ref().map_or(0, |c| c.ty.bytes());
+        let transport = match (spec.sdlc, spec.hdlc) {
+            (Some(_), Some(_)) => return Err(syntax("give `[sdlc]` or `[hdlc]`, not both".into())),
+            (Some(o), None) => Transport::Sdlc(o),
+            (None, Some(o)) => Transport::Hdlc(o),
+            (None, None) => Transport::Plain,
+        };
         Ok(Plan {
             name: spec.name.clone(),
             rate_hz: spec.rate_hz,
             baud: spec.baud,
-            ops,
-            check,
-            len,
+            transport,
+            layouts,
+            schedule,
         })
     }
 
-    /// Frame length in bytes.
+    /// Sets the frame rate of a run (Hz): counters of internal ticks advance by ticks/rate per
+    /// frame. Refuses a rate that does not divide their tick rate.
+    pub fn set_rate(&mut self, rate: f64) -> Result<(), String> {
+        for op in self.layouts.iter_mut().flat_map(|l| &mut l.ops) {
+            if let What::Counter {
+                step,
+                ticks: Some(t),
+                ..
+            } = &mut op.what
+            {
+                *step = tick_step(*t, rate).ok_or_else(|| {
+                    format!(
+                        "`{}` counts {t} ticks/s, so the rate must divide {t} (got {rate} Hz)",
+                        self.name
+                    )
+                })?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Full length in bytes of the first message (the only one of most protocols).
     pub fn len(&self) -> usize {
-        self.len
+        self.layouts[0].len
     }
 
     /// Always false: a frame has at least one field.
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        false
     }
 
-    /// Appends the frame of `r` to `out`; values beyond a field's range saturate.
+    /// Number of message layouts.
+    pub fn messages(&self) -> usize {
+        self.layouts.len()
+    }
+
+    /// Whether every frame has the same length on the line (one layout, no truncation, no
+    /// bit stuffing).
+    pub fn fixed_len(&self) -> Option<usize> {
+        (self.layouts.len() == 1
+            && self.layouts[0].truncate.is_none()
+            && matches!(self.transport, Transport::Plain))
+        .then_some(self.layouts[0].len)
+    }
+
+    /// Appends the line bytes of the frame of `r` to `out`, with the faults the state's
+    /// injector decides (none, one frame, two identical frames). Values beyond a field's range
+    /// saturate and raise the status overrange bits, as do the record's saturation flags.
     /// `temperature` is the sensor temperature (°C) if the frame carries one.
     pub fn encode(
         &self,
@@ -257,228 +257,243 @@ impl Plan {
         state: &mut EncoderState,
         out: &mut Vec<u8>,
     ) {
-        let start = out.len();
-        out.resize(start + self.len, 0);
-        let frame = &mut out[start..];
-        for op in &self.ops {
-            let dst = &mut frame[op.offset..op.offset + op.ty.bytes()];
-            match op.what {
-                What::Constant(v) => put_int(dst, op.ty, op.order, v as i128),
-                What::Counter { modulo, step } => {
-                    let v = (state.frames.wrapping_mul(step)) % modulo;
-                    put_int(dst, op.ty, op.order, v as i128);
-                }
-                What::Quantity { source, scale } => {
-                    let x = quantity(r, temperature, state, source) * scale;
-                    put_value(dst, op.ty, op.order, x);
-                }
+        let layout =
+            &self.layouts[self.schedule[(state.frames % self.schedule.len() as u64) as usize]];
+        let mut rec = *r;
+        if self.layouts.iter().any(|l| l.accumulate) {
+            state.sums[0] += r.dtheta;
+            state.sums[1] += r.dv;
+            if layout.accumulate {
+                rec.dtheta = state.sums[0];
+                rec.dv = state.sums[1];
+                state.sums = [Vec3::default(); 2];
             }
         }
-        if let Some(c) = &self.check {
-            let v = c.compute(frame);
-            put_int(
-                &mut frame[c.offset..c.offset + c.ty.bytes()],
-                c.ty,
-                c.order,
-                v as i128,
-            );
+        let f = match state.faults.as_mut() {
+            Some(inj) => inj.frame(r.t),
+            None => FrameFaults::default(),
+        };
+        if f.stale {
+            state.stalled += 1;
+        }
+        if f.drop {
+            state.frames += 1;
+            return;
+        }
+        // A corrupted frame carries a wrong check; without one, its transport FCS is wrong.
+        let corrupt_fcs = f.corrupt && layout.check.is_none();
+        match &self.transport {
+            Transport::Plain => {
+                let start = out.len();
+                layout.encode(&rec, temperature, state, f, out);
+                if f.duplicate {
+                    out.extend_from_within(start..);
+                }
+            }
+            transport => {
+                let mut frame = std::mem::take(&mut state.scratch);
+                frame.clear();
+                layout.encode(&rec, temperature, state, f, &mut frame);
+                for _ in 0..1 + usize::from(f.duplicate) {
+                    match transport {
+                        Transport::Sdlc(o) => {
+                            let w = state
+                                .line
+                                .get_or_insert_with(|| Box::new(BitWriter::for_options(o)));
+                            sdlc_frame(&frame, o, corrupt_fcs, w);
+                            w.drain_into(out);
+                        }
+                        Transport::Hdlc(o) => hdlc_frame(&frame, o, corrupt_fcs, out),
+                        Transport::Plain => unreachable!("handled above"),
+                    }
+                }
+                state.scratch = frame;
+            }
         }
         state.frames += 1;
     }
 
-    /// True when the constant fields (sync words, fixed IDs) at the start of `bytes` match:
-    /// a frame boundary, whether or not the rest of the frame is intact.
-    pub fn constants_match(&self, bytes: &[u8]) -> bool {
-        bytes.len() >= self.len
-            && self.ops.iter().all(|op| match op.what {
-                What::Constant(v) => {
-                    get_int(
-                        &bytes[op.offset..op.offset + op.ty.bytes()],
-                        op.ty,
-                        op.order,
-                    ) as i64
-                        == v
-                }
-                _ => true,
-            })
+    /// Whether frames of this plan can show a fault kind (a counter to freeze or to reveal a
+    /// drop, a check or FCS to corrupt, a status word with a failure model).
+    pub fn supports(&self, kind: FaultKind) -> Result<(), FaultError> {
+        let fcs = match &self.transport {
+            Transport::Sdlc(o) => o.fcs != Fcs::None,
+            Transport::Hdlc(o) => o.fcs != Fcs::None,
+            Transport::Plain => false,
+        };
+        let failure = |w: &What| match w {
+            What::Status(m) => m.failure.is_some(),
+            What::Counter {
+                status: Some(m), ..
+            } => m.failure.is_some(),
+            _ => false,
+        };
+        let why = match kind {
+            FaultKind::Drop | FaultKind::StaleCounter if self.counter().is_none() => {
+                "the frame has no counter"
+            }
+            FaultKind::CorruptCheck if !fcs && self.layouts.iter().any(|l| l.check.is_none()) => {
+                "the frame has no check and no FCS"
+            }
+            FaultKind::Status
+                if !self
+                    .layouts
+                    .iter()
+                    .all(|l| l.ops.iter().any(|op| failure(&op.what))) =>
+            {
+                "no status field has a `failure` model"
+            }
+            _ => return Ok(()),
+        };
+        Err(FaultError::Unsupported {
+            protocol: self.name.clone(),
+            kind: kind.name(),
+            why,
+        })
     }
 
-    /// The counter's (modulo, step), if the frame carries one.
+    /// Whether the frames have constant fields (sync words, IDs) that mark their start.
+    pub fn has_sync(&self) -> bool {
+        self.layouts
+            .iter()
+            .all(|l| l.ops.iter().any(|op| matches!(op.what, What::Constant(_))))
+    }
+
+    /// True when the constant fields (sync words, fixed IDs) at the start of `bytes` match
+    /// some message's: a frame boundary, whether or not the rest of the frame is intact.
+    pub fn constants_match(&self, bytes: &[u8]) -> bool {
+        self.layouts
+            .iter()
+            .any(|l| l.constants_match(bytes).is_ok())
+    }
+
+    /// The counter's (modulo, step), if the frames carry one.
     pub fn counter(&self) -> Option<(u64, u64)> {
-        self.ops.iter().find_map(|op| match op.what {
-            What::Counter { modulo, step } => Some((modulo, step)),
-            _ => None,
-        })
+        self.layouts
+            .iter()
+            .flat_map(|l| &l.ops)
+            .find_map(|op| match op.what {
+                What::Counter { modulo, step, .. } => Some((modulo, step)),
+                _ => None,
+            })
     }
 
     /// The smallest step an integer field carrying `source` can express (|lsb|), `None` for
     /// float fields or absent sources.
     pub fn quantum(&self, source: Source) -> Option<f64> {
-        self.ops.iter().find_map(|op| match op.what {
-            What::Quantity { source: s, scale } if s == source && op.ty.int_range().is_some() => {
-                Some(1.0 / scale.abs())
-            }
-            _ => None,
-        })
+        self.layouts
+            .iter()
+            .flat_map(|l| &l.ops)
+            .find_map(|op| match op.what {
+                What::Quantity {
+                    source: s, scale, ..
+                } if s == source && op.ty.int_range().is_some() => Some(1.0 / scale.abs()),
+                _ => None,
+            })
     }
 
-    /// Names of the decoded values' fields, in the order of [`Decoded::values`].
-    pub fn value_names(&self) -> Vec<&str> {
-        self.ops
+    /// Names of the decoded values' fields of message `m`, in the order of
+    /// [`Decoded::values`].
+    pub fn value_names_of(&self, m: usize) -> Vec<&str> {
+        self.layouts[m]
+            .ops
             .iter()
-            .filter(|op| !matches!(op.what, What::Constant(_)))
+            .filter(|op| !matches!(op.what, What::Constant(_) | What::Length))
             .map(|op| op.name.as_str())
             .collect()
     }
 
-    /// Decodes one frame at the start of `bytes`, checking constants and the check.
+    /// Names of the decoded values' fields of the first message.
+    pub fn value_names(&self) -> Vec<&str> {
+        self.value_names_of(0)
+    }
+
+    /// Whether message `m` carries Δθ/ΔV summed since it was last sent.
+    pub fn accumulates(&self, m: usize) -> bool {
+        self.layouts[m].accumulate
+    }
+
+    /// Name of message `m`.
+    pub fn message_name(&self, m: usize) -> &str {
+        &self.layouts[m].name
+    }
+
+    /// Decodes one frame at the start of `bytes` (after any transport), trying each message
+    /// layout: a good frame, else the most telling error (a check failure at a frame
+    /// boundary, then too few bytes, then a constant mismatch).
     pub fn decode(&self, bytes: &[u8]) -> Result<Decoded, DecodeError> {
-        if bytes.len() < self.len {
-            return Err(DecodeError::Short {
-                got: bytes.len(),
-                need: self.len,
-            });
-        }
-        let frame = &bytes[..self.len];
-        if let Some(c) = &self.check {
-            let got = get_int(&frame[c.offset..c.offset + c.ty.bytes()], c.ty, c.order) as u64;
-            let computed = c.compute(frame);
-            if got != computed {
-                return Err(DecodeError::Check { got, computed });
-            }
-        }
-        let mut out = Decoded::default();
-        for op in &self.ops {
-            let src = &frame[op.offset..op.offset + op.ty.bytes()];
-            match op.what {
-                What::Constant(expected) => {
-                    let got = get_int(src, op.ty, op.order) as i64;
-                    if got != expected {
-                        return Err(DecodeError::Constant {
-                            field: op.name.clone(),
-                            got,
-                            expected,
-                        });
+        let mut best: Option<DecodeError> = None;
+        for (i, l) in self.layouts.iter().enumerate() {
+            match l.decode(bytes) {
+                Ok(mut d) => {
+                    d.message = i;
+                    return Ok(d);
+                }
+                Err(e) => {
+                    let rank = |e: &DecodeError| match e {
+                        DecodeError::Check { .. } => 3,
+                        DecodeError::Short { .. } => 2,
+                        DecodeError::Length { .. } => 1,
+                        DecodeError::Constant { .. } => 0,
+                    };
+                    if best.as_ref().is_none_or(|b| rank(&e) > rank(b)) {
+                        best = Some(e);
                     }
                 }
-                What::Counter { .. } => out
-                    .values
-                    .push((Source::Counter, get_int(src, op.ty, op.order) as f64)),
-                What::Quantity { source, scale } => out
-                    .values
-                    .push((source, get_value(src, op.ty, op.order) / scale + 0.0)),
             }
         }
-        Ok(out)
+        Err(best.expect("a plan has at least one layout"))
+    }
+
+    /// Bytes a decoder must hold before giving up on a frame start (the longest frame).
+    pub fn max_len(&self) -> usize {
+        self.layouts.iter().map(|l| l.len).max().unwrap_or(0)
+    }
+
+    /// Bytes below which no frame can be complete.
+    pub fn shortest(&self) -> usize {
+        self.layouts.iter().map(Layout::shortest).min().unwrap_or(1)
     }
 }
 
-impl CheckOp {
-    /// The check over the covered bytes, zero-padded (not transmitted) when the protocol says so.
-    fn compute(&self, frame: &[u8]) -> u64 {
-        let covered = &frame[self.from..self.offset];
-        let pad = (self.pad_to - covered.len() % self.pad_to) % self.pad_to;
-        const ZEROS: [u8; 16] = [0; 16];
-        self.check.compute_parts(&[covered, &ZEROS[..pad.min(16)]])
+/// One SDLC frame on the line, then marks to the next byte boundary (idle), optionally with a
+/// wrong FCS.
+fn sdlc_frame(frame: &[u8], o: &SdlcOptions, corrupt_fcs: bool, w: &mut BitWriter) {
+    if corrupt_fcs {
+        let mut bad = frame.to_vec();
+        let mut fcs = o.fcs.bytes(frame);
+        fcs[0] ^= 1;
+        bad.extend_from_slice(&fcs[..o.fcs.len()]);
+        framing::sdlc_encode(
+            &bad,
+            &SdlcOptions {
+                fcs: Fcs::None,
+                ..*o
+            },
+            w,
+        );
+    } else {
+        framing::sdlc_encode(frame, o, w);
     }
+    w.write_marks((8 - w.bit_len() % 8) % 8);
 }
 
-fn quantity(r: &Record, temperature: f64, st: &EncoderState, s: Source) -> f64 {
-    // Seconds of week from the run's reference plus the record time, so they stay exact.
-    let gps = || {
-        let sow = st.gps_sow0 + r.t;
-        let weeks = (sow / GPS_WEEK_S).floor();
-        (st.gps_week0 as f64 + weeks, sow - weeks * GPS_WEEK_S)
-    };
-    match s {
-        Source::GpsWeek => gps().0,
-        Source::GpsSeconds => gps().1,
-        Source::GpsWholeSeconds => gps().1.floor(),
-        Source::GpsMicros => {
-            let sow = gps().1;
-            ((sow - sow.floor()) * 1e6).round().min(999_999.0)
-        }
-        Source::GpsMillis => (gps().1 * 1e3).round(),
-        Source::Gyro(i) => r.gyro.0[i],
-        Source::Accel(i) => r.accel.0[i],
-        Source::DTheta(i) => r.dtheta.0[i],
-        Source::Dv(i) => r.dv.0[i],
-        Source::Time => r.t,
-        Source::Temperature => temperature,
-        Source::Counter => 0.0,
-    }
-}
-
-/// Writes a physical value: floats as they are, integers rounded and saturated at the type's
-/// range (a real unit flags overrange rather than wrapping).
-fn put_value(dst: &mut [u8], ty: WireType, order: ByteOrder, x: f64) {
-    match ty {
-        WireType::F32 => put_bytes(dst, &(x as f32).to_be_bytes(), order),
-        WireType::F64 => put_bytes(dst, &x.to_be_bytes(), order),
-        _ => {
-            let (lo, hi) = ty.int_range().expect("integer type");
-            let v = if x.is_nan() {
-                0
-            } else {
-                (x.round() as i128).clamp(lo, hi)
-            };
-            put_int(dst, ty, order, v);
-        }
-    }
-}
-
-fn get_value(src: &[u8], ty: WireType, order: ByteOrder) -> f64 {
-    match ty {
-        WireType::F32 => {
-            let mut b = [0u8; 4];
-            get_bytes(src, &mut b, order);
-            f32::from_be_bytes(b) as f64
-        }
-        WireType::F64 => {
-            let mut b = [0u8; 8];
-            get_bytes(src, &mut b, order);
-            f64::from_be_bytes(b)
-        }
-        _ => get_int(src, ty, order) as f64,
-    }
-}
-
-/// Writes the low `ty.bytes()` bytes of v (two's complement) in `order`.
-fn put_int(dst: &mut [u8], ty: WireType, order: ByteOrder, v: i128) {
-    let n = ty.bytes();
-    let be = v.to_be_bytes();
-    put_bytes(dst, &be[16 - n..], order);
-}
-
-fn get_int(src: &[u8], ty: WireType, order: ByteOrder) -> i128 {
-    let n = ty.bytes();
-    let mut be = [0u8; 16];
-    get_bytes(src, &mut be[16 - n..], order);
-    let raw = i128::from_be_bytes(be);
-    match ty.int_range() {
-        Some((lo, _)) if lo < 0 && raw >= -lo => raw - 2 * (-lo),
-        _ => raw,
-    }
-}
-
-/// Copies big-endian bytes `be` into `dst` in the wire order.
-fn put_bytes(dst: &mut [u8], be: &[u8], order: ByteOrder) {
-    match order {
-        ByteOrder::Big => dst.copy_from_slice(be),
-        ByteOrder::Little => dst
-            .iter_mut()
-            .zip(be.iter().rev())
-            .for_each(|(d, s)| *d = *s),
-    }
-}
-
-/// Reads wire bytes `src` into big-endian `be`.
-fn get_bytes(src: &[u8], be: &mut [u8], order: ByteOrder) {
-    match order {
-        ByteOrder::Big => be.copy_from_slice(src),
-        ByteOrder::Little => be
-            .iter_mut()
-            .zip(src.iter().rev())
-            .for_each(|(d, s)| *d = *s),
+/// One asynchronous HDLC frame, optionally with a wrong FCS.
+fn hdlc_frame(frame: &[u8], o: &HdlcOptions, corrupt_fcs: bool, out: &mut Vec<u8>) {
+    if corrupt_fcs {
+        let mut bad = frame.to_vec();
+        let mut fcs = o.fcs.bytes(frame);
+        fcs[0] ^= 1;
+        bad.extend_from_slice(&fcs[..o.fcs.len()]);
+        framing::hdlc_encode(
+            &bad,
+            &HdlcOptions {
+                fcs: Fcs::None,
+                ..*o
+            },
+            out,
+        );
+    } else {
+        framing::hdlc_encode(frame, o, out);
     }
 }

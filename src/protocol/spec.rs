@@ -123,11 +123,14 @@ pub enum Source {
     GpsMicros,
     /// GPS milliseconds of week.
     GpsMillis,
+    /// A status word: its healthy value with bits set or cleared by the record's saturation
+    /// flags, by values beyond a field's range and by injected failures (`[field.status]`).
+    Status,
 }
 
 impl Source {
     /// Parses `gyro.x`, `accel.z`, `dtheta.y`, `dv.x`, `time`, `counter`, `temperature`,
-    /// `gps.week`, `gps.seconds`, `gps.whole_seconds`, `gps.micros`, `gps.millis`.
+    /// `gps.week`, `gps.seconds`, `gps.whole_seconds`, `gps.micros`, `gps.millis`, `status`.
     pub fn from_name(s: &str) -> Option<Source> {
         let axis = |a: &str| match a {
             "x" => Some(0),
@@ -143,6 +146,7 @@ impl Source {
             None if s == "time" => Source::Time,
             None if s == "counter" => Source::Counter,
             None if s == "temperature" => Source::Temperature,
+            None if s == "status" => Source::Status,
             Some(("gps", "week")) => Source::GpsWeek,
             Some(("gps", "seconds")) => Source::GpsSeconds,
             Some(("gps", "whole_seconds")) => Source::GpsWholeSeconds,
@@ -176,6 +180,51 @@ pub struct FieldSpec {
     pub modulo: Option<u64>,
     /// Counter increment per frame (default 1).
     pub step: Option<u64>,
+    /// The value wraps at the type's range instead of saturating (a free-running timestamp).
+    pub wrap: Option<bool>,
+    /// A counter of internal ticks at this rate (Hz): it advances by ticks/output-rate per
+    /// frame, set from the run's rate (STIM300: 2000).
+    pub ticks_per_second: Option<u64>,
+    /// The status model of a `source = "status"` field.
+    pub status: Option<StatusSpec>,
+    /// Whether a value beyond this field's range raises the status overrange bits of its
+    /// sensor (default true; false for a channel with its own smaller range, e.g. STIM300
+    /// inclinometers).
+    pub flags_overrange: Option<bool>,
+}
+
+/// `[field.status]`: the value of a status word when all is well, and the bits each condition
+/// sets or clears.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct StatusSpec {
+    /// The word when all is well.
+    pub ok: i64,
+    /// A gyro channel saturated (error model's range, or beyond this protocol's field range).
+    pub gyro_overrange: Option<BitEdit>,
+    /// An accelerometer channel saturated.
+    pub accel_overrange: Option<BitEdit>,
+    /// A built-in-test failure (set by fault injection).
+    pub failure: Option<BitEdit>,
+}
+
+/// Bits a condition sets and clears in a status word (clear first, then set).
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct BitEdit {
+    /// Bits set.
+    #[serde(default)]
+    pub set: u64,
+    /// Bits cleared.
+    #[serde(default)]
+    pub clear: u64,
+}
+
+impl BitEdit {
+    /// `v` with the edit applied.
+    pub fn apply(self, v: i64) -> i64 {
+        ((v as u64 & !self.clear) | self.set) as i64
+    }
 }
 
 /// `[check]` as written.
@@ -193,6 +242,39 @@ pub struct CheckSpec {
     pub from: Option<usize>,
     /// Zero bytes appended to the covered data before computing (not transmitted).
     pub pad_to_multiple_of: Option<usize>,
+    /// Bytes appended to the covered data (after any padding) before computing, not
+    /// transmitted: MAVLink's CRC_EXTRA.
+    #[serde(default)]
+    pub append: Vec<u8>,
+}
+
+/// `[truncate]`: trailing zero bytes of the payload are not sent (MAVLink 2); a length field
+/// carries the payload bytes sent (at least 1).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TruncateSpec {
+    /// The field carrying the sent payload length (an unsigned integer, not a source).
+    pub length_field: String,
+    /// The first field of the payload; the payload runs to the check.
+    pub payload_from: String,
+}
+
+/// One `[[message]]` of a protocol that interleaves several frame layouts.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MessageSpec {
+    /// Name (used by `schedule`).
+    pub name: String,
+    /// Its Δθ and ΔV fields carry the sums over every record since this message was last
+    /// sent (e.g. HG4930's 100 Hz inertial message in a 600 Hz stream).
+    #[serde(default)]
+    pub accumulate: bool,
+    /// The fields in wire order.
+    pub field: Vec<FieldSpec>,
+    /// The integrity check.
+    pub check: Option<CheckSpec>,
+    /// Trailing-zero truncation.
+    pub truncate: Option<TruncateSpec>,
 }
 
 /// A golden test vector: bytes and the values they decode to.
@@ -207,6 +289,8 @@ pub struct TestVector {
     pub values: toml::Table,
     /// Relative tolerance of the value comparison (default 1e-6: single floats).
     pub tolerance: Option<f64>,
+    /// Index of the frame in the stream (selects the scheduled message; default: the counter).
+    pub frame: Option<u64>,
 }
 
 /// A frame specification as written.
@@ -227,10 +311,23 @@ pub struct FrameSpec {
     /// Default byte order.
     #[serde(default)]
     pub byte_order: ByteOrder,
-    /// The fields in wire order.
+    /// The fields in wire order (a single-layout protocol).
+    #[serde(default)]
     pub field: Vec<FieldSpec>,
     /// The integrity check, appended after the fields.
     pub check: Option<CheckSpec>,
+    /// Trailing-zero truncation of a single-layout protocol.
+    pub truncate: Option<TruncateSpec>,
+    /// Several interleaved layouts (instead of `field`/`check`).
+    #[serde(default)]
+    pub message: Vec<MessageSpec>,
+    /// The repeating order of messages by name, one per record (default: each once, in order).
+    pub schedule: Option<Vec<String>>,
+    /// Synchronous SDLC transport: the frame (fields and check) is the payload of a bit-stuffed
+    /// SDLC frame packed into bytes (`framing::SdlcOptions`).
+    pub sdlc: Option<crate::protocol::framing::SdlcOptions>,
+    /// Asynchronous HDLC transport: the frame is byte-stuffed between `7E` flags.
+    pub hdlc: Option<crate::protocol::framing::HdlcOptions>,
     /// Golden vectors.
     #[serde(default)]
     pub test_vector: Vec<TestVector>,
