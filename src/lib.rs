@@ -24,6 +24,7 @@ pub mod math;
 pub mod motion;
 pub mod output;
 pub mod protocol;
+pub mod realtime;
 pub mod quadrature;
 pub mod record;
 pub mod rng;
