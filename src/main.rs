@@ -24,6 +24,8 @@ enum Command {
     Scenes,
     /// List the built-in IMU templates with their headline figures.
     Templates,
+    /// Emulate the IMU in real time: frames at wall-clock rate to ptys, serial, UDP, files.
+    Run(Box<cmd::run::RunArgs>),
     /// Decode a frame stream (file or stdin) to CSV, counting check failures and counter gaps.
     Decode(cmd::decode::DecodeArgs),
 }
@@ -35,6 +37,7 @@ fn main() {
         Command::Trajectory(a) => cmd::info::export_trajectory(a),
         Command::Templates => cmd::info::list_templates(),
         Command::Decode(a) => cmd::decode::decode(a),
+        Command::Run(a) => cmd::run::run(*a),
         Command::Scenes => {
             for name in scenes::NAMES {
                 println!(

@@ -3,4 +3,5 @@
 pub mod decode;
 pub mod generate;
 pub mod info;
+pub mod run;
 pub mod setup;

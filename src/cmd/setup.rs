@@ -100,7 +100,26 @@ pub struct Resolved {
     pub model: ModelSettings,
 }
 
+/// What a command assumes when neither a flag nor the scene file says.
+pub struct Defaults {
+    /// IMU template.
+    pub imu: &'static str,
+    /// Output format or protocol.
+    pub format: &'static str,
+}
+
+/// `generate`'s defaults: error-free records as CSV.
+pub const GENERATE_DEFAULTS: Defaults = Defaults {
+    imu: "ideal",
+    format: "csv",
+};
+
 pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
+    resolve_with(a, &GENERATE_DEFAULTS)
+}
+
+/// Resolves flags over the scene file over `defaults`.
+pub fn resolve_with(a: GenerateArgs, defaults: &Defaults) -> Result<Resolved> {
     let (file, file_path) = match &a.source.scene_file {
         Some(p) => (SceneFile::read(p)?, p.clone()),
         None => (SceneFile::default(), PathBuf::from("<flags>")),
@@ -140,7 +159,7 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
         }
     };
     let at = in_file(a.imu.is_some(), file.imu.model.is_some(), "imu.model");
-    let imu_name = a.imu.or(file.imu.model).unwrap_or_else(|| "ideal".into());
+    let imu_name = a.imu.or(file.imu.model).unwrap_or_else(|| defaults.imu.into());
     let imu = imu_emu::errors::template::load(&imu_name).map_err(|e| anyhow::anyhow!("{at}{e}"))?;
     let seed = a
         .seed
@@ -167,7 +186,7 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
     let format_name = a
         .format
         .or(file.output.format)
-        .unwrap_or_else(|| "csv".into());
+        .unwrap_or_else(|| defaults.format.into());
     let protocol_file = a.protocol_file.clone();
     let format = match (Format::from_name(&format_name), &protocol_file) {
         (_, Some(p)) => Output::Frames(imu_emu::protocol::load(&p.to_string_lossy())?.1),
