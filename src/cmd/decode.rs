@@ -154,6 +154,7 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     let mut last_arrival: Option<i128> = None;
     let started = Instant::now();
     let mut last_tally = Instant::now();
+    let mut tallied = StreamStats::default();
     let deadline = a.duration.map(|d| started + Duration::from_secs_f64(d.max(0.0)));
     let limit = a.frames.unwrap_or(u64::MAX);
     while !STOP.load(Ordering::Relaxed) && dec.stats.frames < limit {
@@ -185,8 +186,12 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         err?;
         if live && last_tally.elapsed() >= Duration::from_secs(1) {
             out.flush()?;
-            eprintln!("imu-emu decode: {}", tally(&dec.stats, live.then_some(&gaps)));
             last_tally = Instant::now();
+            if dec.stats == tallied {
+                continue;
+            }
+            tallied = dec.stats;
+            eprintln!("imu-emu decode: {}", tally(&dec.stats, live.then_some(&gaps)));
         }
     }
     out.flush()?;

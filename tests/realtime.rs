@@ -1,0 +1,274 @@
+//! The real-time emulator end to end: `imu-emu run` on a pty, on UDP loopback and into files,
+//! checked against `imu-emu generate`'s bytes for the same seed. Timing bounds are generous
+//! (the VM stalls for milliseconds); timing figures belong to `benches/latency.rs`.
+
+use std::io::Read;
+use std::net::UdpSocket;
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use imu_emu::protocol::{StreamDecoder, load};
+
+const BIN: &str = env!("CARGO_BIN_EXE_imu-emu");
+const PROTOCOL: &str = "kvh1750";
+
+fn imu_emu(args: &[&str]) -> Command {
+    let mut c = Command::new(BIN);
+    c.args(args);
+    c
+}
+
+fn output(args: &[&str]) -> Output {
+    let out = imu_emu(args).output().expect("run imu-emu");
+    assert!(
+        out.status.success(),
+        "imu-emu {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// `generate`'s frames for the same run settings: the reference bytes.
+fn reference(common: &[&str]) -> Vec<u8> {
+    let mut args = vec!["generate", "--format", PROTOCOL, "--imu", "ln200"];
+    args.extend_from_slice(common);
+    output(&args).stdout
+}
+
+/// Spawns `run` with stderr captured.
+fn spawn_run(args: &[&str]) -> Child {
+    imu_emu(&[&["run"], args].concat())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn imu-emu run")
+}
+
+fn finish(child: Child) -> String {
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "run failed: {err}");
+    err
+}
+
+fn wait_for(path: &Path) {
+    let t = Instant::now();
+    while path.symlink_metadata().is_err() {
+        assert!(t.elapsed() < Duration::from_secs(20), "{} never appeared", path.display());
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Checks that `got` (bytes a reader received) is a run of whole frames of `reference`, in
+/// order, starting at a frame boundary — after at most one frame's worth of leading bytes (a
+/// reader may attach mid-frame) and up to a trailing partial frame. Returns the frame count;
+/// also checks that every frame decodes with no check failure or counter gap.
+fn contiguous_frames(got: &[u8], reference: &[u8], len: usize) -> usize {
+    assert!(got.len() >= 2 * len, "only {} bytes received", got.len());
+    let (skip, at) = (0..len)
+        .find_map(|p| {
+            let first = &got[p..p + len];
+            reference
+                .chunks_exact(len)
+                .position(|f| f == first)
+                .map(|i| (p, i * len))
+        })
+        .expect("the received bytes contain no frame of the reference stream");
+    let whole = (got.len() - skip) / len * len;
+    let got = &got[skip..skip + whole];
+    assert_eq!(
+        got,
+        &reference[at..at + whole],
+        "received frames differ from generate's (same seed) or are not contiguous"
+    );
+    let (_, plan) = load(PROTOCOL).unwrap();
+    let mut dec = StreamDecoder::new(plan);
+    dec.feed(got, |_| {});
+    assert_eq!(dec.stats.frames as usize, whole / len);
+    assert_eq!((dec.stats.check_failures, dec.stats.counter_gaps), (0, 0));
+    whole / len
+}
+
+/// Reads a serial port for `secs`, returning what arrived.
+fn read_for(port: &mut serialport::TTYPort, secs: f64) -> Vec<u8> {
+    let mut got = Vec::new();
+    let mut buf = [0u8; 4096];
+    let t = Instant::now();
+    while t.elapsed().as_secs_f64() < secs {
+        match port.read(&mut buf) {
+            Ok(n) => got.extend_from_slice(&buf[..n]),
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+            Err(e) => panic!("reading the pty: {e}"),
+        }
+    }
+    got
+}
+
+fn open_port(path: &Path) -> serialport::TTYPort {
+    let mut p = serialport::new(path.to_string_lossy(), 921_600)
+        .timeout(Duration::from_millis(50))
+        .open_native()
+        .expect("open the pty slave");
+    p.set_exclusive(false).unwrap();
+    serialport::SerialPort::clear(&p, serialport::ClearBuffer::Input).unwrap();
+    p
+}
+
+/// A reader on the pty gets generate's frames, contiguous, decodable; it closes and reopens
+/// mid-run and gets frames again; the run ends on time and removes its link.
+#[test]
+fn pty_stream_is_generate_and_survives_reopen() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("imu");
+    let common = ["--rate", "1000", "--duration", "6", "--seed", "7"];
+    let reference = reference(&common);
+    let len = load(PROTOCOL).unwrap().1.len();
+    let started = Instant::now();
+    let child = spawn_run(&[&common[..], &["--speed", "2", "--pty", link.to_str().unwrap()]].concat());
+    wait_for(&link);
+    let mut port = open_port(&link);
+    let first = read_for(&mut port, 0.8);
+    drop(port);
+    std::thread::sleep(Duration::from_millis(200));
+    let mut port = open_port(&link);
+    let second = read_for(&mut port, 0.8);
+    drop(port);
+    let err = finish(child);
+    let took = started.elapsed().as_secs_f64();
+    // 0.8 s at 2000 frames/s: well over 500 frames each, whatever the machine's stalls.
+    assert!(contiguous_frames(&first, &reference, len) > 500, "{err}");
+    assert!(contiguous_frames(&second, &reference, len) > 500, "{err}");
+    assert!(took < 15.0, "a 3 s run took {took:.1} s");
+    assert!(err.contains("6000 of 6000 frames"), "{err}");
+    assert!(link.symlink_metadata().is_err(), "the pty link was left behind");
+}
+
+/// A reader that opens the pty and never reads: the run still ends on time, the frames that
+/// did not fit are dropped and counted.
+#[test]
+fn stalled_reader_never_slows_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("stalled");
+    let started = Instant::now();
+    let child = spawn_run(&[
+        "--rate", "2000", "--duration", "2", "--protocol", PROTOCOL, "--pty",
+        link.to_str().unwrap(),
+    ]);
+    wait_for(&link);
+    let port = open_port(&link);
+    let err = finish(child);
+    drop(port);
+    let took = started.elapsed().as_secs_f64();
+    assert!(took < 10.0, "a 2 s run took {took:.1} s: {err}");
+    let dropped: u64 = err
+        .split(", ")
+        .find_map(|s| s.strip_suffix(" dropped (slow consumer)"))
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no drop count in {err}"));
+    // 4000 frames × 36 B = 144 kB into a pty that holds a few tens of kB.
+    assert!(dropped > 1000, "{err}");
+}
+
+/// UDP loopback: every datagram is one frame, and together they are generate's bytes.
+#[test]
+fn udp_datagrams_are_generate_frames() {
+    let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
+    rx.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let dest = rx.local_addr().unwrap().to_string();
+    let common = ["--rate", "1000", "--duration", "1", "--seed", "9"];
+    let reference = reference(&common);
+    let len = load(PROTOCOL).unwrap().1.len();
+    let child = spawn_run(&[&common[..], &["--speed", "4", "--udp", &dest]].concat());
+    let mut got = Vec::new();
+    let mut buf = [0u8; 2048];
+    while got.len() < reference.len() {
+        let n = rx.recv(&mut buf).expect("a datagram within 10 s");
+        assert_eq!(n, len, "one frame per datagram");
+        got.extend_from_slice(&buf[..n]);
+    }
+    finish(child);
+    assert_eq!(got, reference);
+}
+
+/// Nobody listening: the run completes and says what it sent.
+#[test]
+fn udp_without_listener_completes() {
+    let port = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let dest = format!("127.0.0.1:{port}");
+    let started = Instant::now();
+    let err = finish(spawn_run(&[
+        "--rate", "400", "--duration", "1", "--speed", "2", "--protocol", PROTOCOL, "--udp", &dest,
+    ]));
+    assert!(err.contains("400 of 400 frames"), "{err}");
+    assert!(started.elapsed() < Duration::from_secs(10));
+}
+
+/// `decode --udp-listen` is the consumer side: it decodes the emulator's datagrams live.
+#[test]
+fn decode_listens_on_udp() {
+    let port = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let dest = format!("127.0.0.1:{port}");
+    let mut dec = imu_emu(&[
+        "decode", "--protocol", PROTOCOL, "--udp-listen", &dest, "--frames", "400", "--duration",
+        "20",
+    ])
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped())
+    .spawn()
+    .unwrap();
+    // The CSV header comes once the socket is bound.
+    let mut stdout = dec.stdout.take().unwrap();
+    let mut first = [0u8; 1];
+    stdout.read_exact(&mut first).unwrap();
+    finish(spawn_run(&[
+        "--rate", "400", "--duration", "1", "--speed", "4", "--protocol", PROTOCOL, "--udp", &dest,
+    ]));
+    let mut csv = String::new();
+    stdout.read_to_string(&mut csv).unwrap();
+    let out = dec.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    // The header (its first byte already read) and one line per frame.
+    assert_eq!(csv.lines().count(), 401, "{err}");
+    assert!(
+        err.contains("400 frames, 0 check failures, 0 counter gaps, 0 bytes skipped"),
+        "{err}"
+    );
+}
+
+/// Same seed, same bytes: an unpaced run into a file and a paced one (×50) are both exactly
+/// `generate --format`'s output, with an error model and a scene file.
+#[test]
+fn file_output_is_generate_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let common = ["--scene", "circle", "--rate", "200", "--duration", "3", "--seed", "11"];
+    let reference = reference(&common);
+    for speed in ["max", "50"] {
+        let out = dir.path().join(format!("{speed}.bin"));
+        finish(spawn_run(
+            &[&common[..], &["--speed", speed, "--file", out.to_str().unwrap()]].concat(),
+        ));
+        assert!(std::fs::read(&out).unwrap() == reference, "--speed {speed}");
+    }
+}
+
+/// Refusals name what is wrong: a serial link too slow for the frames, a bad speed or instant.
+#[test]
+fn refuses_impossible_settings() {
+    for (args, says) in [
+        (
+            &["--serial", "/dev/null", "--baud", "9600", "--rate", "1000"][..],
+            "bit/s",
+        ),
+        (&["--speed", "0"][..], "--speed 0"),
+        (&["--start-at", "tomorrow"][..], "--start-at"),
+        (&["--protocol", "csv"][..], "generate"),
+    ] {
+        let out = imu_emu(&[&["run", "--duration", "1"], args].concat())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(says), "{args:?}: {err}");
+    }
+}
