@@ -4,6 +4,7 @@
 
 use std::io;
 use std::os::fd::{AsFd, AsRawFd, OwnedFd};
+use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 
 use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
@@ -103,6 +104,34 @@ impl Sink for PtySink {
         if self.writer.write(self.master.as_fd(), bytes, ends)? == FdState::NoReader {
             self.attached = false;
             self.writer.reset();
+        }
+        Ok(())
+    }
+
+    /// Gives an attached reader up to 200 ms to read the last frames: closing the master
+    /// would discard what is still queued on the slave.
+    fn finish(&mut self) -> io::Result<()> {
+        if !self.attached {
+            return Ok(());
+        }
+        let Ok(slave) = std::fs::OpenOptions::new()
+            .read(true)
+            .custom_flags(libc::O_NOCTTY | libc::O_NONBLOCK)
+            .open(&self.slave)
+        else {
+            return Ok(());
+        };
+        // The kernel moves written bytes to the slave's queue asynchronously: wait for the last
+        // write to land before looking.
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        for _ in 0..200 {
+            let mut queued: libc::c_int = 0;
+            // SAFETY: FIONREAD writes one int through a valid pointer.
+            let rc = unsafe { libc::ioctl(slave.as_raw_fd(), libc::FIONREAD, &mut queued) };
+            if rc != 0 || queued == 0 || !self.reader_present()? {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(1));
         }
         Ok(())
     }
