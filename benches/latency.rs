@@ -99,7 +99,9 @@ impl Arrivals {
         let modulo = self.dec.plan().counter().map_or(1 << 62, |c| c.0);
         let (mut k, mut last, mut out) = (self.k, self.last_counter, Vec::new());
         self.dec.feed(bytes, |d| {
-            let c = d.get(imu_emu::protocol::spec::Source::Counter).unwrap_or(0.0) as u64;
+            let c = d
+                .get(imu_emu::protocol::spec::Source::Counter)
+                .unwrap_or(0.0) as u64;
             k += match last {
                 None => c + 1,
                 Some(l) => (c + modulo - l) % modulo,
@@ -129,7 +131,11 @@ impl Arrivals {
             f64::NAN
         };
         let q = |p| h.quantile_us(p).unwrap_or(f64::NAN);
-        let dropped: u64 = writer.sinks.iter().map(|s| s.1.dropped + s.1.no_reader).sum();
+        let dropped: u64 = writer
+            .sinks
+            .iter()
+            .map(|s| s.1.dropped + s.1.no_reader)
+            .sum();
         format!(
             "{:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {drift:+.0} | {}/{expected} | {} | {}",
             writer.lateness.quantile_us(0.5).unwrap_or(f64::NAN),
@@ -228,8 +234,14 @@ fn main() {
                 continue;
             }
             let f = if rt { "yes" } else { "no" };
-            println!("| pty | {rate} | {batch} | {f} | {} |", pty_case(rate, secs, rt, &plan));
-            println!("| udp | {rate} | {batch} | {f} | {} |", udp_case(rate, secs, rt, &plan));
+            println!(
+                "| pty | {rate} | {batch} | {f} | {} |",
+                pty_case(rate, secs, rt, &plan)
+            );
+            println!(
+                "| udp | {rate} | {batch} | {f} | {} |",
+                udp_case(rate, secs, rt, &plan)
+            );
         }
     }
 

@@ -55,7 +55,11 @@ fn finish(child: Child) -> String {
 fn wait_for(path: &Path) {
     let t = Instant::now();
     while path.symlink_metadata().is_err() {
-        assert!(t.elapsed() < Duration::from_secs(20), "{} never appeared", path.display());
+        assert!(
+            t.elapsed() < Duration::from_secs(20),
+            "{} never appeared",
+            path.display()
+        );
         std::thread::sleep(Duration::from_millis(10));
     }
 }
@@ -125,7 +129,13 @@ fn pty_stream_is_generate_and_survives_reopen() {
     let reference = reference(&common);
     let len = load(PROTOCOL).unwrap().1.len();
     let started = Instant::now();
-    let child = spawn_run(&[&common[..], &["--speed", "2", "--pty", link.to_str().unwrap()]].concat());
+    let child = spawn_run(
+        &[
+            &common[..],
+            &["--speed", "2", "--pty", link.to_str().unwrap()],
+        ]
+        .concat(),
+    );
     wait_for(&link);
     let mut port = open_port(&link);
     let first = read_for(&mut port, 0.8);
@@ -141,7 +151,10 @@ fn pty_stream_is_generate_and_survives_reopen() {
     assert!(contiguous_frames(&second, &reference, len) > 500, "{err}");
     assert!(took < 15.0, "a 3 s run took {took:.1} s");
     assert!(err.contains("6000 of 6000 frames"), "{err}");
-    assert!(link.symlink_metadata().is_err(), "the pty link was left behind");
+    assert!(
+        link.symlink_metadata().is_err(),
+        "the pty link was left behind"
+    );
 }
 
 /// A reader that opens the pty and never reads: the run still ends on time, the frames that
@@ -152,7 +165,13 @@ fn stalled_reader_never_slows_the_run() {
     let link = dir.path().join("stalled");
     let started = Instant::now();
     let child = spawn_run(&[
-        "--rate", "2000", "--duration", "2", "--protocol", PROTOCOL, "--pty",
+        "--rate",
+        "2000",
+        "--duration",
+        "2",
+        "--protocol",
+        PROTOCOL,
+        "--pty",
         link.to_str().unwrap(),
     ]);
     wait_for(&link);
@@ -194,11 +213,24 @@ fn udp_datagrams_are_generate_frames() {
 /// Nobody listening: the run completes and says what it sent.
 #[test]
 fn udp_without_listener_completes() {
-    let port = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let port = UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
     let dest = format!("127.0.0.1:{port}");
     let started = Instant::now();
     let err = finish(spawn_run(&[
-        "--rate", "400", "--duration", "1", "--speed", "2", "--protocol", PROTOCOL, "--udp", &dest,
+        "--rate",
+        "400",
+        "--duration",
+        "1",
+        "--speed",
+        "2",
+        "--protocol",
+        PROTOCOL,
+        "--udp",
+        &dest,
     ]));
     assert!(err.contains("400 of 400 frames"), "{err}");
     assert!(started.elapsed() < Duration::from_secs(10));
@@ -207,10 +239,21 @@ fn udp_without_listener_completes() {
 /// `decode --udp-listen` is the consumer side: it decodes the emulator's datagrams live.
 #[test]
 fn decode_listens_on_udp() {
-    let port = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let port = UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
     let dest = format!("127.0.0.1:{port}");
     let mut dec = imu_emu(&[
-        "decode", "--protocol", PROTOCOL, "--udp-listen", &dest, "--frames", "400", "--duration",
+        "decode",
+        "--protocol",
+        PROTOCOL,
+        "--udp-listen",
+        &dest,
+        "--frames",
+        "400",
+        "--duration",
         "20",
     ])
     .stdout(Stdio::piped())
@@ -222,7 +265,16 @@ fn decode_listens_on_udp() {
     let mut first = [0u8; 1];
     stdout.read_exact(&mut first).unwrap();
     finish(spawn_run(&[
-        "--rate", "400", "--duration", "1", "--speed", "4", "--protocol", PROTOCOL, "--udp", &dest,
+        "--rate",
+        "400",
+        "--duration",
+        "1",
+        "--speed",
+        "4",
+        "--protocol",
+        PROTOCOL,
+        "--udp",
+        &dest,
     ]));
     let mut csv = String::new();
     stdout.read_to_string(&mut csv).unwrap();
@@ -242,12 +294,25 @@ fn decode_listens_on_udp() {
 #[test]
 fn file_output_is_generate_bytes() {
     let dir = tempfile::tempdir().unwrap();
-    let common = ["--scene", "circle", "--rate", "200", "--duration", "3", "--seed", "11"];
+    let common = [
+        "--scene",
+        "circle",
+        "--rate",
+        "200",
+        "--duration",
+        "3",
+        "--seed",
+        "11",
+    ];
     let reference = reference(&common);
     for speed in ["max", "50"] {
         let out = dir.path().join(format!("{speed}.bin"));
         finish(spawn_run(
-            &[&common[..], &["--speed", speed, "--file", out.to_str().unwrap()]].concat(),
+            &[
+                &common[..],
+                &["--speed", speed, "--file", out.to_str().unwrap()],
+            ]
+            .concat(),
         ));
         assert!(std::fs::read(&out).unwrap() == reference, "--speed {speed}");
     }
@@ -269,6 +334,9 @@ fn refuses_impossible_settings() {
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && err.contains(says), "{args:?}: {err}");
+        assert!(
+            !out.status.success() && err.contains(says),
+            "{args:?}: {err}"
+        );
     }
 }

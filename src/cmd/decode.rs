@@ -39,6 +39,9 @@ pub struct DecodeArgs {
     /// Stop after this many seconds (live input).
     #[arg(long)]
     pub duration: Option<f64>,
+    /// Print only the tally, not the decoded records.
+    #[arg(long)]
+    pub tally_only: bool,
 }
 
 /// Set by SIGINT/SIGTERM: stop reading and print the tally.
@@ -145,7 +148,9 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         }
     }
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-    writeln!(out, "{}", plan.value_names().join(","))?;
+    if !a.tally_only {
+        writeln!(out, "{}", plan.value_names().join(","))?;
+    }
     let mut dec = imu_emu::protocol::StreamDecoder::new(plan);
     let mut buf = vec![0u8; 1 << 16];
     let mut fmt = ryu::Buffer::new();
@@ -155,7 +160,9 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     let started = Instant::now();
     let mut last_tally = Instant::now();
     let mut tallied = StreamStats::default();
-    let deadline = a.duration.map(|d| started + Duration::from_secs_f64(d.max(0.0)));
+    let deadline = a
+        .duration
+        .map(|d| started + Duration::from_secs_f64(d.max(0.0)));
     let limit = a.frames.unwrap_or(u64::MAX);
     while !STOP.load(Ordering::Relaxed) && dec.stats.frames < limit {
         if deadline.is_some_and(|d| Instant::now() >= d) {
@@ -171,6 +178,9 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
                 gaps.add(now - t);
             }
             last_arrival = Some(now);
+            if a.tally_only {
+                return;
+            }
             line.clear();
             for (i, (_, v)) in d.values.iter().enumerate() {
                 if i > 0 {
@@ -191,11 +201,17 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
                 continue;
             }
             tallied = dec.stats;
-            eprintln!("imu-emu decode: {}", tally(&dec.stats, live.then_some(&gaps)));
+            eprintln!(
+                "imu-emu decode: {}",
+                tally(&dec.stats, live.then_some(&gaps))
+            );
         }
     }
     out.flush()?;
-    eprintln!("imu-emu decode: {}", tally(&dec.stats, live.then_some(&gaps)));
+    eprintln!(
+        "imu-emu decode: {}",
+        tally(&dec.stats, live.then_some(&gaps))
+    );
     Ok(())
 }
 

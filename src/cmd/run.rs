@@ -127,12 +127,17 @@ pub fn run(a: RunArgs) -> Result<()> {
         bail!("--udp-batch 0: expected at least 1 frame per datagram");
     }
     if !(a.max_behind_ms.is_finite() && a.max_behind_ms >= 0.0) {
-        bail!("--max-behind-ms {}: expected a non-negative number", a.max_behind_ms);
+        bail!(
+            "--max-behind-ms {}: expected a non-negative number",
+            a.max_behind_ms
+        );
     }
     if let Some(p) = a.protocol.as_deref()
         && imu_emu::output::Format::from_name(p).is_some()
     {
-        bail!("--protocol {p}: `run` streams protocol frames; use `generate --format {p}` for records");
+        bail!(
+            "--protocol {p}: `run` streams protocol frames; use `generate --format {p}` for records"
+        );
     }
     let speed = match a.speed.as_deref() {
         None => None,
@@ -270,6 +275,17 @@ pub fn run(a: RunArgs) -> Result<()> {
     let producer = Producer::new(motion, grid, r.nodes, r.encoding(), chain, false)
         .map_err(|e| r.locate(e))?;
     let block = realtime::block_len(frames_per_s);
+    tracing::info!(
+        "{} records at {} Hz, {}; blocks of {block} frames, {} in flight",
+        grid.count,
+        grid.rate_hz,
+        if paced {
+            format!("{frames_per_s} frames/s of wall clock")
+        } else {
+            "unpaced".into()
+        },
+        realtime::CHANNEL_BLOCKS
+    );
 
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -279,7 +295,8 @@ pub fn run(a: RunArgs) -> Result<()> {
     let (tx, rx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
     let (recycle_tx, recycle_rx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
     let (done_tx, done_rx) = tokio::sync::oneshot::channel();
-    let producer_task = rt.spawn_blocking(move || realtime::produce(producer, block, tx, recycle_rx));
+    let producer_task =
+        rt.spawn_blocking(move || realtime::produce(producer, block, tx, recycle_rx));
     let pacer_thread = {
         let (stop, status) = (stop.clone(), status.clone());
         std::thread::Builder::new()
@@ -356,7 +373,11 @@ fn summary(s: &Status, planned: u64, paced: bool) -> String {
         out += &format!(", {} skipped (too late)", s.skipped);
     }
     if let Some(f) = s.fifo {
-        out += if f { ", SCHED_FIFO" } else { ", SCHED_FIFO refused" };
+        out += if f {
+            ", SCHED_FIFO"
+        } else {
+            ", SCHED_FIFO refused"
+        };
     }
     for (label, st) in &s.sinks {
         out += &format!(

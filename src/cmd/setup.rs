@@ -159,7 +159,10 @@ pub fn resolve_with(a: GenerateArgs, defaults: &Defaults) -> Result<Resolved> {
         }
     };
     let at = in_file(a.imu.is_some(), file.imu.model.is_some(), "imu.model");
-    let imu_name = a.imu.or(file.imu.model).unwrap_or_else(|| defaults.imu.into());
+    let imu_name = a
+        .imu
+        .or(file.imu.model)
+        .unwrap_or_else(|| defaults.imu.into());
     let imu = imu_emu::errors::template::load(&imu_name).map_err(|e| anyhow::anyhow!("{at}{e}"))?;
     let seed = a
         .seed

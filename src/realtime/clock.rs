@@ -48,7 +48,10 @@ pub fn utc_to_monotonic(utc_ns: i128) -> i128 {
 /// Parses an RFC 3339 UTC instant `YYYY-MM-DDTHH:MM:SS[.fff…]Z` to ns since the Unix epoch.
 pub fn parse_utc(s: &str) -> Result<i128, String> {
     let bad = || format!("`{s}`: expected a UTC instant like 2026-11-24T15:00:00.000Z");
-    let body = s.strip_suffix('Z').or(s.strip_suffix('z')).ok_or_else(bad)?;
+    let body = s
+        .strip_suffix('Z')
+        .or(s.strip_suffix('z'))
+        .ok_or_else(bad)?;
     let (date, time) = body.split_once(['T', 't', ' ']).ok_or_else(bad)?;
     let num = |x: &str| -> Result<i64, String> {
         if x.is_empty() || !x.bytes().all(|b| b.is_ascii_digit()) {
@@ -64,7 +67,20 @@ pub fn parse_utc(s: &str) -> Result<i128, String> {
     let (y, mo, day) = (num(d[0])?, num(d[1])?, num(d[2])?);
     let (sec, frac) = t[2].split_once('.').unwrap_or((t[2], ""));
     let (h, mi, sec) = (num(t[0])?, num(t[1])?, num(sec)?);
-    let month_days = [31, 28 + leap(y) as i64, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31];
+    let month_days = [
+        31,
+        28 + leap(y) as i64,
+        31,
+        30,
+        31,
+        30,
+        31,
+        31,
+        30,
+        31,
+        30,
+        31,
+    ];
     if !(1..=12).contains(&mo) || day < 1 || day > month_days[mo as usize - 1] {
         return Err(format!("`{s}`: no such date"));
     }

@@ -58,8 +58,12 @@ pub struct Clocking {
 impl Clocking {
     /// Timing for `frames_per_s` frames per second: batched above [`BATCH_ABOVE_HZ`] to one
     /// wake-up per millisecond or so.
-    pub fn new(frames_per_s: f64, start_ns: Option<i128>, realtime: bool) -> Result<Clocking, String> {
-        if !(frames_per_s.is_finite() && frames_per_s >= 1e-6 && frames_per_s <= 1e8) {
+    pub fn new(
+        frames_per_s: f64,
+        start_ns: Option<i128>,
+        realtime: bool,
+    ) -> Result<Clocking, String> {
+        if !(1e-6..=1e8).contains(&frames_per_s) {
             return Err(format!("{frames_per_s} frames/s: expected 1e-6 to 1e8"));
         }
         let batch = if frames_per_s > BATCH_ABOVE_HZ {
@@ -110,7 +114,10 @@ pub fn run(
     status: Arc<Mutex<Status>>,
 ) -> io::Result<Status> {
     let mut st = Status {
-        sinks: sinks.iter().map(|s| (s.label().to_string(), s.stats())).collect(),
+        sinks: sinks
+            .iter()
+            .map(|s| (s.label().to_string(), s.stats()))
+            .collect(),
         ..Status::default()
     };
     let clocking = match &pacing {
@@ -166,8 +173,7 @@ pub fn run(
             let now = monotonic_ns();
             // Skip what is too late to be worth sending; send at once what is due.
             let mut from = i;
-            while from < n
-                && c.deadline(t0, block.first + from as u64 + 1) + c.max_behind_ns < now
+            while from < n && c.deadline(t0, block.first + from as u64 + 1) + c.max_behind_ns < now
             {
                 from += 1;
             }
@@ -217,7 +223,10 @@ pub fn run(
     guard.frames = st.frames;
     guard.skipped = st.skipped;
     guard.fifo = st.fifo;
-    guard.sinks = sinks.iter().map(|s| (s.label().to_string(), s.stats())).collect();
+    guard.sinks = sinks
+        .iter()
+        .map(|s| (s.label().to_string(), s.stats()))
+        .collect();
     Ok(guard.clone())
 }
 
@@ -247,7 +256,10 @@ fn publish(
         g.frames = st.frames;
         g.skipped = st.skipped;
         g.fifo = st.fifo;
-        g.sinks = sinks.iter().map(|s| (s.label().to_string(), s.stats())).collect();
+        g.sinks = sinks
+            .iter()
+            .map(|s| (s.label().to_string(), s.stats()))
+            .collect();
     }
 }
 

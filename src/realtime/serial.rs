@@ -50,7 +50,12 @@ impl std::str::FromStr for Framing {
 
 /// Checks that `frame_bytes` at `rate_hz` fit a `baud` link with `framing`; the error says
 /// what is needed.
-pub fn check_link(frame_bytes: usize, rate_hz: f64, baud: u32, framing: Framing) -> Result<(), String> {
+pub fn check_link(
+    frame_bytes: usize,
+    rate_hz: f64,
+    baud: u32,
+    framing: Framing,
+) -> Result<(), String> {
     let need = frame_bytes as f64 * rate_hz * framing.bits_per_char() as f64;
     if need > baud as f64 {
         return Err(format!(

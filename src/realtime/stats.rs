@@ -70,7 +70,9 @@ impl Lateness {
     /// `p50/p99/max` in µs, for status lines and tables.
     pub fn summary(&self) -> String {
         match (self.quantile_us(0.5), self.quantile_us(0.99)) {
-            (Some(a), Some(b)) => format!("p50 {a:.0} µs, p99 {b:.0} µs, max {:.0} µs", self.max_us()),
+            (Some(a), Some(b)) => {
+                format!("p50 {a:.0} µs, p99 {b:.0} µs, max {:.0} µs", self.max_us())
+            }
             _ => "no frames yet".into(),
         }
     }

@@ -55,7 +55,10 @@ impl UdpSink {
         let n = self.in_buf as u64;
         let mut res = self.sock.send_to(&self.buf, self.dest);
         // A refusal reports an earlier datagram that found no listener: ignore it and send.
-        if res.as_ref().is_err_and(|e| e.kind() == io::ErrorKind::ConnectionRefused) {
+        if res
+            .as_ref()
+            .is_err_and(|e| e.kind() == io::ErrorKind::ConnectionRefused)
+        {
             res = self.sock.send_to(&self.buf, self.dest);
         }
         match res {
