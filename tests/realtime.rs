@@ -340,3 +340,63 @@ fn refuses_impossible_settings() {
         );
     }
 }
+
+/// `--serial` on a tty (the slave of a pty pair the test holds, standing in for a UART):
+/// the bytes at the other end are generate's.
+#[test]
+fn serial_sink_writes_generate_frames() {
+    use std::os::fd::AsRawFd;
+    let common = ["--rate", "500", "--duration", "1", "--seed", "5"];
+    let reference = reference(&common);
+    let pair = nix::pty::openpty(None, None).unwrap();
+    let mut t = nix::sys::termios::tcgetattr(&pair.slave).unwrap();
+    nix::sys::termios::cfmakeraw(&mut t);
+    nix::sys::termios::tcsetattr(&pair.slave, nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
+    let dev = std::fs::read_link(format!("/proc/self/fd/{}", pair.slave.as_raw_fd())).unwrap();
+    let child = spawn_run(
+        &[&common[..], &["--speed", "4", "--serial", dev.to_str().unwrap(), "--baud", "921600"]]
+            .concat(),
+    );
+    let mut master = std::fs::File::from(pair.master);
+    let mut got = vec![0u8; reference.len()];
+    master.read_exact(&mut got).unwrap();
+    finish(child);
+    assert!(got == reference, "the serial stream differs from generate's");
+}
+
+/// `--start-at` an instant 1.5 s ahead: nothing goes out before it, the run ends on time.
+#[test]
+fn start_at_delays_the_first_frame() {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64()
+        + 1.5;
+    let (s, frac) = (secs.floor() as i64, secs.fract());
+    // Civil date of `s` (the test's own conversion, independent of the emulator's parser).
+    let (days, rem) = (s.div_euclid(86_400), s.rem_euclid(86_400));
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    let at = format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{:06}Z",
+        rem / 3600,
+        rem / 60 % 60,
+        rem % 60,
+        (frac * 1e6) as u64
+    );
+    let started = Instant::now();
+    let err = finish(spawn_run(&[
+        "--rate", "400", "--duration", "0.5", "--protocol", PROTOCOL, "--udp", "127.0.0.1:9",
+        "--start-at", &at,
+    ]));
+    let took = started.elapsed().as_secs_f64();
+    assert!((1.9..10.0).contains(&took), "took {took:.2} s for {at}: {err}");
+    assert!(err.contains("200 of 200 frames"), "{err}");
+}
