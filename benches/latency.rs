@@ -6,8 +6,9 @@
 //! loopback. A reader thread on the other side (the pty slave, a UDP socket) timestamps each
 //! frame's arrival with CLOCK_MONOTONIC; lateness = arrival − deadline, the deadline being
 //! start + k·Δt. Frames are identified by their counter (unwrapped), so a dropped frame does
-//! not shift the others. Drift: median lateness of the last tenth of the frames minus that of
-//! the first tenth (it would grow with the run if deadlines accumulated error).
+//! not shift the others. In the SCHED_FIFO rows the reader is SCHED_FIFO too. Drift: median
+//! lateness of the last tenth of the frames minus that of the first tenth (it would grow with
+//! the run if deadlines accumulated error).
 //!
 //! Then throughput: an unpaced run through the whole pipeline (producer thread, channel,
 //! pacer, file sink into a discarding writer) against `job::run` (what `generate` runs) on
@@ -27,7 +28,7 @@ use imu_emu::motion::sampled::ModelSettings;
 use imu_emu::output::Format;
 use imu_emu::protocol::{EncoderState, Plan, StreamDecoder, load};
 use imu_emu::realtime::clock::monotonic_ns;
-use imu_emu::realtime::pacer::{self, Clocking, Pacing, Status};
+use imu_emu::realtime::pacer::{self, Clocking, Pacing, Routed, Status};
 use imu_emu::realtime::pty::PtySink;
 use imu_emu::realtime::sink::{FileSink, Sink};
 use imu_emu::realtime::stats::Lateness;
@@ -55,7 +56,7 @@ fn pipeline(p: Producer, frames_per_s: f64, pacing: Pacing, sink: Box<dyn Sink>)
     let (tx, rx) = tokio::sync::mpsc::channel::<FrameBlock>(realtime::CHANNEL_BLOCKS);
     let (rtx, rrx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
     let block = realtime::block_len(frames_per_s);
-    let prod = std::thread::spawn(move || realtime::produce(p, block, tx, rrx));
+    let prod = std::thread::spawn(move || realtime::produce(p, block, 1, tx, rrx));
     let status = Arc::new(Mutex::new(Status::default()));
     let st = std::thread::Builder::new()
         .name("imu-pacer".into())
@@ -63,7 +64,7 @@ fn pipeline(p: Producer, frames_per_s: f64, pacing: Pacing, sink: Box<dyn Sink>)
             pacer::run(
                 rx,
                 rtx,
-                vec![sink],
+                vec![Routed::main(sink)],
                 pacing,
                 Arc::new(AtomicBool::new(false)),
                 status,
@@ -152,6 +153,19 @@ impl Arrivals {
     }
 }
 
+/// In the SCHED_FIFO rows the reader runs SCHED_FIFO too (one priority below the pacer), as a
+/// HIL consumer would: otherwise the figure is the reader's scheduling on a loaded machine,
+/// not the emulator's.
+fn reader_priority(fifo: bool) {
+    if fifo {
+        let p = libc::sched_param { sched_priority: 49 };
+        // SAFETY: plain syscall on the calling thread with a valid parameter block.
+        if unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &p) } != 0 {
+            eprintln!("reader: SCHED_FIFO refused, reader at normal priority");
+        }
+    }
+}
+
 fn pty_case(rate: f64, secs: f64, fifo: bool, plan: &Plan) -> String {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("imu");
@@ -170,6 +184,7 @@ fn pty_case(rate: f64, secs: f64, fifo: bool, plan: &Plan) -> String {
     let plan2 = plan.clone();
     let expected = (rate * secs).round() as u64;
     let rd = std::thread::spawn(move || {
+        reader_priority(fifo);
         let mut a = Arrivals::new(plan2);
         let mut buf = [0u8; 65536];
         while a.k < expected {
@@ -197,6 +212,7 @@ fn udp_case(rate: f64, secs: f64, fifo: bool, plan: &Plan) -> String {
     let plan2 = plan.clone();
     let expected = (rate * secs).round() as u64;
     let rd = std::thread::spawn(move || {
+        reader_priority(fifo);
         let mut a = Arrivals::new(plan2);
         let mut buf = [0u8; 2048];
         while a.k < expected {

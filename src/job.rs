@@ -229,6 +229,7 @@ pub struct Producer {
     imu: IdealImu<AnyMotion>,
     chain: Option<ErrorChain>,
     encoding: Encoding,
+    extra: Vec<Encoding>,
     /// Next record index (1-based: record k covers (t_{k−1}, t_k]).
     k: u64,
     count: u64,
@@ -271,6 +272,7 @@ impl Producer {
             imu: IdealImu::new(motion, grid.rate_hz, grid.t0, grid.count, nodes),
             chain,
             encoding: encoding.into(),
+            extra: Vec::new(),
             k: 1,
             count: grid.count,
             block: Vec::new(),
@@ -294,14 +296,15 @@ impl Producer {
         }
     }
 
-    /// Produces up to `max` records, appending their encoding to `out` and the end offset
-    /// (in `out`) of each record's bytes to `ends`; `None` once the run is complete.
-    pub fn next_block(
-        &mut self,
-        max: usize,
-        out: &mut Vec<u8>,
-        ends: &mut Vec<usize>,
-    ) -> Option<Block<'_>> {
+    /// Also encodes every record with each of `extra` (further wire formats of the same
+    /// records, each with its own counter), for [`Producer::next_block_multi`].
+    pub fn with_extra_encodings(mut self, extra: Vec<Encoding>) -> Producer {
+        self.extra = extra;
+        self
+    }
+
+    /// Generates and corrupts the next block of up to `max` records: (first index, count).
+    fn step(&mut self, max: usize) -> Option<(u64, usize)> {
         if self.k > self.count || max == 0 {
             return None;
         }
@@ -326,14 +329,45 @@ impl Producer {
                 c.apply(&mut self.block[..n]);
             }
         }
-        self.encoding.encode(&self.block[..n], out, ends);
         self.k += n as u64;
-        Some(Block {
+        Some((first, n))
+    }
+
+    fn view(&self, first: u64, n: usize) -> Block<'_> {
+        Block {
             first,
             records: &self.block[..n],
             truth: &self.truth[..if self.keep_truth { n } else { 0 }],
             chain: self.chain.as_ref(),
-        })
+        }
+    }
+
+    /// Produces up to `max` records, appending their encoding to `out` and the end offset
+    /// (in `out`) of each record's bytes to `ends`; `None` once the run is complete.
+    pub fn next_block(
+        &mut self,
+        max: usize,
+        out: &mut Vec<u8>,
+        ends: &mut Vec<usize>,
+    ) -> Option<Block<'_>> {
+        let (first, n) = self.step(max)?;
+        self.encoding.encode(&self.block[..n], out, ends);
+        Some(self.view(first, n))
+    }
+
+    /// Like [`Producer::next_block`] for the main encoding (`outs[0]`) and each extra one
+    /// (`outs[1..]`): (bytes, frame ends) appended per encoding.
+    pub fn next_block_multi(
+        &mut self,
+        max: usize,
+        outs: &mut [(Vec<u8>, Vec<usize>)],
+    ) -> Option<Block<'_>> {
+        let (first, n) = self.step(max)?;
+        let encodings = std::iter::once(&mut self.encoding).chain(self.extra.iter_mut());
+        for (e, (out, ends)) in encodings.zip(outs.iter_mut()) {
+            e.encode(&self.block[..n], out, ends);
+        }
+        Some(self.view(first, n))
     }
 }
 

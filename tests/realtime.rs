@@ -354,14 +354,27 @@ fn serial_sink_writes_generate_frames() {
     nix::sys::termios::tcsetattr(&pair.slave, nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
     let dev = std::fs::read_link(format!("/proc/self/fd/{}", pair.slave.as_raw_fd())).unwrap();
     let child = spawn_run(
-        &[&common[..], &["--speed", "4", "--serial", dev.to_str().unwrap(), "--baud", "921600"]]
-            .concat(),
+        &[
+            &common[..],
+            &[
+                "--speed",
+                "4",
+                "--serial",
+                dev.to_str().unwrap(),
+                "--baud",
+                "921600",
+            ],
+        ]
+        .concat(),
     );
     let mut master = std::fs::File::from(pair.master);
     let mut got = vec![0u8; reference.len()];
     master.read_exact(&mut got).unwrap();
     finish(child);
-    assert!(got == reference, "the serial stream differs from generate's");
+    assert!(
+        got == reference,
+        "the serial stream differs from generate's"
+    );
 }
 
 /// `--start-at` an instant 1.5 s ahead: nothing goes out before it, the run ends on time.
@@ -393,10 +406,73 @@ fn start_at_delays_the_first_frame() {
     );
     let started = Instant::now();
     let err = finish(spawn_run(&[
-        "--rate", "400", "--duration", "0.5", "--protocol", PROTOCOL, "--udp", "127.0.0.1:9",
-        "--start-at", &at,
+        "--rate",
+        "400",
+        "--duration",
+        "0.5",
+        "--protocol",
+        PROTOCOL,
+        "--udp",
+        "127.0.0.1:9",
+        "--start-at",
+        &at,
     ]));
     let took = started.elapsed().as_secs_f64();
-    assert!((1.9..10.0).contains(&took), "took {took:.2} s for {at}: {err}");
+    assert!(
+        (1.9..10.0).contains(&took),
+        "took {took:.2} s for {at}: {err}"
+    );
     assert!(err.contains("200 of 200 frames"), "{err}");
+}
+
+/// Sinks with their own protocol: the same records as stim300 frames on one UDP port and as
+/// the main protocol's in a file, each exactly `generate --format` of that protocol.
+#[test]
+fn each_sink_its_own_protocol() {
+    let dir = tempfile::tempdir().unwrap();
+    let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
+    rx.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let dest = format!("{},protocol=stim300", rx.local_addr().unwrap());
+    let file = dir.path().join("main.bin");
+    let common = ["--rate", "500", "--duration", "1", "--seed", "13"];
+    let main_ref = reference(&common);
+    let stim_ref = output(
+        &[
+            &["generate", "--format", "stim300", "--imu", "ln200"],
+            &common[..],
+        ]
+        .concat(),
+    )
+    .stdout;
+    let child = spawn_run(
+        &[
+            &common[..],
+            &[
+                "--speed",
+                "5",
+                "--protocol",
+                PROTOCOL,
+                "--udp",
+                &dest,
+                "--file",
+            ],
+            &[file.to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    let mut got = Vec::new();
+    let mut buf = [0u8; 2048];
+    while got.len() < stim_ref.len() {
+        let n = rx.recv(&mut buf).expect("a datagram within 10 s");
+        got.extend_from_slice(&buf[..n]);
+    }
+    finish(child);
+    assert!(
+        got == stim_ref,
+        "the stim300 stream differs from generate's"
+    );
+    assert!(
+        std::fs::read(&file).unwrap() == main_ref,
+        "the main stream differs"
+    );
 }

@@ -10,9 +10,10 @@ use anyhow::{Context, Result, bail};
 
 use imu_emu::job::{self, Producer};
 use imu_emu::motion::Motion;
-use imu_emu::realtime::pacer::{self, Clocking, Pacing, Status};
+use imu_emu::protocol::Plan;
+use imu_emu::realtime::pacer::{self, Clocking, Pacing, Routed, Status};
 use imu_emu::realtime::serial::{Framing, SerialSink, check_link};
-use imu_emu::realtime::sink::{FileSink, Sink};
+use imu_emu::realtime::sink::FileSink;
 use imu_emu::realtime::{self, clock, pty::PtySink, udp::UdpSink};
 
 use super::setup::{Defaults, GenerateArgs, Output, SourceArgs, resolve_with};
@@ -55,12 +56,13 @@ pub struct RunArgs {
     /// GPS time of record time 0 as WEEK,SECONDS_OF_WEEK (frames with GPS time fields).
     #[arg(long, value_parser = super::setup::parse_gps_time)]
     pub gps_time: Option<(u32, f64)>,
-    /// Pseudo-terminal sink: the slave is published at PATH (a symlink); repeatable.
+    /// Pseudo-terminal sink: the slave is published at PATH (a symlink); repeatable. Every
+    /// sink takes `,protocol=NAME` (built-in name or spec file) to speak its own protocol.
     /// Without any sink, one pty is opened and its /dev/pts path printed.
-    #[arg(long)]
-    pub pty: Vec<PathBuf>,
+    #[arg(long, value_name = "PATH[,protocol=NAME]")]
+    pub pty: Vec<String>,
     /// Serial device sink; repeatable.
-    #[arg(long)]
+    #[arg(long, value_name = "DEV[,protocol=NAME]")]
     pub serial: Vec<String>,
     /// Serial baud rate [default: the protocol's nominal link speed, else 921600].
     #[arg(long)]
@@ -69,14 +71,14 @@ pub struct RunArgs {
     #[arg(long, default_value = "8N1")]
     pub framing: Framing,
     /// UDP sink HOST:PORT (unicast, broadcast or multicast); repeatable.
-    #[arg(long)]
+    #[arg(long, value_name = "HOST:PORT[,protocol=NAME]")]
     pub udp: Vec<String>,
     /// Frames per UDP datagram.
     #[arg(long, default_value_t = 1)]
     pub udp_batch: usize,
     /// File sink, or - for stdout; repeatable.
-    #[arg(long)]
-    pub file: Vec<PathBuf>,
+    #[arg(long, value_name = "PATH[,protocol=NAME]")]
+    pub file: Vec<String>,
     /// Replay speed: a factor of real time, or `max` for unpaced [default: 1, or max when
     /// every sink is a file].
     #[arg(long)]
@@ -199,13 +201,19 @@ pub fn run(a: RunArgs) -> Result<()> {
     let paced = speed.is_finite();
     let frames_per_s = grid.rate_hz * if paced { speed } else { 1.0 };
 
-    // Sinks.
-    let mut sinks: Vec<Box<dyn Sink>> = Vec::new();
-    let mut ptys = a.pty.iter().map(|p| Some(p.as_path())).collect::<Vec<_>>();
+    // Sinks, each on stream 0 (the main protocol) or on a stream of its own protocol.
+    let mut streams = Streams::new(plan.clone());
+    let mut sinks: Vec<Routed> = Vec::new();
+    let mut ptys: Vec<Option<&str>> = a.pty.iter().map(|p| Some(p.as_str())).collect();
     if ptys.is_empty() && a.serial.is_empty() && a.udp.is_empty() && a.file.is_empty() {
         ptys.push(None);
     }
-    for link in ptys {
+    for value in ptys {
+        let (link, proto) = value.map_or((None, None), |v| {
+            let (l, p) = split_sink(v);
+            (Some(Path::new(l)), p)
+        });
+        let (stream, p) = streams.route(proto)?;
         let s = PtySink::open(link).with_context(|| {
             format!(
                 "opening a pty{}",
@@ -214,7 +222,7 @@ pub fn run(a: RunArgs) -> Result<()> {
         })?;
         eprintln!(
             "imu-emu: {} frames at {} Hz on {}{}",
-            plan.name,
+            p.name,
             grid.rate_hz,
             s.path().display(),
             if s.path() != s.slave() {
@@ -223,33 +231,47 @@ pub fn run(a: RunArgs) -> Result<()> {
                 String::new()
             }
         );
-        sinks.push(Box::new(s));
+        sinks.push(Routed {
+            stream,
+            sink: Box::new(s),
+        });
     }
-    let baud = a.baud.or(plan.baud.map(|b| b as u32)).unwrap_or(921_600);
-    for dev in &a.serial {
-        check_link(plan.len(), frames_per_s, baud, a.framing)
+    for value in &a.serial {
+        let (dev, proto) = split_sink(value);
+        let (stream, p) = streams.route(proto)?;
+        let baud = a.baud.or(p.baud.map(|b| b as u32)).unwrap_or(921_600);
+        check_link(p.len(), frames_per_s, baud, a.framing)
             .map_err(|e| anyhow::anyhow!("--serial {dev}: {e}"))?;
-        sinks.push(Box::new(SerialSink::open(dev, baud, a.framing)?));
+        let sink = Box::new(SerialSink::open(dev, baud, a.framing)?);
+        sinks.push(Routed { stream, sink });
     }
-    for dest in &a.udp {
-        sinks.push(Box::new(
-            UdpSink::open(dest, a.udp_batch).with_context(|| format!("--udp {dest}"))?,
-        ));
+    for value in &a.udp {
+        let (dest, proto) = split_sink(value);
+        let (stream, _) = streams.route(proto)?;
+        let sink =
+            Box::new(UdpSink::open(dest, a.udp_batch).with_context(|| format!("--udp {dest}"))?);
+        sinks.push(Routed { stream, sink });
     }
-    for path in &a.file {
-        let (label, w): (String, Box<dyn std::io::Write + Send>) = if path == Path::new("-") {
+    for value in &a.file {
+        let (path, proto) = split_sink(value);
+        let (stream, _) = streams.route(proto)?;
+        let (label, w): (String, Box<dyn std::io::Write + Send>) = if path == "-" {
             ("stdout".into(), Box::new(std::io::stdout()))
         } else {
-            let f = std::fs::File::create(path)
-                .with_context(|| format!("creating {}", path.display()))?;
-            (format!("file {}", path.display()), Box::new(f))
+            let f = std::fs::File::create(path).with_context(|| format!("creating {path}"))?;
+            (format!("file {path}"), Box::new(f))
         };
-        sinks.push(Box::new(FileSink::new(
+        let sink = Box::new(FileSink::new(
             label,
             Box::new(std::io::BufWriter::with_capacity(1 << 16, w)),
             paced,
-        )));
+        ));
+        sinks.push(Routed { stream, sink });
     }
+    let n_streams = streams.plans.len();
+    let extra: Vec<job::Encoding> = (streams.plans.into_iter().skip(1))
+        .map(|p| r.frames_encoding(p))
+        .collect();
 
     let pacing = if paced {
         let start_ns = start_at.map(|utc| {
@@ -273,7 +295,8 @@ pub fn run(a: RunArgs) -> Result<()> {
         Pacing::Unpaced
     };
     let producer = Producer::new(motion, grid, r.nodes, r.encoding(), chain, false)
-        .map_err(|e| r.locate(e))?;
+        .map_err(|e| r.locate(e))?
+        .with_extra_encodings(extra);
     let block = realtime::block_len(frames_per_s);
     tracing::info!(
         "{} records at {} Hz, {}; blocks of {block} frames, {} in flight",
@@ -296,7 +319,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     let (recycle_tx, recycle_rx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
     let (done_tx, done_rx) = tokio::sync::oneshot::channel();
     let producer_task =
-        rt.spawn_blocking(move || realtime::produce(producer, block, tx, recycle_rx));
+        rt.spawn_blocking(move || realtime::produce(producer, block, n_streams, tx, recycle_rx));
     let pacer_thread = {
         let (stop, status) = (stop.clone(), status.clone());
         std::thread::Builder::new()
@@ -344,6 +367,46 @@ pub fn run(a: RunArgs) -> Result<()> {
         summary(&final_status, grid.count, paced)
     );
     Ok(())
+}
+
+/// Splits a sink flag's value into its target and the protocol of `,protocol=NAME`.
+fn split_sink(v: &str) -> (&str, Option<&str>) {
+    match v.rsplit_once(",protocol=") {
+        Some((target, p)) => (target, Some(p)),
+        None => (v, None),
+    }
+}
+
+/// The wire formats of a run: the main protocol (stream 0) and one stream per other protocol
+/// a sink asks for.
+struct Streams {
+    names: Vec<Option<String>>,
+    plans: Vec<Plan>,
+}
+
+impl Streams {
+    fn new(main: Plan) -> Streams {
+        Streams {
+            names: vec![None],
+            plans: vec![main],
+        }
+    }
+
+    /// The stream of `protocol` (`None`: the main one), compiling it on first use.
+    fn route(&mut self, protocol: Option<&str>) -> Result<(usize, Plan)> {
+        let i = match self.names.iter().position(|n| n.as_deref() == protocol) {
+            Some(i) => i,
+            None => {
+                let name = protocol.expect("the main stream is always there");
+                let (_, plan) = imu_emu::protocol::load(name)
+                    .with_context(|| format!("sink protocol `{name}`"))?;
+                self.names.push(Some(name.to_string()));
+                self.plans.push(plan);
+                self.plans.len() - 1
+            }
+        };
+        Ok((i, self.plans[i].clone()))
+    }
 }
 
 /// The one-line live status.

@@ -386,16 +386,21 @@ impl Resolved {
     pub fn encoding(&self) -> job::Encoding {
         match &self.format {
             Output::Records(f) => job::Encoding::Records(*f),
-            Output::Frames(plan) => job::Encoding::Frames {
-                plan: Box::new(plan.clone()),
-                state: imu_emu::protocol::EncoderState {
-                    frames: 0,
-                    gps_week0: self.gps_time.map_or(0, |g| g.0),
-                    gps_sow0: self.gps_time.map_or(0.0, |g| g.1),
-                },
-                temperature: 25.0,
-                side: Format::Csv,
+            Output::Frames(plan) => self.frames_encoding(plan.clone()),
+        }
+    }
+
+    /// Frames of `plan` with this run's GPS time reference; side files in CSV.
+    pub fn frames_encoding(&self, plan: imu_emu::protocol::Plan) -> job::Encoding {
+        job::Encoding::Frames {
+            plan: Box::new(plan),
+            state: imu_emu::protocol::EncoderState {
+                frames: 0,
+                gps_week0: self.gps_time.map_or(0, |g| g.0),
+                gps_sow0: self.gps_time.map_or(0.0, |g| g.1),
             },
+            temperature: 25.0,
+            side: Format::Csv,
         }
     }
 

@@ -18,33 +18,35 @@ pub mod udp;
 
 use crate::job::Producer;
 
-/// A block of encoded frames travelling from the producer to the pacer.
+/// A block of encoded frames travelling from the producer to the pacer: the same records in
+/// one or more wire formats (streams), for sinks that speak different protocols.
 #[derive(Debug, Default)]
 pub struct FrameBlock {
     /// Index (0-based) of the block's first frame in the run.
     pub first: u64,
-    /// The frames' bytes, back to back.
-    pub bytes: Vec<u8>,
-    /// End offset in `bytes` of each frame.
-    pub ends: Vec<usize>,
+    /// Per stream: the frames' bytes back to back, and the end offset of each frame.
+    pub streams: Vec<(Vec<u8>, Vec<usize>)>,
 }
 
 impl FrameBlock {
-    /// Number of frames.
+    /// Number of frames (the same in every stream).
     pub fn len(&self) -> usize {
-        self.ends.len()
+        self.streams.first().map_or(0, |s| s.1.len())
     }
 
     /// True when the block holds no frame.
     pub fn is_empty(&self) -> bool {
-        self.ends.is_empty()
+        self.len() == 0
     }
 
-    /// Byte range of frames `i..j`.
-    pub fn span(&self, i: usize, j: usize) -> std::ops::Range<usize> {
-        let start = if i == 0 { 0 } else { self.ends[i - 1] };
-        let end = if j == 0 { 0 } else { self.ends[j - 1] };
-        start..end
+    /// Frames `i..j` of stream `s`: their bytes, and their ends relative to those bytes.
+    pub fn frames(&self, s: usize, i: usize, j: usize, ends: &mut Vec<usize>) -> &[u8] {
+        let (bytes, all) = &self.streams[s];
+        let start = if i == 0 { 0 } else { all[i - 1] };
+        let end = if j == 0 { 0 } else { all[j - 1] };
+        ends.clear();
+        ends.extend(all[i..j].iter().map(|e| e - start));
+        &bytes[start..end]
     }
 }
 
@@ -60,19 +62,24 @@ pub fn block_len(rate_hz: f64) -> usize {
 pub const CHANNEL_BLOCKS: usize = 8;
 
 /// Runs `producer` to the end (or until the receiver hangs up), sending blocks of `block`
-/// frames; reuses the buffers the pacer returns on `recycled`. Blocking: call it on its own
-/// thread (or `spawn_blocking`).
+/// frames in `streams` encodings (the main one and the producer's extra ones); reuses the
+/// buffers the pacer returns on `recycled`. Blocking: call it on its own thread (or
+/// `spawn_blocking`).
 pub fn produce(
     mut producer: Producer,
     block: usize,
+    streams: usize,
     tx: tokio::sync::mpsc::Sender<FrameBlock>,
     mut recycled: tokio::sync::mpsc::Receiver<FrameBlock>,
 ) {
     loop {
         let mut b = recycled.try_recv().unwrap_or_default();
-        b.bytes.clear();
-        b.ends.clear();
-        let Some(out) = producer.next_block(block, &mut b.bytes, &mut b.ends) else {
+        b.streams.resize_with(streams, Default::default);
+        for (bytes, ends) in b.streams.iter_mut() {
+            bytes.clear();
+            ends.clear();
+        }
+        let Some(out) = producer.next_block_multi(block, &mut b.streams) else {
             return;
         };
         b.first = out.first;

@@ -103,21 +103,33 @@ pub struct Status {
     pub fifo: Option<bool>,
 }
 
+/// A sink and the stream (index into [`FrameBlock::streams`]) it takes.
+pub struct Routed {
+    /// Stream index: 0 is the main protocol.
+    pub stream: usize,
+    /// The sink.
+    pub sink: Box<dyn Sink>,
+}
+
+impl Routed {
+    /// A sink of the main stream.
+    pub fn main(sink: Box<dyn Sink>) -> Routed {
+        Routed { stream: 0, sink }
+    }
+}
+
 /// Runs the pacer on the calling thread until the producer's channel closes or `stop` is set;
 /// returns the final counts (also left in `status`).
 pub fn run(
     mut rx: Receiver<FrameBlock>,
     recycle: Sender<FrameBlock>,
-    mut sinks: Vec<Box<dyn Sink>>,
+    mut sinks: Vec<Routed>,
     pacing: Pacing,
     stop: Arc<AtomicBool>,
     status: Arc<Mutex<Status>>,
 ) -> io::Result<Status> {
     let mut st = Status {
-        sinks: sinks
-            .iter()
-            .map(|s| (s.label().to_string(), s.stats()))
-            .collect(),
+        sinks: sink_stats(&sinks),
         ..Status::default()
     };
     let clocking = match &pacing {
@@ -137,12 +149,11 @@ pub fn run(
     let mut pending: Vec<i128> = Vec::new();
     let mut last_publish = 0i128;
     let mut warned_skip = false;
+    let mut ends = Vec::new();
     'blocks: while let Some(block) = rx.blocking_recv() {
         let n = block.len();
         let Some(c) = &clocking else {
-            for s in sinks.iter_mut() {
-                s.write(&block.bytes, &block.ends)?;
-            }
+            write_all(&mut sinks, &block, 0, n, &mut ends)?;
             st.frames += n as u64;
             let _ = recycle.try_send(block);
             if stop.load(Ordering::Relaxed) {
@@ -193,12 +204,7 @@ pub fn run(
                 to += 1;
             }
             if to > from {
-                let span = block.span(from, to);
-                let base = span.start;
-                let ends: Vec<usize> = block.ends[from..to].iter().map(|e| e - base).collect();
-                for s in sinks.iter_mut() {
-                    s.write(&block.bytes[span.clone()], &ends)?;
-                }
+                write_all(&mut sinks, &block, from, to, &mut ends)?;
                 let done = monotonic_ns();
                 for j in from..to {
                     pending.push(done - c.deadline(t0, block.first + j as u64 + 1));
@@ -213,7 +219,7 @@ pub fn run(
         let _ = recycle.try_send(block);
     }
     for s in sinks.iter_mut() {
-        s.finish()?;
+        s.sink.finish()?;
     }
     let mut guard = status.lock().unwrap_or_else(|e| e.into_inner());
     for l in pending.drain(..) {
@@ -223,11 +229,31 @@ pub fn run(
     guard.frames = st.frames;
     guard.skipped = st.skipped;
     guard.fifo = st.fifo;
-    guard.sinks = sinks
-        .iter()
-        .map(|s| (s.label().to_string(), s.stats()))
-        .collect();
+    guard.sinks = sink_stats(&sinks);
     Ok(guard.clone())
+}
+
+/// Hands frames `i..j` of the block to every sink, each in its stream.
+fn write_all(
+    sinks: &mut [Routed],
+    block: &FrameBlock,
+    i: usize,
+    j: usize,
+    ends: &mut Vec<usize>,
+) -> io::Result<()> {
+    for s in sinks.iter_mut() {
+        let bytes = block.frames(s.stream, i, j, ends);
+        s.sink.write(bytes, ends)?;
+    }
+    Ok(())
+}
+
+/// Label and counts of each sink.
+fn sink_stats(sinks: &[Routed]) -> Vec<(String, SinkStats)> {
+    sinks
+        .iter()
+        .map(|s| (s.sink.label().to_string(), s.sink.stats()))
+        .collect()
 }
 
 /// True at most every 100 ms.
@@ -242,12 +268,7 @@ fn done_publish(last: &mut i128) -> bool {
 }
 
 /// Moves the counts to the shared status without ever waiting for the lock.
-fn publish(
-    status: &Mutex<Status>,
-    st: &mut Status,
-    pending: &mut Vec<i128>,
-    sinks: &[Box<dyn Sink>],
-) {
+fn publish(status: &Mutex<Status>, st: &mut Status, pending: &mut Vec<i128>, sinks: &[Routed]) {
     if let Ok(mut g) = status.try_lock() {
         for l in pending.drain(..) {
             g.lateness.add(l);
@@ -256,10 +277,7 @@ fn publish(
         g.frames = st.frames;
         g.skipped = st.skipped;
         g.fifo = st.fifo;
-        g.sinks = sinks
-            .iter()
-            .map(|s| (s.label().to_string(), s.stats()))
-            .collect();
+        g.sinks = sink_stats(&sinks);
     }
 }
 
