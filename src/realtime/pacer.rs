@@ -277,7 +277,7 @@ fn publish(status: &Mutex<Status>, st: &mut Status, pending: &mut Vec<i128>, sin
         g.frames = st.frames;
         g.skipped = st.skipped;
         g.fifo = st.fifo;
-        g.sinks = sink_stats(&sinks);
+        g.sinks = sink_stats(sinks);
     }
 }
 
