@@ -100,6 +100,7 @@ fn open_udp(addr: &str) -> Result<UdpSocket> {
         _ => UdpSocket::bind(a).with_context(|| format!("--udp-listen {addr}"))?,
     };
     sock.set_read_timeout(Some(Duration::from_millis(100)))?;
+    imu_emu::realtime::udp::grow_receive_buffer(&sock);
     Ok(sock)
 }
 

@@ -67,7 +67,7 @@ pub struct RunArgs {
     /// Serial baud rate [default: the protocol's nominal link speed, else 921600].
     #[arg(long)]
     pub baud: Option<u32>,
-    /// Serial character framing [default: 8N1].
+    /// Serial character framing (data bits, parity N/E/O, stop bits).
     #[arg(long, default_value = "8N1")]
     pub framing: Framing,
     /// UDP sink HOST:PORT (unicast, broadcast or multicast); repeatable.

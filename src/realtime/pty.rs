@@ -87,6 +87,9 @@ impl Sink for PtySink {
     fn write(&mut self, bytes: &[u8], ends: &[usize]) -> io::Result<()> {
         if !self.reader_present()? {
             if self.attached {
+                // Discard what was written between the reader's close and now: the next
+                // reader must not see it (it is flushed again when that reader attaches).
+                termios::tcflush(&self.master, FlushArg::TCIOFLUSH)?;
                 tracing::info!("{}: reader gone", self.label);
             }
             self.attached = false;
