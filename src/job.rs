@@ -197,10 +197,24 @@ impl Encoding {
         }
     }
 
-    /// Appends the main output's bytes for `records`.
-    fn encode(&mut self, records: &[Record], buf: &mut Vec<u8>) {
+    /// Appends the main output's bytes for `records`, and the end offset of each record's
+    /// bytes in `buf` to `ends`.
+    fn encode(&mut self, records: &[Record], buf: &mut Vec<u8>, ends: &mut Vec<usize>) {
         match self {
-            Encoding::Records(f) => output::encode(*f, records, buf),
+            Encoding::Records(f) => {
+                // One call per block (as fast as before records had ends); each record is one
+                // CSV line or 104 bytes, so the ends are found afterwards.
+                let start = buf.len();
+                output::encode(*f, records, buf);
+                match f {
+                    Format::Bin => ends.extend((1..=records.len()).map(|i| start + 104 * i)),
+                    Format::Csv => ends.extend(
+                        (buf[start..].iter().enumerate())
+                            .filter(|b| *b.1 == b'\n')
+                            .map(|(i, _)| start + i + 1),
+                    ),
+                }
+            }
             Encoding::Frames {
                 plan,
                 state,
@@ -209,9 +223,159 @@ impl Encoding {
             } => {
                 for r in records {
                     plan.encode(r, *temperature, state, buf);
+                    ends.push(buf.len());
                 }
             }
         }
+    }
+}
+
+/// Block-wise production: ideal records → error chain → encoding, with each record's
+/// encoded bytes delimited. `run` (offline) and the real-time emulator both drive it, so the
+/// same seed gives the same bytes whatever consumes them.
+pub struct Producer {
+    imu: IdealImu<AnyMotion>,
+    chain: Option<ErrorChain>,
+    encoding: Encoding,
+    extra: Vec<Encoding>,
+    /// Next record index (1-based: record k covers (t_{k−1}, t_k]).
+    k: u64,
+    count: u64,
+    block: Vec<Record>,
+    truth: Vec<Record>,
+    keep_truth: bool,
+    rot: Vec<crate::generator::RotationTerms>,
+}
+
+/// One block of production: the corrupted records and, if asked for, the error-free ones.
+pub struct Block<'a> {
+    /// Index (0-based) of the block's first record in the run.
+    pub first: u64,
+    /// Records after the error chain.
+    pub records: &'a [Record],
+    /// Error-free records (empty unless the producer keeps truth).
+    pub truth: &'a [Record],
+    /// The error chain, for its per-record components.
+    pub chain: Option<&'a ErrorChain>,
+}
+
+impl Producer {
+    /// A producer of `grid.count` records; `keep_truth` also returns the error-free records.
+    pub fn new(
+        motion: AnyMotion,
+        grid: Grid,
+        nodes: usize,
+        encoding: impl Into<Encoding>,
+        chain: Option<ErrorChain>,
+        keep_truth: bool,
+    ) -> Result<Producer, JobError> {
+        if !(1..=crate::quadrature::MAX_NODES).contains(&nodes) {
+            return Err(JobError::Setting {
+                key: "quadrature",
+                value: nodes.to_string(),
+                expected: "1 to 16 Gauss–Legendre nodes",
+            });
+        }
+        Ok(Producer {
+            imu: IdealImu::new(motion, grid.rate_hz, grid.t0, grid.count, nodes),
+            chain,
+            encoding: encoding.into(),
+            extra: Vec::new(),
+            k: 1,
+            count: grid.count,
+            block: Vec::new(),
+            truth: Vec::new(),
+            keep_truth,
+            rot: Vec::new(),
+        })
+    }
+
+    /// Records still to produce.
+    pub fn remaining(&self) -> u64 {
+        self.count + 1 - self.k
+    }
+
+    /// Bytes that precede the first record (the CSV header of a CSV record stream).
+    pub fn preamble(&self) -> String {
+        if matches!(self.encoding, Encoding::Records(Format::Csv)) {
+            output::csv_header()
+        } else {
+            String::new()
+        }
+    }
+
+    /// Also encodes every record with each of `extra` (further wire formats of the same
+    /// records, each with its own counter), for [`Producer::next_block_multi`].
+    pub fn with_extra_encodings(mut self, extra: Vec<Encoding>) -> Producer {
+        self.extra = extra;
+        self
+    }
+
+    /// Generates and corrupts the next block of up to `max` records: (first index, count).
+    fn step(&mut self, max: usize) -> Option<(u64, usize)> {
+        if self.k > self.count || max == 0 {
+            return None;
+        }
+        let n = ((self.count - self.k + 1) as usize).min(max);
+        if self.block.len() < n {
+            self.block.resize(n, Record::default());
+        }
+        let first = self.k - 1;
+        self.imu.fill(self.k, &mut self.block[..n]);
+        if self.keep_truth {
+            self.truth.clear();
+            self.truth.extend_from_slice(&self.block[..n]);
+        }
+        if let Some(c) = self.chain.as_mut() {
+            if c.needs_rotation_terms() {
+                if self.rot.len() < n {
+                    self.rot.resize(n, Default::default());
+                }
+                self.imu.rotation_terms(self.k, &mut self.rot[..n]);
+                c.apply_with(&mut self.block[..n], Some(&self.rot[..n]));
+            } else {
+                c.apply(&mut self.block[..n]);
+            }
+        }
+        self.k += n as u64;
+        Some((first, n))
+    }
+
+    fn view(&self, first: u64, n: usize) -> Block<'_> {
+        Block {
+            first,
+            records: &self.block[..n],
+            truth: &self.truth[..if self.keep_truth { n } else { 0 }],
+            chain: self.chain.as_ref(),
+        }
+    }
+
+    /// Produces up to `max` records, appending their encoding to `out` and the end offset
+    /// (in `out`) of each record's bytes to `ends`; `None` once the run is complete.
+    pub fn next_block(
+        &mut self,
+        max: usize,
+        out: &mut Vec<u8>,
+        ends: &mut Vec<usize>,
+    ) -> Option<Block<'_>> {
+        let (first, n) = self.step(max)?;
+        self.encoding.encode(&self.block[..n], out, ends);
+        Some(self.view(first, n))
+    }
+
+    /// Like [`Producer::next_block`] for the main encoding (`outs[0]`) and each extra one
+    /// (`outs[1..]`): (bytes, frame ends) appended per encoding.
+    pub fn next_block_multi(
+        &mut self,
+        max: usize,
+        outs: &mut [(Vec<u8>, Vec<usize>)],
+    ) -> Option<Block<'_>> {
+        let (first, n) = self.step(max)?;
+        let encodings = std::iter::once(&mut self.encoding).chain(self.extra.iter_mut());
+        for (e, (out, ends)) in encodings.zip(outs.iter_mut()) {
+            e.encode(&self.block[..n], out, ends);
+        }
+        Some(self.view(first, n))
     }
 }
 
@@ -232,24 +396,8 @@ pub fn run(
     mut injected: Option<&mut dyn Write>,
     mut progress: impl FnMut(u64),
 ) -> Result<(), JobError> {
-    if !(1..=crate::quadrature::MAX_NODES).contains(&nodes) {
-        return Err(JobError::Setting {
-            key: "quadrature",
-            value: nodes.to_string(),
-            expected: "1 to 16 Gauss–Legendre nodes",
-        });
-    }
-    let mut imu = IdealImu::new(motion, grid.rate_hz, grid.t0, grid.count, nodes);
-    let mut block = vec![Record::default(); BLOCK];
-    let needs_rot = chain.as_ref().is_some_and(|c| c.needs_rotation_terms());
-    let mut rot =
-        vec![crate::generator::RotationTerms::default(); if needs_rot { BLOCK } else { 0 }];
-    let mut buf = Vec::with_capacity(BLOCK * 104);
-    let mut encoding = encoding.into();
+    let encoding = encoding.into();
     let format = encoding.side();
-    if matches!(encoding, Encoding::Records(Format::Csv)) {
-        out.write_all(output::csv_header().as_bytes())?;
-    }
     if format == Format::Csv {
         if let Some(t) = truth.as_mut() {
             t.write_all(output::csv_header().as_bytes())?;
@@ -266,33 +414,30 @@ pub fn run(
                 .with_components(),
         );
     }
-    let mut k = 1u64;
-    while k <= grid.count {
-        let n = ((grid.count - k + 1) as usize).min(BLOCK);
-        imu.fill(k, &mut block[..n]);
-        if let Some(t) = truth.as_mut() {
-            buf.clear();
-            output::encode(format, &block[..n], &mut buf);
-            t.write_all(&buf)?;
-        }
-        if let Some(c) = chain.as_mut() {
-            if c.needs_rotation_terms() {
-                imu.rotation_terms(k, &mut rot[..n]);
-                c.apply_with(&mut block[..n], Some(&rot[..n]));
-            } else {
-                c.apply(&mut block[..n]);
-            }
-        }
-        if let (Some(w), Some(c)) = (injected.as_mut(), chain.as_ref()) {
-            buf.clear();
-            output::encode_components(format, &block[..n], c.components(), &mut buf);
-            w.write_all(&buf)?;
-        }
+    let mut producer = Producer::new(motion, grid, nodes, encoding, chain, truth.is_some())?;
+    out.write_all(producer.preamble().as_bytes())?;
+    let mut buf = Vec::with_capacity(BLOCK * 104);
+    let mut side = Vec::new();
+    let mut ends = Vec::with_capacity(BLOCK);
+    loop {
         buf.clear();
-        encoding.encode(&block[..n], &mut buf);
+        ends.clear();
+        let Some(b) = producer.next_block(BLOCK, &mut buf, &mut ends) else {
+            break;
+        };
+        if let Some(t) = truth.as_mut() {
+            side.clear();
+            output::encode(format, b.truth, &mut side);
+            t.write_all(&side)?;
+        }
+        if let (Some(w), Some(c)) = (injected.as_mut(), b.chain) {
+            side.clear();
+            output::encode_components(format, b.records, c.components(), &mut side);
+            w.write_all(&side)?;
+        }
+        let done = b.first + b.records.len() as u64;
         out.write_all(&buf)?;
-        k += n as u64;
-        progress(k - 1);
+        progress(done);
     }
     out.flush()?;
     if let Some(t) = truth.as_mut() {
@@ -302,4 +447,65 @@ pub fn run(
         t.flush()?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenes::SceneParams;
+
+    /// Record ends delimit exactly one record each, in every encoding, and the blocks'
+    /// bytes put together are the whole run's.
+    #[test]
+    fn producer_ends_delimit_records() {
+        let source = SourceSpec::Scene("circle".into(), SceneParams::defaults_for("circle"));
+        let (_, plan) = crate::protocol::load("kvh1750").unwrap();
+        let frames = Encoding::Frames {
+            plan: Box::new(plan.clone()),
+            state: Default::default(),
+            temperature: 25.0,
+            side: Format::Csv,
+        };
+        for (encoding, len) in [
+            (Encoding::Records(Format::Bin), Some(104)),
+            (Encoding::Records(Format::Csv), None),
+            (frames, Some(plan.len())),
+        ] {
+            let motion = build_motion(&source, ModelSettings::default()).unwrap();
+            let grid = plan_grid(&motion);
+            let mut whole = Vec::new();
+            let m2 = build_motion(&source, ModelSettings::default()).unwrap();
+            let e2 = encoding.clone();
+            run(m2, grid, 3, e2, None, &mut whole, None, None, |_| {}).unwrap();
+            let mut p = Producer::new(motion, grid, 3, encoding, None, false).unwrap();
+            let preamble = p.preamble();
+            let (mut all, mut n) = (Vec::new(), 0);
+            loop {
+                let (mut buf, mut ends) = (Vec::new(), Vec::new());
+                let Some(b) = p.next_block(7, &mut buf, &mut ends) else {
+                    break;
+                };
+                assert_eq!(ends.len(), b.records.len());
+                assert_eq!(*ends.last().unwrap(), buf.len());
+                let mut start = 0;
+                for &e in &ends {
+                    match len {
+                        Some(l) => assert_eq!(e - start, l),
+                        None => {
+                            assert_eq!(buf[start..e].iter().filter(|&&c| c == b'\n').count(), 1)
+                        }
+                    }
+                    start = e;
+                }
+                n += ends.len();
+                all.extend(buf);
+            }
+            assert_eq!(n, 50);
+            assert_eq!([preamble.as_bytes(), &all].concat(), whole);
+        }
+    }
+
+    fn plan_grid(motion: &AnyMotion) -> Grid {
+        plan(motion, 10.0, None, Some(5.0)).unwrap()
+    }
 }

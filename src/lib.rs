@@ -27,6 +27,7 @@ pub mod nav;
 pub mod output;
 pub mod protocol;
 pub mod quadrature;
+pub mod realtime;
 pub mod record;
 pub mod rng;
 pub mod scenes;

@@ -24,6 +24,8 @@ enum Command {
     Scenes,
     /// List the built-in IMU templates with their headline figures.
     Templates,
+    /// Emulate the IMU in real time: frames at wall-clock rate to ptys, serial, UDP, files.
+    Run(Box<cmd::run::RunArgs>),
     /// Decode a frame stream (file or stdin) to CSV, counting check failures, counter gaps,
     /// duplicates, stale counters and status failures.
     Decode(cmd::decode::DecodeArgs),
@@ -45,6 +47,7 @@ fn main() {
         Command::Validate(a) => cmd::validate::validate(a),
         Command::Navigate(a) => cmd::navigate::navigate(a),
         Command::Compare(a) => cmd::compare::compare(a),
+        Command::Run(a) => cmd::run::run(*a),
         Command::Scenes => {
             for name in scenes::NAMES {
                 println!(

@@ -1,9 +1,17 @@
-//! `imu-emu decode`: frames in, CSV of the decoded values out, a tally on stderr.
+//! `imu-emu decode`: frames in (file, stdin, a pty or serial device, UDP), CSV of the decoded
+//! values out, a tally on stderr (check failures, counter gaps, inter-frame timing).
 
-use std::io::Write;
+use std::io::{ErrorKind, Read, Write};
+use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
+
+use imu_emu::protocol::StreamStats;
+use imu_emu::realtime::clock::monotonic_ns;
+use imu_emu::realtime::stats::Lateness;
 
 #[derive(clap::Args)]
 pub struct DecodeArgs {
@@ -20,12 +28,90 @@ pub struct DecodeArgs {
     #[arg(long)]
     pub rate: Option<f64>,
     /// Input file, or - for stdin [default: stdin].
+    #[arg(conflicts_with_all = ["serial", "udp_listen"])]
     pub input: Option<PathBuf>,
+    /// Read live from a pty or serial device (opened shared, input flushed first).
+    #[arg(long, visible_alias = "pty", conflicts_with = "udp_listen")]
+    pub serial: Option<String>,
+    /// Baud rate of --serial.
+    #[arg(long, default_value_t = 921_600)]
+    pub baud: u32,
+    /// Read live datagrams sent to HOST:PORT (a multicast group is joined).
+    #[arg(long)]
+    pub udp_listen: Option<String>,
+    /// Stop after this many good frames.
+    #[arg(long)]
+    pub frames: Option<u64>,
+    /// Stop after this many seconds (live input).
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Print only the tally, not the decoded records.
+    #[arg(long)]
+    pub tally_only: bool,
+}
+
+/// Set by SIGINT/SIGTERM: stop reading and print the tally.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_: libc::c_int) {
+    STOP.store(true, Ordering::Relaxed);
+}
+
+/// Where bytes come from.
+enum Input {
+    Stream(Box<dyn Read>),
+    Udp(UdpSocket),
+}
+
+impl Input {
+    /// Reads some bytes: `Ok(None)` at the end of the input, `Ok(Some(0))` on a timeout.
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<Option<usize>> {
+        let r = match self {
+            Input::Stream(r) => r.read(buf),
+            Input::Udp(s) => s.recv(buf),
+        };
+        match r {
+            Ok(0) if matches!(self, Input::Stream(_)) => Ok(None),
+            Ok(n) => Ok(Some(n)),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted
+                ) =>
+            {
+                Ok(Some(0))
+            }
+            // A pty whose emulator went away (EIO, or a hang-up that serialport reports as a
+            // broken pipe).
+            Err(e) if e.raw_os_error() == Some(libc::EIO) || e.kind() == ErrorKind::BrokenPipe => {
+                Ok(None)
+            }
+            Err(e) => Err(e),
+        }
+    }
+}
+
+fn open_udp(addr: &str) -> Result<UdpSocket> {
+    let a: SocketAddr = addr
+        .to_socket_addrs()
+        .with_context(|| format!("--udp-listen {addr}"))?
+        .next()
+        .with_context(|| format!("--udp-listen {addr}: no address"))?;
+    let sock = match a {
+        SocketAddr::V4(v4) if v4.ip().is_multicast() => {
+            let s = UdpSocket::bind(("0.0.0.0", v4.port()))?;
+            s.join_multicast_v4(v4.ip(), &std::net::Ipv4Addr::UNSPECIFIED)?;
+            s
+        }
+        _ => UdpSocket::bind(a).with_context(|| format!("--udp-listen {addr}"))?,
+    };
+    sock.set_read_timeout(Some(Duration::from_millis(100)))?;
+    imu_emu::realtime::udp::grow_receive_buffer(&sock);
+    Ok(sock)
 }
 
 /// `imu-emu decode`: frames in, CSV of the decoded values out, a tally on stderr.
 pub fn decode(a: DecodeArgs) -> Result<()> {
-    use std::io::Read;
     let spec = match (&a.protocol, &a.protocol_file) {
         (Some(n), _) => n.clone(),
         (None, Some(p)) => p.to_string_lossy().into_owned(),
@@ -39,13 +125,39 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         plan.set_rate(rate)
             .map_err(|e| anyhow::anyhow!("--rate: {e}"))?;
     }
-    let mut input: Box<dyn Read> = match a.input.as_deref() {
-        None => Box::new(std::io::stdin().lock()),
-        Some(p) if p == Path::new("-") => Box::new(std::io::stdin().lock()),
-        Some(p) => {
-            Box::new(std::fs::File::open(p).with_context(|| format!("opening {}", p.display()))?)
-        }
+    let live = a.serial.is_some() || a.udp_listen.is_some();
+    let mut input = if let Some(dev) = &a.serial {
+        let mut port = serialport::new(dev, a.baud)
+            .timeout(Duration::from_millis(100))
+            .open_native()
+            .with_context(|| format!("opening {dev}"))?;
+        port.set_exclusive(false)?;
+        serialport::SerialPort::clear(&port, serialport::ClearBuffer::Input)?;
+        Input::Stream(Box::new(port))
+    } else if let Some(addr) = &a.udp_listen {
+        Input::Udp(open_udp(addr)?)
+    } else {
+        Input::Stream(match a.input.as_deref() {
+            None => Box::new(std::io::stdin().lock()),
+            Some(p) if p == Path::new("-") => Box::new(std::io::stdin().lock()),
+            Some(p) => Box::new(
+                std::fs::File::open(p).with_context(|| format!("opening {}", p.display()))?,
+            ),
+        })
     };
+    if live {
+        // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
+        unsafe {
+            use nix::sys::signal::{SaFlags, SigAction, SigHandler, SigSet, Signal, sigaction};
+            let act = SigAction::new(
+                SigHandler::Handler(on_signal),
+                SaFlags::empty(),
+                SigSet::empty(),
+            );
+            sigaction(Signal::SIGINT, &act)?;
+            sigaction(Signal::SIGTERM, &act)?;
+        }
+    }
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     // Columns: every message's value fields, merged by name (plus the message name when the
     // protocol interleaves several); a row leaves the columns its message lacks empty.
@@ -68,22 +180,43 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     let names: Vec<String> = (0..plan.messages())
         .map(|m| plan.message_name(m).to_string())
         .collect();
-    if multi {
-        write!(out, "message,")?;
+    if !a.tally_only {
+        if multi {
+            write!(out, "message,")?;
+        }
+        writeln!(out, "{}", columns.join(","))?;
     }
-    writeln!(out, "{}", columns.join(","))?;
     let mut cells: Vec<Option<f64>> = vec![None; columns.len()];
     let mut dec = imu_emu::protocol::StreamDecoder::new(plan);
     let mut buf = vec![0u8; 1 << 16];
     let mut fmt = ryu::Buffer::new();
     let mut line = String::new();
-    loop {
-        let n = input.read(&mut buf)?;
-        if n == 0 {
+    let mut gaps = Lateness::default();
+    let mut last_arrival: Option<i128> = None;
+    let started = Instant::now();
+    let mut last_tally = Instant::now();
+    let mut tallied = StreamStats::default();
+    let deadline = a
+        .duration
+        .map(|d| started + Duration::from_secs_f64(d.max(0.0)));
+    let limit = a.frames.unwrap_or(u64::MAX);
+    while !STOP.load(Ordering::Relaxed) && dec.stats().frames < limit {
+        if deadline.is_some_and(|d| Instant::now() >= d) {
             break;
         }
+        let Some(n) = input.read(&mut buf)? else {
+            break;
+        };
+        let now = monotonic_ns();
         let mut err = Ok(());
         dec.feed(&buf[..n], |d| {
+            if let Some(t) = last_arrival {
+                gaps.add(now - t);
+            }
+            last_arrival = Some(now);
+            if a.tally_only {
+                return;
+            }
             line.clear();
             cells.iter_mut().for_each(|c| *c = None);
             for (slot, (_, v)) in slots[d.message].iter().zip(&d.values) {
@@ -107,11 +240,31 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
             }
         });
         err?;
+        if live && last_tally.elapsed() >= Duration::from_secs(1) {
+            out.flush()?;
+            last_tally = Instant::now();
+            if dec.stats() == tallied {
+                continue;
+            }
+            tallied = dec.stats();
+            eprintln!(
+                "imu-emu decode: {}",
+                tally(&dec.stats(), live.then_some(&gaps))
+            );
+        }
     }
     out.flush()?;
-    let s = dec.stats();
     eprintln!(
-        "imu-emu decode: {} frames, {} check failures, {} counter gaps, {} duplicates, {} stale counters, {} status flagged, {} bytes skipped, {} framing errors",
+        "imu-emu decode: {}",
+        tally(&dec.stats(), live.then_some(&gaps))
+    );
+    Ok(())
+}
+
+/// The counts, and for live input the time between frame arrivals.
+fn tally(s: &StreamStats, gaps: Option<&Lateness>) -> String {
+    let mut t = format!(
+        "{} frames, {} check failures, {} counter gaps, {} duplicates, {} stale counters, {} status flagged, {} bytes skipped, {} framing errors",
         s.frames,
         s.check_failures,
         s.counter_gaps,
@@ -121,5 +274,8 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         s.skipped_bytes,
         s.framing_errors
     );
-    Ok(())
+    if let Some(g) = gaps.filter(|g| g.count() > 0) {
+        t += &format!(", inter-frame time {}", g.summary());
+    }
+    t
 }

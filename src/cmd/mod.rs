@@ -5,5 +5,6 @@ pub mod decode;
 pub mod generate;
 pub mod info;
 pub mod navigate;
+pub mod run;
 pub mod setup;
 pub mod validate;

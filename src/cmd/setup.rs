@@ -107,7 +107,26 @@ pub struct Resolved {
     pub model: ModelSettings,
 }
 
+/// What a command assumes when neither a flag nor the scene file says.
+pub struct Defaults {
+    /// IMU template.
+    pub imu: &'static str,
+    /// Output format or protocol.
+    pub format: &'static str,
+}
+
+/// `generate`'s defaults: error-free records as CSV.
+pub const GENERATE_DEFAULTS: Defaults = Defaults {
+    imu: "ideal",
+    format: "csv",
+};
+
 pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
+    resolve_with(a, &GENERATE_DEFAULTS)
+}
+
+/// Resolves flags over the scene file over `defaults`.
+pub fn resolve_with(a: GenerateArgs, defaults: &Defaults) -> Result<Resolved> {
     let (file, file_path) = match &a.source.scene_file {
         Some(p) => (SceneFile::read(p)?, p.clone()),
         None => (SceneFile::default(), PathBuf::from("<flags>")),
@@ -147,7 +166,10 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
         }
     };
     let at = in_file(a.imu.is_some(), file.imu.model.is_some(), "imu.model");
-    let imu_name = a.imu.or(file.imu.model).unwrap_or_else(|| "ideal".into());
+    let imu_name = a
+        .imu
+        .or(file.imu.model)
+        .unwrap_or_else(|| defaults.imu.into());
     let imu = imu_emu::errors::template::load(&imu_name).map_err(|e| anyhow::anyhow!("{at}{e}"))?;
     let seed = a
         .seed
@@ -174,7 +196,7 @@ pub fn resolve(a: GenerateArgs) -> Result<Resolved> {
     let format_name = a
         .format
         .or(file.output.format)
-        .unwrap_or_else(|| "csv".into());
+        .unwrap_or_else(|| defaults.format.into());
     let protocol_file = a.protocol_file.clone();
     let mut format = match (Format::from_name(&format_name), &protocol_file) {
         (_, Some(p)) => Output::Frames(imu_emu::protocol::load(&p.to_string_lossy())?.1),
@@ -416,17 +438,22 @@ impl Resolved {
     pub fn encoding(&self) -> job::Encoding {
         match &self.format {
             Output::Records(f) => job::Encoding::Records(*f),
-            Output::Frames(plan) => job::Encoding::Frames {
-                plan: Box::new(plan.clone()),
-                state: imu_emu::protocol::EncoderState {
-                    gps_week0: self.gps_time.map_or(0, |g| g.0),
-                    gps_sow0: self.gps_time.map_or(0.0, |g| g.1),
-                    faults: self.faults.clone().map(Box::new),
-                    ..Default::default()
-                },
-                temperature: 25.0,
-                side: Format::Csv,
+            Output::Frames(plan) => self.frames_encoding(plan.clone()),
+        }
+    }
+
+    /// Frames of `plan` with this run's GPS time reference; side files in CSV.
+    pub fn frames_encoding(&self, plan: imu_emu::protocol::Plan) -> job::Encoding {
+        job::Encoding::Frames {
+            plan: Box::new(plan),
+            state: imu_emu::protocol::EncoderState {
+                gps_week0: self.gps_time.map_or(0, |g| g.0),
+                gps_sow0: self.gps_time.map_or(0.0, |g| g.1),
+                faults: self.faults.clone().map(Box::new),
+                ..Default::default()
             },
+            temperature: 25.0,
+            side: Format::Csv,
         }
     }
 

@@ -1,0 +1,451 @@
+//! `imu-emu run`: the emulator. Frames at wall-clock rate to ptys, serial devices, UDP and
+//! files; tokio runs the control plane (signals, status line), the pacer its own thread.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+
+use anyhow::{Context, Result, bail};
+
+use imu_emu::job::{self, Producer};
+use imu_emu::motion::Motion;
+use imu_emu::protocol::Plan;
+use imu_emu::realtime::pacer::{self, Clocking, Pacing, Routed, Status};
+use imu_emu::realtime::serial::{Framing, SerialSink, check_link};
+use imu_emu::realtime::sink::FileSink;
+use imu_emu::realtime::{self, clock, pty::PtySink, udp::UdpSink};
+
+use super::setup::{Defaults, GenerateArgs, Output, SourceArgs, resolve_with};
+
+/// The protocol `run` speaks by default: LN-200-style frames.
+pub const DEFAULT_PROTOCOL: &str = "ln200";
+/// The IMU template `run` emulates by default.
+pub const DEFAULT_IMU: &str = "ln200";
+/// Duration of a run on an unbounded scene when none is given: "until Ctrl-C" (a year).
+pub const FOREVER_S: f64 = 365.0 * 86_400.0;
+
+#[derive(clap::Args)]
+pub struct RunArgs {
+    #[command(flatten)]
+    pub source: SourceArgs,
+    /// IMU error model: a template name or file [default: ln200].
+    #[arg(long)]
+    pub imu: Option<String>,
+    /// Built-in protocol of the frames [default: ln200 (kvh1750 until ln200 is built in)].
+    #[arg(long, conflicts_with = "protocol_file")]
+    pub protocol: Option<String>,
+    /// Frames of a protocol described in a spec file.
+    #[arg(long)]
+    pub protocol_file: Option<PathBuf>,
+    /// IMU rate (Hz) [default: the protocol's nominal rate].
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Duration (s) [default: the trajectory's end; until Ctrl-C for unbounded scenes].
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Simulation time t₀ of the first interval (s) [default: the trajectory's start].
+    #[arg(long, allow_negative_numbers = true)]
+    pub start: Option<f64>,
+    /// Master seed of the random error processes [default: 20261124].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// GPS time of record time 0 as WEEK,SECONDS_OF_WEEK (frames with GPS time fields).
+    #[arg(long, value_parser = super::setup::parse_gps_time)]
+    pub gps_time: Option<(u32, f64)>,
+    /// Pseudo-terminal sink: the slave is published at PATH (a symlink); repeatable. Every
+    /// sink takes `,protocol=NAME` (built-in name or spec file) to speak its own protocol.
+    /// Without any sink, one pty is opened and its /dev/pts path printed.
+    #[arg(long, value_name = "PATH[,protocol=NAME]")]
+    pub pty: Vec<String>,
+    /// Serial device sink; repeatable.
+    #[arg(long, value_name = "DEV[,protocol=NAME]")]
+    pub serial: Vec<String>,
+    /// Serial baud rate [default: the protocol's nominal link speed, else 921600].
+    #[arg(long)]
+    pub baud: Option<u32>,
+    /// Serial character framing (data bits, parity N/E/O, stop bits).
+    #[arg(long, default_value = "8N1")]
+    pub framing: Framing,
+    /// UDP sink HOST:PORT (unicast, broadcast or multicast); repeatable.
+    #[arg(long, value_name = "HOST:PORT[,protocol=NAME]")]
+    pub udp: Vec<String>,
+    /// Frames per UDP datagram.
+    #[arg(long, default_value_t = 1)]
+    pub udp_batch: usize,
+    /// File sink, or - for stdout; repeatable.
+    #[arg(long, value_name = "PATH[,protocol=NAME]")]
+    pub file: Vec<String>,
+    /// Replay speed: a factor of real time, or `max` for unpaced [default: 1, or max when
+    /// every sink is a file].
+    #[arg(long)]
+    pub speed: Option<String>,
+    /// Wall-clock instant (UTC, RFC 3339, e.g. 2026-11-24T15:00:00Z) of simulation time t₀,
+    /// to align several emulators [default: when the first frames are ready].
+    #[arg(long)]
+    pub start_at: Option<String>,
+    /// Frames later than this are skipped and counted rather than sent in a burst (ms).
+    #[arg(long, default_value_t = 100.0)]
+    pub max_behind_ms: f64,
+    /// Run the pacer SCHED_FIFO (needs CAP_SYS_NICE or an RLIMIT_RTPRIO; falls back with a
+    /// warning).
+    #[arg(long)]
+    pub realtime: bool,
+    /// Gauss–Legendre nodes per interval [default: 3].
+    #[arg(long)]
+    pub quadrature: Option<usize>,
+    /// Inject a fault into the frames: KIND@T1,T2,… (record times, s) or KIND~RATE (mean
+    /// events per second); KIND is corrupt-check, drop, duplicate, stale-counter or status.
+    /// Repeatable; adds to the scene file's [faults].
+    #[arg(long = "fault", value_parser = imu_emu::protocol::FaultSpec::parse_flag)]
+    pub faults: Vec<imu_emu::protocol::FaultSpec>,
+    /// More log output (-v info, -vv debug).
+    #[arg(short, long, action = clap::ArgAction::Count)]
+    pub verbose: u8,
+}
+
+/// Installs the `tracing` subscriber on stderr: warnings only, `-v` info, `-vv` debug
+/// (`RUST_LOG` overrides).
+pub fn init_logging(verbose: u8) {
+    let level = ["warn", "info", "debug"][(verbose as usize).min(2)];
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(level));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
+}
+
+pub fn run(a: RunArgs) -> Result<()> {
+    init_logging(a.verbose);
+    if a.udp_batch == 0 {
+        bail!("--udp-batch 0: expected at least 1 frame per datagram");
+    }
+    if !(a.max_behind_ms.is_finite() && a.max_behind_ms >= 0.0) {
+        bail!(
+            "--max-behind-ms {}: expected a non-negative number",
+            a.max_behind_ms
+        );
+    }
+    if let Some(p) = a.protocol.as_deref()
+        && imu_emu::output::Format::from_name(p).is_some()
+    {
+        bail!(
+            "--protocol {p}: `run` streams protocol frames; use `generate --format {p}` for records"
+        );
+    }
+    let speed = match a.speed.as_deref() {
+        None => None,
+        Some("max") => Some(f64::INFINITY),
+        Some(s) => match s.parse::<f64>() {
+            Ok(x) if x.is_finite() && x > 0.0 => Some(x),
+            _ => bail!("--speed {s}: expected a positive factor (1 = real time) or `max`"),
+        },
+    };
+    let start_at = a
+        .start_at
+        .as_deref()
+        .map(|s| clock::parse_utc(s).map_err(|e| anyhow::anyhow!("--start-at {e}")))
+        .transpose()?;
+    let defaults = Defaults {
+        imu: DEFAULT_IMU,
+        format: DEFAULT_PROTOCOL,
+    };
+    let duration_given = a.duration.is_some();
+    let r = resolve_with(
+        GenerateArgs {
+            source: a.source,
+            rate: a.rate,
+            duration: a.duration,
+            start: a.start,
+            format: a.protocol,
+            protocol_file: a.protocol_file,
+            gps_time: a.gps_time,
+            output: None,
+            imu: a.imu,
+            seed: a.seed,
+            truth: None,
+            truth_errors: None,
+            quadrature: a.quadrature,
+            interp: None,
+            stencil: None,
+            faults: a.faults,
+        },
+        &defaults,
+    )?;
+    let plan = match &r.format {
+        Output::Frames(p) => p.clone(),
+        Output::Records(f) => {
+            bail!("output format {f:?}: `run` streams protocol frames; use `generate` for records")
+        }
+    };
+    let motion = job::build_motion(&r.source, r.model).map_err(|e| r.locate(e))?;
+    let duration = match r.duration {
+        None if !duration_given && !motion.end().is_finite() => Some(FOREVER_S),
+        d => d,
+    };
+    let grid = job::plan(&motion, r.rate, r.start, duration).map_err(|e| r.locate(e))?;
+    let chain = r.chain(&grid)?;
+    let only_files = a.pty.is_empty() && a.serial.is_empty() && a.udp.is_empty();
+    let speed = speed.unwrap_or(if only_files && !a.file.is_empty() {
+        f64::INFINITY
+    } else {
+        1.0
+    });
+    let paced = speed.is_finite();
+    let frames_per_s = grid.rate_hz * if paced { speed } else { 1.0 };
+
+    // Sinks, each on stream 0 (the main protocol) or on a stream of its own protocol.
+    let mut streams = Streams::new(plan.clone(), grid.rate_hz);
+    let mut sinks: Vec<Routed> = Vec::new();
+    let mut ptys: Vec<Option<&str>> = a.pty.iter().map(|p| Some(p.as_str())).collect();
+    if ptys.is_empty() && a.serial.is_empty() && a.udp.is_empty() && a.file.is_empty() {
+        ptys.push(None);
+    }
+    for value in ptys {
+        let (link, proto) = value.map_or((None, None), |v| {
+            let (l, p) = split_sink(v);
+            (Some(Path::new(l)), p)
+        });
+        let (stream, p) = streams.route(proto)?;
+        let s = PtySink::open(link).with_context(|| {
+            format!(
+                "opening a pty{}",
+                link.map_or(String::new(), |l| format!(" at {}", l.display()))
+            )
+        })?;
+        eprintln!(
+            "imu-emu: {} frames at {} Hz on {}{}",
+            p.name,
+            grid.rate_hz,
+            s.path().display(),
+            if s.path() != s.slave() {
+                format!(" -> {}", s.slave().display())
+            } else {
+                String::new()
+            }
+        );
+        sinks.push(Routed {
+            stream,
+            sink: Box::new(s),
+        });
+    }
+    for value in &a.serial {
+        let (dev, proto) = split_sink(value);
+        let (stream, p) = streams.route(proto)?;
+        let baud = a.baud.or(p.baud.map(|b| b as u32)).unwrap_or(921_600);
+        check_link(p.len(), frames_per_s, baud, a.framing)
+            .map_err(|e| anyhow::anyhow!("--serial {dev}: {e}"))?;
+        let sink = Box::new(SerialSink::open(dev, baud, a.framing)?);
+        sinks.push(Routed { stream, sink });
+    }
+    for value in &a.udp {
+        let (dest, proto) = split_sink(value);
+        let (stream, _) = streams.route(proto)?;
+        let sink =
+            Box::new(UdpSink::open(dest, a.udp_batch).with_context(|| format!("--udp {dest}"))?);
+        sinks.push(Routed { stream, sink });
+    }
+    for value in &a.file {
+        let (path, proto) = split_sink(value);
+        let (stream, _) = streams.route(proto)?;
+        let (label, w): (String, Box<dyn std::io::Write + Send>) = if path == "-" {
+            ("stdout".into(), Box::new(std::io::stdout()))
+        } else {
+            let f = std::fs::File::create(path).with_context(|| format!("creating {path}"))?;
+            (format!("file {path}"), Box::new(f))
+        };
+        let sink = Box::new(FileSink::new(
+            label,
+            Box::new(std::io::BufWriter::with_capacity(1 << 16, w)),
+            paced,
+        ));
+        sinks.push(Routed { stream, sink });
+    }
+    let n_streams = streams.plans.len();
+    let extra: Vec<job::Encoding> = (streams.plans.into_iter().skip(1))
+        .map(|p| r.frames_encoding(p))
+        .collect();
+
+    let pacing = if paced {
+        let start_ns = start_at.map(|utc| {
+            let ahead = (utc - clock::realtime_ns()) as f64 / 1e9;
+            if ahead < -1.0 {
+                eprintln!(
+                    "imu-emu: warning: --start-at is {:.1} s in the past: frames before now are skipped",
+                    -ahead
+                );
+            }
+            clock::utc_to_monotonic(utc)
+        });
+        let mut c =
+            Clocking::new(frames_per_s, start_ns, a.realtime).map_err(|e| anyhow::anyhow!(e))?;
+        c.max_behind_ns = (a.max_behind_ms * 1e6) as i128;
+        if c.batch > 1 {
+            tracing::info!("{frames_per_s} frames/s: {} frames per wake-up", c.batch);
+        }
+        Pacing::Paced(c)
+    } else {
+        Pacing::Unpaced
+    };
+    let producer = Producer::new(motion, grid, r.nodes, r.encoding(), chain, false)
+        .map_err(|e| r.locate(e))?
+        .with_extra_encodings(extra);
+    let block = realtime::block_len(frames_per_s);
+    tracing::info!(
+        "{} records at {} Hz, {}; blocks of {block} frames, {} in flight",
+        grid.count,
+        grid.rate_hz,
+        if paced {
+            format!("{frames_per_s} frames/s of wall clock")
+        } else {
+            "unpaced".into()
+        },
+        realtime::CHANNEL_BLOCKS
+    );
+
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let status = Arc::new(Mutex::new(Status::default()));
+    let (tx, rx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
+    let (recycle_tx, recycle_rx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
+    let (done_tx, done_rx) = tokio::sync::oneshot::channel();
+    let producer_task =
+        rt.spawn_blocking(move || realtime::produce(producer, block, n_streams, tx, recycle_rx));
+    let pacer_thread = {
+        let (stop, status) = (stop.clone(), status.clone());
+        std::thread::Builder::new()
+            .name("imu-pacer".into())
+            .spawn(move || {
+                let r = pacer::run(rx, recycle_tx, sinks, pacing, stop, status);
+                let _ = done_tx.send(());
+                r
+            })?
+    };
+    let live = std::io::stderr().is_terminal();
+    let interrupted = rt.block_on(async {
+        let mut sigterm =
+            tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())?;
+        let mut tick = tokio::time::interval(std::time::Duration::from_secs(1));
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+        tokio::pin!(done_rx);
+        loop {
+            tokio::select! {
+                _ = &mut done_rx => return Ok::<bool, std::io::Error>(false),
+                _ = tokio::signal::ctrl_c() => break,
+                _ = sigterm.recv() => break,
+                _ = tick.tick() => {
+                    if live && paced {
+                        let s = status.lock().unwrap_or_else(|e| e.into_inner()).clone();
+                        eprint!("\r\x1b[2K{}", status_line(&s));
+                    }
+                }
+            }
+        }
+        stop.store(true, Ordering::Relaxed);
+        Ok(true)
+    })?;
+    if live && paced {
+        eprint!("\r\x1b[2K");
+    }
+    let final_status = pacer_thread
+        .join()
+        .map_err(|_| anyhow::anyhow!("the pacer thread panicked"))??;
+    // The producer ends once the pacer has dropped its channel.
+    drop(rt.block_on(producer_task));
+    eprintln!(
+        "imu-emu: {}{}",
+        if interrupted { "interrupted: " } else { "" },
+        summary(&final_status, grid.count, paced)
+    );
+    Ok(())
+}
+
+/// Splits a sink flag's value into its target and the protocol of `,protocol=NAME`.
+fn split_sink(v: &str) -> (&str, Option<&str>) {
+    match v.rsplit_once(",protocol=") {
+        Some((target, p)) => (target, Some(p)),
+        None => (v, None),
+    }
+}
+
+/// The wire formats of a run: the main protocol (stream 0) and one stream per other protocol
+/// a sink asks for.
+struct Streams {
+    names: Vec<Option<String>>,
+    plans: Vec<Plan>,
+    /// The run's rate, which counters that count internal ticks step by.
+    rate_hz: f64,
+}
+
+impl Streams {
+    fn new(main: Plan, rate_hz: f64) -> Streams {
+        Streams {
+            names: vec![None],
+            plans: vec![main],
+            rate_hz,
+        }
+    }
+
+    /// The stream of `protocol` (`None`: the main one), compiling it on first use.
+    fn route(&mut self, protocol: Option<&str>) -> Result<(usize, Plan)> {
+        let i = match self.names.iter().position(|n| n.as_deref() == protocol) {
+            Some(i) => i,
+            None => {
+                let name = protocol.expect("the main stream is always there");
+                let (_, mut plan) = imu_emu::protocol::load(name)
+                    .with_context(|| format!("sink protocol `{name}`"))?;
+                plan.set_rate(self.rate_hz)
+                    .map_err(|e| anyhow::anyhow!("sink protocol `{name}`: {e}"))?;
+                self.names.push(Some(name.to_string()));
+                self.plans.push(plan);
+                self.plans.len() - 1
+            }
+        };
+        Ok((i, self.plans[i].clone()))
+    }
+}
+
+/// The one-line live status.
+fn status_line(s: &Status) -> String {
+    let elapsed = s
+        .start_ns
+        .map_or(0.0, |t| (clock::monotonic_ns() - t) as f64 / 1e9);
+    let mut line = format!(
+        "{elapsed:.1} s, {} frames, late {}",
+        s.frames,
+        s.lateness.summary()
+    );
+    if s.skipped > 0 {
+        line += &format!(", {} skipped", s.skipped);
+    }
+    for (label, st) in &s.sinks {
+        line += &format!(" | {label}: {} dropped", st.dropped + st.no_reader);
+    }
+    line
+}
+
+/// The end-of-run summary.
+fn summary(s: &Status, planned: u64, paced: bool) -> String {
+    let mut out = format!("{} of {planned} frames", s.frames);
+    if paced {
+        out += &format!(", write lateness {}", s.lateness.summary());
+        out += &format!(", {} skipped (too late)", s.skipped);
+    }
+    if let Some(f) = s.fifo {
+        out += if f {
+            ", SCHED_FIFO"
+        } else {
+            ", SCHED_FIFO refused"
+        };
+    }
+    for (label, st) in &s.sinks {
+        out += &format!(
+            "\n  {label}: {} sent, {} dropped (slow consumer), {} dropped (no reader), {} bytes",
+            st.sent, st.dropped, st.no_reader, st.bytes
+        );
+    }
+    out
+}

@@ -1,0 +1,90 @@
+//! Real-time emulation: encoded frames written at their wall-clock deadlines to any number of
+//! sinks (pseudo-terminal, serial device, UDP, file). No physics here: the frames come from
+//! [`crate::job::Producer`], the same code that writes `generate`'s output.
+//!
+//! Shape: a producer (its own thread) runs ahead of the clock and sends blocks of encoded
+//! frames through a bounded channel, so memory is the same for any run length; the pacer (a
+//! dedicated OS thread sleeping to absolute deadlines) writes each frame at
+//! start + k·Δt/speed to every sink. A sink that cannot take a frame drops and counts it: the
+//! clock never waits for a consumer.
+
+pub mod clock;
+pub mod pacer;
+pub mod pty;
+pub mod serial;
+pub mod sink;
+pub mod stats;
+pub mod udp;
+
+use crate::job::Producer;
+
+/// A block of encoded frames travelling from the producer to the pacer: the same records in
+/// one or more wire formats (streams), for sinks that speak different protocols.
+#[derive(Debug, Default)]
+pub struct FrameBlock {
+    /// Index (0-based) of the block's first frame in the run.
+    pub first: u64,
+    /// Per stream: the frames' bytes back to back, and the end offset of each frame.
+    pub streams: Vec<(Vec<u8>, Vec<usize>)>,
+}
+
+impl FrameBlock {
+    /// Number of frames (the same in every stream).
+    pub fn len(&self) -> usize {
+        self.streams.first().map_or(0, |s| s.1.len())
+    }
+
+    /// True when the block holds no frame.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Frames `i..j` of stream `s`: their bytes, and their ends relative to those bytes.
+    pub fn frames(&self, s: usize, i: usize, j: usize, ends: &mut Vec<usize>) -> &[u8] {
+        let (bytes, all) = &self.streams[s];
+        let start = if i == 0 { 0 } else { all[i - 1] };
+        let end = if j == 0 { 0 } else { all[j - 1] };
+        ends.clear();
+        ends.extend(all[i..j].iter().map(|e| e - start));
+        &bytes[start..end]
+    }
+}
+
+/// Frames per block for a run at `rate_hz` (frames per wall-clock second): about 100 ms of
+/// frames, so the pacer's look-ahead (channel depth × block) stays short and the first frame is
+/// ready quickly, but never fewer than 16 (channel traffic stays negligible).
+pub fn block_len(rate_hz: f64) -> usize {
+    ((rate_hz * 0.1) as usize).clamp(16, crate::job::BLOCK)
+}
+
+/// Blocks in flight between producer and pacer: bounded memory, enough look-ahead to ride out
+/// a scheduling hiccup of the producer.
+pub const CHANNEL_BLOCKS: usize = 8;
+
+/// Runs `producer` to the end (or until the receiver hangs up), sending blocks of `block`
+/// frames in `streams` encodings (the main one and the producer's extra ones); reuses the
+/// buffers the pacer returns on `recycled`. Blocking: call it on its own thread (or
+/// `spawn_blocking`).
+pub fn produce(
+    mut producer: Producer,
+    block: usize,
+    streams: usize,
+    tx: tokio::sync::mpsc::Sender<FrameBlock>,
+    mut recycled: tokio::sync::mpsc::Receiver<FrameBlock>,
+) {
+    loop {
+        let mut b = recycled.try_recv().unwrap_or_default();
+        b.streams.resize_with(streams, Default::default);
+        for (bytes, ends) in b.streams.iter_mut() {
+            bytes.clear();
+            ends.clear();
+        }
+        let Some(out) = producer.next_block_multi(block, &mut b.streams) else {
+            return;
+        };
+        b.first = out.first;
+        if tx.blocking_send(b).is_err() {
+            return;
+        }
+    }
+}

@@ -1,0 +1,317 @@
+//! The pacer: one dedicated OS thread that writes frame k (1-based) at the absolute deadline
+//! start + k·Δt/speed — record k covers (t_{k−1}, t_k], and a real IMU sends it at the end of
+//! its interval — sleeping with `clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)` and 1 ns
+//! timer slack (RUST-NOTES §1: tokio's timer is 1–2 ms late). Deadlines are integer
+//! nanoseconds computed from k, so nothing accumulates: frame N's deadline error does not
+//! grow with N.
+//!
+//! Above [`BATCH_ABOVE_HZ`] frames per second the pacer wakes about once a millisecond and
+//! writes the frames due since the last wake-up in one go, at the deadline of the last of
+//! them (each frame is late by at most the batch span, never early).
+//!
+//! Catch-up after a stall (the VM is descheduled for milliseconds): frames whose deadline is
+//! less than `max_behind` ago go out at once, back to back, as a device FIFO would send them;
+//! older ones are skipped and counted, and the time base is kept (a rig aligned on
+//! `--start-at` stays aligned).
+
+use std::io;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+
+use tokio::sync::mpsc::{Receiver, Sender};
+
+use super::FrameBlock;
+use super::clock::{monotonic_ns, sleep_until};
+use super::sink::{Sink, SinkStats};
+use super::stats::Lateness;
+
+/// Frame rates (frames per wall-clock second) above which frames are batched per wake-up.
+pub const BATCH_ABOVE_HZ: f64 = 2000.0;
+
+/// Default limit of burst catch-up (ns).
+pub const DEFAULT_MAX_BEHIND_NS: i128 = 100_000_000;
+
+/// How frames are timed.
+#[derive(Clone, Debug)]
+pub enum Pacing {
+    /// As fast as the sinks take them (offline, `--speed max`).
+    Unpaced,
+    /// At wall-clock deadlines.
+    Paced(Clocking),
+}
+
+/// Wall-clock timing of a paced run.
+#[derive(Clone, Debug)]
+pub struct Clocking {
+    /// CLOCK_MONOTONIC instant (ns) of t₀; `None`: when the first block is ready.
+    pub start_ns: Option<i128>,
+    /// Frames per wall-clock second (IMU rate × speed), in µHz so deadlines are integers.
+    pub frames_per_s_uhz: u128,
+    /// Frames per wake-up (1, or more above [`BATCH_ABOVE_HZ`]).
+    pub batch: u64,
+    /// Frames later than this are skipped, not sent (ns).
+    pub max_behind_ns: i128,
+    /// Ask for `SCHED_FIFO`.
+    pub realtime: bool,
+}
+
+impl Clocking {
+    /// Timing for `frames_per_s` frames per second: batched above [`BATCH_ABOVE_HZ`] to one
+    /// wake-up per millisecond or so.
+    pub fn new(
+        frames_per_s: f64,
+        start_ns: Option<i128>,
+        realtime: bool,
+    ) -> Result<Clocking, String> {
+        if !(1e-6..=1e8).contains(&frames_per_s) {
+            return Err(format!("{frames_per_s} frames/s: expected 1e-6 to 1e8"));
+        }
+        let batch = if frames_per_s > BATCH_ABOVE_HZ {
+            (frames_per_s / 1000.0).ceil() as u64
+        } else {
+            1
+        };
+        Ok(Clocking {
+            start_ns,
+            frames_per_s_uhz: (frames_per_s * 1e6).round() as u128,
+            batch,
+            max_behind_ns: DEFAULT_MAX_BEHIND_NS,
+            realtime,
+        })
+    }
+
+    /// Deadline of frame `k` (1-based) after `start` (ns).
+    pub fn deadline(&self, start: i128, k: u64) -> i128 {
+        start + (k as u128 * 1_000_000_000_000_000 / self.frames_per_s_uhz) as i128
+    }
+}
+
+/// Live counts, published by the pacer a few times a second for the status line.
+#[derive(Clone, Debug, Default)]
+pub struct Status {
+    /// CLOCK_MONOTONIC instant of t₀ (ns), once known.
+    pub start_ns: Option<i128>,
+    /// Frames handed to the sinks.
+    pub frames: u64,
+    /// Frames skipped by catch-up (too late to send).
+    pub skipped: u64,
+    /// Write lateness of every frame handed to the sinks.
+    pub lateness: Lateness,
+    /// Per sink: label and counts.
+    pub sinks: Vec<(String, SinkStats)>,
+    /// Whether `SCHED_FIFO` was granted (`None`: not asked).
+    pub fifo: Option<bool>,
+}
+
+/// A sink and the stream (index into [`FrameBlock::streams`]) it takes.
+pub struct Routed {
+    /// Stream index: 0 is the main protocol.
+    pub stream: usize,
+    /// The sink.
+    pub sink: Box<dyn Sink>,
+}
+
+impl Routed {
+    /// A sink of the main stream.
+    pub fn main(sink: Box<dyn Sink>) -> Routed {
+        Routed { stream: 0, sink }
+    }
+}
+
+/// Runs the pacer on the calling thread until the producer's channel closes or `stop` is set;
+/// returns the final counts (also left in `status`).
+pub fn run(
+    mut rx: Receiver<FrameBlock>,
+    recycle: Sender<FrameBlock>,
+    mut sinks: Vec<Routed>,
+    pacing: Pacing,
+    stop: Arc<AtomicBool>,
+    status: Arc<Mutex<Status>>,
+) -> io::Result<Status> {
+    let mut st = Status {
+        sinks: sink_stats(&sinks),
+        ..Status::default()
+    };
+    let clocking = match &pacing {
+        Pacing::Unpaced => None,
+        Pacing::Paced(c) => Some(c.clone()),
+    };
+    if let Some(c) = &clocking {
+        // Timer slack 1 ns: without it the kernel may defer each wake-up by 50 µs.
+        if let Err(e) = nix::sys::prctl::set_timerslack(1) {
+            tracing::warn!("timer slack not set: {e}");
+        }
+        if c.realtime {
+            st.fifo = Some(set_fifo());
+        }
+    }
+    let mut start: Option<i128> = clocking.as_ref().and_then(|c| c.start_ns);
+    let mut pending: Vec<i128> = Vec::new();
+    let mut last_publish = 0i128;
+    let mut warned_skip = false;
+    let mut ends = Vec::new();
+    'blocks: while let Some(block) = rx.blocking_recv() {
+        let n = block.len();
+        let Some(c) = &clocking else {
+            write_all(&mut sinks, &block, 0, n, &mut ends)?;
+            st.frames += n as u64;
+            let _ = recycle.try_send(block);
+            if stop.load(Ordering::Relaxed) {
+                break;
+            }
+            continue;
+        };
+        let t0 = *start.get_or_insert_with(monotonic_ns);
+        st.start_ns = Some(t0);
+        let mut i = 0;
+        while i < n {
+            let k = block.first + i as u64 + 1;
+            // The wake-up of k's batch: the deadline of the batch's last frame in this block.
+            let group_end = ((k - 1) / c.batch + 1) * c.batch;
+            let last = (group_end - block.first).min(n as u64) as usize; // exclusive index
+            let wake = c.deadline(t0, block.first + last as u64);
+            loop {
+                if stop.load(Ordering::Relaxed) {
+                    break 'blocks;
+                }
+                let now = monotonic_ns();
+                if now >= wake {
+                    break;
+                }
+                // Sleep in slices of at most 100 ms so a stop request is seen promptly.
+                sleep_until(wake.min(now + 100_000_000));
+            }
+            let now = monotonic_ns();
+            // Skip what is too late to be worth sending; send at once what is due.
+            let mut from = i;
+            while from < n && c.deadline(t0, block.first + from as u64 + 1) + c.max_behind_ns < now
+            {
+                from += 1;
+            }
+            if from > i {
+                st.skipped += (from - i) as u64;
+                if !warned_skip {
+                    tracing::warn!(
+                        "{} frames more than {} ms late skipped (the machine stalled); counted in the summary",
+                        from - i,
+                        c.max_behind_ns / 1_000_000
+                    );
+                    warned_skip = true;
+                }
+            }
+            let mut to = last.max(from);
+            while to < n && c.deadline(t0, block.first + to as u64 + 1) <= now {
+                to += 1;
+            }
+            if to > from {
+                write_all(&mut sinks, &block, from, to, &mut ends)?;
+                let done = monotonic_ns();
+                for j in from..to {
+                    pending.push(done - c.deadline(t0, block.first + j as u64 + 1));
+                }
+                st.frames += (to - from) as u64;
+            }
+            i = to;
+            if done_publish(&mut last_publish) {
+                publish(&status, &mut st, &mut pending, &sinks);
+            }
+        }
+        let _ = recycle.try_send(block);
+    }
+    for s in sinks.iter_mut() {
+        s.sink.finish()?;
+    }
+    let mut guard = status.lock().unwrap_or_else(|e| e.into_inner());
+    for l in pending.drain(..) {
+        guard.lateness.add(l);
+    }
+    guard.start_ns = st.start_ns;
+    guard.frames = st.frames;
+    guard.skipped = st.skipped;
+    guard.fifo = st.fifo;
+    guard.sinks = sink_stats(&sinks);
+    Ok(guard.clone())
+}
+
+/// Hands frames `i..j` of the block to every sink, each in its stream.
+fn write_all(
+    sinks: &mut [Routed],
+    block: &FrameBlock,
+    i: usize,
+    j: usize,
+    ends: &mut Vec<usize>,
+) -> io::Result<()> {
+    for s in sinks.iter_mut() {
+        let bytes = block.frames(s.stream, i, j, ends);
+        s.sink.write(bytes, ends)?;
+    }
+    Ok(())
+}
+
+/// Label and counts of each sink.
+fn sink_stats(sinks: &[Routed]) -> Vec<(String, SinkStats)> {
+    sinks
+        .iter()
+        .map(|s| (s.sink.label().to_string(), s.sink.stats()))
+        .collect()
+}
+
+/// True at most every 100 ms.
+fn done_publish(last: &mut i128) -> bool {
+    let now = monotonic_ns();
+    if now - *last >= 100_000_000 {
+        *last = now;
+        true
+    } else {
+        false
+    }
+}
+
+/// Moves the counts to the shared status without ever waiting for the lock.
+fn publish(status: &Mutex<Status>, st: &mut Status, pending: &mut Vec<i128>, sinks: &[Routed]) {
+    if let Ok(mut g) = status.try_lock() {
+        for l in pending.drain(..) {
+            g.lateness.add(l);
+        }
+        g.start_ns = st.start_ns;
+        g.frames = st.frames;
+        g.skipped = st.skipped;
+        g.fifo = st.fifo;
+        g.sinks = sink_stats(sinks);
+    }
+}
+
+/// Asks for `SCHED_FIFO` priority 50 for this thread; false (with a warning) when refused.
+fn set_fifo() -> bool {
+    let param = libc::sched_param { sched_priority: 50 };
+    // SAFETY: plain syscall on the calling thread with a valid parameter block.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        tracing::info!("pacer runs SCHED_FIFO priority 50");
+        true
+    } else {
+        let e = io::Error::last_os_error();
+        eprintln!(
+            "imu-emu: warning: --realtime: SCHED_FIFO refused ({e}); running at normal priority. Grant CAP_SYS_NICE (e.g. `setcap cap_sys_nice+ep imu-emu`) or raise the real-time priority limit (`ulimit -r 50`)."
+        );
+        false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Integer deadlines: 3 frames/s (Δt not a whole number of ns) has no drift after 10⁹
+    /// frames; batches above 2 kHz.
+    #[test]
+    fn deadlines_do_not_drift() {
+        let c = Clocking::new(3.0, None, false).unwrap();
+        assert_eq!(c.deadline(0, 3), 1_000_000_000);
+        assert_eq!(c.deadline(0, 3_000_000_000), 1_000_000_000 * 1_000_000_000);
+        assert_eq!(c.deadline(10, 1), 10 + 333_333_333);
+        assert_eq!(c.batch, 1);
+        assert_eq!(Clocking::new(10_000.0, None, false).unwrap().batch, 10);
+        assert!(Clocking::new(f64::NAN, None, false).is_err());
+    }
+}
