@@ -23,6 +23,7 @@ pub mod kinematics;
 pub mod math;
 pub mod motion;
 pub mod output;
+pub mod plot;
 pub mod protocol;
 pub mod quadrature;
 pub mod record;

@@ -26,6 +26,8 @@ enum Command {
     Templates,
     /// Decode a frame stream (file or stdin) to CSV, counting check failures and counter gaps.
     Decode(cmd::decode::DecodeArgs),
+    /// Statistics, Allan deviation with fitted IEEE terms, and PSD of a recording, with plots.
+    Analyze(Box<cmd::analyze::AnalyzeArgs>),
 }
 
 fn main() {
@@ -35,6 +37,7 @@ fn main() {
         Command::Trajectory(a) => cmd::info::export_trajectory(a),
         Command::Templates => cmd::info::list_templates(),
         Command::Decode(a) => cmd::decode::decode(a),
+        Command::Analyze(a) => cmd::analyze::analyze(*a),
         Command::Scenes => {
             for name in scenes::NAMES {
                 println!(

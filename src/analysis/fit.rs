@@ -15,11 +15,14 @@
 //! estimate of σ² and the weights do not depend on the data point itself, the fitted c are
 //! unbiased up to the non-negativity constraint (which only acts on terms that are absent).
 //! The non-negative solution is the best feasible unconstrained solution over the 31 subsets of
-//! terms (exact NNLS for five unknowns).
+//! terms (exact NNLS for five unknowns); each term kept must lower the residual χ² by more
+//! than its 99 % point for one degree of freedom (6.63), so terms the record does not show are
+//! reported as 0 rather than fitted to noise.
 //!
-//! "Where it was read": the τ at which the term's share of the fitted σ² is largest, and
-//! that share. A term whose share is small everywhere was not really observed; the share says
-//! how much to trust it.
+//! "Where it was read": the octave τ that carries most information on the term — the largest
+//! edf·ρ², ρ the term's share of the fitted σ² there (one point's χ² information on the term's
+//! coefficient when the rest of σ² is known) — and that share. A term whose share is small
+//! everywhere was not really observed; the share says how much to trust it.
 
 use super::confidence::{NoiseType, edf};
 use super::octave_adev::AdevPoint;
@@ -168,11 +171,17 @@ pub fn fit(points: &[AdevPoint], samples: usize) -> Fit {
     }
     let terms = std::array::from_fn(|i| {
         let term = TERMS[i];
+        // The point that says most about the term: largest edf·share² (the information of
+        // one Allan variance point on the term's coefficient, the rest of σ² known).
         let best = pts
             .iter()
-            .map(|p| (p.tau, c[i] * term.basis(p.tau) / avar(&c, p.tau)))
-            .filter(|(_, s)| *s > 0.0)
-            .max_by(|a, b| a.1.total_cmp(&b.1));
+            .map(|p| {
+                let share = c[i] * term.basis(p.tau) / avar(&c, p.tau);
+                let info = edf(term.noise_type(), samples + 1, p.m) * share * share;
+                (p.tau, share, info)
+            })
+            .filter(|(_, s, _)| *s > 0.0)
+            .max_by(|a, b| a.2.total_cmp(&b.2));
         TermFit {
             term,
             value: c[i].sqrt(),
@@ -183,7 +192,12 @@ pub fn fit(points: &[AdevPoint], samples: usize) -> Fit {
     Fit { coeffs: c, terms }
 }
 
-/// Non-negative weighted least squares over the 31 subsets of terms.
+/// The χ² reduction a term must bring to stay in the fit: χ²₁ at 99 %.
+pub const TERM_PENALTY: f64 = 6.634_896_601_021_214;
+
+/// Non-negative weighted least squares over the 31 subsets of terms, each term penalised by
+/// [`TERM_PENALTY`] so that terms the data do not support are left out rather than fitted to
+/// noise.
 fn nnls(pts: &[&AdevPoint], y: &[f64], w: &[f64]) -> [f64; 5] {
     let mut best = ([0.0; 5], f64::INFINITY);
     for mask in 1u32..32 {
@@ -199,12 +213,16 @@ fn nnls(pts: &[&AdevPoint], y: &[f64], w: &[f64]) -> [f64; 5] {
         }
         let mut c = [0.0; 5];
         cols.iter().zip(&sol).for_each(|(&i, &v)| c[i] = v);
+        // cost/2 is the χ² statistic of the residuals (Var σ̂² = 2σ⁴/edf); each term must
+        // lower it by more than the 99 % point of χ²₁ to be kept.
         let cost: f64 = pts
             .iter()
             .zip(y)
             .zip(w)
             .map(|((p, y), w)| w * (y - avar(&c, p.tau)).powi(2))
-            .sum();
+            .sum::<f64>()
+            / 2.0
+            + TERM_PENALTY * cols.len() as f64;
         if cost < best.1 {
             best = (c, cost);
         }

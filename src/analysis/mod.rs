@@ -10,5 +10,6 @@ pub mod fit;
 pub mod octave_adev;
 pub mod psd;
 pub mod reader;
+pub mod report;
 pub mod stats;
 pub mod theory;
