@@ -221,20 +221,21 @@ where
             poly.extend(s.x.iter().copied().zip(lo.iter().copied()).rev());
             poly.retain(|(x, y)| x.is_finite() && y.is_finite() && (!p.log_y || *y > 0.0));
             chart
-                .draw_series(std::iter::once(Polygon::new(poly, color.mix(0.18).filled())))
+                .draw_series(std::iter::once(Polygon::new(
+                    poly,
+                    color.mix(0.18).filled(),
+                )))
                 .map_err(e)?;
         }
-        let pts: Vec<(f64, f64)> =
-            s.x.iter()
-                .copied()
-                .zip(s.y.iter().copied())
-                .filter(|(x, y)| {
-                    x.is_finite()
-                        && y.is_finite()
-                        && (!p.log_x || *x > 0.0)
-                        && (!p.log_y || *y > 0.0)
-                })
-                .collect();
+        let pts: Vec<(f64, f64)> = s
+            .x
+            .iter()
+            .copied()
+            .zip(s.y.iter().copied())
+            .filter(|(x, y)| {
+                x.is_finite() && y.is_finite() && (!p.log_x || *x > 0.0) && (!p.log_y || *y > 0.0)
+            })
+            .collect();
         let style = color.stroke_width(2);
         let anno = if s.dashed {
             chart

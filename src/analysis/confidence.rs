@@ -171,7 +171,10 @@ mod tests {
             (0.005, 100.0, 67.3276),
         ] {
             let got = chi2_quantile(p, nu);
-            assert!((got / q - 1.0).abs() < 2e-5, "χ²_{p}({nu}) = {got}, table {q}");
+            assert!(
+                (got / q - 1.0).abs() < 2e-5,
+                "χ²_{p}({nu}) = {got}, table {q}"
+            );
         }
     }
 

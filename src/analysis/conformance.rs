@@ -32,9 +32,9 @@
 //! gets no verdict either (`resolved = false`): "not seen" is not "wrong".
 
 use super::analyzer::Analysis;
-use super::confidence::{chi2_quantile, edf};
 #[cfg(test)]
 use super::confidence::NoiseType;
+use super::confidence::{chi2_quantile, edf};
 use super::fit::{TERMS, Term};
 use super::theory::{AxisTheory, triad};
 use crate::errors::template::ImuModel;
@@ -177,7 +177,10 @@ pub fn band(specified: f64, nu: f64, allow: f64) -> (f64, f64) {
     let alpha = 1.0 - BAND_CONFIDENCE;
     let lo = (chi2_quantile(alpha / 2.0, nu) / nu).sqrt();
     let hi = (chi2_quantile(1.0 - alpha / 2.0, nu) / nu).sqrt();
-    (specified * lo * (1.0 - allow), specified * hi * (1.0 + allow))
+    (
+        specified * lo * (1.0 - allow),
+        specified * hi * (1.0 + allow),
+    )
 }
 
 #[cfg(test)]

@@ -138,7 +138,9 @@ pub enum ReadError {
         hint: String,
     },
     /// A binary file that is not whole records.
-    #[error("{path}: {bytes} bytes is not a whole number of {record}-byte records (record {index} is cut short)")]
+    #[error(
+        "{path}: {bytes} bytes is not a whole number of {record}-byte records (record {index} is cut short)"
+    )]
     Truncated {
         /// File.
         path: PathBuf,
@@ -159,7 +161,9 @@ pub enum ReadError {
     },
 }
 
-const CHANNEL_NAMES: [&str; 6] = ["gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z"];
+const CHANNEL_NAMES: [&str; 6] = [
+    "gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z",
+];
 
 /// Reads `path` and calls `sample(t, [gx, gy, gz, ax, ay, az])` for each sample, in SI.
 /// `t` is NaN when the input has no time; `dt` (if known) turns frame increments into rates.
@@ -255,7 +259,9 @@ fn read_csv(
                     (0..roles.len())
                         .map(|i| {
                             if header {
-                                fields.get(i).map_or(format!("#{}", i + 1), |s| s.to_string())
+                                fields
+                                    .get(i)
+                                    .map_or(format!("#{}", i + 1), |s| s.to_string())
                             } else {
                                 role_name(roles[i])
                             }
@@ -381,9 +387,8 @@ fn read_frames(
         dec.feed(&buf[..k], |d| {
             let l = layout.get_or_insert_with(|| frame_layout(path, d, dt));
             if let Ok((sources, time)) = l {
-                let v: [f64; 6] = std::array::from_fn(|i| {
-                    d.get(sources[i].0).unwrap_or(f64::NAN) * sources[i].1
-                });
+                let v: [f64; 6] =
+                    std::array::from_fn(|i| d.get(sources[i].0).unwrap_or(f64::NAN) * sources[i].1);
                 let t = time.and_then(|s| d.get(s)).unwrap_or(f64::NAN);
                 sample(t, &v);
                 n += 1;
@@ -443,7 +448,9 @@ pub fn parse_columns(s: &str) -> Result<Vec<Role>, String> {
     s.split(',')
         .map(|c| {
             Role::from_name(c).ok_or_else(|| {
-                format!("unknown column role `{c}` (t, gx, gy, gz, ax, ay, az, gyro_x, …, or - to skip)")
+                format!(
+                    "unknown column role `{c}` (t, gx, gy, gz, ax, ay, az, gyro_x, …, or - to skip)"
+                )
             })
         })
         .collect()

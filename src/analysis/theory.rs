@@ -241,7 +241,11 @@ mod tests {
             let tau = m as f64 * dt;
             let expect = sigma * sigma * gm_shape(tau / t);
             let tol = 4.0 * (2.0 / (8.0 * n as f64 / m as f64)).sqrt();
-            assert!((s / expect - 1.0).abs() < tol, "m {m}: {} tol {tol}", s / expect);
+            assert!(
+                (s / expect - 1.0).abs() < tol,
+                "m {m}: {} tol {tol}",
+                s / expect
+            );
         }
     }
 }

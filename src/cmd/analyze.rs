@@ -54,6 +54,14 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     {
         bail!("--rate: expected a positive number of Hz, got {r}");
     }
+    if let Some(p) = &a.plot
+        && !p
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("svg"))
+    {
+        bail!("--plot {}: plot file must end in .png or .svg", p.display());
+    }
     let unit = |text: &str, kind: Kind, flag: &str| -> Result<f64> {
         Ok(units::parse(&format!("1 {text}"), kind)
             .with_context(|| format!("{flag} `{text}`"))?
@@ -61,7 +69,9 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     };
     let csv = CsvOptions {
         columns: match &a.columns {
-            Some(c) => Some(reader::parse_columns(c).map_err(|e| anyhow::anyhow!("--columns: {e}"))?),
+            Some(c) => {
+                Some(reader::parse_columns(c).map_err(|e| anyhow::anyhow!("--columns: {e}"))?)
+            }
             None => None,
         },
         gyro_scale: unit(&a.gyro_unit, Kind::AngularRate, "--gyro-unit")?,
@@ -95,7 +105,9 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         .transpose()?;
 
     let mut an = Analyzer::new(a.segment);
-    let summary = reader::read(&a.input, &format, rate.map(|r| 1.0 / r), |t, v| an.push(t, v))?;
+    let summary = reader::read(&a.input, &format, rate.map(|r| 1.0 / r), |t, v| {
+        an.push(t, v)
+    })?;
     if summary.samples < 8 {
         bail!(
             "{}: {} samples; the analysis needs at least 8",
