@@ -155,8 +155,8 @@ fn psd_of_sinusoid_in_white_noise() {
 ///
 /// * Coverage: each term's 99 % band from `term_rows` (module `conformance`) should miss
 ///   about 1 % of the time; at most 2 misses of the 24 checks are allowed (P(≥ 3) = 0.2 % for
-///   a true 1 % rate). Seen: 2 (seed 1 K — the record's slowest octaves happened to show no
-///   random walk and the fit dropped it; seed 5 N, 0.02 % below its ±0.15 % band).
+///   a true 1 % rate). Seen: 1 (seed 1 K — the record's slowest octaves happened to show
+///   little random walk and the fit dropped it).
 /// * Unbiasedness: the mean fitted value over the seeds is within 4σ of the specified one,
 ///   σ taken from the band (half-width/2.576 per record, /√8 for the mean).
 /// * A template whose N is 20 % off fails on N for every seed.

@@ -134,10 +134,31 @@ pub fn avar(c: &[f64; 5], tau: f64) -> f64 {
 }
 
 fn dominant(c: &[f64; 5], tau: f64) -> NoiseType {
+    dominant_with(c, tau, &|_| FLICKER_FLOOR)
+}
+
+/// The basis of term t with the bias-instability shape `floor`.
+fn basis(t: Term, tau: f64, floor: &dyn Fn(f64) -> f64) -> f64 {
+    if t == Term::BiasInstability {
+        floor(tau)
+    } else {
+        t.basis(tau)
+    }
+}
+
+fn avar_with(c: &[f64; 5], tau: f64, floor: &dyn Fn(f64) -> f64) -> f64 {
     TERMS
         .iter()
         .zip(c)
-        .map(|(t, c)| (t, c * t.basis(tau)))
+        .map(|(t, c)| c * basis(*t, tau, floor))
+        .sum()
+}
+
+fn dominant_with(c: &[f64; 5], tau: f64, floor: &dyn Fn(f64) -> f64) -> NoiseType {
+    TERMS
+        .iter()
+        .zip(c)
+        .map(|(t, c)| (t, c * basis(*t, tau, floor)))
         .filter(|(_, v)| *v > 0.0)
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .map_or(NoiseType::WhiteRate, |(t, _)| t.noise_type())
@@ -145,6 +166,14 @@ fn dominant(c: &[f64; 5], tau: f64) -> NoiseType {
 
 /// Fits the five terms to `points` measured from a record of `samples` rate samples.
 pub fn fit(points: &[AdevPoint], samples: usize) -> Fit {
+    fit_with_floor(points, samples, &|_| FLICKER_FLOOR)
+}
+
+/// As [`fit`], with the bias-instability basis σ²(τ)/B² given by `floor` instead of the
+/// IEEE flat (2 ln 2/π): used against a template, whose generator's bank is flat only inside
+/// its band (`theory::AxisTheory::flicker_shape`), so that B and N are read without the
+/// model error of the flat floor outside it.
+pub fn fit_with_floor(points: &[AdevPoint], samples: usize, floor: &dyn Fn(f64) -> f64) -> Fit {
     let pts: Vec<&AdevPoint> = points
         .iter()
         .filter(|p| p.adev > 0.0 && p.adev.is_finite())
@@ -161,11 +190,11 @@ pub fn fit(points: &[AdevPoint], samples: usize) -> Fit {
                 .zip(&types)
                 .map(|((p, m), t)| edf(*t, samples + 1, p.m) / (m * m))
                 .collect();
-            c = nnls(&pts, &measured, &w);
+            c = nnls(&pts, &measured, &w, floor);
             for (j, p) in pts.iter().enumerate() {
                 // A model that vanishes at a point would give it infinite weight.
-                model[j] = avar(&c, p.tau).max(1e-6 * measured[j]);
-                types[j] = dominant(&c, p.tau);
+                model[j] = avar_with(&c, p.tau, floor).max(1e-6 * measured[j]);
+                types[j] = dominant_with(&c, p.tau, floor);
             }
         }
     }
@@ -176,7 +205,7 @@ pub fn fit(points: &[AdevPoint], samples: usize) -> Fit {
         let best = pts
             .iter()
             .map(|p| {
-                let share = c[i] * term.basis(p.tau) / avar(&c, p.tau);
+                let share = c[i] * basis(term, p.tau, floor) / avar_with(&c, p.tau, floor);
                 let info = edf(term.noise_type(), samples + 1, p.m) * share * share;
                 (p.tau, share, info)
             })
@@ -198,14 +227,14 @@ pub const TERM_PENALTY: f64 = 6.634_896_601_021_214;
 /// Non-negative weighted least squares over the 31 subsets of terms, each term penalised by
 /// [`TERM_PENALTY`] so that terms the data do not support are left out rather than fitted to
 /// noise.
-fn nnls(pts: &[&AdevPoint], y: &[f64], w: &[f64]) -> [f64; 5] {
+fn nnls(pts: &[&AdevPoint], y: &[f64], w: &[f64], floor: &dyn Fn(f64) -> f64) -> [f64; 5] {
     let mut best = ([0.0; 5], f64::INFINITY);
     for mask in 1u32..32 {
         let cols: Vec<usize> = (0..5).filter(|i| mask & (1 << i) != 0).collect();
         if cols.len() > pts.len() {
             continue;
         }
-        let Some(sol) = weighted_ls(pts, y, w, &cols) else {
+        let Some(sol) = weighted_ls(pts, y, w, &cols, floor) else {
             continue;
         };
         if sol.iter().any(|v| *v < 0.0) {
@@ -219,7 +248,7 @@ fn nnls(pts: &[&AdevPoint], y: &[f64], w: &[f64]) -> [f64; 5] {
             .iter()
             .zip(y)
             .zip(w)
-            .map(|((p, y), w)| w * (y - avar(&c, p.tau)).powi(2))
+            .map(|((p, y), w)| w * (y - avar_with(&c, p.tau, floor)).powi(2))
             .sum::<f64>()
             / 2.0
             + TERM_PENALTY * cols.len() as f64;
@@ -232,13 +261,19 @@ fn nnls(pts: &[&AdevPoint], y: &[f64], w: &[f64]) -> [f64; 5] {
 
 /// Unconstrained weighted least squares on the columns `cols`, by Householder QR of the
 /// row-weighted, column-normalised design (the basis values span many decades).
-fn weighted_ls(pts: &[&AdevPoint], y: &[f64], w: &[f64], cols: &[usize]) -> Option<Vec<f64>> {
+fn weighted_ls(
+    pts: &[&AdevPoint],
+    y: &[f64],
+    w: &[f64],
+    cols: &[usize],
+    floor: &dyn Fn(f64) -> f64,
+) -> Option<Vec<f64>> {
     let k = cols.len();
     let mut a: Vec<Vec<f64>> = (0..k)
         .map(|c| {
             pts.iter()
                 .zip(w)
-                .map(|(p, w)| w.sqrt() * TERMS[cols[c]].basis(p.tau))
+                .map(|(p, w)| w.sqrt() * basis(TERMS[cols[c]], p.tau, floor))
                 .collect()
         })
         .collect();

@@ -87,11 +87,15 @@ pub fn term_table(a: &Analysis, rows: Option<&[TermRow]>) -> String {
     s.push('\n');
     for (ch, c) in a.channels.iter().enumerate() {
         for t in TERMS {
-            let f = c.fit.term(t);
             let row = rows.and_then(|r| {
                 r.iter()
                     .find(|r| r.term == t && r.axis == ch % 3 && (r.sensor == "gyro") == (ch < 3))
             });
+            // Against a template, the template-aware refit (see `conformance`).
+            let mut f = c.fit.term(t);
+            if let Some(r) = row {
+                (f.value, f.tau, f.share) = (r.fitted, r.tau, r.share);
+            }
             let specified = row.map_or(0.0, |r| r.specified);
             if f.value == 0.0 && specified == 0.0 {
                 continue;

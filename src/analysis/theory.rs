@@ -37,8 +37,10 @@ pub struct AxisTheory {
     pub quantization: f64,
     /// Random-walk density K.
     pub random_walk: f64,
-    /// Gauss–Markov components (σ, T): the template's `bias_gm` and the flicker bank.
+    /// Gauss–Markov bias (σ, T) of the template's `bias_gm`.
     pub gauss_markov: Vec<(f64, f64)>,
+    /// The bias-instability bank's components (σ, T).
+    pub flicker: Vec<(f64, f64)>,
     /// The template's bias-instability coefficient B.
     pub bias_instability: f64,
 }
@@ -52,6 +54,7 @@ impl AxisTheory {
         let gm: f64 = self
             .gauss_markov
             .iter()
+            .chain(&self.flicker)
             .map(|&(s, t)| s * s * gm_shape(tau / t))
             .sum();
         white / tau
@@ -81,12 +84,25 @@ impl AxisTheory {
         let gm: f64 = self
             .gauss_markov
             .iter()
+            .chain(&self.flicker)
             .map(|&(sg, t)| 4.0 * sg * sg * t / (1.0 + (2.0 * PI * f * t).powi(2)))
             .sum();
         2.0 * white
             + 8.0 * self.quantization.powi(2) / dt * s * s
             + if self.random_walk > 0.0 { rw } else { 0.0 }
             + gm
+    }
+
+    /// The bank's Allan variance at τ per unit B² — the exact shape of what the generator
+    /// makes of the flat (2 ln 2/π)·B² floor (None without bias instability).
+    pub fn flicker_shape(&self, tau: f64) -> Option<f64> {
+        (self.bias_instability > 0.0).then(|| {
+            self.flicker
+                .iter()
+                .map(|&(s, t)| s * s * gm_shape(tau / t))
+                .sum::<f64>()
+                / self.bias_instability.powi(2)
+        })
     }
 
     /// The template's value of an IEEE term (0 when it does not set it; R is never set).
@@ -114,6 +130,7 @@ impl AxisTheory {
             Term::BiasInstability => self
                 .gauss_markov
                 .iter()
+                .chain(&self.flicker)
                 .map(|&(s, t)| s * s * gm_shape(tau / t))
                 .sum(),
             Term::RandomWalk => {
@@ -167,19 +184,21 @@ pub fn triad(m: &TriadModel, mode: QuantMode, dt: f64) -> [AxisTheory; 3] {
         {
             gauss_markov.push((s[i], t[i]));
         }
-        if m.bias_instability[i] > 0.0 {
-            gauss_markov.extend(
-                flicker_bank(m.bias_instability[i], m.bias_instability_band, dt)
-                    .iter()
-                    .map(|c| (c.sigma, c.tau)),
-            );
-        }
+        let flicker = if m.bias_instability[i] > 0.0 {
+            flicker_bank(m.bias_instability[i], m.bias_instability_band, dt)
+                .iter()
+                .map(|c| (c.sigma, c.tau))
+                .collect()
+        } else {
+            Vec::new()
+        };
         AxisTheory {
             white: m.noise[i],
             rounding_white,
             quantization,
             random_walk: m.random_walk[i],
             gauss_markov,
+            flicker,
             bias_instability: m.bias_instability[i],
         }
     })
