@@ -19,11 +19,13 @@
 //! exactly what is generated):
 //! * bias instability: none — the refit uses the bank's exact shape (its ±10 % ripple about
 //!   the nominal 0.664·B floor is in the basis, not in the band);
-//! * quantization (and white noise, which the fit can trade against it): the carried residual is an independent uniform error only when the
-//!   per-sample noise σ of the increment spans several LSBs q. Its correlation at lag m is
-//!   at most (6/π²)·ρ_m of its variance, ρ_m = exp(−2π²mσ²/q²) (the Fourier series of the
-//!   sawtooth), which moves the m = 1 Allan variance by at most (8ρ₁ + 2ρ₂)·(6/π²)/6; read
-//!   with share ρ, Q moves by at most half that divided by ρ ([`quantization_allowance`]);
+//! * quantization, and white noise which the fit can trade against it: the carried residual
+//!   is an independent uniform error only when the per-sample noise σ of the increment spans
+//!   several LSBs q. By the sawtooth's Fourier series its correlation at lag m is at most
+//!   ρ_m = exp(−2π²mσ²/q²) of its variance, so the quantization part of the m = 1 Allan
+//!   variance moves by at most (8ρ₁ + 2ρ₂)/6 of itself: Q by at most a = (8ρ₁ + 2ρ₂)/12
+//!   ([`quantization_allowance`]), N (if the fit lays it all on N) by a·ρ_Q/ρ_N with the two
+//!   terms' shares of σ² at m = 1;
 //! * the other terms are exact in the fit model (0).
 //!
 //! The fitted values are those of a refit in which the bias-instability basis is the exact
@@ -114,7 +116,7 @@ pub fn term_rows(model: &ImuModel, analysis: &Analysis) -> Vec<TermRow> {
             let specified = th.specified(term);
             let fitted = fit.term(term);
             let band = nu[i].map(|nu| {
-                let allow = model_allowance(term, th, analysis.dt, th.share(term, 1, analysis.dt));
+                let allow = model_allowance(term, th, analysis.dt);
                 band(specified, nu, allow)
             });
             let resolved = match band {
@@ -160,26 +162,32 @@ pub fn term_edf(th: &AxisTheory, dt: f64, ms: &[usize], phases: usize) -> [Optio
     })
 }
 
-/// The relative model allowance of the module documentation for `term` read with `share`.
-pub fn model_allowance(term: Term, th: &AxisTheory, dt: f64, share: f64) -> f64 {
+/// The relative model allowance of the module documentation for `term` at sampling
+/// interval Δt (0 for the terms the fit model describes exactly).
+pub fn model_allowance(term: Term, th: &AxisTheory, dt: f64) -> f64 {
+    let a = quantization_allowance(th.white * dt.sqrt(), th.quantization * 12f64.sqrt());
     match term {
-        // The carried residual's deviation from white phase noise moves the m = 1, 2 points,
-        // which the fit can lay on Q or on N: both get the bound.
-        Term::Quantization | Term::WhiteNoise if share > 0.0 => {
-            quantization_allowance(th.white * dt.sqrt(), th.quantization * 12f64.sqrt()) / share
+        Term::Quantization => a,
+        Term::WhiteNoise => {
+            let n = th.share(Term::WhiteNoise, 1, dt);
+            if n > 0.0 {
+                a * th.share(Term::Quantization, 1, dt) / n
+            } else {
+                0.0
+            }
         }
         _ => 0.0,
     }
 }
 
-/// Bound on the relative change of Q read at m = 1 when per-sample increment noise `sigma`
-/// does not span the LSB `q`: ½·(8ρ₁ + 2ρ₂)·(6/π²)/6, ρ_m = exp(−2π²mσ²/q²).
+/// Bound on the relative change of Q read at m = 1 when the per-sample increment noise
+/// `sigma` does not span the LSB `q`: (8ρ₁ + 2ρ₂)/12, ρ_m = exp(−2π²mσ²/q²).
 pub fn quantization_allowance(sigma: f64, q: f64) -> f64 {
     if q <= 0.0 {
         return 0.0;
     }
     let rho = |m: f64| (-2.0 * std::f64::consts::PI.powi(2) * m * (sigma / q).powi(2)).exp();
-    0.5 * (8.0 * rho(1.0) + 2.0 * rho(2.0)) * (6.0 / std::f64::consts::PI.powi(2)) / 6.0
+    (8.0 * rho(1.0) + 2.0 * rho(2.0)) / 12.0
 }
 
 /// The 99 % band on a term's value: ĉ ~ c·χ²_ν/ν, widened by the relative allowance.
@@ -225,8 +233,9 @@ mod tests {
     #[test]
     fn quantization_allowance_depends_on_noise_over_lsb() {
         assert!(quantization_allowance(2.0, 1.0) < 1e-30);
+        // σ = 0.4 q: ρ₁ = e^{−0.32π²} = 0.042, ρ₂ = 0.0018 → 2.9 %.
         let a = quantization_allowance(0.4, 1.0);
-        assert!(a > 0.01 && a < 0.02, "{a}");
+        assert!((a - 0.0286).abs() < 0.0005, "{a}");
         assert!(quantization_allowance(0.05, 1.0) > 0.3);
     }
 }
