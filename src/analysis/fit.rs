@@ -356,8 +356,10 @@ mod tests {
         }
         assert!(f.coeffs[4] < 1e-12 * c[3]);
         assert!(f.term(Term::Ramp).share < 1e-9);
-        // White noise dominates the short τ, random walk the long ones.
-        assert!(f.term(Term::RandomWalk).tau.unwrap() > 1000.0);
+        // Random walk is read where it dominates and the edf is still large (≈ 300 s here),
+        // quantization at the shortest τ.
+        let k = f.term(Term::RandomWalk);
+        assert!(k.tau.unwrap() > 100.0 && k.share > 0.3, "{k:?}");
         assert!(f.term(Term::Quantization).tau.unwrap() < 0.02);
     }
 
