@@ -346,13 +346,8 @@ mod tests {
             })
             .collect();
         let f = fit(&points, 1 << 22);
-        for i in 0..4 {
-            assert!(
-                (f.coeffs[i] / c[i] - 1.0).abs() < 1e-6,
-                "{i}: {:e} vs {:e}",
-                f.coeffs[i],
-                c[i]
-            );
+        for (i, (got, want)) in f.coeffs.iter().zip(&c).take(4).enumerate() {
+            assert!((got / want - 1.0).abs() < 1e-6, "{i}: {got:e} vs {want:e}");
         }
         assert!(f.coeffs[4] < 1e-12 * c[3]);
         assert!(f.term(Term::Ramp).share < 1e-9);

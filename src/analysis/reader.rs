@@ -225,6 +225,12 @@ fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
     Ok(got)
 }
 
+/// The used columns as (index, role), and every column's display name.
+type ColumnMap = (Vec<(usize, Role)>, Vec<String>);
+
+/// The source and factor of each of the six rates, and the time source if any.
+type FrameLayout = (Vec<(Source, f64)>, Option<Source>);
+
 fn read_csv(
     path: &Path,
     mut r: impl BufRead,
@@ -238,7 +244,7 @@ fn read_csv(
     let mut line = String::new();
     let mut lineno = 0u64;
     // (column index, role) of the columns used, and their display names.
-    let mut map: Option<(Vec<(usize, Role)>, Vec<String>)> = None;
+    let mut map: Option<ColumnMap> = None;
     let mut n = 0u64;
     loop {
         line.clear();
@@ -375,7 +381,7 @@ fn read_frames(
     let mut buf = vec![0u8; 1 << 16];
     let mut n = 0u64;
     // Chosen from the first frame: each axis from its rate, else its increment over Δt.
-    let mut layout: Option<Result<(Vec<(Source, f64)>, Option<Source>), ReadError>> = None;
+    let mut layout: Option<Result<FrameLayout, ReadError>> = None;
     loop {
         let k = file.read(&mut buf).map_err(|source| ReadError::Io {
             path: path.to_path_buf(),
@@ -412,7 +418,7 @@ fn frame_layout(
     path: &Path,
     d: &crate::protocol::Decoded,
     dt: Option<f64>,
-) -> Result<(Vec<(Source, f64)>, Option<Source>), ReadError> {
+) -> Result<FrameLayout, ReadError> {
     let mut sources = Vec::with_capacity(6);
     for (i, (rate, inc)) in (0..3)
         .map(|a| (Source::Gyro(a), Source::DTheta(a)))
