@@ -140,8 +140,8 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         "{}: {} samples, Δt = {} s ({} Hz), {:.1} s",
         a.input.display(),
         res.samples,
-        dt,
-        1.0 / dt,
+        digits12(dt),
+        digits12(1.0 / dt),
         res.samples as f64 * dt
     );
     println!();
@@ -175,6 +175,11 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         write_file(p, report::curves_csv(&res, theory.as_deref()).as_bytes())?;
     }
     Ok(())
+}
+
+/// x rounded to 12 significant digits (a measured Δt prints as 0.0025, not 0.0024999999999999996).
+fn digits12(x: f64) -> f64 {
+    format!("{x:.11e}").parse().unwrap_or(x)
 }
 
 fn write_file(p: &Path, bytes: &[u8]) -> Result<()> {
