@@ -25,6 +25,7 @@ pub mod math;
 pub mod motion;
 pub mod nav;
 pub mod output;
+pub mod plot;
 pub mod protocol;
 pub mod quadrature;
 pub mod realtime;

@@ -35,6 +35,8 @@ enum Command {
     Navigate(cmd::navigate::NavigateArgs),
     /// Compare IMU templates by Monte Carlo free-inertial navigation error over a scene.
     Compare(cmd::compare::CompareArgs),
+    /// Statistics, Allan deviation with fitted IEEE terms, and PSD of a recording, with plots.
+    Analyze(Box<cmd::analyze::AnalyzeArgs>),
 }
 
 fn main() {
@@ -48,6 +50,7 @@ fn main() {
         Command::Navigate(a) => cmd::navigate::navigate(a),
         Command::Compare(a) => cmd::compare::compare(a),
         Command::Run(a) => cmd::run::run(*a),
+        Command::Analyze(a) => cmd::analyze::analyze(*a),
         Command::Scenes => {
             for name in scenes::NAMES {
                 println!(

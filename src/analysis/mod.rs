@@ -1,3 +1,15 @@
-//! Analysis of simulated signals: pure functions over sample slices, no I/O.
+//! Analysis of IMU signals: statistics, Allan deviation with confidence intervals, IEEE 952
+//! term fit, Welch PSD, the template's theoretical curves and the term-by-term check against
+//! a template. Pure functions and streaming accumulators; [`reader`] is the only I/O.
 
 pub mod allan;
+pub mod analyzer;
+pub mod confidence;
+pub mod conformance;
+pub mod fit;
+pub mod octave_adev;
+pub mod psd;
+pub mod reader;
+pub mod report;
+pub mod stats;
+pub mod theory;

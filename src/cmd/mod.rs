@@ -1,5 +1,6 @@
 //! The subcommands, one module each; `setup` resolves what the simulating commands share.
 
+pub mod analyze;
 pub mod compare;
 pub mod decode;
 pub mod generate;

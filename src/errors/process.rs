@@ -97,33 +97,12 @@ impl Flicker {
         dt: f64,
         mut stream: impl FnMut(usize) -> NormalStream,
     ) -> Flicker {
-        let ln_r = FLICKER_RATIO.ln();
-        let sigma = b * (ln_r / std::f64::consts::PI).sqrt();
-        // ADEV at τ is mostly set by frequencies near 1/(2τ); a GM of correlation time τ_c
-        // turns from flat to 1/f² at 1/(2πτ_c). Cover τ_c from τ_lo/π to τ_hi (one extra step
-        // each side keeps the band edges flat).
-        let lo = band.0 / std::f64::consts::PI / FLICKER_RATIO;
-        let hi = band.1 * FLICKER_RATIO;
-        let n = ((hi / lo).ln() / ln_r).ceil().max(1.0) as usize + 1;
-        let bank: Vec<HeldGm> = (0..n)
-            .map(|j| {
-                let tau = lo * FLICKER_RATIO.powi(j as i32);
-                let steps = (tau / (FLICKER_STEPS_PER_TAU * dt)).max(1.0);
-                let period = 1u64 << (steps.log2().floor() as u32).min(40);
-                // A component faster than the sampling would alias its full variance into
-                // white noise; scale its variance by the interval-mean factor
-                // g(x) = 2(x − 1 + e^{−x})/x², x = Δt/τ_c, which keeps its low-frequency PSD
-                // level 4σ²τ_c (g → 1 for slow components).
-                let x = dt / tau;
-                let g = if x < 1e-4 {
-                    1.0 - x / 3.0
-                } else {
-                    2.0 * (x + (-x).exp_m1()) / (x * x)
-                };
-                HeldGm {
-                    gm: GaussMarkov::new(sigma * g.sqrt(), tau, period as f64 * dt, stream(j)),
-                    period,
-                }
+        let bank: Vec<HeldGm> = flicker_bank(b, band, dt)
+            .into_iter()
+            .enumerate()
+            .map(|(j, c)| HeldGm {
+                gm: GaussMarkov::new(c.sigma, c.tau, c.period as f64 * dt, stream(j)),
+                period: c.period,
             })
             .collect();
         let sum = bank.iter().map(|c| c.gm.value()).sum();
@@ -154,6 +133,52 @@ impl Flicker {
     pub fn is_empty(&self) -> bool {
         self.bank.is_empty()
     }
+}
+
+/// One Gauss–Markov component of the bias-instability bank.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FlickerComponent {
+    /// Stationary σ (already scaled for components faster than the sampling).
+    pub sigma: f64,
+    /// Correlation time (s).
+    pub tau: f64,
+    /// Update period in samples (a power of two); the value is held in between.
+    pub period: u64,
+}
+
+/// The components [`Flicker::new`] builds for floor coefficient B, band [τ_lo, τ_hi] and
+/// step Δt (also what the analysis uses to draw the bank's exact theoretical curves).
+pub fn flicker_bank(b: f64, band: (f64, f64), dt: f64) -> Vec<FlickerComponent> {
+    let ln_r = FLICKER_RATIO.ln();
+    let sigma = b * (ln_r / std::f64::consts::PI).sqrt();
+    // ADEV at τ is mostly set by frequencies near 1/(2τ); a GM of correlation time τ_c
+    // turns from flat to 1/f² at 1/(2πτ_c). Cover τ_c from τ_lo/π to τ_hi (one extra step
+    // each side keeps the band edges flat).
+    let lo = band.0 / std::f64::consts::PI / FLICKER_RATIO;
+    let hi = band.1 * FLICKER_RATIO;
+    let n = ((hi / lo).ln() / ln_r).ceil().max(1.0) as usize + 1;
+    (0..n)
+        .map(|j| {
+            let tau = lo * FLICKER_RATIO.powi(j as i32);
+            let steps = (tau / (FLICKER_STEPS_PER_TAU * dt)).max(1.0);
+            let period = 1u64 << (steps.log2().floor() as u32).min(40);
+            // A component faster than the sampling would alias its full variance into
+            // white noise; scale its variance by the interval-mean factor
+            // g(x) = 2(x − 1 + e^{−x})/x², x = Δt/τ_c, which keeps its low-frequency PSD
+            // level 4σ²τ_c (g → 1 for slow components).
+            let x = dt / tau;
+            let g = if x < 1e-4 {
+                1.0 - x / 3.0
+            } else {
+                2.0 * (x + (-x).exp_m1()) / (x * x)
+            };
+            FlickerComponent {
+                sigma: sigma * g.sqrt(),
+                tau,
+                period,
+            }
+        })
+        .collect()
 }
 
 /// How values are quantized to the output LSB.

@@ -1,0 +1,138 @@
+//! One pass over six-channel IMU data (gyro x y z, accel x y z): statistics, octave Allan
+//! deviation, Welch PSD and the IEEE term fit of every channel, in memory independent of the
+//! record length.
+
+use super::confidence::NoiseType;
+use super::fit::{Fit, fit};
+use super::octave_adev::{AdevPoint, OctaveAdev};
+use super::psd::{Psd, Welch};
+use super::stats::Stats;
+use crate::record::Record;
+
+/// Channel names, in the order of the six values.
+pub const CHANNELS: [&str; 6] = [
+    "gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z",
+];
+
+/// Default Welch segment length (samples).
+pub const DEFAULT_SEGMENT: usize = 1 << 14;
+
+/// Streaming analysis of six channels.
+pub struct Analyzer {
+    stats: [Stats; 6],
+    adev: [OctaveAdev; 6],
+    psd: [Welch; 6],
+    n: u64,
+    t_first: f64,
+    t_prev: f64,
+    step_min: f64,
+    step_max: f64,
+}
+
+/// What one channel showed.
+#[derive(Clone, Debug)]
+pub struct ChannelAnalysis {
+    /// Mean, std, min, max (SI).
+    pub stats: Stats,
+    /// Octave Allan deviation with 68 % intervals (edf from the fit's dominant noise).
+    pub adev: Vec<AdevPoint>,
+    /// One-sided Welch PSD (SI²/Hz).
+    pub psd: Psd,
+    /// The fitted IEEE terms.
+    pub fit: Fit,
+}
+
+/// The analysis of a record.
+#[derive(Clone, Debug)]
+pub struct Analysis {
+    /// Samples per channel.
+    pub samples: u64,
+    /// Sampling interval used (s).
+    pub dt: f64,
+    /// Smallest and largest time step seen (s; NaN without a time column).
+    pub step_range: (f64, f64),
+    /// Time of the first sample (s).
+    pub t_first: f64,
+    /// The six channels in [`CHANNELS`] order.
+    pub channels: Vec<ChannelAnalysis>,
+}
+
+impl Analyzer {
+    /// An analyzer with Welch segments of `segment` samples.
+    pub fn new(segment: usize) -> Analyzer {
+        Analyzer {
+            stats: Default::default(),
+            adev: Default::default(),
+            psd: std::array::from_fn(|_| Welch::new(segment)),
+            n: 0,
+            t_first: f64::NAN,
+            t_prev: f64::NAN,
+            step_min: f64::INFINITY,
+            step_max: f64::NEG_INFINITY,
+        }
+    }
+
+    /// Adds one sample of the six channels at time t (NaN if the data have no time).
+    #[inline]
+    pub fn push(&mut self, t: f64, v: &[f64; 6]) {
+        if self.n == 0 {
+            self.t_first = t;
+        } else {
+            let step = t - self.t_prev;
+            self.step_min = self.step_min.min(step);
+            self.step_max = self.step_max.max(step);
+        }
+        self.t_prev = t;
+        self.n += 1;
+        for (i, &x) in v.iter().enumerate() {
+            self.stats[i].push(x);
+            self.adev[i].push(x);
+            self.psd[i].push(x);
+        }
+    }
+
+    /// Adds one output record (its interval-mean rates).
+    pub fn push_record(&mut self, r: &Record) {
+        let (g, a) = (r.gyro.0, r.accel.0);
+        self.push(r.t, &[g[0], g[1], g[2], a[0], a[1], a[2]]);
+    }
+
+    /// Samples so far.
+    pub fn samples(&self) -> u64 {
+        self.n
+    }
+
+    /// The sampling interval from the time column: (t_last − t_first)/(n − 1).
+    pub fn measured_dt(&self) -> Option<f64> {
+        let dt = (self.t_prev - self.t_first) / (self.n as f64 - 1.0);
+        (self.n >= 2 && dt.is_finite() && dt > 0.0).then_some(dt)
+    }
+
+    /// Finishes at sampling interval `dt`.
+    pub fn finish(&self, dt: f64) -> Analysis {
+        let n = self.n as usize;
+        let channels = (0..6)
+            .map(|i| {
+                let first = self.adev[i].points(dt, |_| NoiseType::WhiteRate);
+                let fit = fit(&first, n);
+                ChannelAnalysis {
+                    stats: self.stats[i],
+                    adev: self.adev[i].points(dt, |tau| fit.dominant(tau)),
+                    psd: self.psd[i].finish(dt),
+                    fit,
+                }
+            })
+            .collect();
+        Analysis {
+            samples: self.n,
+            dt,
+            step_range: if self.n >= 2 {
+                (self.step_min, self.step_max)
+            } else {
+                (f64::NAN, f64::NAN)
+            },
+            t_first: self.t_first,
+            channels,
+        }
+    }
+}

@@ -1,0 +1,241 @@
+//! Measured IEEE terms against an IMU template: one row per (sensor, axis, term) with a
+//! pass/fail band justified by the record length — the perturbed half of `validate`.
+//!
+//! Band rule. For a term the template sets (value s), let ρ(m) be its share of the template's
+//! theoretical σ² ([`super::theory`]) at octave m, and take the octave m* with the largest
+//! edf(m)·ρ(m)² among those the record measured (edf of the term's own noise type for the
+//! record's length, NIST SP 1065 Table 5): the most informative single reading. Read there,
+//! the coefficient c = s² is estimated with the relative variance of one Allan variance point
+//! divided by ρ² (the rest of σ² known), i.e. like c·χ²_ν/ν with ν = edf(m*)·ρ(m*)². The band
+//! on the value is
+//!
+//! [s·√(χ²_{0.005}(ν)/ν), s·√(χ²_{0.995}(ν)/ν)] widened by the model allowance,
+//!
+//! a 99 % band. Why one point and not the least-squares covariance over all octaves: the
+//! octave estimates come from the same samples and are strongly correlated at short τ, so
+//! treating them as independent overstates the information (see the README's "analyze"
+//! section for the seed sweep). A wrong term (e.g. white noise off by a √Δt factor) lands far
+//! outside it. Model allowances (relative, where the fit model is not
+//! exactly what is generated):
+//! * bias instability: none — the refit uses the bank's exact shape (its ±10 % ripple about
+//!   the nominal 0.664·B floor is in the basis, not in the band);
+//! * quantization, and white noise which the fit can trade against it: the carried residual
+//!   is an independent uniform error only when the per-sample noise σ of the increment spans
+//!   several LSBs q. By the sawtooth's Fourier series its correlation at lag m is at most
+//!   ρ_m = exp(−2π²mσ²/q²) of its variance, so the quantization part of the m = 1 Allan
+//!   variance moves by at most (8ρ₁ + 2ρ₂)/6 of itself: Q by at most a = (8ρ₁ + 2ρ₂)/12
+//!   ([`quantization_allowance`]), N (if the fit lays it all on N) by a·ρ_Q/ρ_N with the two
+//!   terms' shares of σ² at m = 1;
+//! * the other terms are exact in the fit model (0).
+//!
+//! The fitted values are those of a refit in which the bias-instability basis is the exact
+//! Allan variance of the template's Gauss–Markov bank (flat only inside its band) rather than
+//! the IEEE flat floor, so that the generator is checked against what it is meant to make.
+//!
+//! Terms the template leaves at zero get no band and no verdict (`pass = None`): the fit may
+//! still report a small value, which the caller can show. A term the record is too short to
+//! resolve (its band reaches below a tenth of the specified value) and that the fit left out
+//! gets no verdict either (`resolved = false`): "not seen" is not "wrong".
+
+use super::analyzer::Analysis;
+#[cfg(test)]
+use super::confidence::NoiseType;
+use super::confidence::{chi2_quantile, edf};
+use super::fit::{TERMS, Term, fit_with_floor};
+use super::theory::{AxisTheory, triad};
+use crate::errors::template::ImuModel;
+
+/// Confidence of the pass/fail bands.
+pub const BAND_CONFIDENCE: f64 = 0.99;
+
+/// One term of one axis checked against the template.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TermRow {
+    /// "gyro" or "accel".
+    pub sensor: &'static str,
+    /// Axis 0, 1, 2.
+    pub axis: usize,
+    /// The term.
+    pub term: Term,
+    /// The template's value (SI; 0 when not set).
+    pub specified: f64,
+    /// The fitted value (SI).
+    pub fitted: f64,
+    /// τ where the fit read it.
+    pub tau: Option<f64>,
+    /// The term's share of the fitted σ² there.
+    pub share: f64,
+    /// Band of acceptable fitted values (None when the template does not set the term).
+    pub band: Option<(f64, f64)>,
+    /// Whether the fitted value lies in the band (None without a band, or when the term is
+    /// not resolved).
+    pub pass: Option<bool>,
+    /// False when the record is too short to see the term: its band reaches below
+    /// [`RESOLVED_FRACTION`] of the specified value and the fit left it out.
+    pub resolved: bool,
+}
+
+/// A band whose lower edge is below this fraction of the specified value cannot tell the
+/// term from its absence.
+pub const RESOLVED_FRACTION: f64 = 0.1;
+
+impl TermRow {
+    /// fitted / specified (NaN when not specified).
+    pub fn ratio(&self) -> f64 {
+        if self.specified > 0.0 {
+            self.fitted / self.specified
+        } else {
+            f64::NAN
+        }
+    }
+}
+
+/// The template's theory of the six channels at the analysis's rate.
+pub fn channel_theory(model: &ImuModel, dt: f64) -> Vec<AxisTheory> {
+    let mut v = triad(&model.gyro, model.quantization_mode, dt).to_vec();
+    v.extend(triad(&model.accel, model.quantization_mode, dt));
+    v
+}
+
+/// The rows for every sensor, axis and term (30 rows), in channel then term order.
+pub fn term_rows(model: &ImuModel, analysis: &Analysis) -> Vec<TermRow> {
+    let theory = channel_theory(model, analysis.dt);
+    let phases = analysis.samples as usize + 1;
+    let mut rows = Vec::with_capacity(30);
+    for (ch, (c, th)) in analysis.channels.iter().zip(&theory).enumerate() {
+        let ms: Vec<usize> = c.adev.iter().map(|p| p.m).collect();
+        let nu = term_edf(th, analysis.dt, &ms, phases);
+        // Refit with the bank's exact shape for B when the template sets it.
+        let fit = match th.flicker_shape(1.0) {
+            Some(_) => fit_with_floor(&c.adev, analysis.samples as usize, &|tau| {
+                th.flicker_shape(tau).unwrap_or(0.0)
+            }),
+            None => c.fit.clone(),
+        };
+        for (i, term) in TERMS.into_iter().enumerate() {
+            let specified = th.specified(term);
+            let fitted = fit.term(term);
+            let band = nu[i].map(|nu| {
+                let allow = model_allowance(term, th, analysis.dt);
+                band(specified, nu, allow)
+            });
+            let resolved = match band {
+                Some((lo, _)) => lo >= RESOLVED_FRACTION * specified || fitted.value > 0.0,
+                None => true,
+            };
+            rows.push(TermRow {
+                sensor: if ch < 3 { "gyro" } else { "accel" },
+                axis: ch % 3,
+                term,
+                specified,
+                fitted: fitted.value,
+                tau: fitted.tau,
+                share: fitted.share,
+                band,
+                pass: band
+                    .filter(|_| resolved)
+                    .map(|(lo, hi)| fitted.value >= lo && fitted.value <= hi),
+                resolved,
+            });
+        }
+    }
+    rows
+}
+
+/// Degrees of freedom of each specified term read at its most informative octave: the
+/// largest edf(m)·ρ(m)² over the octaves `ms` of a record of `phases − 1` samples, ρ the
+/// term's share of the template's σ² (None for terms the template does not set).
+pub fn term_edf(th: &AxisTheory, dt: f64, ms: &[usize], phases: usize) -> [Option<f64>; 5] {
+    std::array::from_fn(|i| {
+        let term = TERMS[i];
+        if th.specified(term) <= 0.0 {
+            return None;
+        }
+        ms.iter()
+            .map(|&m| {
+                let share = th.share(term, m, dt);
+                edf(term.noise_type(), phases, m) * share * share
+            })
+            .max_by(f64::total_cmp)
+            .filter(|nu| *nu > 0.0)
+            .map(|nu| nu.max(0.5))
+    })
+}
+
+/// The relative model allowance of the module documentation for `term` at sampling
+/// interval Δt (0 for the terms the fit model describes exactly).
+pub fn model_allowance(term: Term, th: &AxisTheory, dt: f64) -> f64 {
+    let a = quantization_allowance(th.white * dt.sqrt(), th.quantization * 12f64.sqrt());
+    match term {
+        Term::Quantization => a,
+        Term::WhiteNoise => {
+            let n = th.share(Term::WhiteNoise, 1, dt);
+            if n > 0.0 {
+                a * th.share(Term::Quantization, 1, dt) / n
+            } else {
+                0.0
+            }
+        }
+        _ => 0.0,
+    }
+}
+
+/// Bound on the relative change of Q read at m = 1 when the per-sample increment noise
+/// `sigma` does not span the LSB `q`: (8ρ₁ + 2ρ₂)/12, ρ_m = exp(−2π²mσ²/q²).
+pub fn quantization_allowance(sigma: f64, q: f64) -> f64 {
+    if q <= 0.0 {
+        return 0.0;
+    }
+    let rho = |m: f64| (-2.0 * std::f64::consts::PI.powi(2) * m * (sigma / q).powi(2)).exp();
+    (8.0 * rho(1.0) + 2.0 * rho(2.0)) / 12.0
+}
+
+/// The 99 % band on a term's value: ĉ ~ c·χ²_ν/ν, widened by the relative allowance.
+pub fn band(specified: f64, nu: f64, allow: f64) -> (f64, f64) {
+    let alpha = 1.0 - BAND_CONFIDENCE;
+    let lo = (chi2_quantile(alpha / 2.0, nu) / nu).sqrt();
+    let hi = (chi2_quantile(1.0 - alpha / 2.0, nu) / nu).sqrt();
+    (
+        specified * lo * (1.0 - allow),
+        specified * hi * (1.0 + allow),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The band is the χ² interval of ν degrees of freedom: ±2.576/√(2ν) for large ν.
+    #[test]
+    fn band_is_the_chi2_interval() {
+        let (lo, hi) = band(1.0, 1e6, 0.0);
+        let half = 2.576 / (2.0f64 * 1e6).sqrt();
+        assert!(((hi - 1.0) / half - 1.0).abs() < 0.01 && ((1.0 - lo) / half - 1.0).abs() < 0.01);
+        let (lo2, hi2) = band(1.0, 1e6, 0.1);
+        assert!((lo2 / lo - 0.9).abs() < 1e-12 && (hi2 / hi - 1.1).abs() < 1e-12);
+    }
+
+    /// White noise alone: the most informative octave is m = 1 with its full edf; a term
+    /// the template does not set gets no ν.
+    #[test]
+    fn term_edf_reads_the_best_octave() {
+        let th = AxisTheory {
+            white: 1e-3,
+            ..AxisTheory::default()
+        };
+        let ms: Vec<usize> = (0..12).map(|j| 1 << j).collect();
+        let nu = term_edf(&th, 0.01, &ms, 100_001);
+        assert_eq!(nu[1], Some(edf(NoiseType::WhiteRate, 100_001, 1)));
+        assert!(nu[0].is_none() && nu[2].is_none());
+    }
+
+    /// The quantization allowance vanishes once the noise spans the LSB and is large below it.
+    #[test]
+    fn quantization_allowance_depends_on_noise_over_lsb() {
+        assert!(quantization_allowance(2.0, 1.0) < 1e-30);
+        // σ = 0.4 q: ρ₁ = e^{−0.32π²} = 0.042, ρ₂ = 0.0018 → 2.9 %.
+        let a = quantization_allowance(0.4, 1.0);
+        assert!((a - 0.0286).abs() < 0.0005, "{a}");
+        assert!(quantization_allowance(0.05, 1.0) > 0.3);
+    }
+}

@@ -1,0 +1,478 @@
+//! Reading six-channel IMU data for analysis, streaming (one line / one chunk at a time):
+//! our CSV and binary output, a protocol frame stream, or any CSV with a time column and
+//! gyro and accelerometer columns mapped by name or by position, in stated units.
+//! The only module of `analysis` that does I/O.
+
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+
+use crate::protocol::spec::Source;
+use crate::protocol::{Plan, StreamDecoder, StreamStats};
+
+/// What a CSV column holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    /// Time (s).
+    Time,
+    /// Angular rate, axis 0–2.
+    Gyro(usize),
+    /// Specific force, axis 0–2.
+    Accel(usize),
+    /// Ignored.
+    Skip,
+}
+
+impl Role {
+    /// Parses a column role: `t`/`time`, `gx`/`gyro_x`, `ax`/`accel_x`, …, or `-` to skip.
+    pub fn from_name(s: &str) -> Option<Role> {
+        let s = s.trim().to_ascii_lowercase();
+        let axis = |c: &str| match c {
+            "x" => Some(0),
+            "y" => Some(1),
+            "z" => Some(2),
+            _ => None,
+        };
+        Some(match s.as_str() {
+            "t" | "time" => Role::Time,
+            "-" | "_" | "skip" => Role::Skip,
+            _ => {
+                if let Some(a) = s.strip_prefix("gyro_").or(s.strip_prefix('g')) {
+                    Role::Gyro(axis(a)?)
+                } else if let Some(a) = s.strip_prefix("accel_").or(s.strip_prefix('a')) {
+                    Role::Accel(axis(a)?)
+                } else {
+                    return None;
+                }
+            }
+        })
+    }
+}
+
+/// How to read a CSV file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CsvOptions {
+    /// Role of each column in order; None: from the header names (ours by default).
+    pub columns: Option<Vec<Role>>,
+    /// Factor from the file's gyro unit to rad/s.
+    pub gyro_scale: f64,
+    /// Factor from the file's accelerometer unit to m/s².
+    pub accel_scale: f64,
+}
+
+impl Default for CsvOptions {
+    fn default() -> Self {
+        CsvOptions {
+            columns: None,
+            gyro_scale: 1.0,
+            accel_scale: 1.0,
+        }
+    }
+}
+
+/// The encoding of the input.
+pub enum InputFormat {
+    /// Text with optional header.
+    Csv(CsvOptions),
+    /// Our binary records (13 little-endian f64 each).
+    Bin,
+    /// Frames of a protocol.
+    Frames(Plan),
+}
+
+/// What was read besides the samples.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ReadSummary {
+    /// Samples delivered.
+    pub samples: u64,
+    /// Frame-stream tally (frames input only).
+    pub frames: Option<StreamStats>,
+}
+
+/// Input that cannot be analysed, with the file, line and field at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum ReadError {
+    /// The file cannot be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A field that is not a number.
+    #[error("{path}:{line}: field `{field}` (column {column}): `{text}` is not a number")]
+    NotNumber {
+        /// File.
+        path: PathBuf,
+        /// 1-based line.
+        line: u64,
+        /// Column name.
+        field: String,
+        /// 1-based column.
+        column: usize,
+        /// The text found.
+        text: String,
+    },
+    /// A line with too few fields.
+    #[error("{path}:{line}: {got} fields, the column mapping needs {need}")]
+    ShortLine {
+        /// File.
+        path: PathBuf,
+        /// 1-based line.
+        line: u64,
+        /// Fields found.
+        got: usize,
+        /// Fields needed.
+        need: usize,
+    },
+    /// A column the analysis needs is missing.
+    #[error("{path}: no column for {what} ({hint})")]
+    MissingColumn {
+        /// File.
+        path: PathBuf,
+        /// Which quantity.
+        what: String,
+        /// What was found / how to map it.
+        hint: String,
+    },
+    /// A binary file that is not whole records.
+    #[error(
+        "{path}: {bytes} bytes is not a whole number of {record}-byte records (record {index} is cut short)"
+    )]
+    Truncated {
+        /// File.
+        path: PathBuf,
+        /// File size.
+        bytes: u64,
+        /// Record size.
+        record: usize,
+        /// 0-based index of the incomplete record.
+        index: u64,
+    },
+    /// Frames that carry no rate or increment of some axis.
+    #[error("{path}: the protocol's frames carry no {what}")]
+    FrameContent {
+        /// File.
+        path: PathBuf,
+        /// What is missing.
+        what: String,
+    },
+}
+
+const CHANNEL_NAMES: [&str; 6] = [
+    "gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z",
+];
+
+/// Reads `path` and calls `sample(t, [gx, gy, gz, ax, ay, az])` for each sample, in SI.
+/// `t` is NaN when the input has no time; `dt` (if known) turns frame increments into rates.
+pub fn read(
+    path: &Path,
+    format: &InputFormat,
+    dt: Option<f64>,
+    mut sample: impl FnMut(f64, &[f64; 6]),
+) -> Result<ReadSummary, ReadError> {
+    let io = |source| ReadError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = File::open(path).map_err(io)?;
+    match format {
+        InputFormat::Csv(o) => read_csv(path, BufReader::with_capacity(1 << 16, file), o, sample),
+        InputFormat::Bin => {
+            let bytes = file.metadata().map_err(io)?.len();
+            let mut r = BufReader::with_capacity(1 << 16, file);
+            let mut rec = [0u8; 104];
+            let mut n = 0u64;
+            loop {
+                match read_full(&mut r, &mut rec).map_err(io)? {
+                    0 => break,
+                    104 => {}
+                    _ => {
+                        return Err(ReadError::Truncated {
+                            path: path.to_path_buf(),
+                            bytes,
+                            record: 104,
+                            index: n,
+                        });
+                    }
+                }
+                let v = |i: usize| f64::from_le_bytes(rec[8 * i..8 * i + 8].try_into().unwrap());
+                sample(v(0), &std::array::from_fn(|i| v(i + 1)));
+                n += 1;
+            }
+            Ok(ReadSummary {
+                samples: n,
+                frames: None,
+            })
+        }
+        InputFormat::Frames(plan) => read_frames(path, file, plan.clone(), dt, sample),
+    }
+}
+
+/// Fills `buf` as far as the input allows; returns the bytes read (short only at the end).
+fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut got = 0;
+    while got < buf.len() {
+        match r.read(&mut buf[got..]) {
+            Ok(0) => break,
+            Ok(k) => got += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(got)
+}
+
+/// The used columns as (index, role), and every column's display name.
+type ColumnMap = (Vec<(usize, Role)>, Vec<String>);
+
+/// The source and factor of each of the six rates, and the time source if any.
+type FrameLayout = (Vec<(Source, f64)>, Option<Source>);
+
+fn read_csv(
+    path: &Path,
+    mut r: impl BufRead,
+    o: &CsvOptions,
+    mut sample: impl FnMut(f64, &[f64; 6]),
+) -> Result<ReadSummary, ReadError> {
+    let io = |source| ReadError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut line = String::new();
+    let mut lineno = 0u64;
+    // (column index, role) of the columns used, and their display names.
+    let mut map: Option<ColumnMap> = None;
+    let mut n = 0u64;
+    loop {
+        line.clear();
+        if r.read_line(&mut line).map_err(io)? == 0 {
+            break;
+        }
+        lineno += 1;
+        let text = line.trim_end_matches(['\n', '\r']);
+        if text.trim().is_empty() || text.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = text.split(',').map(str::trim).collect();
+        if map.is_none() {
+            let header = fields.iter().any(|f| f.parse::<f64>().is_err());
+            let (roles, names): (Vec<Role>, Vec<String>) = match (&o.columns, header) {
+                (Some(roles), _) => (
+                    roles.clone(),
+                    (0..roles.len())
+                        .map(|i| {
+                            if header {
+                                fields
+                                    .get(i)
+                                    .map_or(format!("#{}", i + 1), |s| s.to_string())
+                            } else {
+                                role_name(roles[i])
+                            }
+                        })
+                        .collect(),
+                ),
+                (None, true) => (
+                    fields
+                        .iter()
+                        .map(|f| Role::from_name(f).unwrap_or(Role::Skip))
+                        .collect(),
+                    fields.iter().map(|s| s.to_string()).collect(),
+                ),
+                (None, false) => {
+                    let ours = crate::record::COLUMNS;
+                    (
+                        ours.iter()
+                            .map(|f| Role::from_name(f).unwrap_or(Role::Skip))
+                            .collect(),
+                        ours.iter().map(|s| s.to_string()).collect(),
+                    )
+                }
+            };
+            let mut used = Vec::new();
+            for want in [
+                Role::Gyro(0),
+                Role::Gyro(1),
+                Role::Gyro(2),
+                Role::Accel(0),
+                Role::Accel(1),
+                Role::Accel(2),
+                Role::Time,
+            ] {
+                match roles.iter().position(|r| *r == want) {
+                    Some(i) => used.push((i, want)),
+                    None if want == Role::Time => {}
+                    None => {
+                        return Err(ReadError::MissingColumn {
+                            path: path.to_path_buf(),
+                            what: role_name(want),
+                            hint: format!(
+                                "columns: {}; map them with --columns, e.g. t,gx,gy,gz,ax,ay,az",
+                                names.join(",")
+                            ),
+                        });
+                    }
+                }
+            }
+            map = Some((used, names));
+            if header {
+                continue;
+            }
+        }
+        let (used, names) = map.as_ref().expect("set above");
+        let need = used.iter().map(|u| u.0 + 1).max().unwrap_or(0);
+        if fields.len() < need {
+            return Err(ReadError::ShortLine {
+                path: path.to_path_buf(),
+                line: lineno,
+                got: fields.len(),
+                need,
+            });
+        }
+        let mut v = [0.0; 6];
+        let mut t = f64::NAN;
+        for &(i, role) in used {
+            let x: f64 = fields[i]
+                .parse()
+                .ok()
+                .filter(|x: &f64| x.is_finite())
+                .ok_or_else(|| ReadError::NotNumber {
+                    path: path.to_path_buf(),
+                    line: lineno,
+                    field: names.get(i).cloned().unwrap_or_default(),
+                    column: i + 1,
+                    text: fields[i].to_string(),
+                })?;
+            match role {
+                Role::Gyro(a) => v[a] = x * o.gyro_scale,
+                Role::Accel(a) => v[3 + a] = x * o.accel_scale,
+                Role::Time => t = x,
+                Role::Skip => {}
+            }
+        }
+        sample(t, &v);
+        n += 1;
+    }
+    Ok(ReadSummary {
+        samples: n,
+        frames: None,
+    })
+}
+
+fn role_name(r: Role) -> String {
+    match r {
+        Role::Time => "time".into(),
+        Role::Gyro(a) => CHANNEL_NAMES[a].into(),
+        Role::Accel(a) => CHANNEL_NAMES[3 + a].into(),
+        Role::Skip => "-".into(),
+    }
+}
+
+fn read_frames(
+    path: &Path,
+    mut file: File,
+    plan: Plan,
+    dt: Option<f64>,
+    mut sample: impl FnMut(f64, &[f64; 6]),
+) -> Result<ReadSummary, ReadError> {
+    let mut dec = StreamDecoder::new(plan);
+    let mut buf = vec![0u8; 1 << 16];
+    let mut n = 0u64;
+    // Chosen from the first frame: each axis from its rate, else its increment over Δt.
+    let mut layout: Option<Result<FrameLayout, ReadError>> = None;
+    loop {
+        let k = file.read(&mut buf).map_err(|source| ReadError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        if k == 0 {
+            break;
+        }
+        dec.feed(&buf[..k], |d| {
+            let l = layout.get_or_insert_with(|| frame_layout(path, d, dt));
+            if let Ok((sources, time)) = l {
+                let v: [f64; 6] =
+                    std::array::from_fn(|i| d.get(sources[i].0).unwrap_or(f64::NAN) * sources[i].1);
+                let t = time.and_then(|s| d.get(s)).unwrap_or(f64::NAN);
+                sample(t, &v);
+                n += 1;
+            }
+        });
+        if let Some(Err(_)) = &layout {
+            break;
+        }
+    }
+    if let Some(Err(e)) = layout {
+        return Err(e);
+    }
+    Ok(ReadSummary {
+        samples: n,
+        frames: Some(dec.stats()),
+    })
+}
+
+/// Which decoded values give the six rates (with their factor) and the time.
+fn frame_layout(
+    path: &Path,
+    d: &crate::protocol::Decoded,
+    dt: Option<f64>,
+) -> Result<FrameLayout, ReadError> {
+    let mut sources = Vec::with_capacity(6);
+    for (i, (rate, inc)) in (0..3)
+        .map(|a| (Source::Gyro(a), Source::DTheta(a)))
+        .chain((0..3).map(|a| (Source::Accel(a), Source::Dv(a))))
+        .enumerate()
+    {
+        if d.get(rate).is_some() {
+            sources.push((rate, 1.0));
+        } else if d.get(inc).is_some() {
+            let dt = dt.ok_or_else(|| ReadError::FrameContent {
+                path: path.to_path_buf(),
+                what: format!(
+                    "rate for {} (its increments need the sampling rate: give --rate)",
+                    CHANNEL_NAMES[i]
+                ),
+            })?;
+            sources.push((inc, 1.0 / dt));
+        } else {
+            return Err(ReadError::FrameContent {
+                path: path.to_path_buf(),
+                what: format!("rate or increment for {}", CHANNEL_NAMES[i]),
+            });
+        }
+    }
+    let time = [Source::Time, Source::GpsSeconds]
+        .into_iter()
+        .find(|s| d.get(*s).is_some());
+    Ok((sources, time))
+}
+
+/// Parses a `--columns` list such as `t,gx,gy,gz,ax,ay,az` (`-` skips a column).
+pub fn parse_columns(s: &str) -> Result<Vec<Role>, String> {
+    s.split(',')
+        .map(|c| {
+            Role::from_name(c).ok_or_else(|| {
+                format!(
+                    "unknown column role `{c}` (t, gx, gy, gz, ax, ay, az, gyro_x, …, or - to skip)"
+                )
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roles() {
+        assert_eq!(Role::from_name("gyro_y"), Some(Role::Gyro(1)));
+        assert_eq!(Role::from_name("AZ"), Some(Role::Accel(2)));
+        assert_eq!(Role::from_name("time"), Some(Role::Time));
+        assert_eq!(Role::from_name("dtheta_x"), None);
+        assert_eq!(Role::from_name("gw"), None);
+        assert!(parse_columns("t,gx,foo").unwrap_err().contains("`foo`"));
+    }
+}

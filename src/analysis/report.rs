@@ -1,0 +1,343 @@
+//! Presenting an [`Analysis`]: text tables in datasheet units, the plot panels (ADEV and PSD,
+//! gyro and accelerometer, theory overlaid) and a CSV of the curves. Pure: strings and
+//! [`Panel`]s out, the caller writes them.
+
+use std::f64::consts::PI;
+use std::fmt::Write;
+
+use super::analyzer::{Analysis, CHANNELS};
+use super::conformance::TermRow;
+use super::fit::{TERMS, Term};
+use super::theory::AxisTheory;
+use crate::plot::{Panel, Series};
+use crate::units::G0;
+
+const DEG: f64 = 180.0 / PI;
+
+/// Datasheet unit and factor (SI × factor = shown value) of a term for gyro or accel.
+pub fn term_unit(gyro: bool, t: Term) -> (&'static str, f64) {
+    match (gyro, t) {
+        (true, Term::Quantization) => ("urad", 1e6),
+        (true, Term::WhiteNoise) => ("deg/sqrt(h)", DEG * 60.0),
+        (true, Term::BiasInstability) => ("deg/h", DEG * 3600.0),
+        (true, Term::RandomWalk) => ("deg/h/sqrt(h)", DEG * 3600.0 * 60.0),
+        (true, Term::Ramp) => ("deg/h^2", DEG * 3600.0 * 3600.0),
+        (false, Term::Quantization) => ("mm/s", 1e3),
+        (false, Term::WhiteNoise) => ("m/s/sqrt(h)", 60.0),
+        (false, Term::BiasInstability) => ("ug", 1.0 / (G0 * 1e-6)),
+        (false, Term::RandomWalk) => ("m/s/h/sqrt(h)", 3600.0 * 60.0),
+        (false, Term::Ramp) => ("m/s/h^2", 3600.0 * 3600.0),
+    }
+}
+
+/// Unit and factor of ADEV curves: deg/h for gyros, µg for accelerometers.
+pub fn adev_unit(gyro: bool) -> (&'static str, f64) {
+    if gyro {
+        ("deg/h", DEG * 3600.0)
+    } else {
+        ("ug", 1.0 / (G0 * 1e-6))
+    }
+}
+
+/// Per-channel mean, std, min, max (gyro deg/s, accel m/s²).
+pub fn stats_table(a: &Analysis) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{:<8} {:>14} {:>14} {:>14} {:>14}  unit",
+        "channel", "mean", "std", "min", "max"
+    );
+    for (i, c) in a.channels.iter().enumerate() {
+        let (unit, f) = if i < 3 {
+            ("deg/s", DEG)
+        } else {
+            ("m/s^2", 1.0)
+        };
+        let st = &c.stats;
+        let _ = writeln!(
+            s,
+            "{:<8} {:>14.6e} {:>14.6e} {:>14.6e} {:>14.6e}  {unit}",
+            CHANNELS[i],
+            st.mean * f,
+            st.std() * f,
+            st.min * f,
+            st.max * f
+        );
+    }
+    s
+}
+
+/// The fitted terms per channel; with `rows` (from [`super::conformance::term_rows`]) also the
+/// template's value, the ratio, the band and the verdict. Terms neither fitted nor specified
+/// are left out.
+pub fn term_table(a: &Analysis, rows: Option<&[TermRow]>) -> String {
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        "{:<8} {:<3} {:>11} {:<14} {:>10} {:>6}",
+        "channel", "", "fitted", "unit", "τ read (s)", "share"
+    );
+    if rows.is_some() {
+        let _ = write!(
+            s,
+            " {:>11} {:>7} {:>25}  verdict",
+            "template", "ratio", "99 % band"
+        );
+    }
+    s.push('\n');
+    for (ch, c) in a.channels.iter().enumerate() {
+        for t in TERMS {
+            let row = rows.and_then(|r| {
+                r.iter()
+                    .find(|r| r.term == t && r.axis == ch % 3 && (r.sensor == "gyro") == (ch < 3))
+            });
+            // Against a template, the template-aware refit (see `conformance`).
+            let mut f = c.fit.term(t);
+            if let Some(r) = row {
+                (f.value, f.tau, f.share) = (r.fitted, r.tau, r.share);
+            }
+            let specified = row.map_or(0.0, |r| r.specified);
+            if f.value == 0.0 && specified == 0.0 {
+                continue;
+            }
+            let (unit, k) = term_unit(ch < 3, t);
+            let _ = write!(
+                s,
+                "{:<8} {:<3} {:>11.4} {:<14} {:>10} {:>6.2}",
+                CHANNELS[ch],
+                t.symbol(),
+                f.value * k,
+                unit,
+                f.tau.map_or("-".into(), |t| format!("{t:.3}")),
+                f.share
+            );
+            if let Some(r) = row {
+                let band = r.band.map_or("-".to_string(), |(lo, hi)| {
+                    format!("[{:.4}, {:.4}]", lo * k, hi * k)
+                });
+                let verdict = match (r.pass, r.resolved) {
+                    (Some(true), _) => "pass",
+                    (Some(false), _) => "FAIL",
+                    (None, false) => "not resolved (hidden by other terms or record too short)",
+                    (None, true) => "not specified",
+                };
+                let ratio = if r.specified > 0.0 {
+                    format!("{:.3}", r.ratio())
+                } else {
+                    "-".into()
+                };
+                let _ = write!(
+                    s,
+                    " {:>11.4} {:>7} {:>25}  {verdict}",
+                    r.specified * k,
+                    ratio,
+                    band
+                );
+            }
+            s.push('\n');
+        }
+    }
+    s
+}
+
+/// Four panels: ADEV gyro, ADEV accel, PSD gyro, PSD accel, three axes each with 68 % bands,
+/// the template's exact theory dashed (and its nominal IEEE curve dotted when it sets B).
+pub fn panels(a: &Analysis, theory: Option<&[AxisTheory]>, title: &str) -> Vec<Panel> {
+    let mut out = Vec::new();
+    for gyro in [true, false] {
+        let (unit, k) = adev_unit(gyro);
+        let base = if gyro { 0 } else { 3 };
+        let sensor = if gyro { "gyro" } else { "accel" };
+        let mut series = Vec::new();
+        for axis in 0..3 {
+            let c = &a.channels[base + axis];
+            series.push(Series {
+                label: ["x", "y", "z"][axis].into(),
+                x: c.adev.iter().map(|p| p.tau).collect(),
+                y: c.adev.iter().map(|p| p.adev * k).collect(),
+                band: Some((
+                    c.adev.iter().map(|p| p.lo * k).collect(),
+                    c.adev.iter().map(|p| p.hi * k).collect(),
+                )),
+                color: axis,
+                dashed: false,
+            });
+        }
+        if let Some(th) = theory {
+            let ms: Vec<usize> = a.channels[base].adev.iter().map(|p| p.m).collect();
+            theory_series(&th[base..base + 3], &mut series, |t| {
+                ms.iter()
+                    .map(|&m| (m as f64 * a.dt, t.avar(m, a.dt).sqrt() * k))
+                    .unzip()
+            });
+            let t0 = &th[base];
+            if t0.bias_instability > 0.0 {
+                series.push(Series {
+                    label: "IEEE nominal (0.664 B floor)".into(),
+                    x: ms.iter().map(|&m| m as f64 * a.dt).collect(),
+                    y: ms
+                        .iter()
+                        .map(|&m| t0.nominal_avar(m as f64 * a.dt).sqrt() * k)
+                        .collect(),
+                    band: None,
+                    color: 4,
+                    dashed: true,
+                });
+            }
+        }
+        out.push(Panel {
+            title: format!("{title}: {sensor} Allan deviation"),
+            x_label: "τ (s)".into(),
+            y_label: format!("σ(τ) ({unit})"),
+            log_x: true,
+            log_y: true,
+            series,
+        });
+    }
+    for gyro in [true, false] {
+        let (unit, k) = adev_unit(gyro);
+        let base = if gyro { 0 } else { 3 };
+        let sensor = if gyro { "gyro" } else { "accel" };
+        let mut series = Vec::new();
+        for axis in 0..3 {
+            let p = &a.channels[base + axis].psd;
+            let (x, y) = log_bins(plotted(&p.freq), &p.density, PSD_BINS_PER_DECADE);
+            series.push(Series {
+                label: ["x", "y", "z"][axis].into(),
+                x,
+                y: y.iter().map(|d| d * k * k).collect(),
+                band: None,
+                color: axis,
+                dashed: false,
+            });
+        }
+        if let Some(th) = theory {
+            let p = &a.channels[base].psd;
+            let (freq, _) = log_bins(plotted(&p.freq), &p.density, PSD_BINS_PER_DECADE);
+            theory_series(&th[base..base + 3], &mut series, |t| {
+                (
+                    freq.clone(),
+                    freq.iter().map(|&f| t.psd(f, a.dt) * k * k).collect(),
+                )
+            });
+        }
+        out.push(Panel {
+            title: format!("{title}: {sensor} PSD (Welch, Hann)"),
+            x_label: "f (Hz)".into(),
+            y_label: format!("PSD ({unit})²/Hz"),
+            log_x: true,
+            log_y: true,
+            series,
+        });
+    }
+    out
+}
+
+/// The frequencies plotted: all but the Nyquist bin, whose one-sided density carries half
+/// the level by construction (it has no mirror image) and would look like a roll-off.
+fn plotted(freq: &[f64]) -> &[f64] {
+    &freq[..freq.len().saturating_sub(1)]
+}
+
+/// Plotted PSDs are averaged over log-spaced frequency bands (the CSV keeps every bin).
+pub const PSD_BINS_PER_DECADE: f64 = 25.0;
+
+/// Averages (f, P) over bands of 1/`per_decade` decade (f = 0 left out): a readable log-log
+/// curve whose scatter shrinks with frequency as more Welch bins fall in each band.
+pub fn log_bins(freq: &[f64], density: &[f64], per_decade: f64) -> (Vec<f64>, Vec<f64>) {
+    let mut out: (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
+    let mut cur: Option<(i64, f64, f64, f64)> = None; // (band, Σf, ΣP, count)
+    for (&f, &p) in freq.iter().zip(density) {
+        if f <= 0.0 {
+            continue;
+        }
+        let band = (f.log10() * per_decade).floor() as i64;
+        match &mut cur {
+            Some(c) if c.0 == band => {
+                c.1 += f;
+                c.2 += p;
+                c.3 += 1.0;
+            }
+            _ => {
+                if let Some(c) = cur {
+                    out.0.push(c.1 / c.3);
+                    out.1.push(c.2 / c.3);
+                }
+                cur = Some((band, f, p, 1.0));
+            }
+        }
+    }
+    if let Some(c) = cur {
+        out.0.push(c.1 / c.3);
+        out.1.push(c.2 / c.3);
+    }
+    out
+}
+
+/// Adds the theory curves: one black dashed curve when the three axes share the same model,
+/// else one dashed curve per axis in its colour.
+fn theory_series(
+    th: &[AxisTheory],
+    series: &mut Vec<Series>,
+    curve: impl Fn(&AxisTheory) -> (Vec<f64>, Vec<f64>),
+) {
+    let same = th.iter().all(|t| *t == th[0]);
+    let axes: Vec<usize> = if same { vec![0] } else { vec![0, 1, 2] };
+    for i in axes {
+        let (x, y) = curve(&th[i]);
+        if y.iter().all(|v| *v == 0.0) {
+            continue;
+        }
+        series.push(Series {
+            label: if same {
+                "template (exact)".into()
+            } else {
+                format!("template {}", ["x", "y", "z"][i])
+            },
+            x,
+            y,
+            band: None,
+            color: if same { 5 } else { i },
+            dashed: true,
+        });
+    }
+}
+
+/// The curves as CSV rows `kind,channel,x,y,lo,hi` in SI (x = τ in s or f in Hz): kinds
+/// `adev` (with its 68 % interval), `psd`, and with a template `theory_adev`,
+/// `nominal_adev`, `theory_psd`.
+pub fn curves_csv(a: &Analysis, theory: Option<&[AxisTheory]>) -> String {
+    let mut s = String::from("kind,channel,x,y,lo,hi\n");
+    let name = |i: usize| CHANNELS[i].replace(' ', "_");
+    for (i, c) in a.channels.iter().enumerate() {
+        for p in &c.adev {
+            let _ = writeln!(s, "adev,{},{},{},{},{}", name(i), p.tau, p.adev, p.lo, p.hi);
+        }
+        for (f, d) in c.psd.freq.iter().zip(&c.psd.density) {
+            let _ = writeln!(s, "psd,{},{f},{d},,", name(i));
+        }
+        if let Some(th) = theory {
+            let t = &th[i];
+            for p in &c.adev {
+                let _ = writeln!(
+                    s,
+                    "theory_adev,{},{},{},,",
+                    name(i),
+                    p.tau,
+                    t.avar(p.m, a.dt).sqrt()
+                );
+                let _ = writeln!(
+                    s,
+                    "nominal_adev,{},{},{},,",
+                    name(i),
+                    p.tau,
+                    t.nominal_avar(p.tau).sqrt()
+                );
+            }
+            for f in c.psd.freq.iter().skip(1) {
+                let _ = writeln!(s, "theory_psd,{},{f},{},,", name(i), t.psd(*f, a.dt));
+            }
+        }
+    }
+    s
+}

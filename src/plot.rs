@@ -1,0 +1,285 @@
+//! Line plots with optional confidence bands, in one or more panels, written as PNG or SVG by
+//! `plotters` with an embedded font (DejaVu Sans, `assets/`), so no system library or font is
+//! needed. Axes are linear or logarithmic per panel; log axes label their ticks as plain
+//! numbers or powers of ten.
+
+use std::path::{Path, PathBuf};
+
+use plotters::coord::Shift;
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::prelude::*;
+
+/// The family name the embedded font is registered under.
+const FONT: &str = "sans-serif";
+
+/// One curve.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Series {
+    /// Legend text (empty: not in the legend).
+    pub label: String,
+    /// Abscissae.
+    pub x: Vec<f64>,
+    /// Ordinates.
+    pub y: Vec<f64>,
+    /// Lower and upper band edges at the same abscissae, shaded.
+    pub band: Option<(Vec<f64>, Vec<f64>)>,
+    /// Index into the palette.
+    pub color: usize,
+    /// Dashed line (e.g. theory) instead of solid.
+    pub dashed: bool,
+}
+
+/// One panel: axes, labels and curves.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Panel {
+    /// Title above the panel.
+    pub title: String,
+    /// Abscissa label with unit.
+    pub x_label: String,
+    /// Ordinate label with unit.
+    pub y_label: String,
+    /// Logarithmic abscissa.
+    pub log_x: bool,
+    /// Logarithmic ordinate.
+    pub log_y: bool,
+    /// The curves.
+    pub series: Vec<Series>,
+}
+
+/// A plot that could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    /// The output name does not end in .png or .svg.
+    #[error("{0}: plot file must end in .png or .svg")]
+    Extension(PathBuf),
+    /// Drawing or writing failed.
+    #[error("{path}: {message}")]
+    Draw {
+        /// Output file.
+        path: PathBuf,
+        /// What failed.
+        message: String,
+    },
+}
+
+/// Colours of the palette (the first three for x, y, z).
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(0, 0, 0),
+];
+
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // The font is a compile-time constant known to parse; a failure would only lose text.
+        let _ = plotters::style::register_font(
+            FONT,
+            FontStyle::Normal,
+            include_bytes!("../assets/DejaVuSans.ttf"),
+        );
+    });
+}
+
+/// Renders `panels` in a grid of `columns` columns into `path` (.png or .svg) of `size` pixels.
+pub fn render(
+    path: &Path,
+    panels: &[Panel],
+    columns: usize,
+    size: (u32, u32),
+) -> Result<(), PlotError> {
+    register_font();
+    let err = |e: String| PlotError::Draw {
+        path: path.to_path_buf(),
+        message: e,
+    };
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("png") => {
+            let root = BitMapBackend::new(path, size).into_drawing_area();
+            draw(&root, panels, columns).map_err(err)?;
+            root.present().map_err(|e| err(e.to_string()))
+        }
+        Some("svg") => {
+            let root = SVGBackend::new(path, size).into_drawing_area();
+            draw(&root, panels, columns).map_err(err)?;
+            root.present().map_err(|e| err(e.to_string()))
+        }
+        _ => Err(PlotError::Extension(path.to_path_buf())),
+    }
+}
+
+fn draw<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    panels: &[Panel],
+    columns: usize,
+) -> Result<(), String> {
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let columns = columns.max(1);
+    let rows = panels.len().div_ceil(columns).max(1);
+    let areas = root.split_evenly((rows, columns));
+    for (area, p) in areas.iter().zip(panels) {
+        let (x0, x1) = extent(p, |s| &s.x, |_| None, p.log_x);
+        let (y0, y1) = extent(p, |s| &s.y, |s| s.band.as_ref(), p.log_y);
+        match (p.log_x, p.log_y) {
+            (true, true) => panel(area, p, (x0..x1).log_scale(), (y0..y1).log_scale()),
+            (true, false) => panel(area, p, (x0..x1).log_scale(), y0..y1),
+            (false, true) => panel(area, p, x0..x1, (y0..y1).log_scale()),
+            (false, false) => panel(area, p, x0..x1, y0..y1),
+        }?;
+    }
+    Ok(())
+}
+
+/// Range of the finite (and, on a log axis, positive) values, padded; (1, 10) when empty.
+fn extent(
+    p: &Panel,
+    values: impl Fn(&Series) -> &Vec<f64>,
+    band: impl Fn(&Series) -> Option<&(Vec<f64>, Vec<f64>)>,
+    log: bool,
+) -> (f64, f64) {
+    let ok = |v: &f64| v.is_finite() && (!log || *v > 0.0);
+    let all = p.series.iter().flat_map(|s| {
+        let b = band(s).into_iter().flat_map(|(lo, hi)| lo.iter().chain(hi));
+        values(s).iter().chain(b)
+    });
+    let (lo, hi) = all
+        .filter(|v| ok(v))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    if lo > hi {
+        return (1.0, 10.0);
+    }
+    if log {
+        let (l, h) = (lo.log10().floor(), hi.log10().ceil());
+        let h = if h <= l { l + 1.0 } else { h };
+        (10f64.powf(l), 10f64.powf(h))
+    } else {
+        let pad = if hi > lo { 0.05 * (hi - lo) } else { 1.0 };
+        (lo - pad, hi + pad)
+    }
+}
+
+/// A tick label: plain for 1e-3 ≤ |v| < 1e4, else a power of ten / scientific.
+pub fn tick_label(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 {
+        "0".into()
+    } else if (1e-3..1e4).contains(&a) {
+        let s = format!("{v:.4}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        let e = a.log10().round();
+        if (a / 10f64.powf(e) - 1.0).abs() < 1e-9 {
+            format!("{}1e{}", if v < 0.0 { "-" } else { "" }, e as i32)
+        } else {
+            format!("{v:.1e}")
+        }
+    }
+}
+
+fn panel<DB, X, Y>(area: &DrawingArea<DB, Shift>, p: &Panel, x: X, y: Y) -> Result<(), String>
+where
+    DB: DrawingBackend,
+    X: AsRangedCoord<Value = f64>,
+    Y: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+    Y::CoordDescType: ValueFormatter<f64>,
+{
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    let mut chart = ChartBuilder::on(area)
+        .caption(&p.title, (FONT, 22))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x, y)
+        .map_err(e)?;
+    let fmt = |v: &f64| tick_label(*v);
+    chart
+        .configure_mesh()
+        .x_desc(p.x_label.as_str())
+        .y_desc(p.y_label.as_str())
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .x_label_formatter(&fmt)
+        .y_label_formatter(&fmt)
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(e)?;
+    let mut legend = false;
+    for s in &p.series {
+        let color = PALETTE[s.color % PALETTE.len()];
+        if let Some((lo, hi)) = &s.band {
+            let mut poly: Vec<(f64, f64)> = s.x.iter().copied().zip(hi.iter().copied()).collect();
+            poly.extend(s.x.iter().copied().zip(lo.iter().copied()).rev());
+            poly.retain(|(x, y)| x.is_finite() && y.is_finite() && (!p.log_y || *y > 0.0));
+            chart
+                .draw_series(std::iter::once(Polygon::new(
+                    poly,
+                    color.mix(0.18).filled(),
+                )))
+                .map_err(e)?;
+        }
+        let pts: Vec<(f64, f64)> = s
+            .x
+            .iter()
+            .copied()
+            .zip(s.y.iter().copied())
+            .filter(|(x, y)| {
+                x.is_finite() && y.is_finite() && (!p.log_x || *x > 0.0) && (!p.log_y || *y > 0.0)
+            })
+            .collect();
+        let style = color.stroke_width(2);
+        let anno = if s.dashed {
+            chart
+                .draw_series(DashedLineSeries::new(pts, 8, 5, style))
+                .map_err(e)?
+        } else {
+            chart.draw_series(LineSeries::new(pts, style)).map_err(e)?
+        };
+        if !s.label.is_empty() {
+            legend = true;
+            anno.label(s.label.as_str())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 22, y)], style));
+        }
+    }
+    if legend {
+        chart
+            .configure_series_labels()
+            .label_font((FONT, 14))
+            .background_style(WHITE.mix(0.85))
+            .border_style(RGBColor(160, 160, 160))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(e)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tick_labels() {
+        assert_eq!(tick_label(0.01), "0.01");
+        assert_eq!(tick_label(100.0), "100");
+        assert_eq!(tick_label(1e-6), "1e-6");
+        assert_eq!(tick_label(1e5), "1e5");
+        assert_eq!(tick_label(2.5e-7), "2.5e-7");
+        assert_eq!(tick_label(0.0), "0");
+    }
+
+    #[test]
+    fn unknown_extension_is_refused() {
+        let e = render(Path::new("x.jpg"), &[], 1, (10, 10)).unwrap_err();
+        assert!(e.to_string().contains(".png or .svg"));
+    }
+}
