@@ -94,7 +94,7 @@ fn imu_emu(dir: &Path, args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
-/// The CLI: a table on stdout, identical for the same seed, and the growth CSV.
+/// The CLI: a table on stdout, identical for the same seed, the growth CSV and its plot.
 #[test]
 fn compare_cli_table_and_csv() {
     let dir = tempfile::TempDir::new().unwrap();
@@ -114,6 +114,8 @@ fn compare_cli_table_and_csv() {
         "4",
         "--csv",
         "g.csv",
+        "--plot",
+        "growth.svg",
     ];
     let a = imu_emu(dir.path(), &args);
     assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
@@ -126,6 +128,15 @@ fn compare_cli_table_and_csv() {
     assert!(lines[0].starts_with("t_s,template,grade,position_median_m"));
     assert_eq!(lines.len(), 1 + 2 * 4);
     assert!(lines[4].starts_with("4.0,ln200,tactical,"), "{}", lines[4]);
+    let svg = std::fs::read_to_string(dir.path().join("growth.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    for label in [
+        "position error growth",
+        "ln200 (tactical)",
+        "mpu6000 (consumer)",
+    ] {
+        assert!(svg.contains(label), "{label} missing from the plot");
+    }
     let bad = imu_emu(dir.path(), &["compare", "--imu", "nosuch"]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("nosuch"));

@@ -43,9 +43,58 @@ pub struct CompareArgs {
     /// Write the error growth here: t, template, median and 95th percentile of each error.
     #[arg(long)]
     pub csv: Option<PathBuf>,
+    /// Plot the error growth here (.png or .svg): median line, band to the 95th percentile.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
     /// Worker threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
+}
+
+/// Error-growth panels (position, velocity, attitude against time since the outage start,
+/// log ordinate): per template the median, shaded up to the 95th percentile.
+pub fn growth_panels(results: &[TemplateResult], what: &str) -> Vec<imu_emu::plot::Panel> {
+    use imu_emu::nav::montecarlo::Point;
+    type Pick = fn(&Point) -> (f64, f64);
+    let quantities: [(&str, &str, Pick); 3] = [
+        ("position", "position error (m)", |p| {
+            (p.position.median, p.position.p95)
+        }),
+        ("velocity", "velocity error (m/s)", |p| {
+            (p.velocity.median, p.velocity.p95)
+        }),
+        ("attitude", "attitude error (deg)", |p| {
+            (p.attitude.median.to_degrees(), p.attitude.p95.to_degrees())
+        }),
+    ];
+    quantities
+        .iter()
+        .map(|(name, label, pick)| imu_emu::plot::Panel {
+            title: format!("{name} error growth, {what}"),
+            x_label: "time since start (s)".into(),
+            y_label: (*label).into(),
+            log_x: false,
+            log_y: true,
+            series: results
+                .iter()
+                .enumerate()
+                .map(|(i, r)| {
+                    // A log axis cannot show the exact zero at the start.
+                    let pts: Vec<_> = r.growth.iter().filter(|p| pick(p).0 > 0.0).collect();
+                    let med: Vec<f64> = pts.iter().map(|p| pick(p).0).collect();
+                    let p95: Vec<f64> = pts.iter().map(|p| pick(p).1).collect();
+                    imu_emu::plot::Series {
+                        label: format!("{} ({})", r.name, r.grade),
+                        x: pts.iter().map(|p| p.t).collect(),
+                        band: Some((med.clone(), p95)),
+                        y: med,
+                        color: i,
+                        dashed: false,
+                    }
+                })
+                .collect(),
+        })
+        .collect()
 }
 
 /// Header of the growth CSV.
@@ -172,6 +221,14 @@ pub fn compare(a: CompareArgs) -> Result<()> {
             p.attitude.median.to_degrees(),
             p.attitude.p95.to_degrees()
         )?;
+    }
+    if let Some(path) = &a.plot {
+        let what = match a.outage {
+            Some(s) => format!("{s} s outages"),
+            None => "free inertial".to_string(),
+        };
+        imu_emu::plot::render(path, &growth_panels(&results, &what), 1, (1200, 1500))?;
+        eprintln!("imu-emu compare: plot written to {}", path.display());
     }
     if let Some(path) = &a.csv {
         let mut f =
