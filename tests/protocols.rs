@@ -387,9 +387,10 @@ fn decode_command_reports_damage() {
         .unwrap();
     assert!(dec.status.success());
     let text = String::from_utf8(dec.stdout).unwrap();
+    // The record contract, then the frame's own other fields.
     assert_eq!(
         text.lines().next().unwrap(),
-        "rot_x,rot_y,rot_z,accel_x,accel_y,accel_z,status,sequence,temperature"
+        "t,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z,dtheta_x,dtheta_y,dtheta_z,dv_x,dv_y,dv_z,status,sequence,temperature"
     );
     assert_eq!(text.lines().count(), 1 + 18);
     let err = String::from_utf8(dec.stderr).unwrap();
@@ -504,4 +505,62 @@ fn timestamps_wrap() {
         1_500_000
     );
     assert_eq!(out[32], 0x77, "wrapping is not an overrange");
+}
+
+/// `decode` prints the record contract: the rates and increments of each frame equal the
+/// records `generate` writes for the same run (to the f32 precision of KVH floats), the
+/// rates KVH does not carry derived from its increments over Δt.
+#[test]
+fn decode_prints_the_record_contract() {
+    let exe = env!("CARGO_BIN_EXE_imu-emu");
+    let run = |args: &[&str], input: Option<&[u8]>| {
+        let mut c = std::process::Command::new(exe);
+        c.args(args)
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped());
+        let mut child = c.spawn().unwrap();
+        if let Some(bytes) = input {
+            use std::io::Write;
+            child.stdin.take().unwrap().write_all(bytes).unwrap();
+        }
+        let out = child.wait_with_output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out.stdout
+    };
+    let common = ["--scene", "circle", "--duration", "0.05", "--rate", "1000"];
+    let csv = run(
+        &[&["generate", "--format", "csv"], &common[..]].concat(),
+        None,
+    );
+    let frames = run(
+        &[&["generate", "--format", "kvh1750"], &common[..]].concat(),
+        None,
+    );
+    let decoded = run(&["decode", "--protocol", "kvh1750"], Some(&frames));
+    let rows = |b: &[u8]| -> Vec<Vec<String>> {
+        String::from_utf8(b.to_vec())
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(str::to_string).collect())
+            .collect()
+    };
+    let (want, got) = (rows(&csv), rows(&decoded));
+    assert_eq!(want.len(), 50);
+    assert_eq!(got.len(), 50);
+    for (w, g) in want.iter().zip(&got) {
+        assert_eq!(g[0], "", "KVH frames carry no time tag");
+        for c in 1..13 {
+            let (w, g): (f64, f64) = (w[c].parse().unwrap(), g[c].parse().unwrap());
+            assert!(
+                (w - g).abs() <= 1.2e-7 * w.abs() + 1e-30,
+                "column {c}: {g} vs {w}"
+            );
+        }
+    }
 }

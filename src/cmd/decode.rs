@@ -48,6 +48,10 @@ pub struct DecodeArgs {
     /// Print only the tally, not the decoded records.
     #[arg(long)]
     pub tally_only: bool,
+    /// Print the protocol's own fields (wire names, SI units) instead of the record contract
+    /// (t, gyro, accel, dtheta, dv, then the frame's other fields: counter, status, …).
+    #[arg(long)]
+    pub native: bool,
 }
 
 /// Set by SIGINT/SIGTERM: stop reading and print the tally.
@@ -159,20 +163,38 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         }
     }
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-    // Columns: every message's value fields, merged by name (plus the message name when the
-    // protocol interleaves several); a row leaves the columns its message lacks empty.
+    // Columns: the record contract (unless --native), then every message's other value
+    // fields, merged by name (plus the message name when the protocol interleaves several);
+    // a row leaves the columns its message lacks empty.
     let multi = plan.messages() > 1;
-    let mut columns: Vec<String> = Vec::new();
-    let slots: Vec<Vec<usize>> = (0..plan.messages())
+    let contract = !a.native;
+    let mut columns: Vec<String> = if contract {
+        imu_emu::record::COLUMNS
+            .iter()
+            .map(|c| c.to_string())
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let dt = a.rate.or(plan.rate_hz).map(|r| 1.0 / r);
+    // Per message, the column of each decoded value (None: carried by the contract columns).
+    let sources = plan.value_sources();
+    let slots: Vec<Vec<Option<usize>>> = (0..plan.messages())
         .map(|m| {
             plan.value_names_of(m)
                 .into_iter()
-                .map(|n| match columns.iter().position(|c| c == n) {
-                    Some(i) => i,
-                    None => {
-                        columns.push(n.to_string());
-                        columns.len() - 1
+                .zip(&sources[m])
+                .map(|(n, s)| {
+                    if contract && imu_emu::protocol::Decoded::in_contract(*s) {
+                        return None;
                     }
+                    Some(match columns.iter().position(|c| c == n) {
+                        Some(i) => i,
+                        None => {
+                            columns.push(n.to_string());
+                            columns.len() - 1
+                        }
+                    })
                 })
                 .collect()
         })
@@ -219,8 +241,13 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
             }
             line.clear();
             cells.iter_mut().for_each(|c| *c = None);
+            if contract {
+                cells[..13].copy_from_slice(&d.contract(dt));
+            }
             for (slot, (_, v)) in slots[d.message].iter().zip(&d.values) {
-                cells[*slot] = Some(*v);
+                if let Some(i) = slot {
+                    cells[*i] = Some(*v);
+                }
             }
             if multi {
                 line.push_str(&names[d.message]);

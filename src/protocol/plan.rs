@@ -126,6 +126,38 @@ impl Decoded {
     pub fn get(&self, s: Source) -> Option<f64> {
         self.values.iter().find(|v| v.0 == s).map(|v| v.1)
     }
+
+    /// The record contract's columns `t, gyro, accel, dtheta, dv` (13) from this frame: the
+    /// time from the time tag or GPS seconds of week; a rate the frame lacks from its
+    /// increment over `dt`, an increment from its rate times `dt` (None without `dt`).
+    pub fn contract(&self, dt: Option<f64>) -> [Option<f64>; 13] {
+        let mut out = [None; 13];
+        out[0] = self.get(Source::Time).or(self.get(Source::GpsSeconds));
+        for a in 0..3 {
+            for (rate, inc, col) in [
+                (Source::Gyro(a), Source::DTheta(a), 1 + a),
+                (Source::Accel(a), Source::Dv(a), 4 + a),
+            ] {
+                let (r, i) = (self.get(rate), self.get(inc));
+                out[col] = r.or_else(|| Some(i? / dt?));
+                out[col + 6] = i.or_else(|| Some(r? * dt?));
+            }
+        }
+        out
+    }
+
+    /// True for the quantities [`Decoded::contract`] carries.
+    pub fn in_contract(s: Source) -> bool {
+        matches!(
+            s,
+            Source::Gyro(_)
+                | Source::Accel(_)
+                | Source::DTheta(_)
+                | Source::Dv(_)
+                | Source::Time
+                | Source::GpsSeconds
+        )
+    }
 }
 
 impl Plan {
@@ -390,6 +422,25 @@ impl Plan {
                 } if s == source && op.ty.int_range().is_some() => Some(1.0 / scale.abs()),
                 _ => None,
             })
+    }
+
+    /// Per message, the source quantity of each decoded value, in the order of
+    /// [`Decoded::values`].
+    pub fn value_sources(&self) -> Vec<Vec<Source>> {
+        self.layouts
+            .iter()
+            .map(|l| {
+                l.ops
+                    .iter()
+                    .filter_map(|op| match &op.what {
+                        What::Constant(_) | What::Length => None,
+                        What::Counter { .. } => Some(Source::Counter),
+                        What::Quantity { source, .. } => Some(*source),
+                        What::Status(_) => Some(Source::Status),
+                    })
+                    .collect()
+            })
+            .collect()
     }
 
     /// Names of the decoded values' fields of message `m`, in the order of
