@@ -1119,3 +1119,25 @@ fn non_finite_scene_values_are_refused() {
         assert_no_output(dir.path(), "o.csv");
     }
 }
+
+/// A reader that stops early (`imu-emu generate | head`) ends the run quietly, not as an error.
+#[test]
+fn closed_stdout_is_not_an_error() {
+    use std::io::Read;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+        .args(["generate", "--scene", "circle", "--duration", "600"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut head = [0u8; 100];
+    child.stdout.take().unwrap().read_exact(&mut head).unwrap();
+    // The pipe's read end is dropped here.
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success());
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
