@@ -518,7 +518,9 @@ fn kvh_format_c_slots_follow_the_sequence_number() {
     let (_, plan) = protocol::load("kvh1750-c").unwrap();
     assert_eq!(plan.fixed_len(), Some(38));
     // A unit's frame: sequence 106 (slot 2, mag Y) carrying 0.25 gauss = 2.5e-5 T.
-    let f = hex("FE81FF57 B3D0BBE7 32193EF4 30AC19A5 BA8F78D6 3A290594 3F7ECBD4 3E800000 77 6A CBC6C54B");
+    let f = hex(
+        "FE81FF57 B3D0BBE7 32193EF4 30AC19A5 BA8F78D6 3A290594 3F7ECBD4 3E800000 77 6A CBC6C54B",
+    );
     let d = plan.decode(&f).unwrap();
     assert_eq!(plan.message_name(d.message), "mag_y");
     let mag = d.get(Source::Mag(1)).unwrap();
