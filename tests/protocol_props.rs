@@ -87,6 +87,8 @@ proptest! {
                         Source::DTheta(i) => dtheta.0[i],
                         Source::Dv(i) => dv.0[i],
                         Source::Temperature => 25.0,
+                        // No magnetometer is simulated (KVH Format C).
+                        Source::Mag(_) => 0.0,
                         Source::Counter => {
                             let (modulo, step) = plan.counter().unwrap();
                             prop_assert_eq!(*v as u64, (k as u64 * step) % modulo);

@@ -97,6 +97,8 @@ fn golden_vectors_decode_and_reencode() {
                     // Re-encoding without flags or faults gives the healthy value.
                     Source::Status => assert!(!d.flagged, "{name}: status flagged"),
                     Source::Temperature => temperature = got,
+                    // Encoders send 0 (no magnetometer): a vector's field must be 0.
+                    Source::Mag(_) => {}
                     Source::GpsWeek => week = got,
                     Source::GpsSeconds => secs = Some(got),
                     Source::GpsWholeSeconds => whole = Some(got),
@@ -171,6 +173,7 @@ fn random_round_trips_and_corruption() {
                     // Counters are checked by the golden vectors and the stream tests.
                     Source::Counter | Source::Status => continue,
                     Source::Temperature => 25.0,
+                    Source::Mag(_) => 0.0,
                     // Time fields are checked by the golden vectors.
                     _ => continue,
                 };
@@ -563,4 +566,92 @@ fn decode_prints_the_record_contract() {
             );
         }
     }
+}
+
+/// KVH Format C: the sequence number picks the multiplexed word's slot (temperature, mag X, Y,
+/// Z, assumed order) when encoding and decoding; a stale counter keeps the slot of the
+/// counter it repeats; a real unit's non-zero field decodes in its slot. Frame bytes built by
+/// an independent Python script (CRC-32/MPEG-2 bitwise).
+#[test]
+fn kvh_format_c_slots_follow_the_sequence_number() {
+    let (_, plan) = protocol::load("kvh1750-c").unwrap();
+    assert_eq!(plan.fixed_len(), Some(38));
+    // A unit's frame: sequence 106 (slot 2, mag Y) carrying 0.25 gauss = 2.5e-5 T.
+    let f = hex(
+        "FE81FF57 B3D0BBE7 32193EF4 30AC19A5 BA8F78D6 3A290594 3F7ECBD4 3E800000 77 6A CBC6C54B",
+    );
+    let d = plan.decode(&f).unwrap();
+    assert_eq!(plan.message_name(d.message), "mag_y");
+    let mag = d.get(Source::Mag(1)).unwrap();
+    assert!((mag - 2.5e-5).abs() <= 1e-15 * 2.5e-5, "{mag}");
+    assert_eq!(d.get(Source::Temperature), None);
+    assert_eq!(d.get(Source::Counter), Some(106.0));
+    // Encoding: frame k carries sequence k mod 128 and the slot k mod 4; its word is the
+    // temperature (f32 °C) in slot 0 and 0 (no magnetometer) otherwise.
+    let mut st = EncoderState::default();
+    let mut out = Vec::new();
+    for _ in 0..130 {
+        plan.encode(&Record::default(), 31.5, &mut st, &mut out);
+    }
+    for (k, fr) in out.chunks(38).enumerate() {
+        let seq = fr[33] as usize;
+        assert_eq!(seq, k % 128);
+        let word = f32::from_be_bytes(fr[28..32].try_into().unwrap());
+        assert_eq!(word, if seq % 4 == 0 { 31.5 } else { 0.0 }, "frame {k}");
+        let d = plan.decode(fr).unwrap();
+        let names = ["temperature", "mag_x", "mag_y", "mag_z"];
+        assert_eq!(plan.message_name(d.message), names[seq % 4], "frame {k}");
+    }
+    // A stale counter: the frame repeats sequence 2 and so slot 2 (mag Y).
+    use imu_emu::protocol::faults::When;
+    use imu_emu::protocol::{FaultInjector, FaultKind, FaultSpec};
+    let inj = FaultInjector::new(
+        vec![FaultSpec {
+            kind: FaultKind::StaleCounter,
+            when: When::At(vec![0.03]),
+            duration_s: 0.0,
+        }],
+        100.0,
+        1,
+    );
+    let mut st = EncoderState {
+        faults: Some(Box::new(inj)),
+        ..Default::default()
+    };
+    let mut out = Vec::new();
+    for k in 0..5 {
+        let r = Record {
+            t: k as f64 / 100.0,
+            ..Record::default()
+        };
+        plan.encode(&r, 25.0, &mut st, &mut out);
+    }
+    let seqs: Vec<u8> = out.chunks(38).map(|f| f[33]).collect();
+    assert_eq!(seqs, [0, 1, 2, 2, 3]);
+    let slots: Vec<&str> = out
+        .chunks(38)
+        .map(|f| plan.message_name(plan.decode(f).unwrap().message))
+        .collect();
+    assert_eq!(slots, ["temperature", "mag_x", "mag_y", "mag_y", "mag_z"]);
+}
+
+/// `schedule_by = "counter"` is refused without a counter, or with a counter whose modulo the
+/// schedule does not divide, naming the problem.
+#[test]
+fn counter_schedule_needs_a_fitting_counter() {
+    let text = protocol::BUILTIN
+        .iter()
+        .find(|b| b.0 == "kvh1750-c")
+        .unwrap()
+        .1;
+    let path = Path::new("bad.toml");
+    let compile = |t: &str| {
+        let spec = FrameSpec::parse(t, path).unwrap();
+        Plan::compile(&spec, path).err().map(|e| e.to_string())
+    };
+    assert_eq!(compile(text), None);
+    let e = compile(&text.replace("modulo = 128", "modulo = 126")).unwrap();
+    assert!(e.contains("bad.toml") && e.contains("modulo 126"), "{e}");
+    let e = compile(&text.replace("source = \"counter\"", "value = 0")).unwrap();
+    assert!(e.contains("needs a counter"), "{e}");
 }

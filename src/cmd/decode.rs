@@ -16,7 +16,7 @@ use imu_emu::realtime::stats::Lateness;
 #[derive(clap::Args)]
 pub struct DecodeArgs {
     /// Built-in protocol: ln200, ln200-sdlc, hg4930, hg1700-sdlc, kvh1750, kvh1750-b,
-    /// imar-ixcom, novatel-rawimusx, stim300 (0x93), stim300-90, stim300-91, stim300-a7,
+    /// kvh1750-c, imar-ixcom, novatel-rawimusx, stim300 (0x93), stim300-90, stim300-91, stim300-a7,
     /// mavlink-hil-sensor, mavlink-highres-imu.
     #[arg(long, conflicts_with = "protocol_file")]
     pub protocol: Option<String>,

@@ -183,7 +183,7 @@ pub(super) fn compile_layout(
             }
             (None, Some(src)) => {
                 let source = Source::from_name(src).ok_or_else(|| {
-                    ferr(&f.name, format!("unknown source quantity `{src}` (gyro.x…z, accel.*, dtheta.*, dv.*, time, counter, temperature, status, gps.*)"))
+                    ferr(&f.name, format!("unknown source quantity `{src}` (gyro.x…z, accel.*, dtheta.*, dv.*, mag.*, time, counter, temperature, status, gps.*)"))
                 })?;
                 match source {
                     Source::Status => {
@@ -623,6 +623,8 @@ fn quantity(r: &Record, temperature: f64, st: &EncoderState, s: Source) -> f64 {
         Source::Dv(i) => r.dv.0[i],
         Source::Time => r.t,
         Source::Temperature => temperature,
+        // The magnetometer is not simulated.
+        Source::Mag(_) => 0.0,
         Source::Counter | Source::Status => 0.0,
     }
 }

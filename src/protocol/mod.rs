@@ -31,6 +31,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ),
     ("kvh1750", include_str!("../../protocols/kvh1750.toml")),
     ("kvh1750-b", include_str!("../../protocols/kvh1750-b.toml")),
+    ("kvh1750-c", include_str!("../../protocols/kvh1750-c.toml")),
     ("ln200", include_str!("../../protocols/ln200.toml")),
     (
         "ln200-sdlc",

@@ -9,7 +9,7 @@ use std::path::Path;
 use super::faults::{FaultError, FaultInjector, FaultKind, FrameFaults};
 use super::framing::{self, BitWriter, Fcs, HdlcOptions, SdlcOptions};
 use super::layout::{Layout, What, compile_layout, tick_step};
-use super::spec::{FrameSpec, Source, SpecError};
+use super::spec::{FrameSpec, ScheduleBy, Source, SpecError};
 use crate::math::Vec3;
 use crate::record::Record;
 
@@ -39,6 +39,8 @@ pub struct Plan {
     layouts: Vec<Layout>,
     /// Layout index of each frame, repeating.
     schedule: Vec<usize>,
+    /// The schedule is indexed by the frame's counter value rather than its position.
+    by_counter: bool,
 }
 
 /// Encoder state carried from frame to frame (the counter) and the run's time reference.
@@ -217,6 +219,10 @@ impl Plan {
                     .collect::<Result<Vec<_>, _>>()?
             }
         };
+        let by_counter = spec.schedule_by == ScheduleBy::Counter;
+        if by_counter {
+            check_counter_schedule(&layouts, schedule.len()).map_err(syntax)?;
+        }
         let transport = match (spec.sdlc, spec.hdlc) {
             (Some(_), Some(_)) => return Err(syntax("give `[sdlc]` or `[hdlc]`, not both".into())),
             (Some(o), None) => Transport::Sdlc(o),
@@ -230,6 +236,7 @@ impl Plan {
             transport,
             layouts,
             schedule,
+            by_counter,
         })
     }
 
@@ -269,13 +276,16 @@ impl Plan {
         self.layouts.len()
     }
 
-    /// Whether every frame has the same length on the line (one layout, no truncation, no
-    /// bit stuffing).
+    /// Whether every frame has the same length on the line (layouts of one length, no
+    /// truncation, no bit stuffing).
     pub fn fixed_len(&self) -> Option<usize> {
-        (self.layouts.len() == 1
-            && self.layouts[0].truncate.is_none()
+        let len = self.layouts[0].len;
+        (self
+            .layouts
+            .iter()
+            .all(|l| l.len == len && l.truncate.is_none())
             && matches!(self.transport, Transport::Plain))
-        .then_some(self.layouts[0].len)
+        .then_some(len)
     }
 
     /// Appends the line bytes of the frame of `r` to `out`, with the faults the state's
@@ -289,8 +299,21 @@ impl Plan {
         state: &mut EncoderState,
         out: &mut Vec<u8>,
     ) {
-        let layout =
-            &self.layouts[self.schedule[(state.frames % self.schedule.len() as u64) as usize]];
+        let f = match state.faults.as_mut() {
+            Some(inj) => inj.frame(r.t),
+            None => FrameFaults::default(),
+        };
+        if f.stale {
+            state.stalled += 1;
+        }
+        // Selected by counter: the value this frame carries (a stale frame repeats the last).
+        let slot = match (self.by_counter, self.counter()) {
+            (true, Some((modulo, step))) => {
+                state.frames.wrapping_sub(state.stalled).wrapping_mul(step) % modulo
+            }
+            _ => state.frames,
+        };
+        let layout = &self.layouts[self.schedule[(slot % self.schedule.len() as u64) as usize]];
         let mut rec = *r;
         if self.layouts.iter().any(|l| l.accumulate) {
             state.sums[0] += r.dtheta;
@@ -300,13 +323,6 @@ impl Plan {
                 rec.dv = state.sums[1];
                 state.sums = [Vec3::default(); 2];
             }
-        }
-        let f = match state.faults.as_mut() {
-            Some(inj) => inj.frame(r.t),
-            None => FrameFaults::default(),
-        };
-        if f.stale {
-            state.stalled += 1;
         }
         if f.drop {
             state.frames += 1;
@@ -476,6 +492,7 @@ impl Plan {
         let mut best: Option<DecodeError> = None;
         for (i, l) in self.layouts.iter().enumerate() {
             match l.decode(bytes) {
+                Ok(d) if self.by_counter => return self.decode_by_counter(bytes, i, d),
                 Ok(mut d) => {
                     d.message = i;
                     return Ok(d);
@@ -496,6 +513,26 @@ impl Plan {
         Err(best.expect("a plan has at least one layout"))
     }
 
+    /// The frame as the message its counter selects, given that it decoded as message `i`
+    /// (`schedule_by = "counter"`: the layouts agree on the counter's place, checked at
+    /// compile).
+    fn decode_by_counter(
+        &self,
+        bytes: &[u8],
+        i: usize,
+        d: Decoded,
+    ) -> Result<Decoded, DecodeError> {
+        let c = d.get(Source::Counter).expect("checked at compile") as u64;
+        let m = self.schedule[(c % self.schedule.len() as u64) as usize];
+        let mut d = if m == i {
+            d
+        } else {
+            self.layouts[m].decode(bytes)?
+        };
+        d.message = m;
+        Ok(d)
+    }
+
     /// Bytes a decoder must hold before giving up on a frame start (the longest frame).
     pub fn max_len(&self) -> usize {
         self.layouts.iter().map(|l| l.len).max().unwrap_or(0)
@@ -505,6 +542,38 @@ impl Plan {
     pub fn shortest(&self) -> usize {
         self.layouts.iter().map(Layout::shortest).min().unwrap_or(1)
     }
+}
+
+/// A schedule indexed by the counter needs the same counter (place, type, modulo, step) in
+/// every message, wrapping at a multiple of the schedule's length so the slots stay in step.
+fn check_counter_schedule(layouts: &[Layout], slots: usize) -> Result<(), String> {
+    let counter = |l: &Layout| {
+        l.ops.iter().find_map(|op| match op.what {
+            What::Counter {
+                modulo,
+                step,
+                ticks,
+                ..
+            } => Some((op.offset, op.ty, op.order, modulo, step, ticks)),
+            _ => None,
+        })
+    };
+    let first = counter(&layouts[0]);
+    let Some((_, _, _, modulo, _, _)) = first else {
+        return Err("`schedule_by = \"counter\"` needs a counter field".into());
+    };
+    if let Some(l) = layouts.iter().find(|l| counter(l) != first) {
+        return Err(format!(
+            "`schedule_by = \"counter\"`: message `{}` does not carry the same counter as `{}`",
+            l.name, layouts[0].name
+        ));
+    }
+    if modulo % slots as u64 != 0 {
+        return Err(format!(
+            "`schedule_by = \"counter\"`: the counter's modulo {modulo} is not a multiple of the schedule's {slots} entries"
+        ));
+    }
+    Ok(())
 }
 
 /// One SDLC frame on the line, then marks to the next byte boundary (idle), optionally with a

@@ -113,6 +113,9 @@ pub enum Source {
     Counter,
     /// Sensor temperature (°C).
     Temperature,
+    /// Magnetic field, axis 0–2 (T). Not simulated: encoders send 0; decoders read what a
+    /// real unit sends (KVH Format C).
+    Mag(usize),
     /// GPS week number of the record's time tag.
     GpsWeek,
     /// GPS seconds of week (s, fractional).
@@ -129,8 +132,8 @@ pub enum Source {
 }
 
 impl Source {
-    /// Parses `gyro.x`, `accel.z`, `dtheta.y`, `dv.x`, `time`, `counter`, `temperature`,
-    /// `gps.week`, `gps.seconds`, `gps.whole_seconds`, `gps.micros`, `gps.millis`, `status`.
+    /// Parses `gyro.x`, `accel.z`, `dtheta.y`, `dv.x`, `mag.x`, `time`, `counter`,
+    /// `temperature`, `gps.week`, `gps.seconds`, `gps.whole_seconds`, `gps.micros`, `gps.millis`, `status`.
     pub fn from_name(s: &str) -> Option<Source> {
         let axis = |a: &str| match a {
             "x" => Some(0),
@@ -143,6 +146,7 @@ impl Source {
             Some(("accel", a)) => Source::Accel(axis(a)?),
             Some(("dtheta", a)) => Source::DTheta(axis(a)?),
             Some(("dv", a)) => Source::Dv(axis(a)?),
+            Some(("mag", a)) => Source::Mag(axis(a)?),
             None if s == "time" => Source::Time,
             None if s == "counter" => Source::Counter,
             None if s == "temperature" => Source::Temperature,
@@ -277,6 +281,18 @@ pub struct MessageSpec {
     pub truncate: Option<TruncateSpec>,
 }
 
+/// What picks each frame's message from the `schedule`.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ScheduleBy {
+    /// Frame k of the stream is message `schedule[k mod len]`.
+    #[default]
+    Position,
+    /// A frame whose counter reads c is message `schedule[c mod len]`, so a decoder tells
+    /// messages of identical layout apart by the counter (KVH Format C's multiplexed word).
+    Counter,
+}
+
 /// A golden test vector: bytes and the values they decode to.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -323,6 +339,10 @@ pub struct FrameSpec {
     pub message: Vec<MessageSpec>,
     /// The repeating order of messages by name, one per record (default: each once, in order).
     pub schedule: Option<Vec<String>>,
+    /// What picks a frame's message from the schedule: its position in the stream (default)
+    /// or its counter value (messages that look alike, told apart by the counter).
+    #[serde(default)]
+    pub schedule_by: ScheduleBy,
     /// Synchronous SDLC transport: the frame (fields and check) is the payload of a bit-stuffed
     /// SDLC frame packed into bytes (`framing::SdlcOptions`).
     pub sdlc: Option<crate::protocol::framing::SdlcOptions>,
