@@ -267,15 +267,15 @@ fn udp_without_listener_completes() {
     assert!(started.elapsed() < Duration::from_secs(10));
 }
 
-/// `decode --udp-listen` is the consumer side: it decodes the emulator's datagrams live.
-#[test]
-fn decode_listens_on_udp() {
-    let port = UdpSocket::bind("127.0.0.1:0")
+/// `decode --udp-listen` is the consumer side: it decodes the emulator's datagrams live
+/// (unicast to `host`, or a multicast group it joins).
+fn decode_over_udp(host: &str) {
+    let port = UdpSocket::bind("0.0.0.0:0")
         .unwrap()
         .local_addr()
         .unwrap()
         .port();
-    let dest = format!("127.0.0.1:{port}");
+    let dest = format!("{host}:{port}");
     let mut dec = imu_emu(&[
         "decode",
         "--protocol",
@@ -319,6 +319,17 @@ fn decode_listens_on_udp() {
             && err.contains(" 0 bytes skipped"),
         "{err}"
     );
+}
+
+#[test]
+fn decode_listens_on_udp() {
+    decode_over_udp("127.0.0.1");
+}
+
+/// The same through a multicast group (TTL 1, loopback on): the decoder joins it.
+#[test]
+fn decode_listens_on_udp_multicast() {
+    decode_over_udp("239.255.42.42");
 }
 
 /// Same seed, same bytes: an unpaced run into a file and a paced one (×50) are both exactly
