@@ -527,3 +527,28 @@ fn each_sink_its_own_protocol() {
         "the main stream differs"
     );
 }
+
+/// `--realtime` where SCHED_FIFO is refused (CAP_SYS_NICE dropped with util-linux `setpriv`;
+/// RLIMIT_RTPRIO is 0 here): a clear warning, then the run completes at normal priority with
+/// the same bytes.
+#[test]
+fn realtime_refused_falls_back_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("fifo.bin");
+    let common = ["--scene", "static", "--rate", "200", "--duration", "0.5"];
+    let out = Command::new("setpriv")
+        .args(["--bounding-set", "-sys_nice", "--inh-caps", "-sys_nice"])
+        .arg(env!("CARGO_BIN_EXE_imu-emu"))
+        .args(["run", "--protocol", PROTOCOL, "--realtime", "--speed", "1"])
+        .args(common)
+        .args(["--file", file.to_str().unwrap()])
+        .output()
+        .expect("setpriv (util-linux) runs the emulator without CAP_SYS_NICE");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("SCHED_FIFO refused") && err.contains("running at normal priority"),
+        "{err}"
+    );
+    assert!(std::fs::read(&file).unwrap() == reference(&common));
+}
