@@ -6,8 +6,7 @@
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
-use crate::math::Vec3;
-use crate::output::Format;
+use crate::output::{BIN_RECORD_BYTES, Format, decode_bin};
 use crate::record::{COLUMNS, Record};
 
 /// What is wrong with a record file, and where.
@@ -175,11 +174,11 @@ impl RecordReader {
                 }
             }
         }
-        Ok(Some(record_of(&v)))
+        Ok(Some(Record::from_values(&v)))
     }
 
     fn bin_record(&mut self) -> Result<Option<Record>, InputError> {
-        let mut buf = [0u8; 104];
+        let mut buf = [0u8; BIN_RECORD_BYTES];
         let mut got = 0;
         while got < buf.len() {
             let n = self
@@ -194,7 +193,7 @@ impl RecordReader {
             }
             got += n;
         }
-        let offset = self.records * 104;
+        let offset = self.records * BIN_RECORD_BYTES as u64;
         let err = |problem: String| InputError::Binary {
             path: self.path.clone(),
             record: self.records + 1,
@@ -209,14 +208,11 @@ impl RecordReader {
                 "truncated: {got} of 104 bytes (is the file CSV? use --format csv)"
             )));
         }
-        let mut v = [0.0; 13];
-        for (i, x) in v.iter_mut().enumerate() {
-            *x = f64::from_le_bytes(buf[8 * i..8 * i + 8].try_into().expect("8 bytes"));
-            if !x.is_finite() {
-                return Err(err(format!("`{}` is not finite", COLUMNS[i])));
-            }
+        let v = decode_bin(&buf);
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            return Err(err(format!("`{}` is not finite", COLUMNS[i])));
         }
-        Ok(Some(record_of(&v)))
+        Ok(Some(Record::from_values(&v)))
     }
 
     /// Where the last record came from, for messages: `file:line` or `file: record N`.
@@ -225,19 +221,6 @@ impl RecordReader {
             Format::Csv => format!("{}:{}", self.path.display(), self.line_no),
             Format::Bin => format!("{}: record {}", self.path.display(), self.records),
         }
-    }
-}
-
-/// The record of the 13 contract values.
-fn record_of(v: &[f64; 13]) -> Record {
-    let v3 = |i: usize| Vec3::new(v[i], v[i + 1], v[i + 2]);
-    Record {
-        t: v[0],
-        gyro: v3(1),
-        accel: v3(4),
-        dtheta: v3(7),
-        dv: v3(10),
-        flags: 0,
     }
 }
 
@@ -258,6 +241,7 @@ impl Iterator for RecordReader {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::Vec3;
 
     fn read(text: &str) -> Result<Vec<Record>, InputError> {
         let r = RecordReader::new(

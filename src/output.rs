@@ -35,11 +35,23 @@ pub fn csv_header() -> String {
     s
 }
 
+/// Bytes of one binary record.
+pub const BIN_RECORD_BYTES: usize = 104;
+
+/// The 13 values (in the order of [`crate::record::COLUMNS`]) of one binary record.
+pub fn decode_bin(bytes: &[u8; BIN_RECORD_BYTES]) -> [f64; 13] {
+    std::array::from_fn(|i| {
+        let mut b = [0u8; 8];
+        b.copy_from_slice(&bytes[8 * i..8 * i + 8]);
+        f64::from_le_bytes(b)
+    })
+}
+
 /// Appends the encoding of `records` to `buf`.
 pub fn encode(format: Format, records: &[Record], buf: &mut Vec<u8>) {
     match format {
         Format::Bin => {
-            buf.reserve(records.len() * 104);
+            buf.reserve(records.len() * BIN_RECORD_BYTES);
             for r in records {
                 for v in r.values() {
                     buf.extend_from_slice(&v.to_le_bytes());

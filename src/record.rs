@@ -26,6 +26,19 @@ pub const COLUMNS: [&str; 13] = [
 ];
 
 impl Record {
+    /// The record of 13 values in the order of [`COLUMNS`] (no flags).
+    pub fn from_values(v: &[f64; 13]) -> Record {
+        let v3 = |i: usize| crate::math::Vec3::new(v[i], v[i + 1], v[i + 2]);
+        Record {
+            t: v[0],
+            gyro: v3(1),
+            accel: v3(4),
+            dtheta: v3(7),
+            dv: v3(10),
+            flags: 0,
+        }
+    }
+
     /// The 13 values in the order of [`COLUMNS`].
     #[inline]
     pub fn values(&self) -> [f64; 13] {

@@ -183,23 +183,23 @@ pub fn read(
         InputFormat::Bin => {
             let bytes = file.metadata().map_err(io)?.len();
             let mut r = BufReader::with_capacity(1 << 16, file);
-            let mut rec = [0u8; 104];
+            let mut rec = [0u8; crate::output::BIN_RECORD_BYTES];
             let mut n = 0u64;
             loop {
                 match read_full(&mut r, &mut rec).map_err(io)? {
                     0 => break,
-                    104 => {}
+                    crate::output::BIN_RECORD_BYTES => {}
                     _ => {
                         return Err(ReadError::Truncated {
                             path: path.to_path_buf(),
                             bytes,
-                            record: 104,
+                            record: crate::output::BIN_RECORD_BYTES,
                             index: n,
                         });
                     }
                 }
-                let v = |i: usize| f64::from_le_bytes(rec[8 * i..8 * i + 8].try_into().unwrap());
-                sample(v(0), &std::array::from_fn(|i| v(i + 1)));
+                let v = crate::output::decode_bin(&rec);
+                sample(v[0], &std::array::from_fn(|i| v[i + 1]));
                 n += 1;
             }
             Ok(ReadSummary {
