@@ -276,10 +276,28 @@ impl Producer {
                 expected: "1 to 16 Gauss–Legendre nodes",
             });
         }
-        Ok(Producer {
+        Ok(Producer::build(
+            motion,
+            grid,
+            nodes,
+            encoding.into(),
+            chain,
+            keep_truth,
+        ))
+    }
+
+    fn build(
+        motion: AnyMotion,
+        grid: Grid,
+        nodes: usize,
+        encoding: Encoding,
+        chain: Option<ErrorChain>,
+        keep_truth: bool,
+    ) -> Producer {
+        Producer {
             imu: IdealImu::new(motion, grid.rate_hz, grid.t0, grid.count, nodes),
             chain,
-            encoding: encoding.into(),
+            encoding,
             extra: Vec::new(),
             k: 1,
             count: grid.count,
@@ -287,7 +305,20 @@ impl Producer {
             truth: Vec::new(),
             keep_truth,
             rot: Vec::new(),
-        })
+        }
+    }
+
+    /// A producer of records only (no wire encoding), with the default quadrature: for
+    /// consumers that use the records themselves (navigation, analysis).
+    pub fn records(motion: AnyMotion, grid: Grid, chain: Option<ErrorChain>) -> Producer {
+        let nodes = crate::generator::DEFAULT_NODES;
+        Producer::build(motion, grid, nodes, Format::Bin.into(), chain, false)
+    }
+
+    /// Generates and corrupts the next block of up to `max` records, without encoding them.
+    pub fn next_records(&mut self, max: usize) -> Option<Block<'_>> {
+        let (first, n) = self.step(max)?;
+        Some(self.view(first, n))
     }
 
     /// Records still to produce.

@@ -162,25 +162,17 @@ fn static_analysis(
     seconds: f64,
     seed: u64,
 ) -> Result<imu_emu::analysis::analyzer::Analysis> {
-    use imu_emu::generator::{DEFAULT_NODES, IdealImu};
-    use imu_emu::record::Record;
     let source = imu_emu::job::SourceSpec::Scene(
         "static".into(),
         imu_emu::scenes::SceneParams::defaults_for("static"),
     );
     let motion = imu_emu::job::build_motion(&source, Default::default())?;
     let grid = imu_emu::job::plan(&motion, rate_hz, None, Some(seconds))?;
-    let mut chain = imu_emu::errors::ErrorChain::new(model, grid.rate_hz, seed);
-    let mut imu = IdealImu::new(motion, grid.rate_hz, grid.t0, grid.count, DEFAULT_NODES);
+    let chain = imu_emu::errors::ErrorChain::new(model, grid.rate_hz, seed);
+    let mut producer = imu_emu::job::Producer::records(motion, grid, Some(chain));
     let mut an = Analyzer::new(SEGMENT);
-    let mut block = vec![Record::default(); imu_emu::job::BLOCK];
-    let mut k = 1u64;
-    while k <= grid.count {
-        let n = ((grid.count - k + 1) as usize).min(block.len());
-        imu.fill(k, &mut block[..n]);
-        chain.apply(&mut block[..n]);
-        block[..n].iter().for_each(|r| an.push_record(r));
-        k += n as u64;
+    while let Some(b) = producer.next_records(imu_emu::job::BLOCK) {
+        b.records.iter().for_each(|r| an.push_record(r));
     }
     Ok(an.finish(1.0 / grid.rate_hz))
 }

@@ -4,11 +4,9 @@
 
 use super::strapdown::{NavState, Navigator, Settings, SettingsError, StateError};
 use crate::errors::ErrorChain;
-use crate::generator::{DEFAULT_NODES, IdealImu};
-use crate::job::{self, BLOCK, Grid, JobError, SourceSpec};
+use crate::job::{self, BLOCK, Grid, JobError, Producer, SourceSpec};
 use crate::motion::Motion;
 use crate::motion::sampled::ModelSettings;
-use crate::record::Record;
 use crate::scenes::SceneParams;
 use crate::source::AnyMotion;
 
@@ -34,19 +32,12 @@ pub fn close(
     motion: &AnyMotion,
     grid: &Grid,
     settings: Settings,
-    mut chain: Option<&mut ErrorChain>,
+    chain: Option<ErrorChain>,
     check_every: u64,
 ) -> Result<Closure, SettingsError> {
     let start = NavState::from_pose(&motion.pose(grid.t0));
     let mut nav = Navigator::new(start, grid.rate_hz, settings)?;
-    let mut imu = IdealImu::new(
-        motion.clone(),
-        grid.rate_hz,
-        grid.t0,
-        grid.count,
-        DEFAULT_NODES,
-    );
-    let mut block = vec![Record::default(); BLOCK];
+    let mut producer = Producer::records(motion.clone(), *grid, chain);
     let mut out = Closure {
         records: grid.count,
         last: StateError::default(),
@@ -55,16 +46,10 @@ pub fn close(
         max_att: 0.0,
     };
     let every = check_every.max(1);
-    let mut k = 1u64;
-    while k <= grid.count {
-        let n = ((grid.count - k + 1) as usize).min(BLOCK);
-        imu.fill(k, &mut block[..n]);
-        if let Some(c) = chain.as_deref_mut() {
-            c.apply(&mut block[..n]);
-        }
-        for (i, r) in block[..n].iter().enumerate() {
+    while let Some(b) = producer.next_records(BLOCK) {
+        for (i, r) in b.records.iter().enumerate() {
             nav.step(r.dtheta, r.dv);
-            let kk = k + i as u64;
+            let kk = b.first + 1 + i as u64;
             if kk % every == 0 || kk == grid.count {
                 let s = nav.state();
                 let e = StateError::of(&s, &motion.pose(s.t));
@@ -74,7 +59,6 @@ pub fn close(
                 out.last = e;
             }
         }
-        k += n as u64;
     }
     Ok(out)
 }

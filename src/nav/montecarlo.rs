@@ -12,10 +12,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use super::strapdown::{NavState, Navigator, Settings, SettingsError, StateError};
 use crate::errors::ErrorChain;
 use crate::errors::template::ImuModel;
-use crate::generator::{DEFAULT_NODES, IdealImu, RotationTerms};
-use crate::job::{BLOCK, Grid};
+use crate::job::{BLOCK, Grid, Producer};
 use crate::motion::Motion;
-use crate::record::Record;
 use crate::rng::{fnv1a64, splitmix64};
 use crate::source::AnyMotion;
 
@@ -124,27 +122,17 @@ fn run_one(
     outages: u64,
 ) -> Result<RunErrors, SettingsError> {
     let g = &plan.grid;
-    let mut chain = ErrorChain::new(model, g.rate_hz, run_seed(plan.seed, run));
+    let chain = ErrorChain::new(model, g.rate_hz, run_seed(plan.seed, run));
     let total = outage * outages;
-    let mut imu = IdealImu::new(plan.motion.clone(), g.rate_hz, g.t0, total, DEFAULT_NODES);
+    let grid = Grid { count: total, ..*g };
+    let mut producer = Producer::records(plan.motion.clone(), grid, Some(chain));
     let truth_at = |k: u64| NavState::from_pose(&plan.motion.pose(imu_time(g, k)));
     let mut nav = Navigator::new(truth_at(0), g.rate_hz, plan.settings)?;
-    let mut block = vec![Record::default(); BLOCK];
-    let mut rot = vec![RotationTerms::default(); BLOCK];
     let mut out = Vec::with_capacity(offsets.len() * outages as usize);
     let mut next = 0usize;
-    let mut k = 1u64;
-    while k <= total {
-        let n = ((total - k + 1) as usize).min(BLOCK);
-        imu.fill(k, &mut block[..n]);
-        if chain.needs_rotation_terms() {
-            imu.rotation_terms(k, &mut rot[..n]);
-            chain.apply_with(&mut block[..n], Some(&rot[..n]));
-        } else {
-            chain.apply(&mut block[..n]);
-        }
-        for (i, r) in block[..n].iter().enumerate() {
-            let kk = k + i as u64;
+    while let Some(b) = producer.next_records(BLOCK) {
+        for (i, r) in b.records.iter().enumerate() {
+            let kk = b.first + 1 + i as u64;
             let elapsed_before = (kk - 1) % outage;
             if elapsed_before == 0 && kk > 1 {
                 nav.reset(&truth_at(kk - 1));
@@ -158,7 +146,6 @@ fn run_one(
                 next += 1;
             }
         }
-        k += n as u64;
     }
     Ok(out)
 }
