@@ -17,7 +17,7 @@ use imu_emu::errors::process::{FLICKER_RATIO, flicker_bank};
 use imu_emu::errors::{ErrorChain, ImuModel};
 use imu_emu::record::Record;
 
-/// Per axis: Σ y², Σ y_k y_{k+1} and the sample count of the six error axes of `n` records.
+/// Per axis, Σ y² and Σ y_k y_{k+1} over the six error axes (output − input) of `n` records.
 fn lag_sums(
     m: &ImuModel,
     rate: f64,
@@ -55,7 +55,7 @@ fn lag_sums(
 /// Record lengths: at Δt/τ = 0.01, (1 + φ²)/(1 − φ²) = 100.5, so 10⁶ records (6·10⁶ pooled
 /// samples) put the variance's 1σ at 0.58 % (bound 2.3 %, against +10.25 % for a driving
 /// noise 5 % too large) and ρ̂₁'s at 5.7e-5 (bound 2.3e-4 on 1 − ρ₁ = 0.00995: τ to ±2.3 %);
-/// at Δt/τ = 1 and 10, 2·10⁵ records give 1σ ≤ 0.19 % on the variance and ≤ 0.9e-3 on ρ̂₁
+/// at Δt/τ = 1 and 10, 2·10⁵ records give 1σ ≤ 0.15 % on the variance and ≤ 0.9e-3 on ρ̂₁
 /// (Euler: ρ₁ = 0 instead of 0.368 at Δt/τ = 1, divergence at 10).
 #[test]
 fn gauss_markov_terms_exact_for_any_step() {
