@@ -2,10 +2,13 @@
 //! static IMUs across the planet, constant velocity, level turns, coning, a flight over the
 //! pole — plus the time base, extreme rates and the accuracy of trajectories read from files.
 //!
-//! The closed forms are written independently of the library's kinematics: here from the
-//! DESIGN.md formulas directly, or in `imu_emu::truth` (the definition, eq. 1–2 in the paper's
-//! matrix form with numerically differentiated attitude and velocity; coning and the polar
-//! flight), which `imu-emu validate` reports from too. Tolerances are stated per test.
+//! The closed forms are written independently of the library's kinematics and Earth model:
+//! here from the README's formulas (Conventions) directly, with WGS-84 written out again, or in
+//! `imu_emu::truth` (the definition, eq. 1–2 in the paper's matrix form with numerically
+//! differentiated attitude, velocity and position, on its own WGS-84; coning and the polar
+//! flight), which `imu-emu validate` reports from too. Where the physics is exact, tolerances
+//! are a few times the round-off measured when the test was written (printed with
+//! `-- --nocapture`), stated per test with the factor.
 
 use imu_emu::generator::IdealImu;
 use imu_emu::math::{Mat3, Quat, Vec3};
@@ -26,7 +29,7 @@ fn e2() -> f64 {
     F * (2.0 - F)
 }
 
-/// DESIGN §1 normal gravity, written out again here.
+/// WGS-84 normal gravity (README, Conventions), written out again here.
 fn gamma(lat: f64, h: f64) -> f64 {
     let s2 = lat.sin().powi(2);
     let g0 = 9.780_325_335_9 * (1.0 + 0.001_931_852_652_41 * s2) / (1.0 - e2() * s2).sqrt();
@@ -101,7 +104,7 @@ fn static_level_closed_form_across_the_planet() {
     }
 }
 
-/// DESIGN §1 worked check, to the digits it gives.
+/// The README's worked check (static, level, north, 41° N, 0 m), to the digits it gives.
 #[test]
 fn design_worked_check_at_41n() {
     let r = &records(
