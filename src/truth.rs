@@ -15,8 +15,9 @@ use crate::record::Record;
 use crate::scenes::{self, SceneParams};
 use crate::source::AnyMotion;
 
-/// WGS-84 written from its definition (NIMA TR8350.2, 3rd ed., tables 3.1 and 3.3, eq. 4-1
-/// and 4-3), sharing nothing with `crate::earth`.
+/// WGS-84 written from its definition (NIMA TR8350.2, 3rd ed.: chapter 3 for the defining and
+/// derived constants, chapter 4 for normal gravity and its height correction), sharing
+/// nothing with `crate::earth`.
 pub mod wgs84 {
     use crate::math::Vec3;
 
