@@ -395,7 +395,14 @@ fn exported_trajectory_round_trips() {
         assert_eq!(a[0], b[0]);
         let gyro = (1..4).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max);
         let accel = (4..7).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max);
-        assert!(gyro < 1e-8 && accel < 1e-6, "t = {}: {a:?} vs {b:?}", a[0]);
+        // The sampled model's error on this 100 Hz circle, ends included: measured 2.5e-14
+        // rad/s and 1.55e-12 m/s² (CSV written with shortest round-trip digits, so the file
+        // loses nothing); bounds ×4 and ×3.2.
+        assert!(
+            gyro < 1e-13 && accel < 5e-12,
+            "t = {}: {a:?} vs {b:?}",
+            a[0]
+        );
     }
 }
 

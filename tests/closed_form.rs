@@ -2,10 +2,13 @@
 //! static IMUs across the planet, constant velocity, level turns, coning, a flight over the
 //! pole — plus the time base, extreme rates and the accuracy of trajectories read from files.
 //!
-//! The closed forms are written independently of the library's kinematics: here from the
-//! DESIGN.md formulas directly, or in `imu_emu::truth` (the definition, eq. 1–2 in the paper's
-//! matrix form with numerically differentiated attitude and velocity; coning and the polar
-//! flight), which `imu-emu validate` reports from too. Tolerances are stated per test.
+//! The closed forms are written independently of the library's kinematics and Earth model:
+//! here from the README's formulas (Conventions) directly, with WGS-84 written out again, or in
+//! `imu_emu::truth` (the definition, eq. 1–2 in the paper's matrix form with numerically
+//! differentiated attitude, velocity and position, on its own WGS-84; coning and the polar
+//! flight), which `imu-emu validate` reports from too. Where the physics is exact, tolerances
+//! are a few times the round-off measured when the test was written (printed with
+//! `-- --nocapture`), stated per test with the factor.
 
 use imu_emu::generator::IdealImu;
 use imu_emu::math::{Mat3, Quat, Vec3};
@@ -14,7 +17,7 @@ use imu_emu::motion::sampled::ModelSettings;
 use imu_emu::record::Record;
 use imu_emu::scenes::{self, SceneParams};
 use imu_emu::source::AnyMotion;
-use imu_emu::truth::{by_definition, coning_dtheta, polar_meridian};
+use imu_emu::truth::{coning_dtheta, polar_meridian};
 use imu_emu::validation::{self, analytic, compare, rebuild, reference_cases, sample_csv};
 
 const OMEGA: f64 = 7.292_115e-5;
@@ -26,7 +29,7 @@ fn e2() -> f64 {
     F * (2.0 - F)
 }
 
-/// DESIGN §1 normal gravity, written out again here.
+/// WGS-84 normal gravity (README, Conventions), written out again here.
 fn gamma(lat: f64, h: f64) -> f64 {
     let s2 = lat.sin().powi(2);
     let g0 = 9.780_325_335_9 * (1.0 + 0.001_931_852_652_41 * s2) / (1.0 - e2() * s2).sqrt();
@@ -101,7 +104,7 @@ fn static_level_closed_form_across_the_planet() {
     }
 }
 
-/// DESIGN §1 worked check, to the digits it gives.
+/// The README's worked check (static, level, north, 41° N, 0 m), to the digits it gives.
 #[test]
 fn design_worked_check_at_41n() {
     let r = &records(
@@ -242,44 +245,83 @@ fn mean_over(a: f64, b: f64, f: impl Fn(f64) -> (Vec3, Vec3)) -> (Vec3, Vec3) {
     (g, s)
 }
 
-/// The slow dynamic scenes sense what the definition says, at instants spread over the run
-/// (climb, turns, transitions); bounds are the 1e-12 rad/s and 1e-10 m/s². Step
-/// d = 10 ms: the survey's motion has no content above ~0.1 Hz, so truncation is < 1e-16
-/// and round-off ~2e-13 rad/s. (Fast motions have closed forms below.)
+/// The slow dynamic scenes sense what the definition says (`truth::by_definition`: eq. 1–2 on
+/// the pose with numerically differentiated attitude, velocity and position, and its own
+/// WGS-84), at 300 instants spread over the run (climb, turns, transitions), within the bounds
+/// `truth::scene_checks` states per scene: ~3× the measured round-off of the derivatives. Step
+/// d = 10 ms: the survey's motion has no content above ~0.1 Hz, so truncation is < 1e-16.
+/// (Fast motions have closed forms below.)
 #[test]
 fn slow_scenes_match_the_definition() {
-    for name in ["straight", "circle", "survey"] {
-        let m = scene(name, SceneParams::defaults_for(name));
-        let dur = if name == "survey" { 600.0 } else { 60.0 };
-        for i in 0..300 {
-            let t = 0.05 + (dur - 0.1) * i as f64 / 299.0;
-            // Differences must not straddle a breakpoint, where higher derivatives jump.
-            if m.piece_at(t - 0.035, 0) != m.piece_at(t + 0.035, 0) {
-                continue;
-            }
-            let s = m.sense(m.piece_at(t, 0), t);
-            let (g, a) = by_definition(&m, t, 1e-2);
-            assert!(
-                (s.omega_ib_b - g).max_abs() < 1e-12,
-                "{name} t {t}: gyro {:?} vs {:?}",
-                s.omega_ib_b,
-                g
-            );
-            assert!(
-                (s.f_b - a).max_abs() < 1e-10,
-                "{name} t {t}: accel {:?} vs {:?}",
-                s.f_b,
-                a
-            );
-        }
+    let checks = imu_emu::truth::scene_checks();
+    let by_def: Vec<_> = checks
+        .iter()
+        .filter(|c| c.reference.starts_with("definition"))
+        .collect();
+    assert_eq!(by_def.len(), 3);
+    for c in by_def {
+        println!("{c:?}");
+        assert!(c.pass() && c.samples >= 290, "{c:?}");
+        assert!(c.gyro_bound <= 1e-12 && c.accel_bound <= 1e-10, "{c:?}");
     }
 }
 
-/// Level coordinated turns in closed form, including the 10 g turn with a 1000 °/s roll
-/// oscillation: the scene ties its map circle x = R sin Ωt, y = ±R(1 − cos Ωt) to the
-/// ellipsoid by lat = φ₀ + x/(M₀+h), lon = λ₀ + y/((N₀+h) cos φ₀); yaw = ±Ωt, pitch 0,
+/// The `circle` scene with parameters `p` in closed form: ω_ib^b and f^b at time t. The scene
+/// ties its map circle x = R sin Ωt, y = ±R(1 − cos Ωt) to the ellipsoid by
+/// lat = φ₀ + x/(M₀+h), lon = λ₀ + y/((N₀+h) cos φ₀); yaw = ±Ωt, pitch 0,
 /// bank = atan(VΩ/γ₀) + A sin ωt, so ω_nb^b = [φ̇, ψ̇ sin φ, ψ̇ cos φ] and v^n, v̇^n follow by the
-/// chain rule through R_N(φ), R_E(φ). Bounds: the issue's, scaled by |f| for the 10 g case.
+/// chain rule through R_N(φ), R_E(φ).
+fn turn_closed_form(p: &SceneParams) -> impl Fn(f64) -> (Vec3, Vec3) {
+    let (lat0, h) = (p.lat_deg.to_radians(), p.h_m);
+    let (rn0, re0) = radii(lat0);
+    let (mh, nhc) = (rn0 + h, (re0 + h) * lat0.cos());
+    let sgn = if p.turn_right { 1.0 } else { -1.0 };
+    let (rr, v) = (p.radius_m, p.speed_m_s);
+    let om = v / rr;
+    let g0 = gamma(lat0, h);
+    let (amp, w) = (
+        p.roll_osc_deg.to_radians(),
+        2.0 * std::f64::consts::PI * p.roll_osc_hz,
+    );
+    move |t: f64| -> (Vec3, Vec3) {
+        let (st, ct) = (om * t).sin_cos();
+        // Map jets: x = R sin Ωt, y = ±R(1 − cos Ωt).
+        let (x, xd, xdd) = (rr * st, rr * om * ct, -rr * om * om * st);
+        let (yd, ydd) = (sgn * rr * om * st, sgn * rr * om * om * ct);
+        let lat = lat0 + x / mh;
+        let (ld, ldd) = (xd / mh, xdd / mh);
+        let (od, odd) = (yd / nhc, ydd / nhc);
+        let (rn, re) = radii(lat);
+        let wq = 1.0 - e2() * lat.sin().powi(2);
+        let drn = 3.0 * A * (1.0 - e2()) * e2() * lat.sin() * lat.cos() / wq.powf(2.5);
+        let dre = A * e2() * lat.sin() * lat.cos() / wq.powf(1.5);
+        let vn = Vec3::new((rn + h) * ld, (re + h) * lat.cos() * od, 0.0);
+        let vdot = Vec3::new(
+            drn * ld * ld + (rn + h) * ldd,
+            (dre * ld * lat.cos() - (re + h) * lat.sin() * ld) * od + (re + h) * lat.cos() * odd,
+            0.0,
+        );
+        let psi = sgn * om * t;
+        let bank = sgn * (v * om / g0).atan() + amp * (w * t).sin();
+        let bank_d = amp * w * (w * t).cos();
+        let c = rot(2, psi).mul_mat(&rot(0, bank));
+        let w_nb = Vec3::new(bank_d, sgn * om * bank.sin(), sgn * om * bank.cos());
+        let w_ie = Vec3::new(OMEGA * lat.cos(), 0.0, -OMEGA * lat.sin());
+        let w_en = Vec3::new(
+            vn.y() / (re + h),
+            -vn.x() / (rn + h),
+            -vn.y() * lat.tan() / (re + h),
+        );
+        let mut a = vdot + (w_ie * 2.0 + w_en).cross(vn);
+        a.0[2] -= gamma(lat, h);
+        (w_nb + c.tr_mul_vec(w_ie + w_en), c.tr_mul_vec(a))
+    }
+}
+
+/// Level coordinated turns in closed form ([`turn_closed_form`]), including the 10 g turn with
+/// a 1000 °/s roll oscillation. Engine and closed form evaluate the same functions in a
+/// different order, so they differ by round-off of the values: measured 7.6e-17 rad/s and
+/// 8.1e-15 m/s² per 10 m/s² of |f| (4 ulp of g); bounds ×4 and ×3.7.
 #[test]
 fn level_turns_closed_form() {
     let mut cases = vec![SceneParams::defaults_for("circle")];
@@ -290,72 +332,29 @@ fn level_turns_closed_form() {
     });
     for p in cases {
         let m = scene("circle", p.clone());
-        let (lat0, h) = (p.lat_deg.to_radians(), p.h_m);
-        let (rn0, re0) = radii(lat0);
-        let (mh, nhc) = (rn0 + h, (re0 + h) * lat0.cos());
-        let sgn = if p.turn_right { 1.0 } else { -1.0 };
-        let (rr, v) = (p.radius_m, p.speed_m_s);
-        let om = v / rr;
-        let g0 = gamma(lat0, h);
-        let (amp, w) = (
-            p.roll_osc_deg.to_radians(),
-            2.0 * std::f64::consts::PI * p.roll_osc_hz,
-        );
-        let closed = |t: f64| -> (Vec3, Vec3) {
-            let (st, ct) = (om * t).sin_cos();
-            // Map jets: x = R sin Ωt, y = ±R(1 − cos Ωt).
-            let (x, xd, xdd) = (rr * st, rr * om * ct, -rr * om * om * st);
-            let (yd, ydd) = (sgn * rr * om * st, sgn * rr * om * om * ct);
-            let lat = lat0 + x / mh;
-            let (ld, ldd) = (xd / mh, xdd / mh);
-            let (od, odd) = (yd / nhc, ydd / nhc);
-            let (rn, re) = radii(lat);
-            let wq = 1.0 - e2() * lat.sin().powi(2);
-            let drn = 3.0 * A * (1.0 - e2()) * e2() * lat.sin() * lat.cos() / wq.powf(2.5);
-            let dre = A * e2() * lat.sin() * lat.cos() / wq.powf(1.5);
-            let vn = Vec3::new((rn + h) * ld, (re + h) * lat.cos() * od, 0.0);
-            let vdot = Vec3::new(
-                drn * ld * ld + (rn + h) * ldd,
-                (dre * ld * lat.cos() - (re + h) * lat.sin() * ld) * od
-                    + (re + h) * lat.cos() * odd,
-                0.0,
-            );
-            let psi = sgn * om * t;
-            let bank = sgn * (v * om / g0).atan() + amp * (w * t).sin();
-            let bank_d = amp * w * (w * t).cos();
-            let c = rot(2, psi).mul_mat(&rot(0, bank));
-            let w_nb = Vec3::new(bank_d, sgn * om * bank.sin(), sgn * om * bank.cos());
-            let w_ie = Vec3::new(OMEGA * lat.cos(), 0.0, -OMEGA * lat.sin());
-            let w_en = Vec3::new(
-                vn.y() / (re + h),
-                -vn.x() / (rn + h),
-                -vn.y() * lat.tan() / (re + h),
-            );
-            let mut a = vdot + (w_ie * 2.0 + w_en).cross(vn);
-            a.0[2] -= gamma(lat, h);
-            (w_nb + c.tr_mul_vec(w_ie + w_en), c.tr_mul_vec(a))
-        };
+        let closed = turn_closed_form(&p);
+        let (mut eg, mut ea) = (0.0f64, 0.0f64);
         for i in 0..400 {
             let t = 0.013 * i as f64;
             let s = m.sense(0, t);
             let (g, a) = closed(t);
             let scale = (a.norm() / 10.0).max(1.0);
-            assert!(
-                (s.omega_ib_b - g).max_abs() < 1e-12 * scale,
-                "t {t}: {:?} vs {g:?}",
-                s.omega_ib_b
-            );
-            assert!(
-                (s.f_b - a).max_abs() < 1e-10 * scale,
-                "t {t}: {:?} vs {a:?}",
-                s.f_b
-            );
+            eg = eg.max((s.omega_ib_b - g).max_abs() / scale);
+            ea = ea.max((s.f_b - a).max_abs() / scale);
         }
+        println!(
+            "turn R {} m: gyro {eg:.2e} rad/s, accel {ea:.2e} m/s² (per 10 m/s² of |f|)",
+            p.radius_m
+        );
+        assert!(eg < 3e-16, "R {}: gyro {eg:e}", p.radius_m);
+        assert!(ea < 3e-14, "R {}: accel {ea:e}", p.radius_m);
     }
 }
 
 /// Straight level flight east with a 20° roll oscillation at 1 Hz: C_b^n = Rz(90°)Rx(φ(t)),
 /// φ = A sin ωt, ω_nb^b = [φ̇, 0, 0]; latitude constant, so the rest is the east closed form.
+/// Measured 0 rad/s and 7.5e-19 m/s²: bounds of 2 ulp of the largest values (the 2.2 rad/s
+/// roll rate, g).
 #[test]
 fn roll_oscillation_closed_form() {
     let p = reference_cases()[1].params.clone();
@@ -371,6 +370,7 @@ fn roll_oscillation_closed_form() {
     let w_en = Vec3::new(ve / (re + h), 0.0, -ve * lat.tan() / (re + h));
     let mut a_n = (w_ie * 2.0 + w_en).cross(Vec3::new(0.0, ve, 0.0));
     a_n.0[2] -= gamma(lat, h);
+    let (mut eg, mut ea) = (0.0f64, 0.0f64);
     for i in 0..500 {
         let t = 0.0071 * i as f64;
         let phi = amp * (w * t).sin();
@@ -378,9 +378,12 @@ fn roll_oscillation_closed_form() {
         let g = Vec3::new(amp * w * (w * t).cos(), 0.0, 0.0) + c.tr_mul_vec(w_ie + w_en);
         let a = c.tr_mul_vec(a_n);
         let s = m.sense(0, t);
-        assert!((s.omega_ib_b - g).max_abs() < 1e-12, "t {t}");
-        assert!((s.f_b - a).max_abs() < 1e-10, "t {t}");
+        eg = eg.max((s.omega_ib_b - g).max_abs());
+        ea = ea.max((s.f_b - a).max_abs());
     }
+    println!("roll oscillation: gyro {eg:.2e} rad/s, accel {ea:.2e} m/s²");
+    assert!(eg < 1e-15, "gyro {eg:e} rad/s");
+    assert!(ea < 4e-15, "accel {ea:e} m/s²");
 }
 
 /// Classic coning about body x with half-angle β at Ω: the increments have a closed form,
@@ -492,41 +495,95 @@ fn time_base_exact_over_24_hours_at_1khz() {
 }
 
 /// Far into a long run (the last second of 24 h at 1 kHz) a dynamic scene is still exact:
-/// the circle is periodic with T = 2πR/V, so the interval means at the end of the day equal
-/// those one period after the start, up to the ulp of the phase Ωt ≈ 8640 rad (1.8e-12 rad,
-/// i.e. ~1e-11 m/s² on the 5 m/s² centripetal term and ~1e-13 rad/s on the rates).
+/// the circle is periodic with T = 2πR/V, so the instantaneous signal at the end of the day
+/// equals that one period after the start up to the ulp of the phase Ωt ≈ 8640 rad
+/// (1.8e-12 rad, i.e. ~1e-11 m/s² on the 5 m/s² centripetal term and ~1e-13 rad/s on the
+/// rates); and the last ten records equal the interval means of the closed form
+/// ([`turn_closed_form`], 16-node rule on 8 sub-intervals) to round-off — both sides compute
+/// the phase Ωt the same way, so what is left is the round-off of the values: measured
+/// 8.3e-17 rad/s and 7.1e-15 m/s², bounds ×3.6 and ×4.2. A generator that evaluates the motion
+/// 50 ms late in the last second is off by ~4e-7 rad/s and ~4e-5 m/s² (the Earth-rate and
+/// Coriolis terms turning with the heading).
 #[test]
 fn circle_exact_at_the_end_of_24_hours() {
     let p = SceneParams::defaults_for("circle");
     let period = 2.0 * std::f64::consts::PI * p.radius_m / p.speed_m_s;
-    let m = scene("circle", p);
+    let closed = turn_closed_form(&p);
+    let m = scene("circle", p.clone());
     let k_last = 86_400_000u64;
-    let rs = records(m.clone(), 1000.0, k_last - 9, 10, 3);
+    let rate = 1000.0;
+    let rs = records(m.clone(), rate, k_last - 9, 10, 3);
     assert_eq!(rs[9].t, 86_400.0);
     let n = (86_400.0 / period).floor();
+    let (mut eg, mut ea) = (0.0f64, 0.0f64);
     for r in &rs {
         let t = r.t - 0.0005;
         let late = m.sense(m.piece_at(t, 0), t);
         let early = m.sense(0, t - n * period);
         assert!((late.omega_ib_b - early.omega_ib_b).max_abs() < 1e-13);
         assert!((late.f_b - early.f_b).max_abs() < 3e-11);
-        assert!(r.gyro.is_finite() && r.accel.is_finite());
-        assert!(
-            (r.gyro - late.omega_ib_b).max_abs() < 1e-6,
-            "interval mean near the midpoint value"
-        );
+        let (g, a) = mean_over(r.t - 1.0 / rate, r.t, &closed);
+        eg = eg.max((r.gyro - g).max_abs());
+        ea = ea.max((r.accel - a).max_abs());
     }
+    println!("circle, last 10 records of 24 h at 1 kHz: gyro {eg:.2e} rad/s, accel {ea:.2e} m/s²");
+    assert!(eg < 3e-16, "gyro {eg:e} rad/s");
+    assert!(ea < 3e-14, "accel {ea:e} m/s²");
+}
+
+/// The last records of a 24-hour coning run at 10 Hz, streamed through the job's producer
+/// (the path `generate` takes), against the closed-form increments of `truth::coning_dtheta`.
+/// An 8-node rule keeps quadrature error out (order 16 on 0.2 of a 2 Hz cycle: ~1e-23 rad),
+/// so what is left is the phase: both sides evaluate sin β·cos(Ωt) at Ωt ≈ 1.1e6 rad, whose
+/// ulp is 2.3e-10 rad. A generator that evaluates the motion even slightly late at the end
+/// of the day (50 ms is a tenth of a cone revolution) is off by ~1e-3 rad. Bound: the phase
+/// floor of `coning_increments_closed_form`, 4 sin β·Ω t·ε = 1.7e-11 rad (measured 3.4e-12).
+#[test]
+fn coning_exact_at_the_end_of_24_hours() {
+    use imu_emu::job::{self, Producer};
+    let p = SceneParams::defaults_for("coning");
+    let (beta, om) = (
+        p.cone_half_angle_deg.to_radians(),
+        2.0 * std::f64::consts::PI * p.cone_hz,
+    );
+    let lat = p.lat_deg.to_radians();
+    let m = scene("coning", p);
+    let rate = 10.0;
+    let grid = job::plan(&m, rate, None, Some(86_400.0)).unwrap();
+    assert_eq!(grid.count, 864_000);
+    let mut producer =
+        Producer::new(m, grid, 8, imu_emu::output::Format::Bin, None, false).unwrap();
+    let mut tail = std::collections::VecDeque::with_capacity(11);
+    while let Some(b) = producer.next_records(job::BLOCK) {
+        for r in b.records {
+            if tail.len() == 10 {
+                tail.pop_front();
+            }
+            tail.push_back(*r);
+        }
+    }
+    assert_eq!(tail.back().unwrap().t, 86_400.0);
+    let mut worst = 0.0f64;
+    for r in &tail {
+        let k = (r.t * rate).round();
+        let want = coning_dtheta(beta, om, lat, (k - 1.0) / rate, k / rate);
+        worst = worst.max((r.dtheta - want).max_abs());
+    }
+    let floor = 4.0 * beta.sin() * om * 86_400.0 * f64::EPSILON;
+    println!("coning, last 10 records of 24 h at 10 Hz: Δθ {worst:.2e} rad (floor {floor:.2e})");
+    assert!(worst < floor, "Δθ {worst:e} rad");
 }
 
 /// Δt from 10 µs to 1 s: interval means equal the mean of the instantaneous signal (16-node
 /// rule on 8 sub-intervals of the model's own `sense`), for the survey's banked turn.
+/// Measured at most 5.6e-17 rad/s and 8.9e-15 m/s² over the three rates; bounds ×3.6 and ×3.4.
 #[test]
 fn interval_means_for_dt_from_10us_to_1s() {
     let m = scene("survey", SceneParams::defaults_for("survey"));
     for (rate, nodes, tol_g, tol_a) in [
-        (1.0e5, 3, 1e-15, 1e-13),
-        (1000.0, 3, 1e-15, 1e-13),
-        (1.0, 6, 1e-15, 1e-13),
+        (1.0e5, 3, 2e-16, 3e-14),
+        (1000.0, 3, 2e-16, 3e-14),
+        (1.0, 6, 2e-16, 3e-14),
     ] {
         let k0 = (170.0 * rate) as u64; // in the middle of the first turn
         let rs = records(m.clone(), rate, k0, 5, nodes);
@@ -535,6 +592,11 @@ fn interval_means_for_dt_from_10us_to_1s() {
                 let s = m.sense(m.piece_at(t, 0), t);
                 (s.omega_ib_b, s.f_b)
             });
+            println!(
+                "rate {rate}: gyro {:.2e}, accel {:.2e}",
+                (r.gyro - g).max_abs(),
+                (r.accel - a).max_abs()
+            );
             assert!(
                 (r.gyro - g).max_abs() < tol_g,
                 "rate {rate}: {:e}",
@@ -556,37 +618,36 @@ fn interval_means_for_dt_from_10us_to_1s() {
 /// measured (interval-mean rates, IMU rate = input rate, interior of the record), and aim 10×
 /// better: circle R 500 m at 50 m/s at 100 Hz (tool: 3.4e-13 rad/s, 2.5e-8 m/s²); 20° roll
 /// oscillation at 1 Hz at 100 Hz (1.6e-12, 4.5e-6); 10 g turn + 1000 °/s roll at 1 kHz
-/// (4e-10, 6e-5). The bounds asserted are the tool's figures divided by the factor we reach
-/// with margin (README, "Accuracy").
+/// (4e-10, 6e-5). The interior is held to the tool's figures divided by the factor we reach
+/// with margin (README, "Accuracy"); the whole record, ends included, to ~3× what this model
+/// measures (circle 1.2e-13 rad/s and 3.5e-12 m/s², roll 3.9e-13 and 2.6e-12, 10 g turn
+/// 6.0e-12 and 1.7e-10), so a regression far below the tool's figures still shows.
 #[test]
 fn sampled_trajectories_beat_the_reference_tool() {
     let bounds = [
-        (100.0, 3.4e-13, 2.5e-9),
-        (100.0, 1.6e-12 / 2.0, 4.5e-7),
-        (1000.0, 4e-11, 6e-6),
+        (100.0, 3.4e-13, 2.5e-9, 4e-13, 1.2e-11),
+        (100.0, 1.6e-12 / 2.0, 4.5e-7, 1.2e-12, 8e-12),
+        (1000.0, 4e-11, 6e-6, 2e-11, 5e-10),
     ];
-    for (case, (rate, bg, ba)) in reference_cases().iter().zip(bounds) {
+    for (case, (rate, bg, ba, mg, ma)) in reference_cases().iter().zip(bounds) {
         let count = (case.duration_s * rate) as u64;
         let exact = validation::records(analytic(case), rate, count, 10);
         let csv = sample_csv(&analytic(case), rate, case.duration_s);
         let got = validation::records(rebuild(&csv, ModelSettings::default()), rate, count, 3);
         let e = compare(&exact, &got);
+        println!("{}: {e:?}", case.name);
         assert!(
             e.gyro_interior < bg && e.accel_interior < ba,
             "{}: {e:?}",
             case.name
         );
-        // The ends of the record stay within 10× of the interior bound (one-sided stencils).
-        assert!(
-            e.gyro < 10.0 * bg.max(1e-12) && e.accel < 10.0 * ba,
-            "{} ends: {e:?}",
-            case.name
-        );
+        assert!(e.gyro < mg && e.accel < ma, "{}: {e:?}", case.name);
     }
 }
 
 /// A sampled flight over the pole (latitude peaks at 90°, longitude and heading jump by
 /// 180°) gives the analytic scene's signal: the model works in ECEF, which has no pole.
+/// Measured 8.8e-14 rad/s and 1.06e-11 m/s²; bounds ×3.4 and ×3.3.
 #[test]
 fn sampled_trajectory_over_the_pole() {
     let m = scene("polar", SceneParams::defaults_for("polar"));
@@ -606,11 +667,13 @@ fn sampled_trajectory_over_the_pole() {
     let exact = validation::records(m, rate, count, 10);
     let got = validation::records(rebuild(&csv, ModelSettings::default()), rate, count, 3);
     let e = compare(&exact, &got);
-    assert!(e.gyro < 1e-12 && e.accel < 1e-10, "{e:?}");
+    println!("polar, sampled: {e:?}");
+    assert!(e.gyro < 3e-13 && e.accel < 3.5e-11, "{e:?}");
 }
 
 /// Pitch through ±90° in a sampled trajectory: coning about a vertical body x (pitch 90°),
-/// whose Euler yaw and roll are degenerate at every sample, rebuilt from its CSV.
+/// whose Euler yaw and roll are degenerate at every sample, rebuilt from its CSV. Measured at
+/// most 1.55e-12 rad/s and 7.2e-14 m/s² (pitch 89.999°, ends included); bounds ×3.2 and ×3.5.
 #[test]
 fn sampled_trajectory_at_pitch_90() {
     for pitch in [90.0, -90.0, 89.999] {
@@ -627,11 +690,8 @@ fn sampled_trajectory_at_pitch_90() {
         let exact = validation::records(m, rate, count, 10);
         let got = validation::records(rebuild(&csv, ModelSettings::default()), rate, count, 3);
         let e = compare(&exact, &got);
-        assert!(
-            e.gyro_interior < 1e-11 && e.accel_interior < 1e-10,
-            "pitch {pitch}: {e:?}"
-        );
-        assert!(e.gyro.is_finite() && e.accel.is_finite());
+        println!("pitch {pitch}: {e:?}");
+        assert!(e.gyro < 5e-12 && e.accel < 2.5e-13, "pitch {pitch}: {e:?}");
     }
 }
 
@@ -671,9 +731,92 @@ fn sampled_circle_across_the_heading_wrap() {
     let exact = validation::records(m, rate, count, 10);
     let got = validation::records(rebuild(&csv, ModelSettings::default()), rate, count, 3);
     let e = compare(&exact, &got);
-    // Same bounds as the 100 Hz circle above (the wrap must cost nothing).
-    assert!(
-        e.gyro_interior < 3.4e-13 && e.accel_interior < 2.5e-9,
-        "{e:?}"
-    );
+    println!("circle across the wrap: {e:?}");
+    // Same bounds as the 100 Hz circle above, whole record (the wrap must cost nothing;
+    // measured 1.4e-13 rad/s and 4.5e-12 m/s²).
+    assert!(e.gyro < 4e-13 && e.accel < 1.2e-11, "{e:?}");
+}
+
+/// The engine's two forms of equations (1)–(2) — local level (`sense_ned`, the analytic
+/// scenes) and Earth-fixed (`sense_ecef`, trajectories from files) — agree for a moving,
+/// rotating, tilted vehicle, with the ECEF state built here without the library's Earth
+/// model: C_n^e written out, and the transport rate from its definition as the n frame's
+/// rotation over the Earth, ω_en^n = [λ̇ cos φ, −φ̇, −λ̇ sin φ] with φ̇ = v_N/(R_N+h) and
+/// λ̇ = v_E/((R_E+h) cos φ) — a different formula from the engine's
+/// [v_E/(R_E+h), −v_N/(R_N+h), −v_E tan φ/(R_E+h)], so a sign or a radius wrong in either
+/// shows. Then ṙ^e = C_n^e v^n, r̈^e = C_n^e(v̇^n + ω_en^n × v^n) (as Ċ_n^e = C_n^e[ω_en^n×]) and
+/// ω_eb^b = ω_nb^b + C_n^b ω_en^n. Measured 0 rad/s (the rates' round-off is below the ulp of
+/// ω_nb^b) and 8.9e-15 m/s² (5 ulp of ~10 m/s²: the two forms round through different
+/// rotations); bounds 1e-17 rad/s and 3e-14 m/s². A sign or radius slip in either transport
+/// rate is ≥ 1e-6 rad/s here.
+#[test]
+fn ned_and_ecef_forms_agree_with_an_independent_transport_rate() {
+    use imu_emu::earth::Geodetic;
+    use imu_emu::kinematics::{EcefState, NedState, sense_ecef, sense_ned};
+    let (mut eg, mut ea) = (0.0f64, 0.0f64);
+    for (lat, lon, h) in [(0.9, -1.3, 1234.0), (-0.3, 2.9, 30.0), (1.4, 0.2, 11_000.0)] {
+        let v_n = Vec3::new(80.0, -35.0, 3.0);
+        let v_dot_n = Vec3::new(0.4, 2.5, -0.3);
+        let (roll, pitch, yaw) = (17.0, -11.0, 137.0);
+        let c_b_n = c_b_n_deg(roll, pitch, yaw);
+        let omega_nb_b = Vec3::new(0.1, -0.05, 0.2);
+        let (rn, re) = radii(lat);
+        let ned = sense_ned(&NedState {
+            sin_lat: lat.sin(),
+            cos_lat: lat.cos(),
+            h,
+            r_n: rn,
+            r_e: re,
+            gravity: gamma(lat, h),
+            v_n,
+            v_dot_n,
+            c_b_n,
+            omega_nb_b,
+        });
+        let (lat_dot, lon_dot) = (v_n.x() / (rn + h), v_n.y() / ((re + h) * lat.cos()));
+        let w_en = Vec3::new(lon_dot * lat.cos(), -lat_dot, -lon_dot * lat.sin());
+        // C_n^e = Rz(λ) Ry(−φ − π/2): columns north, east, down in ECEF.
+        let c_n_e = rot(2, lon).mul_mat(&rot(1, -lat - std::f64::consts::FRAC_PI_2));
+        let (sl, cl, so, co) = (lat.sin(), lat.cos(), lon.sin(), lon.cos());
+        let by_hand = [
+            [-sl * co, -so, -cl * co],
+            [-sl * so, co, -cl * so],
+            [cl, 0.0, -sl],
+        ];
+        for (row, want) in c_n_e.0.iter().zip(by_hand) {
+            for (x, y) in row.iter().zip(want) {
+                assert!((x - y).abs() < 1e-15, "C_n^e {:e}", x - y);
+            }
+        }
+        // The same rotations as unit quaternions, for the engine's ECEF state.
+        let q_n_e = Quat::from_rotvec(Vec3::new(0.0, 0.0, lon)).mul(Quat::from_rotvec(Vec3::new(
+            0.0,
+            -lat - std::f64::consts::FRAC_PI_2,
+            0.0,
+        )));
+        let q_b_n = imu_emu::math::quat_from_euler(
+            f64::to_radians(roll),
+            f64::to_radians(pitch),
+            f64::to_radians(yaw),
+        );
+        let q_b_e = q_n_e.mul(q_b_n);
+        let c_b_e = c_n_e.mul_mat(&c_b_n);
+        for (row, want) in q_b_e.to_mat().0.iter().zip(c_b_e.0) {
+            for (x, y) in row.iter().zip(want) {
+                assert!((x - y).abs() < 4e-15, "C_b^e {:e}", x - y);
+            }
+        }
+        let ecef = sense_ecef(&EcefState {
+            pos: Geodetic::from_radians(lat, lon, h),
+            v_e: c_n_e.mul_vec(v_n),
+            a_e: c_n_e.mul_vec(v_dot_n + w_en.cross(v_n)),
+            q_b_e,
+            omega_eb_b: omega_nb_b + c_b_n.tr_mul_vec(w_en),
+        });
+        eg = eg.max((ned.omega_ib_b - ecef.omega_ib_b).max_abs());
+        ea = ea.max((ned.f_b - ecef.f_b).max_abs());
+    }
+    println!("NED vs ECEF form: gyro {eg:.2e} rad/s, accel {ea:.2e} m/s²");
+    assert!(eg < 1e-17, "gyro {eg:e} rad/s");
+    assert!(ea < 3e-14, "accel {ea:e} m/s²");
 }
