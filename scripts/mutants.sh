@@ -28,10 +28,11 @@ log="$work/log.txt"
 mutations=(
   "pacer-half-rate|s/(start \+ )\((k as u128 \* 1_000_000_000_000_000 \/ self\.frames_per_s_uhz)\) as i128/\$1(2 * \$2) as i128/|realtime|pacer deadlines ×2 (frames at half the rate)"
   "pacer-50ms-late|s/(start \+ \(k as u128 \* 1_000_000_000_000_000 \/ self\.frames_per_s_uhz\) as i128)/\$1 + 50_000_000/|realtime|every frame sent 50 ms late"
-  "rate-lsb-noop|s/(let v = &mut sel\(r\)\.0\[i\];\s*)\*v = q\.apply\(\*v\);/\$1let _ = q.apply(*v);/|error_model quantization|rate-LSB quantization (Lsb::Rate) a no-op"
-  "gm-euler|s/let phi = \(-dt \/ tau\)\.exp\(\);\n(\s*)\/\/ 1 − e\^\{−2x\} without cancellation for small x\.\n\s*let q = sigma \* \(-\(-2\.0 \* dt \/ tau\)\.exp_m1\(\)\)\.sqrt\(\);/let phi = 1.0 - dt \/ tau;\n\$1let q = sigma * (2.0 * dt \/ tau).sqrt();/|error_model gauss_markov|Gauss–Markov discretised with Euler"
-  "gm-noise-105|s/(let q = sigma \* \(-\(-2\.0 \* dt \/ tau\)\.exp_m1\(\)\)\.sqrt\(\));/\$1 * 1.05;/|error_model gauss_markov|Gauss–Markov driving noise ×1.05"
-  "flicker-sigma-095|s/(let sigma = b \* \(ln_r \/ std::f64::consts::PI\)\.sqrt\(\));/\$1 * 0.95;/|error_model gauss_markov|bias-instability bank σ ×0.95"
+  "rate-lsb-noop|s/(let v = &mut sel\(r\)\.0\[i\];\s*)\*v = q\.apply\(\*v\);/\$1let _ = q.apply(*v);/|quantization gauss_markov error_model|rate-LSB quantization (Lsb::Rate) a no-op"
+  "gm-euler|s/let phi = \(-dt \/ tau\)\.exp\(\);\n(\s*)\/\/ 1 − e\^\{−2x\} without cancellation for small x\.\n\s*let q = sigma \* \(-\(-2\.0 \* dt \/ tau\)\.exp_m1\(\)\)\.sqrt\(\);/let phi = 1.0 - dt \/ tau;\n\$1let q = sigma * (2.0 * dt \/ tau).sqrt();/|gauss_markov error_model|Gauss–Markov discretised with Euler"
+  "gm-noise-105|s/(let q = sigma \* \(-\(-2\.0 \* dt \/ tau\)\.exp_m1\(\)\)\.sqrt\(\));/\$1 * 1.05;/|gauss_markov error_model|Gauss–Markov driving noise ×1.05"
+  "generator-late-24h|s/(let t = self\.t0 \+ \(base \+ x\) \/ self\.rate_hz;)/\$1\n                    let t = if t > 86_399.0 { t + 0.05 } else { t };/|closed_form|generator evaluating the motion 50 ms late in the last second of a 24 h run"
+  "flicker-sigma-095|s/(let sigma = b \* \(ln_r \/ std::f64::consts::PI\)\.sqrt\(\));/\$1 * 0.95;/|gauss_markov error_model|bias-instability bank σ ×0.95"
 )
 
 want=("$@")
