@@ -201,6 +201,16 @@ pub fn run(a: RunArgs) -> Result<()> {
     let paced = speed.is_finite();
     let frames_per_s = grid.rate_hz * if paced { speed } else { 1.0 };
 
+    // Before any sink is visible (a pty link, a first datagram): a signal from then on ends
+    // the run with its summary and exit status.
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    let mut signals = {
+        let _rt = rt.enter();
+        StopSignals::new()?
+    };
+
     // Sinks, each on stream 0 (the main protocol) or on a stream of its own protocol.
     let mut streams = Streams::new(plan.clone(), grid.rate_hz);
     let mut sinks: Vec<Routed> = Vec::new();
@@ -308,9 +318,6 @@ pub fn run(a: RunArgs) -> Result<()> {
         realtime::CHANNEL_BLOCKS
     );
 
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()?;
     let stop = Arc::new(AtomicBool::new(false));
     let status = Arc::new(Mutex::new(Status::default()));
     let (tx, rx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
@@ -318,11 +325,6 @@ pub fn run(a: RunArgs) -> Result<()> {
     let (done_tx, done_rx) = tokio::sync::oneshot::channel();
     let producer_task =
         rt.spawn_blocking(move || realtime::produce(producer, block, n_streams, tx, recycle_rx));
-    // Before the pacer starts: a signal from then on ends the run with its summary.
-    let mut signals = {
-        let _rt = rt.enter();
-        StopSignals::new()?
-    };
     let pacer_thread = {
         let (stop, status) = (stop.clone(), status.clone());
         std::thread::Builder::new()
