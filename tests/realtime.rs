@@ -677,6 +677,11 @@ fn records(got: &[Arrival], rate: f64) -> Vec<(u64, i128)> {
     out
 }
 
+/// The most consecutive records missing between two received ones.
+fn longest_gap(ks: &[u64]) -> u64 {
+    ks.windows(2).map(|w| w[1] - w[0] - 1).max().unwrap_or(0)
+}
+
 /// Lateness figures (µs) of the run summary: `write lateness p50 A µs, p99 B µs, max C µs`.
 fn lateness_us(summary: &str) -> [f64; 3] {
     let tail = summary
@@ -849,12 +854,13 @@ fn reported_losses_are_the_records_missing() {
     kill(pid, Signal::SIGCONT).unwrap();
     let err = finish(child);
     let got = records(&receiving.stop(), RATE);
-    let skipped = count_in(&err, "skipped (too late)");
-    let reported = skipped + count_in(&err, "dropped (slow consumer)");
+    let reported = count_in(&err, "skipped (too late)") + count_in(&err, "dropped (slow consumer)");
     let missing = planned - got.len() as u64;
+    let ks: Vec<u64> = got.iter().map(|g| g.0).collect();
+    let gap = longest_gap(&ks);
     assert!(
-        skipped >= 2 * 128,
-        "a 0.4 s stop skipped only {skipped} frames: {err}"
+        gap > 2 * 128,
+        "a 0.4 s stop lost only {gap} frames in a row: {err}"
     );
     assert_eq!(
         missing, reported,
@@ -917,10 +923,14 @@ fn pty_losses_are_the_records_missing() {
     });
     assert_eq!(dec.stats().check_failures, 0, "a torn frame");
     assert!(ks.windows(2).all(|w| w[0] < w[1]), "records out of order");
-    let dropped = count_in(&err, "dropped (slow consumer)");
-    let reported =
-        dropped + count_in(&err, "dropped (no reader)") + count_in(&err, "skipped (too late)");
-    assert!(dropped > 2 * 128, "{err}");
+    let reported = count_in(&err, "dropped (slow consumer)")
+        + count_in(&err, "dropped (no reader)")
+        + count_in(&err, "skipped (too late)");
+    let gap = longest_gap(&ks);
+    assert!(
+        gap > 2 * 128,
+        "a 1.5 s pause lost only {gap} frames in a row: {err}"
+    );
     assert_eq!(
         planned - ks.len() as u64,
         reported,
