@@ -169,7 +169,7 @@ fn reader_priority(fifo: bool) {
 fn pty_case(rate: f64, secs: f64, fifo: bool, plan: &Plan) -> String {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("imu");
-    let sink = PtySink::open(Some(&link)).expect("pty");
+    let sink = PtySink::open(Some(&link), false).expect("pty");
     let mut reader = std::fs::OpenOptions::new()
         .read(true)
         .write(true)

@@ -74,6 +74,10 @@ fn main() {
         if broken_pipe {
             std::process::exit(0);
         }
+        // A run stopped by a signal has printed its summary; only the status is left to say.
+        if let Some(i) = e.downcast_ref::<imu_emu::realtime::signal::Interrupted>() {
+            std::process::exit(i.exit_code());
+        }
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }

@@ -13,8 +13,10 @@ use imu_emu::motion::Motion;
 use imu_emu::protocol::Plan;
 use imu_emu::realtime::pacer::{self, Clocking, Pacing, Routed, Status};
 use imu_emu::realtime::serial::{Framing, SerialSink, check_link};
+use imu_emu::realtime::signal::{Interrupted, StopSignals};
 use imu_emu::realtime::sink::FileSink;
-use imu_emu::realtime::{self, clock, pty::PtySink, udp::UdpSink};
+use imu_emu::realtime::udp::{self, UdpSink};
+use imu_emu::realtime::{self, clock, pty::PtySink};
 
 use super::setup::{Defaults, GenerateArgs, Output, SourceArgs, resolve_with};
 
@@ -58,6 +60,9 @@ pub struct RunArgs {
     /// Without any sink, one pty is opened and its /dev/pts path printed.
     #[arg(long, value_name = "PATH[,protocol=NAME]")]
     pub pty: Vec<String>,
+    /// Replace a `--pty` link that another running emulator holds (refused by default).
+    #[arg(long)]
+    pub take_over: bool,
     /// Serial device sink; repeatable.
     #[arg(long, value_name = "DEV[,protocol=NAME]")]
     pub serial: Vec<String>,
@@ -113,6 +118,7 @@ pub fn init_logging(verbose: u8) {
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
         .try_init();
 }
 
@@ -195,6 +201,16 @@ pub fn run(a: RunArgs) -> Result<()> {
     let paced = speed.is_finite();
     let frames_per_s = grid.rate_hz * if paced { speed } else { 1.0 };
 
+    // Before any sink is visible (a pty link, a first datagram): a signal from then on ends
+    // the run with its summary and exit status.
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    let mut signals = {
+        let _rt = rt.enter();
+        StopSignals::new()?
+    };
+
     // Sinks, each on stream 0 (the main protocol) or on a stream of its own protocol.
     let mut streams = Streams::new(plan.clone(), grid.rate_hz);
     let mut sinks: Vec<Routed> = Vec::new();
@@ -208,7 +224,7 @@ pub fn run(a: RunArgs) -> Result<()> {
             (Some(Path::new(l)), p)
         });
         let (stream, p) = streams.route(proto)?;
-        let s = PtySink::open(link).with_context(|| {
+        let s = PtySink::open(link, a.take_over).with_context(|| {
             format!(
                 "opening a pty{}",
                 link.map_or(String::new(), |l| format!(" at {}", l.display()))
@@ -241,10 +257,14 @@ pub fn run(a: RunArgs) -> Result<()> {
     }
     for value in &a.udp {
         let (dest, proto) = split_sink(value);
-        let (stream, _) = streams.route(proto)?;
-        let sink =
-            Box::new(UdpSink::open(dest, a.udp_batch).with_context(|| format!("--udp {dest}"))?);
-        sinks.push(Routed { stream, sink });
+        let (stream, p) = streams.route(proto)?;
+        let sink = UdpSink::open(dest, a.udp_batch).with_context(|| format!("--udp {dest}"))?;
+        sink.check_datagram(udp::max_wire_len(&p))
+            .map_err(|e| anyhow::anyhow!("--udp {dest}: {e}"))?;
+        sinks.push(Routed {
+            stream,
+            sink: Box::new(sink),
+        });
     }
     for value in &a.file {
         let (path, proto) = split_sink(value);
@@ -268,16 +288,10 @@ pub fn run(a: RunArgs) -> Result<()> {
         .collect();
 
     let pacing = if paced {
-        let start_ns = start_at.map(|utc| {
-            let ahead = (utc - clock::realtime_ns()) as f64 / 1e9;
-            if ahead < -1.0 {
-                eprintln!(
-                    "imu-emu: warning: --start-at is {:.1} s in the past: frames before now are skipped",
-                    -ahead
-                );
-            }
-            clock::utc_to_monotonic(utc)
-        });
+        let start_ns = start_at
+            .map(clock::start_at)
+            .transpose()
+            .map_err(|e| anyhow::anyhow!("--start-at {}: {e}", a.start_at.unwrap_or_default()))?;
         let mut c =
             Clocking::new(frames_per_s, start_ns, a.realtime).map_err(|e| anyhow::anyhow!(e))?;
         c.max_behind_ns = (a.max_behind_ms * 1e6) as i128;
@@ -304,9 +318,6 @@ pub fn run(a: RunArgs) -> Result<()> {
         realtime::CHANNEL_BLOCKS
     );
 
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()?;
     let stop = Arc::new(AtomicBool::new(false));
     let status = Arc::new(Mutex::new(Status::default()));
     let (tx, rx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
@@ -326,16 +337,16 @@ pub fn run(a: RunArgs) -> Result<()> {
     };
     let live = std::io::stderr().is_terminal();
     let interrupted = rt.block_on(async {
-        let mut sigterm =
-            tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())?;
         let mut tick = tokio::time::interval(std::time::Duration::from_secs(1));
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
         tokio::pin!(done_rx);
         loop {
             tokio::select! {
-                _ = &mut done_rx => return Ok::<bool, std::io::Error>(false),
-                _ = tokio::signal::ctrl_c() => break,
-                _ = sigterm.recv() => break,
+                _ = &mut done_rx => return None,
+                sig = signals.recv() => {
+                    stop.store(true, Ordering::Relaxed);
+                    return Some(Interrupted(sig));
+                }
                 _ = tick.tick() => {
                     if live && paced {
                         let s = status.lock().unwrap_or_else(|e| e.into_inner()).clone();
@@ -344,9 +355,7 @@ pub fn run(a: RunArgs) -> Result<()> {
                 }
             }
         }
-        stop.store(true, Ordering::Relaxed);
-        Ok(true)
-    })?;
+    });
     if live && paced {
         eprint!("\r\x1b[2K");
     }
@@ -357,10 +366,11 @@ pub fn run(a: RunArgs) -> Result<()> {
     drop(rt.block_on(producer_task));
     eprintln!(
         "imu-emu: {}{}",
-        if interrupted { "interrupted: " } else { "" },
+        interrupted.map_or(String::new(), |i| format!("{i}: ")),
         summary(&final_status, grid.count, paced)
     );
-    Ok(())
+    // After the summary: the exit status tells a script the run did not complete.
+    interrupted.map_or(Ok(()), |i| Err(i.into()))
 }
 
 /// Splits a sink flag's value into its target and the protocol of `,protocol=NAME`.

@@ -45,6 +45,20 @@ pub fn utc_to_monotonic(utc_ns: i128) -> i128 {
     m + (utc_ns - r)
 }
 
+/// The CLOCK_MONOTONIC instant of `--start-at` `utc_ns`, which must still be ahead: frames
+/// due before the run began cannot be sent at their time, and skipping them would leave a
+/// receiver aligned on the instant with nothing it can use.
+pub fn start_at(utc_ns: i128) -> Result<i128, String> {
+    let ahead = utc_ns - realtime_ns();
+    if ahead <= 0 {
+        return Err(format!(
+            "the instant is {:.3} s in the past: give one in the future (a few seconds ahead leaves time to start every emulator)",
+            -ahead as f64 / 1e9
+        ));
+    }
+    Ok(utc_to_monotonic(utc_ns))
+}
+
 /// Parses an RFC 3339 UTC instant `YYYY-MM-DDTHH:MM:SS[.fff…]Z` to ns since the Unix epoch.
 pub fn parse_utc(s: &str) -> Result<i128, String> {
     let bad = || format!("`{s}`: expected a UTC instant like 2026-11-24T15:00:00.000Z");
@@ -136,5 +150,16 @@ mod tests {
         ] {
             assert!(parse_utc(bad).is_err(), "{bad}");
         }
+    }
+
+    /// An instant ahead maps to the monotonic clock at the current offset; one behind is
+    /// refused, saying how far behind.
+    #[test]
+    fn start_at_future_only() {
+        let ahead = realtime_ns() + 2_000_000_000;
+        let m = start_at(ahead).unwrap() - monotonic_ns();
+        assert!((1_000_000_000..=2_000_000_000).contains(&m), "{m}");
+        let e = start_at(realtime_ns() - 5_000_000_000).unwrap_err();
+        assert!(e.contains("5.0") && e.contains("in the past"), "{e}");
     }
 }

@@ -12,6 +12,7 @@ pub mod clock;
 pub mod pacer;
 pub mod pty;
 pub mod serial;
+pub mod signal;
 pub mod sink;
 pub mod stats;
 pub mod udp;

@@ -23,9 +23,11 @@ pub struct PtySink {
 }
 
 impl PtySink {
-    /// Opens a raw pty pair and, if `link` is given, points a symlink there at the slave
-    /// (replacing atomically whatever a crashed run left).
-    pub fn open(link: Option<&Path>) -> io::Result<PtySink> {
+    /// Opens a raw pty pair and, if `link` is given, publishes the slave there as a symlink.
+    /// A link to a live pty (another run's) is refused unless `take_over`, in which case it is
+    /// replaced atomically; a dangling link (a crashed run's) is replaced; anything that is not
+    /// a symlink is never replaced.
+    pub fn open(link: Option<&Path>, take_over: bool) -> io::Result<PtySink> {
         let pair = nix::pty::openpty(None, None)?;
         // Raw mode before any byte crosses: a cooked pty would swallow binary frames and echo
         // them back to the master. The slave fd is then closed; /dev/pts/N lives as long as the
@@ -37,17 +39,7 @@ impl PtySink {
         drop(pair.slave);
         set_nonblocking(&pair.master)?;
         if let Some(link) = link {
-            let tmp = link.with_file_name(format!(
-                ".{}.tmp-{}",
-                link.file_name()
-                    .map_or("pty".into(), |n| n.to_string_lossy()),
-                std::process::id()
-            ));
-            let _ = std::fs::remove_file(&tmp);
-            std::os::unix::fs::symlink(&slave, &tmp)?;
-            std::fs::rename(&tmp, link).inspect_err(|_| {
-                let _ = std::fs::remove_file(&tmp);
-            })?;
+            publish(&slave, link, take_over)?;
         }
         let shown = link.unwrap_or(&slave).display().to_string();
         Ok(PtySink {
@@ -77,6 +69,63 @@ impl PtySink {
         let ev = fds[0].revents().unwrap_or(PollFlags::empty());
         Ok(!ev.contains(PollFlags::POLLHUP))
     }
+}
+
+/// Points a symlink at `link` to `slave`. Creating it is atomic (`symlink` fails on an
+/// existing name), so of two runs started together only one gets the link; replacing is an
+/// atomic rename over it.
+fn publish(slave: &Path, link: &Path, take_over: bool) -> io::Result<()> {
+    match std::os::unix::fs::symlink(slave, link) {
+        Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
+        r => return r,
+    }
+    let meta = std::fs::symlink_metadata(link)?;
+    if !meta.file_type().is_symlink() {
+        return Err(io::Error::new(
+            io::ErrorKind::AlreadyExists,
+            format!(
+                "{} exists and is not a symlink: not replacing it",
+                link.display()
+            ),
+        ));
+    }
+    let target = std::fs::read_link(link)?;
+    // A link whose pty still exists belongs to a live run (a pty disappears with its master).
+    if target.exists() && !take_over {
+        return Err(io::Error::new(
+            io::ErrorKind::AddrInUse,
+            format!(
+                "{} is in use: it links to {}, the pty of another running emulator; stop that run, choose another path, or pass --take-over to replace the link",
+                link.display(),
+                target.display()
+            ),
+        ));
+    }
+    let tmp = link.with_file_name(format!(
+        ".{}.tmp-{}",
+        link.file_name()
+            .map_or("pty".into(), |n| n.to_string_lossy()),
+        std::process::id()
+    ));
+    let _ = std::fs::remove_file(&tmp);
+    std::os::unix::fs::symlink(slave, &tmp)?;
+    std::fs::rename(&tmp, link).inspect_err(|_| {
+        let _ = std::fs::remove_file(&tmp);
+    })?;
+    if target.exists() {
+        tracing::warn!(
+            "{}: took the link over from {}",
+            link.display(),
+            target.display()
+        );
+    } else {
+        tracing::info!(
+            "{}: replaced a stale link to {}",
+            link.display(),
+            target.display()
+        );
+    }
+    Ok(())
 }
 
 impl Sink for PtySink {
@@ -166,7 +215,7 @@ mod tests {
     fn reader_attach_and_raw_bytes() {
         let dir = tempfile::tempdir().unwrap();
         let link = dir.path().join("imu");
-        let mut s = PtySink::open(Some(&link)).unwrap();
+        let mut s = PtySink::open(Some(&link), false).unwrap();
         assert_eq!(std::fs::read_link(&link).unwrap(), s.slave());
         let all: Vec<u8> = (0..=255).collect();
         s.write(&all, &[256]).unwrap();
@@ -189,5 +238,34 @@ mod tests {
         assert_eq!(s.stats().no_reader, 2);
         drop(s);
         assert!(!link.exists() && link.symlink_metadata().is_err());
+    }
+
+    /// A link to a live pty is refused without `take_over` and replaced with it; the run that
+    /// lost the link leaves it alone when it ends; a dangling link is replaced; a regular file
+    /// is never replaced.
+    #[test]
+    fn link_ownership() {
+        let dir = tempfile::tempdir().unwrap();
+        let link = dir.path().join("imu");
+        let first = PtySink::open(Some(&link), false).unwrap();
+        let e = PtySink::open(Some(&link), false).err().unwrap();
+        assert!(e.to_string().contains("--take-over"), "{e}");
+        assert_eq!(std::fs::read_link(&link).unwrap(), first.slave());
+        let second = PtySink::open(Some(&link), true).unwrap();
+        assert_eq!(std::fs::read_link(&link).unwrap(), second.slave());
+        drop(first);
+        assert_eq!(std::fs::read_link(&link).unwrap(), second.slave());
+        drop(second);
+        assert!(link.symlink_metadata().is_err());
+        std::os::unix::fs::symlink(dir.path().join("gone"), &link).unwrap();
+        let third = PtySink::open(Some(&link), false).unwrap();
+        assert_eq!(std::fs::read_link(&link).unwrap(), third.slave());
+        drop(third);
+        std::fs::write(&link, "data").unwrap();
+        for take_over in [false, true] {
+            let e = PtySink::open(Some(&link), take_over).err().unwrap();
+            assert!(e.to_string().contains("not a symlink"), "{e}");
+        }
+        assert_eq!(std::fs::read_to_string(&link).unwrap(), "data");
     }
 }

@@ -4,7 +4,34 @@
 use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 
+use crate::protocol::{Plan, Transport};
+
 use super::sink::{Sink, SinkStats};
+
+/// Largest UDP payload over IPv4: 65 535 (IP total length) − 20 (IP header) − 8 (UDP header)
+/// (RFC 791, RFC 768).
+pub const MAX_DATAGRAM_V4: usize = 65_507;
+/// Largest UDP payload over IPv6 without jumbograms: 65 535 (payload length, which excludes
+/// the fixed header) − 8 (UDP header) (RFC 8200, RFC 768).
+pub const MAX_DATAGRAM_V6: usize = 65_527;
+
+/// Most bytes one frame of `plan` can take on the wire, transport included: stuffing can
+/// double every byte of an HDLC payload and FCS, and adds one bit per five of SDLC's (plus
+/// its flags, idle fill and the marks to a byte boundary).
+pub fn max_wire_len(plan: &Plan) -> usize {
+    let payload = plan.max_len();
+    match &plan.transport {
+        Transport::Plain => payload,
+        Transport::Hdlc(o) => 2 + 2 * (payload + o.fcs.len()),
+        Transport::Sdlc(o) => {
+            let data_bits = 8 * (payload + o.fcs.len());
+            let bits = 8 * (o.opening_flags.max(1) as usize + 1)
+                + data_bits.div_ceil(5) * 6
+                + o.idle_bits as usize;
+            bits.div_ceil(8) + 1
+        }
+    }
+}
 
 /// A UDP destination.
 pub struct UdpSink {
@@ -18,12 +45,19 @@ pub struct UdpSink {
 }
 
 impl UdpSink {
-    /// A socket sending to `dest` (`HOST:PORT`), `batch` frames per datagram.
+    /// A socket sending to `dest` (`HOST:PORT`), `batch` frames per datagram. Port 0 is
+    /// refused: no datagram can be sent there.
     pub fn open(dest: &str, batch: usize) -> io::Result<UdpSink> {
         let addr = dest
             .to_socket_addrs()?
             .next()
             .ok_or_else(|| io::Error::other(format!("{dest}: no address")))?;
+        if addr.port() == 0 {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "port 0 cannot be sent to: give the receiver's port",
+            ));
+        }
         let sock = match addr {
             SocketAddr::V4(_) => UdpSocket::bind("0.0.0.0:0")?,
             SocketAddr::V6(_) => UdpSocket::bind("[::]:0")?,
@@ -46,6 +80,24 @@ impl UdpSink {
             in_buf: 0,
             stats: SinkStats::default(),
         })
+    }
+
+    /// Checks that `batch` frames of at most `frame_bytes` each fit one datagram to this
+    /// destination: a larger one is refused by the kernel on every send (`EMSGSIZE`).
+    pub fn check_datagram(&self, frame_bytes: usize) -> Result<(), String> {
+        let max = match self.dest {
+            SocketAddr::V4(_) => MAX_DATAGRAM_V4,
+            SocketAddr::V6(_) => MAX_DATAGRAM_V6,
+        };
+        let need = frame_bytes.saturating_mul(self.batch);
+        if need > max {
+            return Err(format!(
+                "{} frames of up to {frame_bytes} bytes make {need}-byte datagrams, more than the {max} bytes a UDP datagram can carry: lower --udp-batch to at most {}",
+                self.batch,
+                (max / frame_bytes.max(1)).max(1)
+            ));
+        }
+        Ok(())
     }
 
     fn send(&mut self) {
@@ -151,5 +203,23 @@ mod tests {
             s.write(&bytes, &ends).unwrap();
         }
         assert_eq!(s.stats().sent + s.stats().dropped, 35);
+    }
+
+    /// The datagram limit is the IPv4 one to the byte (1819 frames of 36 bytes fit 65 507,
+    /// 1820 do not); port 0 is refused when the sink opens.
+    #[test]
+    fn datagram_limits() {
+        let s = UdpSink::open("127.0.0.1:9", 1819).unwrap();
+        assert!(s.check_datagram(36).is_ok());
+        let s = UdpSink::open("127.0.0.1:9", 1820).unwrap();
+        let e = s.check_datagram(36).unwrap_err();
+        assert!(
+            e.contains("65520-byte") && e.contains("at most 1819"),
+            "{e}"
+        );
+        let e = UdpSink::open("127.0.0.1:0", 1).err().unwrap();
+        assert!(e.to_string().contains("port 0"), "{e}");
+        let (_, plan) = crate::protocol::load("kvh1750").unwrap();
+        assert_eq!(max_wire_len(&plan), plan.len());
     }
 }
