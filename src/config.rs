@@ -206,7 +206,18 @@ impl VibrationSection {
             spec.sines.push(Sine {
                 sensor,
                 axis: axis(&e.axis, &key)?,
-                amplitude: value(&e.amplitude, kind, format!("{key}.amplitude"))?,
+                amplitude: match value(&e.amplitude, kind, format!("{key}.amplitude"))? {
+                    a if a < 0.0 => {
+                        return Err(bad(
+                            format!("{key}.amplitude"),
+                            format!(
+                                "`{}` must be ≥ 0 (use the phase for the sign)",
+                                e.amplitude.trim()
+                            ),
+                        ));
+                    }
+                    a => a,
+                },
                 freq_hz: value(&e.frequency, Kind::Frequency, format!("{key}.frequency"))?,
                 phase_rad: match &e.phase {
                     Some(p) => value(p, Kind::Angle, format!("{key}.phase"))?,
@@ -227,10 +238,21 @@ impl VibrationSection {
                 .iter()
                 .enumerate()
                 .map(|(j, [f, p])| {
-                    Ok((
-                        value(f, Kind::Frequency, format!("{key}.psd[{j}]"))?,
-                        value(p, kind, format!("{key}.psd[{j}]"))?,
-                    ))
+                    let row = format!("{key}.psd[{j}]");
+                    let f = value(f, Kind::Frequency, row.clone())?;
+                    let psd = value(p, kind, row.clone())?;
+                    // Refused here, where the value is still as the user wrote it.
+                    if psd <= 0.0 {
+                        return Err(bad(
+                            row,
+                            format!(
+                                "PSD `{}` must be positive (the table is interpolated log-log; \
+                                 end the table instead of writing 0)",
+                                p.trim()
+                            ),
+                        ));
+                    }
+                    Ok((f, psd))
                 })
                 .collect::<Result<Vec<_>, ConfigError>>()?;
             spec.randoms.push(Random {
