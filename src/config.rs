@@ -558,3 +558,45 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
     (line, column)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A negative PSD or amplitude is echoed as written, not in converted SI units.
+    #[test]
+    fn vibration_sign_errors_echo_the_text() {
+        let v = VibrationSection {
+            sine: Vec::new(),
+            random: vec![RandomEntry {
+                sensor: "accel".into(),
+                axis: "z".into(),
+                psd: vec![
+                    ["20 Hz".into(), "0.01 g^2/Hz".into()],
+                    ["80 Hz".into(), "-0.01 g^2/Hz".into()],
+                ],
+            }],
+        };
+        let e = v.spec(Path::new("s.toml")).unwrap_err().to_string();
+        assert!(
+            e.contains("s.toml") && e.contains("vibration.random[0].psd[1]"),
+            "{e}"
+        );
+        assert!(e.contains("`-0.01 g^2/Hz`") && !e.contains("0.0096"), "{e}");
+        let v = VibrationSection {
+            sine: vec![SineEntry {
+                sensor: "accel".into(),
+                axis: "x".into(),
+                amplitude: "-0.5 g".into(),
+                frequency: "25 Hz".into(),
+                phase: None,
+            }],
+            random: Vec::new(),
+        };
+        let e = v.spec(Path::new("s.toml")).unwrap_err().to_string();
+        assert!(
+            e.contains("vibration.sine[0].amplitude") && e.contains("`-0.5 g`"),
+            "{e}"
+        );
+    }
+}

@@ -322,3 +322,187 @@ fn run(stages: &mut [Box<dyn Stage>], block: &mut Block<'_>, capture: &mut Optio
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::errors::template::parse;
+    use crate::errors::vibration::{Sine, VibrationSpec};
+    use std::path::Path;
+
+    fn model(text: &str) -> ImuModel {
+        parse(text, Path::new("t.toml")).expect("test template")
+    }
+
+    /// Every error figure on both triads (no size effect).
+    const FULL: &str =
+        "order = [\"bias\", \"quantization\", \"misalignment\", \"scale_factor\", \"noise\"]
+[gyro]
+bias = \"1 deg/h\"
+scale_factor = \"50 ppm\"
+misalignment = \"0.1 mrad\"
+noise = \"0.1 deg/sqrt(h)\"
+g_sensitivity = \"1 deg/h/g\"
+quantization = \"1e-6 rad\"
+bias_temperature = [\"0.1 deg/h/degC\"]
+scale_factor_temperature = [\"1 ppm/degC\"]
+[accel]
+bias = \"1 mg\"
+scale_factor = \"50 ppm\"
+misalignment = \"0.1 mrad\"
+noise = \"50 ug/sqrt(Hz)\"
+range = \"10 g\"
+bias_temperature = [\"1 ug/degC\"]
+scale_factor_temperature = [\"1 ppm/degC\"]
+";
+
+    fn vibration(dt: f64) -> Vibration {
+        let spec = VibrationSpec {
+            sines: vec![Sine {
+                sensor: Sensor::Accel,
+                axis: 2,
+                amplitude: 1.0,
+                freq_hz: 10.0,
+                phase_rad: 0.0,
+            }],
+            randoms: Vec::new(),
+        };
+        Vibration::new(&spec, dt, 1).unwrap()
+    }
+
+    /// The injected-error columns are the stage kinds, in `StageKind::ALL` order, and the
+    /// `Components` index of a kind is its place there: the header, the groups the stages
+    /// record into and the encoded values all come from the one list.
+    #[test]
+    fn components_header_is_the_stage_kinds() {
+        for (i, k) in StageKind::ALL.iter().enumerate() {
+            assert_eq!(*k as usize, i);
+            assert_eq!(COMPONENT_GROUPS[i], k.name());
+        }
+        let header = crate::output::components_header();
+        let cols: Vec<&str> = header.trim_end().split(',').collect();
+        assert_eq!(cols.len(), 1 + 6 * StageKind::ALL.len());
+        for (i, k) in StageKind::ALL.iter().enumerate() {
+            assert_eq!(cols[1 + 6 * i], format!("{}_gyro_x", k.name()));
+            assert_eq!(cols[6 + 6 * i], format!("{}_accel_z", k.name()));
+        }
+        // A chain with every kind of stage builds only kinds that have a column group.
+        let m = model(FULL);
+        let chain = ErrorChain::new(&m, 100.0, 1)
+            .with_temperature(TemperatureProfile::Constant(30.0), &m)
+            .with_lever_arm(Vec3::new(0.1, 0.0, 0.0))
+            .with_vibration(vibration(0.01));
+        let mut kinds = chain.stage_kinds();
+        kinds.dedup();
+        let mut all = StageKind::ALL.to_vec();
+        all.sort_by_key(|k| kinds.iter().position(|x| x == k));
+        assert_eq!(kinds, all, "every kind is built once per run of stages");
+    }
+
+    /// A stage whose parameters are all zero is not built: an explicit zero is no term, and
+    /// an ideal IMU, a zero lever arm, an empty vibration and zero temperature coefficients
+    /// leave the chain empty.
+    #[test]
+    fn zero_parameters_build_no_stage() {
+        let zeros = model(
+            "[gyro]\nbias = \"0 deg/h\"\nnoise = \"0 deg/sqrt(h)\"\nscale_factor = \"0 ppm\"\n\
+             misalignment = \"0 mrad\"\nbias_temperature = [\"0 deg/h/degC\"]\n\
+             [accel]\nsize_effect = [\"0 mm\", \"0 mm\", \"0 mm\", \"0 mm\", \"0 mm\", \"0 mm\", \
+             \"0 mm\", \"0 mm\", \"0 mm\"]\n",
+        );
+        let empty = Vibration::new(&VibrationSpec::default(), 0.01, 1).unwrap();
+        let chain = ErrorChain::new(&zeros, 100.0, 1)
+            .with_temperature(TemperatureProfile::Constant(80.0), &zeros)
+            .with_lever_arm(Vec3::ZERO)
+            .with_vibration(empty);
+        assert!(chain.stage_kinds().is_empty());
+        assert!(chain.is_empty() && !chain.needs_rotation_terms());
+        assert!(ErrorChain::ideal().is_empty());
+        // One non-zero term builds exactly its stage, on its triad only.
+        let noise = model("[accel]\nnoise = \"50 ug/sqrt(Hz)\"\n");
+        assert_eq!(
+            ErrorChain::new(&noise, 100.0, 1).stage_kinds(),
+            [StageKind::Noise]
+        );
+    }
+
+    /// Stages run on the true signal first, then in the template's order, the temperature
+    /// terms joining their kind; a lever arm joins the template's size effect (one stage).
+    #[test]
+    fn stages_follow_the_order() {
+        use StageKind::*;
+        let m = model(&format!(
+            "{FULL}size_effect = [\"1 mm\", \"0 mm\", \"0 mm\", \"0 mm\", \"1 mm\", \"0 mm\", \
+             \"0 mm\", \"0 mm\", \"1 mm\"]\n"
+        ));
+        let chain = ErrorChain::new(&m, 100.0, 1)
+            .with_temperature(TemperatureProfile::Constant(30.0), &m)
+            .with_vibration(vibration(0.01))
+            .with_lever_arm(Vec3::new(0.0, 0.2, 0.0));
+        assert_eq!(
+            chain.stage_kinds(),
+            [
+                Vibration,
+                SizeEffect,
+                Bias, // temperature, gyro
+                Bias, // temperature, accel
+                Bias,
+                Bias,
+                Quantization,
+                Quantization,
+                Misalignment,
+                Misalignment,
+                ScaleFactor, // temperature, gyro
+                ScaleFactor, // temperature, accel
+                ScaleFactor,
+                ScaleFactor,
+                Noise,
+                Noise,
+            ]
+        );
+        assert!(chain.needs_rotation_terms());
+    }
+
+    /// The captured groups add up to the whole injected error (each stage's delta is taken
+    /// against the output of the stage before: the sums telescope), and a template with only
+    /// one term puts everything into that term's group.
+    #[test]
+    fn components_add_up_and_land_in_their_group() {
+        let rate = 100.0;
+        let input = |k: usize| Record {
+            t: (k + 1) as f64 / rate,
+            gyro: Vec3::new(0.1, -0.2, 0.3),
+            accel: Vec3::new(0.5, -0.4, -9.8),
+            ..Record::default()
+        };
+        let m = model(FULL);
+        let mut chain = ErrorChain::new(&m, rate, 3)
+            .with_temperature(TemperatureProfile::Constant(30.0), &m)
+            .with_vibration(vibration(1.0 / rate))
+            .with_components();
+        let mut recs: Vec<Record> = (0..500).map(input).collect();
+        chain.apply(&mut recs);
+        for (k, (r, c)) in recs.iter().zip(chain.components()).enumerate() {
+            let sum =
+                c.0.iter()
+                    .fold([Vec3::ZERO; 2], |s, g| [s[0] + g[0], s[1] + g[1]]);
+            let d = [r.gyro - input(k).gyro, r.accel - input(k).accel];
+            for s in 0..2 {
+                // A few roundings of values of order 10: 1e-12 is thousands of ulps.
+                assert!((sum[s] - d[s]).norm() < 1e-12, "record {k}");
+            }
+            assert!(c.0[StageKind::Vibration as usize][1].norm() > 0.0);
+        }
+        let bias_only = model("[gyro]\nbias = \"10 deg/h\"\n");
+        let mut chain = ErrorChain::new(&bias_only, rate, 3).with_components();
+        let mut recs: Vec<Record> = (0..10).map(input).collect();
+        chain.apply(&mut recs);
+        for c in chain.components() {
+            for k in StageKind::ALL {
+                let g = c.0[k as usize][0].norm();
+                assert_eq!(g > 0.0, k == StageKind::Bias, "{k:?}");
+                assert_eq!(c.0[k as usize][1], Vec3::ZERO);
+            }
+        }
+    }
+}

@@ -1,4 +1,5 @@
-//! The random processes of the error model, each advancing once per output record (DESIGN §3).
+//! The random processes of the error model, each advancing once per output record on its own
+//! named stream.
 
 use crate::rng::NormalStream;
 

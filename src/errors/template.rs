@@ -593,4 +593,97 @@ mod tests {
         assert_eq!(m.gyro.bias_turn_on, base.gyro.bias_turn_on);
         assert_eq!(m.accel, base.accel);
     }
+
+    /// Physically absurd values are refused with the file, the key, the value as written and
+    /// the bound, in a short message; so are values that overflow in SI and negative
+    /// magnitudes.
+    #[test]
+    fn absurd_values_are_refused() {
+        for (text, key, shows) in [
+            (
+                "[gyro]\nnoise = \"1e300 deg/sqrt(h)\"\n",
+                "`gyro.noise`",
+                "`1e300 deg/sqrt(h)`",
+            ),
+            (
+                "[accel]\nbias = [\"0 g\", \"2e6 g\", \"0 g\"]\n",
+                "`accel.bias`",
+                "`2e6 g`",
+            ),
+            (
+                "[gyro]\nmisalignment = \"30 deg\"\n",
+                "`gyro.misalignment`",
+                "`30 deg`",
+            ),
+            (
+                "[gyro]\nscale_factor_turn_on = \"150 %\"\n",
+                "`gyro.scale_factor_turn_on`",
+                "150 %",
+            ),
+            (
+                "[gyro]\nbias_gm = { sigma = \"1 deg/h\", tau = \"1e10 s\" }\n",
+                "`gyro.bias_gm`",
+                "`1e10 s`",
+            ),
+            (
+                "[gyro]\nquantization = \"2 rad\"\n",
+                "`gyro.quantization`",
+                "`2 rad`",
+            ),
+            (
+                "[accel]\nrange = \"1e308 g\"\n",
+                "`accel.range`",
+                "`1e308 g`",
+            ),
+            (
+                "[gyro]\nbias_temperature = [\"0 deg/h/degC\", \"1e9 deg/s/degC^2\"]\n",
+                "`gyro.bias_temperature`",
+                "coefficient 2",
+            ),
+            (
+                "[gyro]\nnoise = \"-0.1 deg/sqrt(h)\"\n",
+                "`gyro.noise`",
+                "negative",
+            ),
+            ("rate_hz = 1e12\n", "`rate_hz`", "(0, 1e7]"),
+            (
+                "temperature_ref = \"-300 degC\"\n",
+                "`temperature_ref`",
+                "-273.15",
+            ),
+        ] {
+            let e = parse(text, Path::new("t.toml")).unwrap_err().to_string();
+            assert!(
+                e.starts_with("t.toml: ") && e.contains(key) && e.contains(shows),
+                "{e}"
+            );
+            assert!(e.len() < 260, "{e}");
+        }
+        let e = parse(
+            "[gyro]\nnoise = \"1e300 deg/sqrt(h)\"\n",
+            Path::new("t.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("at most 3438 deg/sqrt(h) = 1 rad/sqrt(s)"),
+            "{e}"
+        );
+    }
+
+    /// The bounds leave room for any real IMU: a deliberately poor consumer MEMS part loads.
+    #[test]
+    fn poor_consumer_mems_is_within_bounds() {
+        let m = parse(
+            "[gyro]\nbias = \"5 deg/s\"\nbias_turn_on = \"3 deg/s\"\nnoise = \"0.1 deg/s/sqrt(Hz)\"\n\
+             scale_factor_turn_on = \"5 %\"\nmisalignment = \"3 deg\"\ng_sensitivity = \"0.5 deg/s/g\"\n\
+             quantization = \"0.1 deg/s\"\nrange = \"4000 deg/s\"\n\
+             bias_temperature = [\"0.05 deg/s/degC\"]\n\
+             [accel]\nbias = \"200 mg\"\nnoise = \"2 mg/sqrt(Hz)\"\nscale_factor = \"5 %\"\n\
+             range = \"400 g\"\nquantization = \"10 mg\"\nsize_effect = [\"5 mm\", \"0 mm\", \
+             \"0 mm\", \"0 mm\", \"5 mm\", \"0 mm\", \"0 mm\", \"0 mm\", \"5 mm\"]\n",
+            Path::new("mems.toml"),
+        );
+        assert!(m.is_ok(), "{:?}", m.err());
+    }
 }

@@ -1,6 +1,6 @@
 //! Vibration on the sensed angular rate and specific force: sinusoids, and stationary Gaussian
 //! random vibration given as a one-sided PSD table, to be added to each record's interval-mean
-//! rates (DESIGN §2–4).
+//! rates (the `vibration` stage of the error chain, `errors/stages/vibration.rs`).
 //!
 //! **Sinusoids.** A record carries the mean over (t_{k−1}, t_k], so a sinusoid
 //! A sin(2πft + φ) (t from the run's first sample time t₀) enters as its exact interval mean
@@ -59,7 +59,7 @@
 //! sinusoid costs one `sin`, 12–20 ns. Building costs 3–20 ms per axis; memory is about 8L
 //! doubles per axis (2 MB at N = 16383).
 //!
-//! Streams (DESIGN §4): random vibration of sensor s, axis a draws from
+//! Streams: random vibration of sensor s, axis a draws from
 //! `vibration/{gyro|accel}/{x|y|z}/random`, so adding or removing any other term leaves it
 //! bit-identical. One random vibration per sensor axis: a table expresses any shape.
 

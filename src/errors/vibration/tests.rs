@@ -466,7 +466,7 @@ fn no_repetition() {
 
 /// Two vibrated axes with overlapping bands are uncorrelated (5 sd, sd from
 /// Cauchy–Schwarz ≤ (Σρ₁²Σρ₂²)^{1/4}/√n); adding another term or reordering leaves an
-/// axis bit-identical (own stream, DESIGN §4); a seed reproduces exactly.
+/// axis bit-identical (own stream); a seed reproduces exactly.
 #[test]
 fn streams_are_independent_and_deterministic() {
     let dt = 1e-3;
