@@ -2,6 +2,7 @@
 //! integer record index in double-double arithmetic (module doc of `errors/vibration`).
 
 use super::{Sine, sinc, slot};
+use crate::errors::process::round;
 use std::f64::consts::{PI, TAU};
 
 /// Dekker's split of a into a high half and the rest (a = hi + lo exactly).
@@ -17,17 +18,6 @@ fn split(a: f64) -> (f64, f64) {
 fn product_error(a: f64, (bh, bl): (f64, f64), p: f64) -> f64 {
     let (ah, al) = split(a);
     ((ah * bh - p) + ah * bl + al * bh) + al * bl
-}
-
-/// Nearest integer for 0 ≤ x < 2⁵¹ without a libm call (as in `process.rs`).
-#[inline]
-fn round_small(x: f64) -> f64 {
-    const MAGIC: f64 = 6_755_399_441_055_744.0;
-    if x.abs() < 2_251_799_813_685_248.0 {
-        (x + MAGIC) - MAGIC
-    } else {
-        x.round()
-    }
 }
 
 /// One sinusoid, as its interval mean.
@@ -62,7 +52,7 @@ impl SineTerm {
         let m = k as f64 - 0.5; // exact for k < 2⁵²
         let p = m * self.c_hi;
         let tail = product_error(m, self.c_hi_split, p) + m * self.c_lo;
-        let cycles = (p - round_small(p)) + tail;
+        let cycles = (p - round(p)) + tail;
         self.mean_amplitude * (TAU * cycles + self.phase).sin()
     }
 }
