@@ -20,7 +20,7 @@
 //! | misalignment angle | 0.2 rad (11°): the model is first order in small angles | consumer ≈ 1–2° |
 //! | g-sensitivity | 1 (rad/s)/(m/s²) (≈ 560 deg/s/g) | consumer ≈ 0.1 deg/s/g |
 //! | time (τ, band) | 10⁹ s (32 years) | |
-//! | size effect (offset of one accelerometer) | 1 m | millimetres |
+//! | size effect (offset of one accelerometer, also usable as a lever arm) | 100 m | millimetres; lever arms of large ships tens of metres |
 //! | LSB of an increment | 1 rad, 1000 m/s | 2⁻¹⁹ rad, 2⁻¹⁴ m/s |
 //! | temperature coefficient of power k | the bound of its quantity per °C^k | |
 //! | `rate_hz` | 10⁷ Hz | |
@@ -52,7 +52,7 @@ pub fn max_magnitude(kind: Kind, increment: bool) -> Option<(f64, &'static str)>
         Kind::Angle => (0.2, "rad"),
         Kind::GSensitivity => (1.0, "(rad/s)/(m/s^2)"),
         Kind::Time => (1e9, "s"),
-        Kind::Length => (1.0, "m"),
+        Kind::Length => (100.0, "m"),
         Kind::GyroLsb if increment => (1.0, "rad"),
         Kind::GyroLsb => (1e4, "rad/s"),
         Kind::AccelLsb if increment => (1e3, "m/s"),
@@ -79,7 +79,8 @@ pub fn check(text: &str, kind: Kind, si: f64, increment: bool) -> Result<(), Str
     let in_unit = num
         .parse::<f64>()
         .ok()
-        .filter(|n| *n != 0.0 && !unit.trim().is_empty())
+        // Not when the text is in the SI unit already (factor 1).
+        .filter(|n| *n != 0.0 && !unit.trim().is_empty() && *n != si)
         .map(|n| format!("{} {} = ", compact(max * n / si), unit.trim()))
         .unwrap_or_default();
     Err(format!(
@@ -143,5 +144,7 @@ mod tests {
         assert!(e.len() < 200, "{e}");
         assert!(check("0.07 deg/sqrt(h)", Kind::AngleRandomWalk, 2e-5, false).is_ok());
         assert!(check("1 g", Kind::Acceleration, f64::INFINITY, false).is_err());
+        let e = check("200 m", Kind::Length, 200.0, false).unwrap_err();
+        assert!(e.contains("at most 100 m (far"), "{e}");
     }
 }
