@@ -100,7 +100,8 @@ impl ErrorChain {
 
     /// Adds a stage at its place: the kinds on the true signal first, then the template's
     /// order, by rank within a kind, after the stages already there of the same kind and rank.
-    /// A kind the order leaves out is not applied (as before any stage list existed).
+    /// A stage of a kind the order leaves out is dropped (templates list all five; a model
+    /// built in code may not).
     fn insert(&mut self, stage: Box<dyn Stage>) {
         let order = &self.order;
         let place = |s: &dyn Stage| {
