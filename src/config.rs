@@ -206,7 +206,18 @@ impl VibrationSection {
             spec.sines.push(Sine {
                 sensor,
                 axis: axis(&e.axis, &key)?,
-                amplitude: value(&e.amplitude, kind, format!("{key}.amplitude"))?,
+                amplitude: match value(&e.amplitude, kind, format!("{key}.amplitude"))? {
+                    a if a < 0.0 => {
+                        return Err(bad(
+                            format!("{key}.amplitude"),
+                            format!(
+                                "`{}` must be ≥ 0 (use the phase for the sign)",
+                                e.amplitude.trim()
+                            ),
+                        ));
+                    }
+                    a => a,
+                },
                 freq_hz: value(&e.frequency, Kind::Frequency, format!("{key}.frequency"))?,
                 phase_rad: match &e.phase {
                     Some(p) => value(p, Kind::Angle, format!("{key}.phase"))?,
@@ -227,10 +238,21 @@ impl VibrationSection {
                 .iter()
                 .enumerate()
                 .map(|(j, [f, p])| {
-                    Ok((
-                        value(f, Kind::Frequency, format!("{key}.psd[{j}]"))?,
-                        value(p, kind, format!("{key}.psd[{j}]"))?,
-                    ))
+                    let row = format!("{key}.psd[{j}]");
+                    let f = value(f, Kind::Frequency, row.clone())?;
+                    let psd = value(p, kind, row.clone())?;
+                    // Refused here, where the value is still as the user wrote it.
+                    if psd <= 0.0 {
+                        return Err(bad(
+                            row,
+                            format!(
+                                "PSD `{}` must be positive (the table is interpolated log-log; \
+                                 end the table instead of writing 0)",
+                                p.trim()
+                            ),
+                        ));
+                    }
+                    Ok((f, psd))
                 })
                 .collect::<Result<Vec<_>, ConfigError>>()?;
             spec.randoms.push(Random {
@@ -535,4 +557,46 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
     (line, column)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A negative PSD or amplitude is echoed as written, not in converted SI units.
+    #[test]
+    fn vibration_sign_errors_echo_the_text() {
+        let v = VibrationSection {
+            sine: Vec::new(),
+            random: vec![RandomEntry {
+                sensor: "accel".into(),
+                axis: "z".into(),
+                psd: vec![
+                    ["20 Hz".into(), "0.01 g^2/Hz".into()],
+                    ["80 Hz".into(), "-0.01 g^2/Hz".into()],
+                ],
+            }],
+        };
+        let e = v.spec(Path::new("s.toml")).unwrap_err().to_string();
+        assert!(
+            e.contains("s.toml") && e.contains("vibration.random[0].psd[1]"),
+            "{e}"
+        );
+        assert!(e.contains("`-0.01 g^2/Hz`") && !e.contains("0.0096"), "{e}");
+        let v = VibrationSection {
+            sine: vec![SineEntry {
+                sensor: "accel".into(),
+                axis: "x".into(),
+                amplitude: "-0.5 g".into(),
+                frequency: "25 Hz".into(),
+                phase: None,
+            }],
+            random: Vec::new(),
+        };
+        let e = v.spec(Path::new("s.toml")).unwrap_err().to_string();
+        assert!(
+            e.contains("vibration.sine[0].amplitude") && e.contains("`-0.5 g`"),
+            "{e}"
+        );
+    }
 }

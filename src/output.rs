@@ -155,21 +155,22 @@ impl Drop for AtomicFile {
     }
 }
 
-/// Header of the injected-errors file: `t` then `GROUP_SENSOR_AXIS` for every group of
-/// [`crate::errors::chain::COMPONENT_GROUPS`], sensors gyro and accel, axes x, y, z.
+/// Header of the injected-errors file: `t` then `KIND_SENSOR_AXIS` for every stage kind of
+/// the error chain ([`crate::errors::StageKind::ALL`]), sensors gyro and accel, axes x, y, z.
 pub fn components_header() -> String {
     let mut cols = vec!["t".to_string()];
-    for g in crate::errors::chain::COMPONENT_GROUPS {
-        for s in ["gyro", "accel"] {
+    for k in crate::errors::StageKind::ALL {
+        for s in crate::errors::Sensor::BOTH {
             for a in ["x", "y", "z"] {
-                cols.push(format!("{g}_{s}_{a}"));
+                cols.push(format!("{}_{}_{a}", k.name(), s.name()));
             }
         }
     }
     cols.join(",") + "\n"
 }
 
-/// Appends the injected errors of `records` (CSV rows or 43 little-endian f64 per record).
+/// Appends the injected errors of `records` (CSV rows, or per record the time and then six
+/// little-endian f64 per stage kind, in [`components_header`] order).
 pub fn encode_components(
     format: Format,
     records: &[Record],
@@ -178,7 +179,7 @@ pub fn encode_components(
 ) {
     let mut f = ryu::Buffer::new();
     for (r, c) in records.iter().zip(comps) {
-        let mut vals = Vec::with_capacity(43);
+        let mut vals = Vec::with_capacity(1 + 6 * c.0.len());
         vals.push(r.t);
         for g in &c.0 {
             for v in g {

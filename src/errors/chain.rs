@@ -1,213 +1,166 @@
-//! The error chain: stages applied to each record's interval-mean rates in the order the IMU
-//! model says (default: the paper's — scale factor, bias, misalignment, noise, quantization),
-//! then multiplied by Δt back into increments. A stage whose terms are all zero is not built.
+//! The error chain: a list of stages (`stages/`, one type per stage) applied to each block of
+//! records' interval-mean rates, then multiplied by Δt back into increments.
+//!
+//! The records are first rotated from the body into the case frame (the mounting, a change of
+//! frame rather than an error); then come the stages on the true signal (vibration, size effect
+//! and lever arm), then the error stages in the order the IMU model gives (default: the
+//! paper's — scale factor, bias, misalignment, noise, quantization). Each stage belongs to a
+//! [`StageKind`]; the injected error of each kind is what `--truth-errors` writes, one column
+//! group per kind in [`StageKind::ALL`] order. A stage whose terms are all zero is not built.
 
-use super::process::{Flicker, GaussMarkov, QuantMode, Quantizer, RandomWalk};
+pub use super::model::StageKind;
+use super::model::{ImuModel, Sensor};
+use super::stages::{
+    Bias, Block, Misalignment, Noise, Quantization, ScaleFactor, SizeEffect, Stage, Temperature,
+};
 use super::temperature::TemperatureProfile;
-use super::template::{ImuModel, TriadModel};
 use super::vibration::Vibration;
 use crate::generator::RotationTerms;
 use crate::math::{Mat3, Vec3};
 use crate::record::Record;
-use crate::rng::NormalStream;
-use crate::units::Lsb;
 
-/// A stage of the chain.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum StageKind {
-    /// Scale factor (paper eq. 3–4).
-    ScaleFactor,
-    /// Bias (eq. 5–6).
-    Bias,
-    /// Misalignment (eq. 7–8).
-    Misalignment,
-    /// White noise.
-    Noise,
-    /// Saturation and quantization (eq. 9–10).
-    Quantization,
-}
+pub use super::stages::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED};
 
-impl StageKind {
-    /// The paper's order.
-    pub const PAPER_ORDER: [StageKind; 5] = [
-        StageKind::ScaleFactor,
-        StageKind::Bias,
-        StageKind::Misalignment,
-        StageKind::Noise,
-        StageKind::Quantization,
-    ];
-    /// Parses a stage name.
-    pub fn from_name(s: &str) -> Option<StageKind> {
-        Some(match s {
-            "scale_factor" => StageKind::ScaleFactor,
-            "bias" => StageKind::Bias,
-            "misalignment" => StageKind::Misalignment,
-            "noise" => StageKind::Noise,
-            "quantization" => StageKind::Quantization,
-            _ => return None,
-        })
-    }
-}
-
-const AXES: [&str; 3] = ["x", "y", "z"];
-const PAIRS: [&str; 6] = ["xy", "xz", "yx", "yz", "zx", "zy"];
-
-/// Record flag: a gyro axis was saturated.
-pub const FLAG_GYRO_SATURATED: u8 = 1;
-/// Record flag: an accelerometer axis was saturated.
-pub const FLAG_ACCEL_SATURATED: u8 = 2;
-
-/// Scale-factor error of one axis.
-#[derive(Clone, Debug)]
-struct AxisScale {
-    fixed: f64,
-    gm: Option<GaussMarkov>,
-    rw: Option<RandomWalk>,
-    asym_half: f64,
-    quad: f64,
-}
-
-/// Bias of one axis.
-#[derive(Clone, Debug)]
-struct AxisBias {
-    fixed: f64,
-    gm: Option<GaussMarkov>,
-    rw: Option<RandomWalk>,
-    flicker: Option<Flicker>,
-}
-
-/// The stages of one triad.
-#[derive(Clone, Debug)]
-struct Triad {
-    scale: Option<[AxisScale; 3]>,
-    bias: Option<[AxisBias; 3]>,
-    /// y = M x, with M = I + off-diagonal angles.
-    misalign: Option<[[f64; 3]; 3]>,
-    noise: Option<([f64; 3], [NormalStream; 3])>,
-    /// Lower Cholesky factor of the noise correlation across axes, when not the identity.
-    noise_chol: Option<[[f64; 3]; 3]>,
-    quant: Option<(Lsb, [Quantizer; 3])>,
-    range: Option<f64>,
-    /// Temperature polynomials (bias, scale factor), set by `ErrorChain::with_temperature`.
-    temp: Option<([f64; 3], [f64; 3])>,
-}
-
-/// The error chain of an IMU: gyro and accelerometer triads, and the gyro g-sensitivity.
+/// The error chain of an IMU.
 #[derive(Clone, Debug)]
 pub struct ErrorChain {
+    /// The order of the template's stage kinds.
     order: Vec<StageKind>,
+    /// The built stages, in application order (see [`ErrorChain::insert`]).
+    stages: Vec<Box<dyn Stage>>,
+    /// C_b^c: body to IMU case, when the IMU is not mounted along the body axes.
+    mounting: Option<Mat3>,
     /// The temperature profile and the model's reference temperature, when any temperature
     /// coefficient is non-zero.
     temperature: Option<(TemperatureProfile, f64)>,
-    gyro: Triad,
-    accel: Triad,
-    g_sens: Option<[[f64; 3]; 3]>,
-    /// C_b^c: body to IMU case, when the IMU is not mounted along the body axes.
-    mounting: Option<Mat3>,
     dt: f64,
-    /// Position of each accelerometer (row i) from the reference point, case frame (m).
-    size_effect: Option<[[f64; 3]; 3]>,
     /// Scratch: the block's error-free specific force and temperature offsets.
     f_true: Vec<Vec3>,
     dtemp: Vec<f64>,
-    /// Vibration of the case, added to the true signal before every error stage.
-    vibration: Option<Vibration>,
-    /// When capturing: each record's injected error per group, and a scratch snapshot.
+    /// When capturing: each record's injected error per kind, and a scratch snapshot.
     capture: Option<Capture>,
 }
 
 /// Captured injected errors of a block and a scratch (gyro, accel) snapshot.
 type Capture = (Vec<Components>, Vec<(Vec3, Vec3)>);
 
-/// Names of the groups of injected errors, in [`Components`] order.
-pub const COMPONENT_GROUPS: [&str; 7] = [
-    "vibration",
-    "size_effect",
-    "scale_factor",
-    "bias",
-    "misalignment",
-    "noise",
-    "quantization",
-];
+/// Names of the groups of injected errors, in [`Components`] order: the names of
+/// [`StageKind::ALL`].
+pub const COMPONENT_GROUPS: [&str; StageKind::ALL.len()] = {
+    let mut names = [""; StageKind::ALL.len()];
+    let mut i = 0;
+    while i < names.len() {
+        names[i] = StageKind::ALL[i].name();
+        i += 1;
+    }
+    names
+};
 
-/// The error each group injected into one record, in output units (rad/s for the gyro,
-/// m/s² for the accelerometer): `0[group][0]` gyro, `0[group][1]` accelerometer.
+/// The error each kind of stage injected into one record, in output units (rad/s for the
+/// gyro, m/s² for the accelerometer): `0[kind as usize][0]` gyro, `[1]` accelerometer.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Components(pub [[Vec3; 2]; 7]);
-
-/// Selects one sensor's vector in a record.
-type Sel = fn(&mut Record) -> &mut Vec3;
-
-fn gyro_of(r: &mut Record) -> &mut Vec3 {
-    &mut r.gyro
-}
-
-fn accel_of(r: &mut Record) -> &mut Vec3 {
-    &mut r.accel
-}
-
-fn dtheta_of(r: &mut Record) -> &mut Vec3 {
-    &mut r.dtheta
-}
-
-fn dv_of(r: &mut Record) -> &mut Vec3 {
-    &mut r.dv
-}
+pub struct Components(pub [[Vec3; 2]; StageKind::ALL.len()]);
 
 impl ErrorChain {
     /// Builds the chain of `model` for records at `rate_hz`, drawing every random constant
     /// and seeding every process from `seed` and the term's name.
     pub fn new(model: &ImuModel, rate_hz: f64, seed: u64) -> ErrorChain {
         let dt = 1.0 / rate_hz;
-        let g = &model.gyro;
-        let g_sens = g.g_sensitivity.iter().any(|v| *v != 0.0).then(|| {
-            let s = &g.g_sensitivity;
-            [[s[0], s[1], s[2]], [s[3], s[4], s[5]], [s[6], s[7], s[8]]]
-        });
-        ErrorChain {
+        let mut chain = ErrorChain {
             order: model.order.clone(),
-            temperature: None,
+            stages: Vec::new(),
             mounting: None,
-            size_effect: model
-                .accel
-                .size_effect
-                .iter()
-                .flatten()
-                .any(|v| *v != 0.0)
-                .then_some(model.accel.size_effect),
+            temperature: None,
+            dt,
             f_true: Vec::new(),
             dtemp: Vec::new(),
             capture: None,
-            vibration: None,
-            gyro: Triad::new(&model.gyro, "gyro", dt, seed, model.quantization_mode),
-            accel: Triad::new(&model.accel, "accel", dt, seed, model.quantization_mode),
-            g_sens,
-            dt,
+        };
+        if let Some(s) = SizeEffect::build(model.accel.size_effect) {
+            chain.insert(Box::new(s));
         }
+        for s in Sensor::BOTH {
+            let m = match s {
+                Sensor::Gyro => &model.gyro,
+                Sensor::Accel => &model.accel,
+            };
+            let built: [Option<Box<dyn Stage>>; 5] = [
+                ScaleFactor::build(m, s, dt, seed).map(|x| Box::new(x) as _),
+                Bias::build(m, s, dt, seed).map(|x| Box::new(x) as _),
+                Misalignment::build(m, s, seed).map(|x| Box::new(x) as _),
+                Noise::build(m, s, dt, seed).map(|x| Box::new(x) as _),
+                Quantization::build(m, s, model.quantization_mode).map(|x| Box::new(x) as _),
+            ];
+            for stage in built.into_iter().flatten() {
+                chain.insert(stage);
+            }
+        }
+        chain
+    }
+
+    /// Adds a stage at its place: the kinds on the true signal first, then the template's
+    /// order, by rank within a kind, after the stages already there of the same kind and rank.
+    /// A stage of a kind the order leaves out is dropped (templates list all five; a model
+    /// built in code may not).
+    fn insert(&mut self, stage: Box<dyn Stage>) {
+        let order = &self.order;
+        let place = |s: &dyn Stage| {
+            let k = s.kind();
+            let slot = if k.is_on_true_signal() {
+                Some(k as usize)
+            } else {
+                order.iter().position(|o| *o == k).map(|p| 2 + p)
+            };
+            slot.map(|p| (p, s.rank()))
+        };
+        if place(stage.as_ref()).is_none() {
+            return;
+        }
+        let at = self
+            .stages
+            .partition_point(|s| place(s.as_ref()) <= place(stage.as_ref()));
+        self.stages.insert(at, stage);
+    }
+
+    /// The first built stage of type `T`.
+    fn stage_mut<T: 'static>(&mut self) -> Option<&mut T> {
+        self.stages
+            .iter_mut()
+            .find_map(|s| s.as_any_mut().downcast_mut::<T>())
+    }
+
+    /// The kinds of the built stages, in application order (one per triad and kind; for tests
+    /// and diagnostics).
+    pub fn stage_kinds(&self) -> Vec<StageKind> {
+        self.stages.iter().map(|s| s.kind()).collect()
     }
 
     /// Sets the IMU temperature over the run (default: the model's reference temperature, so
     /// the temperature terms vanish). Ignored when the model has no temperature coefficients.
     pub fn with_temperature(mut self, profile: TemperatureProfile, model: &ImuModel) -> ErrorChain {
-        let any_coeff = [&model.gyro, &model.accel]
-            .iter()
-            .any(|t| any(&t.bias_temperature) || any(&t.scale_factor_temperature));
-        if any_coeff {
-            self.gyro.temp = Some((
-                model.gyro.bias_temperature,
-                model.gyro.scale_factor_temperature,
-            ));
-            self.accel.temp = Some((
-                model.accel.bias_temperature,
-                model.accel.scale_factor_temperature,
-            ));
-            self.temperature = Some((profile, model.temperature_ref));
+        self.stages
+            .retain_mut(|s| s.as_any_mut().downcast_mut::<Temperature>().is_none());
+        self.temperature = None;
+        for s in Sensor::BOTH {
+            let m = match s {
+                Sensor::Gyro => &model.gyro,
+                Sensor::Accel => &model.accel,
+            };
+            for (kind, c) in [
+                (StageKind::ScaleFactor, m.scale_factor_temperature),
+                (StageKind::Bias, m.bias_temperature),
+            ] {
+                if let Some(t) = Temperature::build(s, kind, c) {
+                    self.insert(Box::new(t));
+                    self.temperature = Some((profile.clone(), model.temperature_ref));
+                }
+            }
         }
         self
     }
 
     /// Mounts the IMU case rotated from the body by `q_b_c` (C_b^c): the sensors see
-    /// ω^c = C_b^c ω^b and f^c = C_b^c f^b before any error stage (lever arm not included).
+    /// ω^c = C_b^c ω^b and f^c = C_b^c f^b before any stage (lever arm not included).
     pub fn with_mounting(mut self, q_b_c: crate::math::Quat) -> ErrorChain {
         let m = q_b_c.to_mat();
         if m != Mat3::IDENTITY {
@@ -220,13 +173,14 @@ impl ErrorChain {
     /// every accelerometer's position.
     pub fn with_lever_arm(mut self, r: Vec3) -> ErrorChain {
         if r != Vec3::ZERO {
-            let mut p = self.size_effect.unwrap_or([[0.0; 3]; 3]);
-            for row in p.iter_mut() {
-                for (c, v) in row.iter_mut().zip(r.0) {
-                    *c += v;
+            match self.stage_mut::<SizeEffect>() {
+                Some(s) => s.add_lever_arm(r),
+                None => {
+                    let mut s = SizeEffect::zero();
+                    s.add_lever_arm(r);
+                    self.insert(Box::new(s));
                 }
             }
-            self.size_effect = Some(p);
         }
         self
     }
@@ -236,7 +190,9 @@ impl ErrorChain {
     /// g-sensitivity, saturation and quantization act on it.
     pub fn with_vibration(mut self, v: Vibration) -> ErrorChain {
         if !v.is_empty() {
-            self.vibration = Some(v);
+            self.stages
+                .retain_mut(|s| s.as_any_mut().downcast_mut::<Vibration>().is_none());
+            self.insert(Box::new(v));
         }
         self
     }
@@ -248,7 +204,7 @@ impl ErrorChain {
         ErrorChain::new(&model, 1.0, 0)
     }
 
-    /// Records, on each apply, the error every group injected into every record (see
+    /// Records, on each apply, the error every kind of stage injected into every record (see
     /// [`ErrorChain::components`]): what a navigator under test can be scored against.
     pub fn with_components(mut self) -> ErrorChain {
         self.capture = Some((Vec::new(), Vec::new()));
@@ -260,36 +216,17 @@ impl ErrorChain {
         self.capture.as_ref().map_or(&[], |c| &c.0)
     }
 
-    fn snapshot(&mut self, records: &[Record]) {
-        if let Some((_, snap)) = self.capture.as_mut() {
-            snap.clear();
-            snap.extend(records.iter().map(|r| (r.gyro, r.accel)));
-        }
-    }
-
-    fn record_delta(&mut self, group: usize, records: &[Record]) {
-        if let Some((comps, snap)) = self.capture.as_mut() {
-            for ((c, r), (g, a)) in comps.iter_mut().zip(records).zip(snap.iter()) {
-                c.0[group] = [r.gyro - *g, r.accel - *a];
-            }
-        }
-    }
-
     /// True when accelerometers sit away from the reference point: then the records must be
     /// corrupted with [`ErrorChain::apply_with`] and the generator's rotation terms.
     pub fn needs_rotation_terms(&self) -> bool {
-        self.size_effect.is_some()
+        self.stages
+            .iter()
+            .any(|s| s.kind() == StageKind::SizeEffect)
     }
 
     /// True when no stage was built (an ideal IMU): records pass unchanged.
     pub fn is_empty(&self) -> bool {
-        self.gyro.is_empty()
-            && self.accel.is_empty()
-            && self.g_sens.is_none()
-            && self.temperature.is_none()
-            && self.mounting.is_none()
-            && self.size_effect.is_none()
-            && self.vibration.is_none()
+        self.stages.is_empty() && self.temperature.is_none() && self.mounting.is_none()
     }
 
     /// Corrupts records in place. Stage by stage over the whole block (each random process
@@ -302,9 +239,7 @@ impl ErrorChain {
     }
 
     /// [`ErrorChain::apply`] with the generator's rotation terms of the same records, which
-    /// the size effect and lever arm need: accelerometer i at r_i senses
-    /// f + ω̇ × r_i + ω × (ω × r_i), whose interval mean is f̄ + (Δω/Δt) × r_i + (W − tr W·I) r_i
-    /// with W the mean of ω ωᵀ — exact, with no differentiation of ω.
+    /// the size effect and lever arm need (see `stages/size_effect.rs`).
     pub fn apply_with(&mut self, records: &mut [Record], rotation: Option<&[RotationTerms]>) {
         if let Some((comps, _)) = self.capture.as_mut() {
             comps.clear();
@@ -319,362 +254,256 @@ impl ErrorChain {
                 r.accel = m.mul_vec(r.accel);
             }
         }
-        self.snapshot(records);
-        if let Some(v) = self.vibration.as_mut() {
-            for r in records.iter_mut() {
-                let (g, a) = v.next();
-                r.gyro += g;
-                r.accel += a;
-            }
-        }
-        self.record_delta(0, records);
-        self.snapshot(records);
-        if let (Some(pos), Some(rot)) = (&self.size_effect, rotation) {
-            let inv_dt = 1.0 / self.dt;
-            for (r, t) in records.iter_mut().zip(rot) {
-                let (mut dw, mut w) = (t.d_omega, Mat3(t.omega_outer));
-                if let Some(m) = &self.mounting {
-                    dw = m.mul_vec(dw);
-                    w = m.mul_mat(&w).mul_mat(&m.transpose());
-                }
-                let tr = w.0[0][0] + w.0[1][1] + w.0[2][2];
-                for (i, p) in pos.iter().enumerate() {
-                    let p = Vec3(*p);
-                    let add = (dw * inv_dt).cross(p) + w.mul_vec(p) - p * tr;
-                    r.accel.0[i] += add.0[i];
-                }
-            }
-        }
-        self.record_delta(1, records);
+        let on_true = self
+            .stages
+            .partition_point(|s| s.kind().is_on_true_signal());
+        let (true_stages, error_stages) = self.stages.split_at_mut(on_true);
+        let mut block = Block {
+            records,
+            rotation,
+            mounting: self.mounting.as_ref(),
+            f_true: &[],
+            dtemp: &[],
+            dt: self.dt,
+            exact: [false; 2],
+        };
+        run(true_stages, &mut block, &mut self.capture);
         // The error-free specific force, for the g-sensitivity; the temperature offsets.
         self.f_true.clear();
-        if self.g_sens.is_some() {
-            self.f_true.extend(records.iter().map(|r| r.accel));
+        if error_stages.iter().any(|s| s.needs_true_force()) {
+            self.f_true.extend(block.records.iter().map(|r| r.accel));
         }
         self.dtemp.clear();
         if let Some((p, t_ref)) = &self.temperature {
-            self.dtemp.extend(records.iter().map(|r| p.at(r.t) - t_ref));
+            self.dtemp
+                .extend(block.records.iter().map(|r| p.at(r.t) - t_ref));
         }
-        for r in records.iter_mut() {
+        for r in block.records.iter_mut() {
             r.flags = 0;
         }
-        let (gyro, accel): (Sel, Sel) = (gyro_of, accel_of);
-        // Whether the last stage left the increments on the LSB grid (then kept exactly).
-        let (mut exact_g, mut exact_a) = (false, false);
-        for i in 0..self.order.len() {
-            let stage = self.order[i];
-            self.snapshot(records);
-            match stage {
-                StageKind::ScaleFactor => {
-                    self.gyro.scale(records, gyro, &self.dtemp);
-                    self.accel.scale(records, accel, &self.dtemp);
-                }
-                StageKind::Bias => {
-                    self.gyro.bias(records, gyro, &self.dtemp);
-                    if let Some(m) = &self.g_sens {
-                        for (r, f) in records.iter_mut().zip(&self.f_true) {
-                            r.gyro +=
-                                Vec3(m.map(|row| {
-                                    row[0] * f.0[0] + row[1] * f.0[1] + row[2] * f.0[2]
-                                }));
-                        }
-                    }
-                    self.accel.bias(records, accel, &self.dtemp);
-                }
-                StageKind::Misalignment => {
-                    Triad::misalign(&self.gyro.misalign, records, gyro);
-                    Triad::misalign(&self.accel.misalign, records, accel);
-                }
-                StageKind::Noise => {
-                    self.gyro.noise(records, gyro);
-                    self.accel.noise(records, accel);
-                }
-                StageKind::Quantization => {
-                    exact_g =
-                        self.gyro
-                            .quantize(records, gyro, dtheta_of, FLAG_GYRO_SATURATED, self.dt);
-                    exact_a =
-                        self.accel
-                            .quantize(records, accel, dv_of, FLAG_ACCEL_SATURATED, self.dt);
-                }
-            }
-            if stage != StageKind::Quantization {
-                (exact_g, exact_a) = (false, false);
-            }
-            let group = match stage {
-                StageKind::ScaleFactor => 2,
-                StageKind::Bias => 3,
-                StageKind::Misalignment => 4,
-                StageKind::Noise => 5,
-                StageKind::Quantization => 6,
-            };
-            self.record_delta(group, records);
-        }
-        for r in records.iter_mut() {
-            if !exact_g {
+        block.f_true = &self.f_true;
+        block.dtemp = &self.dtemp;
+        run(error_stages, &mut block, &mut self.capture);
+        // The increments stay exactly on the LSB grid only when quantization came last.
+        let exact = if self.order.last() == Some(&StageKind::Quantization) {
+            block.exact
+        } else {
+            [false; 2]
+        };
+        for r in block.records.iter_mut() {
+            if !exact[0] {
                 r.dtheta = r.gyro * self.dt;
             }
-            if !exact_a {
+            if !exact[1] {
                 r.dv = r.accel * self.dt;
             }
         }
     }
 }
 
-impl Triad {
-    fn new(m: &TriadModel, sensor: &str, dt: f64, seed: u64, mode: QuantMode) -> Triad {
-        let stream =
-            |axis: &str, term: &str| NormalStream::new(seed, &format!("{sensor}/{axis}/{term}"));
-        // Random constants: one draw each from their own stream.
-        let turn_on = |axis: usize, term: &str, sigma: f64| {
-            if sigma == 0.0 {
-                0.0
-            } else {
-                sigma * stream(AXES[axis], term).draw()
-            }
-        };
-        let scale_needed = any(&m.scale_factor)
-            || any(&m.scale_factor_turn_on)
-            || m.scale_factor_gm.is_some()
-            || any(&m.scale_factor_random_walk)
-            || any(&m.scale_factor_asymmetry)
-            || any(&m.scale_factor_quadratic);
-        let scale = scale_needed.then(|| {
-            std::array::from_fn(|i| AxisScale {
-                fixed: m.scale_factor[i]
-                    + turn_on(i, "scale_factor_turn_on", m.scale_factor_turn_on[i]),
-                gm: m.scale_factor_gm.and_then(|(s, t)| {
-                    (s[i] > 0.0).then(|| {
-                        GaussMarkov::new(s[i], t[i], dt, stream(AXES[i], "scale_factor_gm"))
-                    })
-                }),
-                rw: (m.scale_factor_random_walk[i] > 0.0).then(|| {
-                    RandomWalk::new(
-                        m.scale_factor_random_walk[i],
-                        dt,
-                        stream(AXES[i], "scale_factor_random_walk"),
-                    )
-                }),
-                asym_half: 0.5 * m.scale_factor_asymmetry[i],
-                quad: m.scale_factor_quadratic[i],
-            })
-        });
-        let bias_needed = any(&m.bias)
-            || any(&m.bias_turn_on)
-            || any(&m.bias_instability)
-            || m.bias_gm.is_some()
-            || any(&m.random_walk);
-        let bias = bias_needed.then(|| {
-            std::array::from_fn(|i| AxisBias {
-                fixed: m.bias[i] + turn_on(i, "bias_turn_on", m.bias_turn_on[i]),
-                gm: m.bias_gm.and_then(|(s, t)| {
-                    (s[i] > 0.0)
-                        .then(|| GaussMarkov::new(s[i], t[i], dt, stream(AXES[i], "bias_gm")))
-                }),
-                rw: (m.random_walk[i] > 0.0)
-                    .then(|| RandomWalk::new(m.random_walk[i], dt, stream(AXES[i], "random_walk"))),
-                flicker: (m.bias_instability[i] > 0.0).then(|| {
-                    Flicker::new(m.bias_instability[i], m.bias_instability_band, dt, |j| {
-                        stream(AXES[i], &format!("bias_instability/{j}"))
-                    })
-                }),
-            })
-        });
-        let mis_needed = any(&m.misalignment) || any(&m.misalignment_turn_on);
-        let misalign = mis_needed.then(|| {
-            let ang: [f64; 6] = std::array::from_fn(|j| {
-                let s = m.misalignment_turn_on[j];
-                m.misalignment[j]
-                    + if s == 0.0 {
-                        0.0
-                    } else {
-                        s * NormalStream::new(
-                            seed,
-                            &format!("{sensor}/{}/misalignment_turn_on", PAIRS[j]),
-                        )
-                        .draw()
-                    }
-            });
-            // Paper eq. 7–8: [[1, −y_z, z_y], [x_z, 1, −z_x], [−x_y, y_x, 1]] with angles
-            // ordered [xy, xz, yx, yz, zx, zy].
-            let [xy, xz, yx, yz, zx, zy] = ang;
-            [[1.0, -yz, zy], [xz, 1.0, -zx], [-xy, yx, 1.0]]
-        });
-        let noise = any(&m.noise).then(|| {
-            (
-                std::array::from_fn(|i| m.noise[i] / dt.sqrt()),
-                std::array::from_fn(|i| stream(AXES[i], "noise")),
-            )
-        });
-        let noise_chol = m.noise_correlation.map(cholesky3);
-        let quant = m.quantization.map(|lsb| {
-            let q = match lsb {
-                Lsb::Increment(q) | Lsb::Rate(q) => q,
-            };
-            (lsb, std::array::from_fn(|_| Quantizer::new(q, mode)))
-        });
-        Triad {
-            temp: None,
-            scale,
-            bias,
-            misalign,
-            noise,
-            noise_chol,
-            quant,
-            range: m.range,
-        }
-    }
-
-    fn is_empty(&self) -> bool {
-        self.temp.is_none()
-            && self.scale.is_none()
-            && self.bias.is_none()
-            && self.misalign.is_none()
-            && self.noise.is_none()
-            && self.quant.is_none()
-            && self.range.is_none()
-    }
-
-    // Each stage runs over the block axis by axis: the per-axis options are tested once per
-    // block, and each process's draws stay in record order.
-    fn scale(&mut self, recs: &mut [Record], sel: Sel, dtemp: &[f64]) {
-        if let Some((_, c)) = self.temp {
-            for (r, d) in recs.iter_mut().zip(dtemp) {
-                let k = d * (c[0] + d * (c[1] + d * c[2]));
-                *sel(r) = *sel(r) * (1.0 + k);
+/// Runs `stages` over the block; when capturing, records what each run of stages of one kind
+/// injected into its kind's group.
+fn run(stages: &mut [Box<dyn Stage>], block: &mut Block<'_>, capture: &mut Option<Capture>) {
+    for i in 0..stages.len() {
+        let kind = stages[i].kind();
+        if let Some((_, snap)) = capture.as_mut() {
+            if i == 0 || stages[i - 1].kind() != kind {
+                snap.clear();
+                snap.extend(block.records.iter().map(|r| (r.gyro, r.accel)));
             }
         }
-        let Some(s) = self.scale.as_mut() else { return };
-        for (i, a) in s.iter_mut().enumerate() {
-            for r in recs.iter_mut() {
-                let v = &mut sel(r).0[i];
-                let mut k = a.fixed + if *v >= 0.0 { a.asym_half } else { -a.asym_half };
-                if let Some(gm) = a.gm.as_mut() {
-                    k += gm.step();
+        stages[i].apply(block);
+        if let Some((comps, snap)) = capture.as_mut() {
+            if stages.get(i + 1).is_none_or(|s| s.kind() != kind) {
+                for ((c, r), (g, a)) in comps.iter_mut().zip(block.records.iter()).zip(snap.iter())
+                {
+                    c.0[kind as usize] = [r.gyro - *g, r.accel - *a];
                 }
-                if let Some(rw) = a.rw.as_mut() {
-                    k += rw.step();
-                }
-                *v = *v * (1.0 + k) + a.quad * *v * *v;
-            }
-        }
-    }
-
-    fn bias(&mut self, recs: &mut [Record], sel: Sel, dtemp: &[f64]) {
-        if let Some((c, _)) = self.temp {
-            for (r, d) in recs.iter_mut().zip(dtemp) {
-                let b = d * (c[0] + d * (c[1] + d * c[2]));
-                *sel(r) += Vec3::new(b, b, b);
-            }
-        }
-        let Some(b) = self.bias.as_mut() else { return };
-        for (i, a) in b.iter_mut().enumerate() {
-            for r in recs.iter_mut() {
-                let v = &mut sel(r).0[i];
-                *v += a.fixed;
-                if let Some(gm) = a.gm.as_mut() {
-                    *v += gm.step();
-                }
-                if let Some(rw) = a.rw.as_mut() {
-                    *v += rw.step();
-                }
-                if let Some(f) = a.flicker.as_mut() {
-                    *v += f.step();
-                }
-            }
-        }
-    }
-
-    fn misalign(m: &Option<[[f64; 3]; 3]>, recs: &mut [Record], sel: Sel) {
-        let Some(m) = m else { return };
-        for r in recs.iter_mut() {
-            let x = *sel(r);
-            *sel(r) = Vec3(m.map(|row| row[0] * x.0[0] + row[1] * x.0[1] + row[2] * x.0[2]));
-        }
-    }
-
-    fn noise(&mut self, recs: &mut [Record], sel: Sel) {
-        let Some((sigma, rng)) = self.noise.as_mut() else {
-            return;
-        };
-        if let Some(l) = &self.noise_chol {
-            // Correlated across axes: n = diag(σ)·L·z with z the three axes' own draws.
-            for r in recs.iter_mut() {
-                let z = [rng[0].draw(), rng[1].draw(), rng[2].draw()];
-                let v = sel(r);
-                for i in 0..3 {
-                    v.0[i] += sigma[i] * (l[i][0] * z[0] + l[i][1] * z[1] + l[i][2] * z[2]);
-                }
-            }
-            return;
-        }
-        for (i, (s, g)) in sigma.iter().zip(rng.iter_mut()).enumerate() {
-            for r in recs.iter_mut() {
-                sel(r).0[i] += s * g.draw();
-            }
-        }
-    }
-
-    /// Saturates at ±range (setting `flag`), then quantizes. With an increment LSB the exact
-    /// quantized increments go to `inc` and the function returns true.
-    fn quantize(&mut self, recs: &mut [Record], sel: Sel, inc: Sel, flag: u8, dt: f64) -> bool {
-        if let Some(lim) = self.range {
-            for r in recs.iter_mut() {
-                let mut hit = false;
-                for v in sel(r).0.iter_mut() {
-                    if v.abs() > lim {
-                        *v = v.clamp(-lim, lim);
-                        hit = true;
-                    }
-                }
-                if hit {
-                    r.flags |= flag;
-                }
-            }
-        }
-        let Some((lsb, q)) = self.quant.as_mut() else {
-            return false;
-        };
-        match lsb {
-            Lsb::Increment(_) => {
-                for (i, q) in q.iter_mut().enumerate() {
-                    for r in recs.iter_mut() {
-                        let d = q.apply(sel(r).0[i] * dt);
-                        inc(r).0[i] = d;
-                        sel(r).0[i] = d / dt;
-                    }
-                }
-                true
-            }
-            Lsb::Rate(_) => {
-                for (i, q) in q.iter_mut().enumerate() {
-                    for r in recs.iter_mut() {
-                        let v = &mut sel(r).0[i];
-                        *v = q.apply(*v);
-                    }
-                }
-                false
             }
         }
     }
 }
 
-fn any(v: &[f64]) -> bool {
-    v.iter().any(|x| *x != 0.0)
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::errors::template::parse;
+    use crate::errors::vibration::{Sine, VibrationSpec};
+    use std::path::Path;
 
-/// Lower Cholesky factor of a symmetric positive-definite 3×3 matrix (validated on load).
-fn cholesky3(c: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut l = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..=i {
-            let s: f64 = (0..j).map(|k| l[i][k] * l[j][k]).sum();
-            l[i][j] = if i == j {
-                (c[i][i] - s).max(0.0).sqrt()
-            } else {
-                (c[i][j] - s) / l[j][j]
-            };
+    fn model(text: &str) -> ImuModel {
+        parse(text, Path::new("t.toml")).expect("test template")
+    }
+
+    /// Every error figure on both triads (no size effect).
+    const FULL: &str =
+        "order = [\"bias\", \"quantization\", \"misalignment\", \"scale_factor\", \"noise\"]
+[gyro]
+bias = \"1 deg/h\"
+scale_factor = \"50 ppm\"
+misalignment = \"0.1 mrad\"
+noise = \"0.1 deg/sqrt(h)\"
+g_sensitivity = \"1 deg/h/g\"
+quantization = \"1e-6 rad\"
+bias_temperature = [\"0.1 deg/h/degC\"]
+scale_factor_temperature = [\"1 ppm/degC\"]
+[accel]
+bias = \"1 mg\"
+scale_factor = \"50 ppm\"
+misalignment = \"0.1 mrad\"
+noise = \"50 ug/sqrt(Hz)\"
+range = \"10 g\"
+bias_temperature = [\"1 ug/degC\"]
+scale_factor_temperature = [\"1 ppm/degC\"]
+";
+
+    fn vibration(dt: f64) -> Vibration {
+        let spec = VibrationSpec {
+            sines: vec![Sine {
+                sensor: Sensor::Accel,
+                axis: 2,
+                amplitude: 1.0,
+                freq_hz: 10.0,
+                phase_rad: 0.0,
+            }],
+            randoms: Vec::new(),
+        };
+        Vibration::new(&spec, dt, 1).unwrap()
+    }
+
+    /// The injected-error columns are the stage kinds, in `StageKind::ALL` order, and the
+    /// `Components` index of a kind is its place there: the header, the groups the stages
+    /// record into and the encoded values all come from the one list.
+    #[test]
+    fn components_header_is_the_stage_kinds() {
+        for (i, k) in StageKind::ALL.iter().enumerate() {
+            assert_eq!(*k as usize, i);
+            assert_eq!(COMPONENT_GROUPS[i], k.name());
+        }
+        let header = crate::output::components_header();
+        let cols: Vec<&str> = header.trim_end().split(',').collect();
+        assert_eq!(cols.len(), 1 + 6 * StageKind::ALL.len());
+        for (i, k) in StageKind::ALL.iter().enumerate() {
+            assert_eq!(cols[1 + 6 * i], format!("{}_gyro_x", k.name()));
+            assert_eq!(cols[6 + 6 * i], format!("{}_accel_z", k.name()));
+        }
+        // A chain with every kind of stage builds only kinds that have a column group.
+        let m = model(FULL);
+        let chain = ErrorChain::new(&m, 100.0, 1)
+            .with_temperature(TemperatureProfile::Constant(30.0), &m)
+            .with_lever_arm(Vec3::new(0.1, 0.0, 0.0))
+            .with_vibration(vibration(0.01));
+        let mut kinds = chain.stage_kinds();
+        kinds.dedup();
+        let mut all = StageKind::ALL.to_vec();
+        all.sort_by_key(|k| kinds.iter().position(|x| x == k));
+        assert_eq!(kinds, all, "every kind is built once per run of stages");
+    }
+
+    /// A stage whose parameters are all zero is not built: an explicit zero is no term, and
+    /// an ideal IMU, a zero lever arm, an empty vibration and zero temperature coefficients
+    /// leave the chain empty.
+    #[test]
+    fn zero_parameters_build_no_stage() {
+        let zeros = model(
+            "[gyro]\nbias = \"0 deg/h\"\nnoise = \"0 deg/sqrt(h)\"\nscale_factor = \"0 ppm\"\n\
+             misalignment = \"0 mrad\"\nbias_temperature = [\"0 deg/h/degC\"]\n\
+             [accel]\nsize_effect = [\"0 mm\", \"0 mm\", \"0 mm\", \"0 mm\", \"0 mm\", \"0 mm\", \
+             \"0 mm\", \"0 mm\", \"0 mm\"]\n",
+        );
+        let empty = Vibration::new(&VibrationSpec::default(), 0.01, 1).unwrap();
+        let chain = ErrorChain::new(&zeros, 100.0, 1)
+            .with_temperature(TemperatureProfile::Constant(80.0), &zeros)
+            .with_lever_arm(Vec3::ZERO)
+            .with_vibration(empty);
+        assert!(chain.stage_kinds().is_empty());
+        assert!(chain.is_empty() && !chain.needs_rotation_terms());
+        assert!(ErrorChain::ideal().is_empty());
+        // One non-zero term builds exactly its stage, on its triad only.
+        let noise = model("[accel]\nnoise = \"50 ug/sqrt(Hz)\"\n");
+        assert_eq!(
+            ErrorChain::new(&noise, 100.0, 1).stage_kinds(),
+            [StageKind::Noise]
+        );
+    }
+
+    /// Stages run on the true signal first, then in the template's order, the temperature
+    /// terms joining their kind; a lever arm joins the template's size effect (one stage).
+    #[test]
+    fn stages_follow_the_order() {
+        use StageKind::*;
+        let m = model(&format!(
+            "{FULL}size_effect = [\"1 mm\", \"0 mm\", \"0 mm\", \"0 mm\", \"1 mm\", \"0 mm\", \
+             \"0 mm\", \"0 mm\", \"1 mm\"]\n"
+        ));
+        let chain = ErrorChain::new(&m, 100.0, 1)
+            .with_temperature(TemperatureProfile::Constant(30.0), &m)
+            .with_vibration(vibration(0.01))
+            .with_lever_arm(Vec3::new(0.0, 0.2, 0.0));
+        assert_eq!(
+            chain.stage_kinds(),
+            [
+                Vibration,
+                SizeEffect,
+                Bias, // temperature, gyro
+                Bias, // temperature, accel
+                Bias,
+                Bias,
+                Quantization,
+                Quantization,
+                Misalignment,
+                Misalignment,
+                ScaleFactor, // temperature, gyro
+                ScaleFactor, // temperature, accel
+                ScaleFactor,
+                ScaleFactor,
+                Noise,
+                Noise,
+            ]
+        );
+        assert!(chain.needs_rotation_terms());
+    }
+
+    /// The captured groups add up to the whole injected error (each stage's delta is taken
+    /// against the output of the stage before: the sums telescope), and a template with only
+    /// one term puts everything into that term's group.
+    #[test]
+    fn components_add_up_and_land_in_their_group() {
+        let rate = 100.0;
+        let input = |k: usize| Record {
+            t: (k + 1) as f64 / rate,
+            gyro: Vec3::new(0.1, -0.2, 0.3),
+            accel: Vec3::new(0.5, -0.4, -9.8),
+            ..Record::default()
+        };
+        let m = model(FULL);
+        let mut chain = ErrorChain::new(&m, rate, 3)
+            .with_temperature(TemperatureProfile::Constant(30.0), &m)
+            .with_vibration(vibration(1.0 / rate))
+            .with_components();
+        let mut recs: Vec<Record> = (0..500).map(input).collect();
+        chain.apply(&mut recs);
+        for (k, (r, c)) in recs.iter().zip(chain.components()).enumerate() {
+            let sum =
+                c.0.iter()
+                    .fold([Vec3::ZERO; 2], |s, g| [s[0] + g[0], s[1] + g[1]]);
+            let d = [r.gyro - input(k).gyro, r.accel - input(k).accel];
+            for s in 0..2 {
+                // A few roundings of values of order 10: 1e-12 is thousands of ulps.
+                assert!((sum[s] - d[s]).norm() < 1e-12, "record {k}");
+            }
+            assert!(c.0[StageKind::Vibration as usize][1].norm() > 0.0);
+        }
+        let bias_only = model("[gyro]\nbias = \"10 deg/h\"\n");
+        let mut chain = ErrorChain::new(&bias_only, rate, 3).with_components();
+        let mut recs: Vec<Record> = (0..10).map(input).collect();
+        chain.apply(&mut recs);
+        for c in chain.components() {
+            for k in StageKind::ALL {
+                let g = c.0[k as usize][0].norm();
+                assert_eq!(g > 0.0, k == StageKind::Bias, "{k:?}");
+                assert_eq!(c.0[k as usize][1], Vec3::ZERO);
+            }
         }
     }
-    l
 }

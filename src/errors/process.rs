@@ -1,4 +1,5 @@
-//! The random processes of the error model, each advancing once per output record (DESIGN §3).
+//! The random processes of the error model, each advancing once per output record on its own
+//! named stream.
 
 use crate::rng::NormalStream;
 
@@ -232,7 +233,7 @@ impl Quantizer {
 /// Round half to even without a libm call (baseline x86-64 has no rounding instruction):
 /// adding and subtracting 1.5·2⁵² leaves the nearest integer for |x| < 2⁵¹.
 #[inline]
-fn round(x: f64) -> f64 {
+pub(crate) fn round(x: f64) -> f64 {
     const MAGIC: f64 = 6_755_399_441_055_744.0;
     if x.abs() < 2_251_799_813_685_248.0 {
         (x + MAGIC) - MAGIC

@@ -4,6 +4,9 @@
 
 use std::path::{Path, PathBuf};
 
+use super::bounds;
+use super::model::StageKind;
+pub use super::model::{ImuModel, TriadModel};
 use super::process::QuantMode;
 use crate::units::{self, Kind, Lsb};
 
@@ -29,79 +32,6 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ),
     ("fji", include_str!("../../templates/fji.toml")),
 ];
-
-/// The error terms of one sensor triad, in SI, per axis.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct TriadModel {
-    /// Constant bias.
-    pub bias: [f64; 3],
-    /// Random-constant (turn-on) bias, 1σ.
-    pub bias_turn_on: [f64; 3],
-    /// Bias-instability coefficient B (ADEV floor 0.664·B).
-    pub bias_instability: [f64; 3],
-    /// τ band of the bias-instability floor (s).
-    pub bias_instability_band: (f64, f64),
-    /// Gauss–Markov bias: σ and τ per axis.
-    pub bias_gm: Option<([f64; 3], [f64; 3])>,
-    /// Random-walk density K of the bias.
-    pub random_walk: [f64; 3],
-    /// White-noise density N (ARW / VRW).
-    pub noise: [f64; 3],
-    /// Constant scale-factor error.
-    pub scale_factor: [f64; 3],
-    /// Random-constant scale-factor error, 1σ.
-    pub scale_factor_turn_on: [f64; 3],
-    /// Gauss–Markov scale-factor error: σ and τ.
-    pub scale_factor_gm: Option<([f64; 3], [f64; 3])>,
-    /// Scale-factor random-walk density.
-    pub scale_factor_random_walk: [f64; 3],
-    /// Scale-factor asymmetry (positive minus negative input).
-    pub scale_factor_asymmetry: [f64; 3],
-    /// Quadratic scale factor (accelerometers), 1/(m/s²).
-    pub scale_factor_quadratic: [f64; 3],
-    /// Constant misalignment angles [xy, xz, yx, yz, zx, zy] (rad).
-    pub misalignment: [f64; 6],
-    /// Random-constant misalignment, 1σ per angle (rad).
-    pub misalignment_turn_on: [f64; 6],
-    /// Gyro g-sensitivity matrix, row-major, (rad/s)/(m/s²).
-    pub g_sensitivity: [f64; 9],
-    /// Output LSB.
-    pub quantization: Option<Lsb>,
-    /// Saturation limit (rad/s or m/s²).
-    pub range: Option<f64>,
-    /// Bias temperature polynomial: coefficients of (T − T_ref)^1, ^2, ^3 (SI per °C^k).
-    pub bias_temperature: [f64; 3],
-    /// Scale-factor temperature polynomial: coefficients of (T − T_ref)^1, ^2, ^3 (1/°C^k).
-    pub scale_factor_temperature: [f64; 3],
-    /// Correlation matrix of the white noise across the three axes (identity when absent).
-    pub noise_correlation: Option<[[f64; 3]; 3]>,
-    /// Accelerometers only: position of accelerometer i (row i) from the IMU's reference
-    /// point, in the case frame (m) — the size effect.
-    pub size_effect: [[f64; 3]; 3],
-}
-
-/// A loaded IMU model.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ImuModel {
-    /// Template name.
-    pub name: String,
-    /// One-line description.
-    pub description: String,
-    /// Grade (navigation, tactical, industrial, consumer, ideal).
-    pub grade: String,
-    /// Nominal output rate (Hz), if the template gives one.
-    pub rate_hz: Option<f64>,
-    /// Gyro terms.
-    pub gyro: TriadModel,
-    /// Accelerometer terms.
-    pub accel: TriadModel,
-    /// Quantization mode.
-    pub quantization_mode: QuantMode,
-    /// Stage order.
-    pub order: Vec<super::chain::StageKind>,
-    /// Reference temperature of the temperature polynomials (°C).
-    pub temperature_ref: f64,
-}
 
 /// A template that cannot be used, with the file and key at fault.
 #[derive(Debug, thiserror::Error)]
@@ -136,33 +66,6 @@ pub enum TemplateError {
     /// Not a built-in name and not a file.
     #[error("unknown IMU `{0}` (built-in: {1}; or give a template file)")]
     Unknown(String, String),
-}
-
-impl ImuModel {
-    /// True when the template sets any stochastic or deterministic error term (not just the
-    /// interface's quantization and range).
-    pub fn has_error_figures(&self) -> bool {
-        [&self.gyro, &self.accel].iter().any(|t| {
-            let any = |v: &[f64]| v.iter().any(|x| *x != 0.0);
-            any(&t.bias)
-                || any(&t.bias_turn_on)
-                || any(&t.bias_instability)
-                || t.bias_gm.is_some()
-                || any(&t.random_walk)
-                || any(&t.noise)
-                || any(&t.scale_factor)
-                || any(&t.scale_factor_turn_on)
-                || t.scale_factor_gm.is_some()
-                || any(&t.scale_factor_random_walk)
-                || any(&t.scale_factor_asymmetry)
-                || any(&t.scale_factor_quadratic)
-                || any(&t.misalignment)
-                || any(&t.misalignment_turn_on)
-                || any(&t.g_sensitivity)
-                || any(&t.bias_temperature)
-                || any(&t.scale_factor_temperature)
-        })
-    }
 }
 
 /// Names of the built-in templates.
@@ -255,8 +158,17 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
     let rate_hz = match t.get("rate_hz") {
         None => None,
         Some(v) => match v.as_float().or(v.as_integer().map(|i| i as f64)) {
-            Some(r) if r > 0.0 && r.is_finite() => Some(r),
-            _ => return Err(key_err(path, "rate_hz", "expected a positive number (Hz)")),
+            Some(r) if r > 0.0 && r <= bounds::MAX_RATE_HZ => Some(r),
+            _ => {
+                return Err(key_err(
+                    path,
+                    "rate_hz",
+                    &format!(
+                        "expected a number in (0, {}] (Hz)",
+                        bounds::compact(bounds::MAX_RATE_HZ)
+                    ),
+                ));
+            }
         },
     };
     let quantization_mode = match t.get("quantization_mode") {
@@ -275,7 +187,7 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
         },
     };
     let order = match t.get("order") {
-        None => super::chain::StageKind::PAPER_ORDER.to_vec(),
+        None => StageKind::PAPER_ORDER.to_vec(),
         Some(v) => {
             let arr = v
                 .as_array()
@@ -283,7 +195,7 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
             let mut out = Vec::new();
             for s in arr {
                 let name = s.as_str().unwrap_or("");
-                let k = super::chain::StageKind::from_name(name).ok_or_else(|| {
+                let k = StageKind::from_name(name).ok_or_else(|| {
                     key_err(path, "order", &format!("unknown stage `{name}` (scale_factor, bias, misalignment, noise, quantization)"))
                 })?;
                 if out.contains(&k) {
@@ -313,8 +225,18 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
             .as_str()
             .and_then(|s| s.trim().strip_suffix("degC"))
             .and_then(|s| s.trim().parse::<f64>().ok())
-            .filter(|x| x.is_finite())
-            .ok_or_else(|| key_err(path, "temperature_ref", "expected \"<number> degC\""))?,
+            .filter(|x| (bounds::TEMPERATURE_REF_C.0..=bounds::TEMPERATURE_REF_C.1).contains(x))
+            .ok_or_else(|| {
+                key_err(
+                    path,
+                    "temperature_ref",
+                    &format!(
+                        "expected \"<number> degC\" from {} to {} degC",
+                        bounds::TEMPERATURE_REF_C.0,
+                        bounds::TEMPERATURE_REF_C.1
+                    ),
+                )
+            })?,
     };
     let gyro = triad(t.get("gyro"), "gyro", path)?;
     let accel = triad(t.get("accel"), "accel", path)?;
@@ -366,7 +288,7 @@ fn triad(v: Option<&toml::Value>, sensor: &str, path: &Path) -> Result<TriadMode
         let err = |msg: String| key_err(path, &full, &msg);
         let nonneg = |x: &[f64]| -> Result<(), TemplateError> {
             if x.iter().any(|v| *v < 0.0) {
-                Err(key_err(path, &full, "must not be negative"))
+                Err(key_err(path, &full, "must not be negative (a magnitude)"))
             } else {
                 Ok(())
             }
@@ -440,6 +362,7 @@ fn triad(v: Option<&toml::Value>, sensor: &str, path: &Path) -> Result<TriadMode
                 if q <= 0.0 {
                     return Err(err("must be positive".into()));
                 }
+                bounds::check(s, lsb, q, inc).map_err(err)?;
                 m.quantization = Some(if inc { Lsb::Increment(q) } else { Lsb::Rate(q) });
             }
             "range" => {
@@ -450,6 +373,7 @@ fn triad(v: Option<&toml::Value>, sensor: &str, path: &Path) -> Result<TriadMode
                 if r <= 0.0 {
                     return Err(err("must be positive".into()));
                 }
+                bounds::check(s, rate, r, false).map_err(err)?;
                 m.range = Some(r);
             }
             "bias_temperature" => m.bias_temperature = poly(val, rate).map_err(err)?,
@@ -579,6 +503,8 @@ fn poly(v: &toml::Value, kind: Kind) -> Result<[f64; 3], String> {
         out[k] = units::parse(base, kind)
             .map(|x| x.0)
             .map_err(|e| e.to_string())?;
+        bounds::check(base, kind, out[k], false)
+            .map_err(|e| format!("coefficient {} (per {}): {e}", k + 1, &suffix[1..]))?;
     }
     Ok(out)
 }
@@ -598,9 +524,9 @@ fn one(v: &toml::Value, kind: Kind) -> Result<f64, String> {
             kind.unit_names()
         )
     })?;
-    units::parse(s, kind)
-        .map(|x| x.0)
-        .map_err(|e| e.to_string())
+    let x = units::parse(s, kind).map_err(|e| e.to_string())?.0;
+    bounds::check(s, kind, x, false)?;
+    Ok(x)
 }
 
 #[cfg(test)]
@@ -666,5 +592,98 @@ mod tests {
         assert!((m.gyro.noise[0] - 0.1f64.to_radians() / 60.0).abs() < 1e-18);
         assert_eq!(m.gyro.bias_turn_on, base.gyro.bias_turn_on);
         assert_eq!(m.accel, base.accel);
+    }
+
+    /// Physically absurd values are refused with the file, the key, the value as written and
+    /// the bound, in a short message; so are values that overflow in SI and negative
+    /// magnitudes.
+    #[test]
+    fn absurd_values_are_refused() {
+        for (text, key, shows) in [
+            (
+                "[gyro]\nnoise = \"1e300 deg/sqrt(h)\"\n",
+                "`gyro.noise`",
+                "`1e300 deg/sqrt(h)`",
+            ),
+            (
+                "[accel]\nbias = [\"0 g\", \"2e6 g\", \"0 g\"]\n",
+                "`accel.bias`",
+                "`2e6 g`",
+            ),
+            (
+                "[gyro]\nmisalignment = \"30 deg\"\n",
+                "`gyro.misalignment`",
+                "`30 deg`",
+            ),
+            (
+                "[gyro]\nscale_factor_turn_on = \"150 %\"\n",
+                "`gyro.scale_factor_turn_on`",
+                "150 %",
+            ),
+            (
+                "[gyro]\nbias_gm = { sigma = \"1 deg/h\", tau = \"1e10 s\" }\n",
+                "`gyro.bias_gm`",
+                "`1e10 s`",
+            ),
+            (
+                "[gyro]\nquantization = \"2 rad\"\n",
+                "`gyro.quantization`",
+                "`2 rad`",
+            ),
+            (
+                "[accel]\nrange = \"1e308 g\"\n",
+                "`accel.range`",
+                "`1e308 g`",
+            ),
+            (
+                "[gyro]\nbias_temperature = [\"0 deg/h/degC\", \"1e9 deg/s/degC^2\"]\n",
+                "`gyro.bias_temperature`",
+                "coefficient 2",
+            ),
+            (
+                "[gyro]\nnoise = \"-0.1 deg/sqrt(h)\"\n",
+                "`gyro.noise`",
+                "negative",
+            ),
+            ("rate_hz = 1e12\n", "`rate_hz`", "(0, 1e7]"),
+            (
+                "temperature_ref = \"-300 degC\"\n",
+                "`temperature_ref`",
+                "-273.15",
+            ),
+        ] {
+            let e = parse(text, Path::new("t.toml")).unwrap_err().to_string();
+            assert!(
+                e.starts_with("t.toml: ") && e.contains(key) && e.contains(shows),
+                "{e}"
+            );
+            assert!(e.len() < 260, "{e}");
+        }
+        let e = parse(
+            "[gyro]\nnoise = \"1e300 deg/sqrt(h)\"\n",
+            Path::new("t.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("at most 3438 deg/sqrt(h) = 1 rad/sqrt(s)"),
+            "{e}"
+        );
+    }
+
+    /// The bounds leave room for any real IMU: a deliberately poor consumer MEMS part loads.
+    #[test]
+    fn poor_consumer_mems_is_within_bounds() {
+        let m = parse(
+            "[gyro]\nbias = \"5 deg/s\"\nbias_turn_on = \"3 deg/s\"\nnoise = \"0.1 deg/s/sqrt(Hz)\"\n\
+             scale_factor_turn_on = \"5 %\"\nmisalignment = \"3 deg\"\ng_sensitivity = \"0.5 deg/s/g\"\n\
+             quantization = \"0.1 deg/s\"\nrange = \"4000 deg/s\"\n\
+             bias_temperature = [\"0.05 deg/s/degC\"]\n\
+             [accel]\nbias = \"200 mg\"\nnoise = \"2 mg/sqrt(Hz)\"\nscale_factor = \"5 %\"\n\
+             range = \"400 g\"\nquantization = \"10 mg\"\nsize_effect = [\"5 mm\", \"0 mm\", \
+             \"0 mm\", \"0 mm\", \"5 mm\", \"0 mm\", \"0 mm\", \"0 mm\", \"5 mm\"]\n",
+            Path::new("mems.toml"),
+        );
+        assert!(m.is_ok(), "{:?}", m.err());
     }
 }

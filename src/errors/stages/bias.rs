@@ -1,0 +1,103 @@
+//! Bias stage (paper eq. 5–6): constant, turn-on, Gauss–Markov, random walk and bias
+//! instability (flicker) per axis, then the gyro's g-sensitivity to the error-free specific
+//! force.
+
+use super::{AXES, Block, Stage, any, stream, turn_on};
+use crate::errors::model::{Sensor, StageKind, TriadModel};
+use crate::errors::process::{Flicker, GaussMarkov, RandomWalk};
+use crate::math::Vec3;
+
+/// Bias of one axis.
+#[derive(Clone, Debug)]
+struct Axis {
+    fixed: f64,
+    gm: Option<GaussMarkov>,
+    rw: Option<RandomWalk>,
+    flicker: Option<Flicker>,
+}
+
+/// The bias of one triad.
+#[derive(Clone, Debug)]
+pub(crate) struct Bias {
+    sensor: Sensor,
+    axes: Option<[Axis; 3]>,
+    /// Gyro g-sensitivity, (rad/s)/(m/s²), row-major.
+    g_sens: Option<[[f64; 3]; 3]>,
+}
+
+impl Bias {
+    /// The triad's bias terms, drawing the turn-on constants and seeding the processes from
+    /// `seed`; `None` when the template sets none.
+    pub(crate) fn build(m: &TriadModel, sensor: Sensor, dt: f64, seed: u64) -> Option<Bias> {
+        let needed = any(&m.bias)
+            || any(&m.bias_turn_on)
+            || any(&m.bias_instability)
+            || m.bias_gm.is_some()
+            || any(&m.random_walk);
+        let axis = |i: usize| Axis {
+            fixed: m.bias[i] + turn_on(seed, sensor, AXES[i], "bias_turn_on", m.bias_turn_on[i]),
+            gm: m.bias_gm.and_then(|(s, t)| {
+                (s[i] > 0.0).then(|| {
+                    GaussMarkov::new(s[i], t[i], dt, stream(seed, sensor, AXES[i], "bias_gm"))
+                })
+            }),
+            rw: (m.random_walk[i] > 0.0).then(|| {
+                RandomWalk::new(
+                    m.random_walk[i],
+                    dt,
+                    stream(seed, sensor, AXES[i], "random_walk"),
+                )
+            }),
+            flicker: (m.bias_instability[i] > 0.0).then(|| {
+                Flicker::new(m.bias_instability[i], m.bias_instability_band, dt, |j| {
+                    stream(seed, sensor, AXES[i], &format!("bias_instability/{j}"))
+                })
+            }),
+        };
+        let s = &m.g_sensitivity;
+        let g_sens = (sensor == Sensor::Gyro && any(s)).then_some([
+            [s[0], s[1], s[2]],
+            [s[3], s[4], s[5]],
+            [s[6], s[7], s[8]],
+        ]);
+        let axes = needed.then(|| std::array::from_fn(axis));
+        (axes.is_some() || g_sens.is_some()).then_some(Bias {
+            sensor,
+            axes,
+            g_sens,
+        })
+    }
+}
+
+impl Stage for Bias {
+    fn kind(&self) -> StageKind {
+        StageKind::Bias
+    }
+    fn needs_true_force(&self) -> bool {
+        self.g_sens.is_some()
+    }
+    fn apply(&mut self, b: &mut Block<'_>) {
+        let s = self.sensor;
+        for (i, a) in self.axes.iter_mut().flatten().enumerate() {
+            for r in b.records.iter_mut() {
+                let v = &mut s.rate(r).0[i];
+                *v += a.fixed;
+                if let Some(gm) = a.gm.as_mut() {
+                    *v += gm.step();
+                }
+                if let Some(rw) = a.rw.as_mut() {
+                    *v += rw.step();
+                }
+                if let Some(f) = a.flicker.as_mut() {
+                    *v += f.step();
+                }
+            }
+        }
+        if let Some(m) = &self.g_sens {
+            for (r, f) in b.records.iter_mut().zip(b.f_true) {
+                *s.rate(r) +=
+                    Vec3(m.map(|row| row[0] * f.0[0] + row[1] * f.0[1] + row[2] * f.0[2]));
+            }
+        }
+    }
+}
