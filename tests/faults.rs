@@ -77,6 +77,7 @@ fn decode_reports_exactly_the_injected_faults() {
                 status_flagged: got(FaultKind::Status),
                 skipped_bytes: 0,
                 framing_errors: 0,
+                truncated: 0,
             },
             "{name}: kinds {kinds:?}"
         );

@@ -52,10 +52,8 @@ impl StageKind {
 const AXES: [&str; 3] = ["x", "y", "z"];
 const PAIRS: [&str; 6] = ["xy", "xz", "yx", "yz", "zx", "zy"];
 
-/// Record flag: a gyro axis was saturated.
-pub const FLAG_GYRO_SATURATED: u8 = 1;
-/// Record flag: an accelerometer axis was saturated.
-pub const FLAG_ACCEL_SATURATED: u8 = 2;
+/// The record's status flags live with the record; re-exported for the error chain's users.
+pub use crate::record::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED};
 
 /// Scale-factor error of one axis.
 #[derive(Clone, Debug)]
