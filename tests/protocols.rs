@@ -766,14 +766,31 @@ fn decode_of_no_valid_frame_fails() {
 /// short (not as skipped bytes), plain and SDLC, and on the command line.
 #[test]
 fn a_truncated_last_frame_is_counted() {
+    // KVH frames in asynchronous HDLC (byte stuffing) too: no built-in protocol uses it.
+    let kvh = protocol::BUILTIN
+        .iter()
+        .find(|b| b.0 == "kvh1750")
+        .unwrap()
+        .1;
+    let kvh_hdlc = protocol::load::compile_text(
+        &kvh.replace("[check]", "[hdlc]\nfcs = \"fcs-16\"\n\n[check]"),
+        Path::new("kvh-hdlc.toml"),
+    )
+    .unwrap()
+    .1;
+    assert!(matches!(kvh_hdlc.transport, Transport::Hdlc(_)));
     for name in [
         "kvh1750",
         "ln200",
         "mavlink-hil-sensor",
         "ln200-sdlc",
         "hg1700-sdlc",
+        "kvh-hdlc",
     ] {
-        let (_, plan) = protocol::load(name).unwrap();
+        let plan = match name {
+            "kvh-hdlc" => kvh_hdlc.clone(),
+            _ => protocol::load(name).unwrap().1,
+        };
         let mut st = EncoderState::default();
         let mut bytes = Vec::new();
         let mut ends = Vec::new();

@@ -155,6 +155,10 @@ impl ByteUnstuffer {
     /// Bytes of a frame begun and not yet closed by a flag (a frame cut short if the input ends
     /// here).
     pub fn pending(&self) -> usize {
+        if self.clear_next {
+            // The buffer still holds the frame a flag just closed.
+            return 0;
+        }
         match self.state {
             AsyncState::Hunt => 0,
             AsyncState::Frame => self.buf.len(),
