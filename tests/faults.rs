@@ -328,3 +328,27 @@ fn ten_minutes_of_survey_decode_cleanly() {
         );
     }
 }
+
+/// A rate or duration out of range is named in a short message: 1e300 stays `1e300`, not a
+/// 301-digit number.
+#[test]
+fn fault_values_are_named_compactly() {
+    let spec = |when: When, duration_s: f64| FaultSpec {
+        kind: FaultKind::Status,
+        when,
+        duration_s,
+    };
+    let e = spec(When::Rate(1e300), 0.0)
+        .validate(1000.0)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("rate 1e300/s") && e.contains("1000/s") && e.len() < 80,
+        "{e}"
+    );
+    let e = spec(When::At(vec![1.0]), -1e-300)
+        .validate(1000.0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("duration -1e-300 s") && e.len() < 80, "{e}");
+}
