@@ -371,7 +371,7 @@ pub const MAX_RATE_HZ: f64 = 1e7;
 #[derive(Debug, thiserror::Error)]
 pub enum SpecError {
     /// Neither a built-in protocol nor a spec file.
-    #[error("unknown protocol `{name}`: not a built-in ({builtin}) nor a spec file")]
+    #[error("unknown protocol `{name}`: neither a built-in ({builtin}) nor an existing spec file")]
     Unknown {
         /// The name or path given.
         name: String,
