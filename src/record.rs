@@ -15,9 +15,18 @@ pub struct Record {
     pub dtheta: Vec3,
     /// Δv_k = ∫ f^b dt over the interval (m/s); raw, no sculling compensation.
     pub dv: Vec3,
-    /// Status bits set by the error model (saturation); not part of the CSV/binary contract.
+    /// Status bits ([`FLAG_GYRO_SATURATED`], …) set by the error model; not part of the
+    /// CSV/binary contract. Frames with a status word carry them.
     pub flags: u8,
 }
+
+/// Record flag: a gyro axis was saturated.
+pub const FLAG_GYRO_SATURATED: u8 = 1;
+/// Record flag: an accelerometer axis was saturated.
+pub const FLAG_ACCEL_SATURATED: u8 = 2;
+/// Record flag: a value of the record is not a measurement (not finite): a sensor failure, which
+/// frames with a status word report as their built-in-test failure.
+pub const FLAG_INVALID: u8 = 4;
 
 /// Column names of the output contract, in order.
 pub const COLUMNS: [&str; 13] = [

@@ -77,6 +77,7 @@ fn decode_reports_exactly_the_injected_faults() {
                 status_flagged: got(FaultKind::Status),
                 skipped_bytes: 0,
                 framing_errors: 0,
+                truncated: 0,
             },
             "{name}: kinds {kinds:?}"
         );
@@ -326,4 +327,28 @@ fn ten_minutes_of_survey_decode_cleanly() {
             "{name} at {rate} Hz"
         );
     }
+}
+
+/// A rate or duration out of range is named in a short message: 1e300 stays `1e300`, not a
+/// 301-digit number.
+#[test]
+fn fault_values_are_named_compactly() {
+    let spec = |when: When, duration_s: f64| FaultSpec {
+        kind: FaultKind::Status,
+        when,
+        duration_s,
+    };
+    let e = spec(When::Rate(1e300), 0.0)
+        .validate(1000.0)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("rate 1e300/s") && e.contains("1000/s") && e.len() < 80,
+        "{e}"
+    );
+    let e = spec(When::At(vec![1.0]), -1e-300)
+        .validate(1000.0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("duration -1e-300 s") && e.len() < 80, "{e}");
 }

@@ -512,7 +512,7 @@ fn timestamps_wrap() {
 
 /// `decode` prints the record contract: the rates and increments of each frame equal the
 /// records `generate` writes for the same run (to the f32 precision of KVH floats), the
-/// rates KVH does not carry derived from its increments over Δt.
+/// rates KVH does not carry derived from its increments over the Δt of `--rate`.
 #[test]
 fn decode_prints_the_record_contract() {
     let exe = env!("CARGO_BIN_EXE_imu-emu");
@@ -544,7 +544,10 @@ fn decode_prints_the_record_contract() {
         &[&["generate", "--format", "kvh1750"], &common[..]].concat(),
         None,
     );
-    let decoded = run(&["decode", "--protocol", "kvh1750"], Some(&frames));
+    let decoded = run(
+        &["decode", "--protocol", "kvh1750", "--rate", "1000"],
+        Some(&frames),
+    );
     let rows = |b: &[u8]| -> Vec<Vec<String>> {
         String::from_utf8(b.to_vec())
             .unwrap()
@@ -654,4 +657,448 @@ fn counter_schedule_needs_a_fitting_counter() {
     assert!(e.contains("bad.toml") && e.contains("modulo 126"), "{e}");
     let e = compile(&text.replace("source = \"counter\"", "value = 0")).unwrap();
     assert!(e.contains("needs a counter"), "{e}");
+}
+
+/// The output of a command run with `input` on stdin.
+fn run_with(args: &[&str], input: &[u8]) -> std::process::Output {
+    use std::io::Write;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+        .args(args)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(input).unwrap();
+    child.wait_with_output().unwrap()
+}
+
+/// Frames of a built-in protocol from `generate` (static scene, ideal IMU).
+fn generated(format: &str, rate: &str, duration: &str) -> Vec<u8> {
+    let out = run_with(
+        &[
+            "generate",
+            "--scene",
+            "static",
+            "--format",
+            format,
+            "--rate",
+            rate,
+            "--duration",
+            duration,
+        ],
+        b"",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout
+}
+
+/// `decode --protocol` of a name that is neither a built-in nor a file says "unknown protocol"
+/// and lists the built-ins (not "cannot read"); a file that exists but is no spec gives the
+/// spec's own error; a missing `--protocol-file` cannot be read, its cause said once.
+#[test]
+fn decode_names_an_unknown_protocol() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nosuch.toml");
+    for name in ["nosuch", missing.to_str().unwrap()] {
+        let out = run_with(&["decode", "--protocol", name], b"");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{err}");
+        assert!(
+            err.contains(&format!("unknown protocol `{name}`"))
+                && err.contains("kvh1750")
+                && err.contains("stim300-a7")
+                && !err.contains("cannot read"),
+            "{err}"
+        );
+    }
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        "name = \"b\"\n[[field]]\nname = \"x\"\ntype = \"u9\"\n",
+    )
+    .unwrap();
+    let out = run_with(&["decode", "--protocol", bad.to_str().unwrap()], b"");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("bad.toml") && err.contains("u9"),
+        "{err}"
+    );
+    let out = run_with(
+        &["decode", "--protocol-file", missing.to_str().unwrap()],
+        b"",
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("nosuch.toml: cannot read"),
+        "{err}"
+    );
+    assert_eq!(
+        err.matches("os error 2").count(),
+        1,
+        "cause said once: {err}"
+    );
+}
+
+/// Input with no valid frame is a failure (exit status non-zero) that still prints the tally.
+#[test]
+fn decode_of_no_valid_frame_fails() {
+    let mut junk = b"this is not a KVH stream at all, only text\n".repeat(3);
+    let out = run_with(&["decode", "--protocol", "kvh1750"], &junk);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("0 frames") && err.contains(&format!("{} bytes skipped", junk.len())),
+        "{err}"
+    );
+    assert!(err.contains("no valid `kvh1750` frame"), "{err}");
+    // Empty input too.
+    junk.clear();
+    let out = run_with(&["decode", "--protocol", "ln200"], &junk);
+    assert!(!out.status.success());
+}
+
+/// A stream cut inside its last frame: the whole frames decode, the cut one is reported as cut
+/// short (not as skipped bytes), plain and SDLC, and on the command line.
+#[test]
+fn a_truncated_last_frame_is_counted() {
+    // KVH frames in asynchronous HDLC (byte stuffing) too: no built-in protocol uses it.
+    let kvh = protocol::BUILTIN
+        .iter()
+        .find(|b| b.0 == "kvh1750")
+        .unwrap()
+        .1;
+    let kvh_hdlc = protocol::load::compile_text(
+        &kvh.replace("[check]", "[hdlc]\nfcs = \"fcs-16\"\n\n[check]"),
+        Path::new("kvh-hdlc.toml"),
+    )
+    .unwrap()
+    .1;
+    assert!(matches!(kvh_hdlc.transport, Transport::Hdlc(_)));
+    for name in [
+        "kvh1750",
+        "ln200",
+        "mavlink-hil-sensor",
+        "ln200-sdlc",
+        "hg1700-sdlc",
+        "kvh-hdlc",
+    ] {
+        let plan = match name {
+            "kvh-hdlc" => kvh_hdlc.clone(),
+            _ => protocol::load(name).unwrap().1,
+        };
+        let mut st = EncoderState::default();
+        let mut bytes = Vec::new();
+        let mut ends = Vec::new();
+        for k in 0..5 {
+            let r = Record {
+                t: k as f64 * 0.01,
+                gyro: Vec3::new(0.1, -0.2, 0.3),
+                dtheta: Vec3::new(1e-3, -2e-3, 3e-3),
+                ..Record::default()
+            };
+            plan.encode(&r, 25.0, &mut st, &mut bytes);
+            ends.push(bytes.len());
+        }
+        // Cut half-way into the last frame.
+        let cut = ends[3] + (ends[4] - ends[3]) / 2;
+        let mut d = StreamDecoder::new(plan.clone());
+        let mut n = 0;
+        d.feed(&bytes[..cut], |_| n += 1);
+        d.finish();
+        assert_eq!(n, 4, "{name}");
+        let s = d.stats();
+        assert_eq!(
+            (s.frames, s.truncated, s.skipped_bytes),
+            (4, 1, 0),
+            "{name}: {s:?}"
+        );
+        // The whole stream: nothing cut short.
+        let mut d = StreamDecoder::new(plan);
+        d.feed(&bytes, |_| {});
+        d.finish();
+        assert_eq!((d.stats().frames, d.stats().truncated), (5, 0), "{name}");
+    }
+    let frames = generated("kvh1750", "1000", "0.01");
+    let out = run_with(
+        &["decode", "--protocol", "kvh1750", "--tally-only"],
+        &frames[..frames.len() - 7],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("9 frames,")
+            && err.contains("0 bytes skipped")
+            && err.contains("1 frame cut short at the end"),
+        "{err}"
+    );
+}
+
+/// Frames that carry only increments (LN-200) or only rates (MAVLink): without `--rate` the
+/// missing columns are not made up from the nominal rate. LN-200 frames have no time tag, so
+/// the rate columns stay empty (and stderr says why); MAVLink frames do, so the increments
+/// are the rates over the interval of their time stamps. With `--rate` both derive from it.
+#[test]
+fn decode_takes_the_interval_from_rate_or_time_tags() {
+    // 100 Hz, a quarter of LN-200's nominal 400 Hz: the nominal Δt would scale rates by 4.
+    let frames = generated("ln200", "100", "0.05");
+    let rows = |out: &std::process::Output| -> Vec<Vec<String>> {
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(str::to_string).collect())
+            .collect()
+    };
+    let out = run_with(&["decode", "--protocol", "ln200"], &frames);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    let got = rows(&out);
+    assert_eq!(got.len(), 5);
+    assert!(err.contains("--rate"), "{err}");
+    for r in &got {
+        assert!(
+            r[1..7].iter().all(String::is_empty),
+            "rates without a rate: {r:?}"
+        );
+        assert!(r[7..13].iter().all(|c| !c.is_empty()), "{r:?}");
+    }
+    let got = rows(&run_with(
+        &["decode", "--protocol", "ln200", "--rate", "100"],
+        &frames,
+    ));
+    for r in &got {
+        for a in 0..6 {
+            let (rate, inc): (f64, f64) = (r[1 + a].parse().unwrap(), r[7 + a].parse().unwrap());
+            assert!((rate - inc * 100.0).abs() <= 1e-12 * rate.abs(), "{r:?}");
+        }
+    }
+    // MAVLink at 100 Hz (nominal 250): Δt from time_usec, known from the second frame on.
+    let frames = generated("mavlink-highres-imu", "100", "0.05");
+    let got = rows(&run_with(
+        &["decode", "--protocol", "mavlink-highres-imu"],
+        &frames,
+    ));
+    assert_eq!(got.len(), 5);
+    assert!(got[0][7..13].iter().all(String::is_empty), "{:?}", got[0]);
+    for r in &got[1..] {
+        for a in 0..6 {
+            let (rate, inc): (f64, f64) = (r[1 + a].parse().unwrap(), r[7 + a].parse().unwrap());
+            // The time stamps are whole µs: 10 000 µs exactly.
+            assert!((inc - rate * 0.01).abs() <= 1e-12 * rate.abs(), "{r:?}");
+        }
+    }
+}
+
+/// Sanity bounds: duplicate field names, an LSB that is zero, negative or not finite, a
+/// non-finite sign, more fields or bytes than any real frame, a bad `rate_hz` or `baud` are
+/// refused naming the file and the field; numbers in messages stay short.
+#[test]
+fn spec_sanity_bounds() {
+    let q = |lsb: &str| {
+        format!("[[field]]\nname = \"g\"\ntype = \"i16\"\nsource = \"gyro.x\"\nlsb = {lsb}\n")
+    };
+    let head = "name = \"t\"\n[[field]]\nname = \"sync\"\ntype = \"u8\"\nvalue = 1\n";
+    let cases: Vec<(String, &str, &str)> = vec![
+        (
+            format!("{head}{}{}", q("1e-3"), q("2e-3")),
+            "field `g`",
+            "a second field of this name",
+        ),
+        (format!("{head}{}", q("0.0")), "field `g`", "lsb = 0:"),
+        (
+            format!("{head}{}", q("-1e-3")),
+            "field `g`",
+            "lsb = -0.001:",
+        ),
+        (format!("{head}{}", q("nan")), "field `g`", "lsb = NaN:"),
+        (format!("{head}{}", q("inf")), "field `g`", "lsb = inf:"),
+        (
+            format!("{head}{}", q("-1e300")),
+            "field `g`",
+            "lsb = -1e300:",
+        ),
+        (
+            format!("{head}{}sign = nan\n", q("1.0")),
+            "field `g`",
+            "sign = NaN",
+        ),
+        (
+            format!("rate_hz = 0\n{head}"),
+            "`rate_hz` = 0",
+            "expected a rate",
+        ),
+        (
+            format!("rate_hz = 1e300\n{head}"),
+            "`rate_hz` = 1e300",
+            "expected a rate",
+        ),
+        (format!("baud = 0\n{head}"), "`baud` = 0", "bit/s"),
+        (
+            format!(
+                "{head}{}",
+                (0..300)
+                    .map(|i| format!("[[field]]\nname = \"w{i}\"\ntype = \"u64\"\nvalue = 0\n"))
+                    .collect::<String>()
+            ),
+            "field `w255`",
+            "at most 2048 bytes",
+        ),
+        (
+            format!(
+                "{head}{}",
+                (0..600)
+                    .map(|i| format!("[[field]]\nname = \"w{i}\"\ntype = \"u8\"\nvalue = 0\n"))
+                    .collect::<String>()
+            ),
+            "601 fields",
+            "at most 512",
+        ),
+    ];
+    for (text, place, problem) in cases {
+        let p = Path::new("bad.toml");
+        let e = FrameSpec::parse(&text, p)
+            .and_then(|s| Plan::compile(&s, p).map(|_| ()))
+            .expect_err(place)
+            .to_string();
+        assert!(
+            e.starts_with("bad.toml: ") && e.contains(place) && e.contains(problem),
+            "{e}\nwanted {place} … {problem}"
+        );
+        assert!(e.len() < 300, "{e}");
+    }
+    // A spec file of 200 000 fields is refused by its size, naming it, before it is parsed.
+    let dir = tempfile::tempdir().unwrap();
+    let huge = dir.path().join("huge.toml");
+    let text = format!(
+        "name = \"h\"\n{}",
+        (0..200_000)
+            .map(|i| format!("[[field]]\nname = \"w{i}\"\ntype = \"u8\"\nvalue = 0\n"))
+            .collect::<String>()
+    );
+    std::fs::write(&huge, text).unwrap();
+    let e = protocol::load_file(&huge).unwrap_err().to_string();
+    assert!(e.contains("huge.toml") && e.contains("at most"), "{e}");
+    // The same bounds hold for `--protocol-file` on the command line, naming the file.
+    let out = run_with(&["decode", "--protocol-file", huge.to_str().unwrap()], b"");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("huge.toml"));
+}
+
+/// A record with a non-finite value: no frame carries a non-finite value or looks healthy.
+/// A protocol whose status word has a failure model sends the frame with the failure bits set
+/// (as a real unit's built-in test reports a failed sensor); one without (MAVLink, NovAtel)
+/// withholds the frame, its counter value skipped, so a receiver sees the gap. The record's
+/// own `FLAG_INVALID` does the same with finite values.
+#[test]
+fn non_finite_values_never_reach_a_healthy_frame() {
+    let bad = [
+        Record {
+            gyro: Vec3::new(f64::NAN, 0.0, 0.0),
+            dtheta: Vec3::new(f64::NAN, 0.0, 0.0),
+            ..Record::default()
+        },
+        Record {
+            accel: Vec3::new(0.0, f64::INFINITY, 0.0),
+            dv: Vec3::new(0.0, f64::INFINITY, 0.0),
+            ..Record::default()
+        },
+        Record {
+            t: f64::NAN,
+            ..Record::default()
+        },
+        Record {
+            flags: imu_emu::record::FLAG_INVALID,
+            ..Record::default()
+        },
+    ];
+    for name in protocol::builtin_names() {
+        let (_, plan) = protocol::load(name).unwrap();
+        for (i, r) in bad.iter().enumerate() {
+            // Which non-finite quantities this protocol carries at all.
+            let sources = plan.value_sources().concat();
+            let carried = match i {
+                0 => sources.contains(&Source::Gyro(0)) || sources.contains(&Source::DTheta(0)),
+                1 => sources.contains(&Source::Accel(1)) || sources.contains(&Source::Dv(1)),
+                2 => sources.iter().any(|s| {
+                    matches!(
+                        s,
+                        Source::Time
+                            | Source::GpsSeconds
+                            | Source::GpsWeek
+                            | Source::GpsMillis
+                            | Source::GpsWholeSeconds
+                            | Source::GpsMicros
+                    )
+                }),
+                _ => true,
+            };
+            // A healthy frame first so that a withheld one shows as a counter gap.
+            let mut st = EncoderState::default();
+            let mut bytes = Vec::new();
+            for (k, rec) in [&Record::default(), r, &Record::default()]
+                .into_iter()
+                .enumerate()
+            {
+                let mut rec = *rec;
+                if !rec.t.is_nan() {
+                    rec.t = 1.0 + 0.01 * k as f64;
+                }
+                plan.encode(&rec, 25.0, &mut st, &mut bytes);
+            }
+            let (frames, stats) = decode_stream(&plan, &bytes);
+            for f in &frames {
+                assert!(
+                    f.values.iter().all(|v| v.1.is_finite()),
+                    "{name} case {i}: {f:?}"
+                );
+            }
+            if !carried {
+                assert_eq!(
+                    (frames.len(), stats.status_flagged),
+                    (3, 0),
+                    "{name} case {i}"
+                );
+            } else if st.withheld == 1 {
+                assert_eq!(frames.len(), 2, "{name} case {i}");
+                if plan.counter().is_some() {
+                    assert_eq!(stats.counter_gaps, 1, "{name} case {i}: {stats:?}");
+                }
+            } else {
+                assert_eq!(st.withheld, 0, "{name} case {i}");
+                assert_eq!(frames.len(), 3, "{name} case {i}");
+                assert!(
+                    frames[1].flagged && !frames[0].flagged,
+                    "{name} case {i}: failure bits"
+                );
+            }
+        }
+        let mavlink_or_novatel = name.starts_with("mavlink") || name.starts_with("novatel");
+        let mut st = EncoderState::default();
+        plan.encode(&bad[3], 25.0, &mut st, &mut Vec::new());
+        assert_eq!(st.withheld == 1, mavlink_or_novatel, "{name}");
+    }
+}
+
+/// An error with a cause prints the cause once: the cause is the error's `source()`, not
+/// repeated in its message.
+#[test]
+fn spec_errors_do_not_repeat_their_cause() {
+    let e = protocol::load_file(Path::new("/nonexistent/imu-emu/x.toml")).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("x.toml") && !text.contains("os error"),
+        "{text}"
+    );
+    let source = std::error::Error::source(&e)
+        .expect("the I/O error is the source")
+        .to_string();
+    assert!(source.contains("os error 2"), "{source}");
 }

@@ -23,8 +23,10 @@ pub struct DecodeArgs {
     /// A protocol spec file.
     #[arg(long)]
     pub protocol_file: Option<PathBuf>,
-    /// The stream's frame rate (Hz), for counters that advance with it (STIM300)
-    /// [default: the protocol's nominal rate].
+    /// The stream's frame rate (Hz): for counters that advance with it (STIM300) [default: the
+    /// protocol's nominal rate], and for the record columns a frame lacks (rates from increments
+    /// or increments from rates) [default: from the frames' time tags; without them those
+    /// columns stay empty].
     #[arg(long)]
     pub rate: Option<f64>,
     /// Input file, or - for stdin [default: stdin].
@@ -116,15 +118,14 @@ fn open_udp(addr: &str) -> Result<UdpSocket> {
 
 /// `imu-emu decode`: frames in, CSV of the decoded values out, a tally on stderr.
 pub fn decode(a: DecodeArgs) -> Result<()> {
-    let spec = match (&a.protocol, &a.protocol_file) {
-        (Some(n), _) => n.clone(),
-        (None, Some(p)) => p.to_string_lossy().into_owned(),
+    let (_, mut plan) = match (&a.protocol, &a.protocol_file) {
+        (Some(n), _) => imu_emu::protocol::load(n)?,
+        (None, Some(p)) => imu_emu::protocol::load_file(p)?,
         (None, None) => bail!(
             "give --protocol NAME ({}) or --protocol-file FILE",
             imu_emu::protocol::builtin_names().join(", ")
         ),
     };
-    let (_, mut plan) = imu_emu::protocol::load(&spec)?;
     if let Some(rate) = a.rate {
         plan.set_rate(rate)
             .map_err(|e| anyhow::anyhow!("--rate: {e}"))?;
@@ -176,7 +177,23 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     } else {
         Vec::new()
     };
-    let dt = a.rate.or(plan.rate_hz).map(|r| 1.0 / r);
+    // The frame interval of the record columns a frame lacks: --rate, else the frames' time
+    // tags; never the nominal rate, which a stream at another rate would silently mis-scale.
+    let fixed_dt = a.rate.map(|r| 1.0 / r);
+    let mut interval = imu_emu::protocol::FrameInterval::default();
+    if contract && !a.tally_only && fixed_dt.is_none() && plan.needs_interval() {
+        if plan.carries_time() {
+            eprintln!(
+                "imu-emu decode: `{}` frames lack rates or increments: derived over the interval of their time tags (give --rate HZ to set it)",
+                plan.name
+            );
+        } else {
+            eprintln!(
+                "imu-emu decode: `{}` frames lack rates or increments and carry no time tag: those columns are left empty; give --rate HZ (the stream's rate) to derive them",
+                plan.name
+            );
+        }
+    }
     // Per message, the column of each decoded value (None: carried by the contract columns).
     let sources = plan.value_sources();
     let slots: Vec<Vec<Option<usize>>> = (0..plan.messages())
@@ -227,6 +244,7 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
             break;
         }
         let Some(n) = input.read(&mut buf)? else {
+            dec.finish();
             break;
         };
         let now = monotonic_ns();
@@ -242,6 +260,7 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
             line.clear();
             cells.iter_mut().for_each(|c| *c = None);
             if contract {
+                let dt = fixed_dt.or_else(|| interval.observe(d));
                 cells[..13].copy_from_slice(&d.contract(dt));
             }
             for (slot, (_, v)) in slots[d.message].iter().zip(&d.values) {
@@ -281,10 +300,11 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         }
     }
     out.flush()?;
-    eprintln!(
-        "imu-emu decode: {}",
-        tally(&dec.stats(), live.then_some(&gaps))
-    );
+    let stats = dec.stats();
+    eprintln!("imu-emu decode: {}", tally(&stats, live.then_some(&gaps)));
+    if stats.frames == 0 {
+        bail!("no valid `{}` frame in the input", dec.plan().name);
+    }
     Ok(())
 }
 
@@ -301,6 +321,9 @@ fn tally(s: &StreamStats, gaps: Option<&Lateness>) -> String {
         s.skipped_bytes,
         s.framing_errors
     );
+    if s.truncated > 0 {
+        t += &format!(", {} frame cut short at the end", s.truncated);
+    }
     if let Some(g) = gaps.filter(|g| g.count() > 0) {
         t += &format!(", inter-frame time {}", g.summary());
     }

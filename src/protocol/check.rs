@@ -6,10 +6,9 @@
 //!
 //! Why names and not polynomials: the IMU world uses several CRCs that share a polynomial and
 //! differ only in init/reflection/final XOR (KVH's CRC-32/MPEG-2, zlib's CRC-32/ISO-HDLC and
-//! NovAtel's CRC-32 all use 0x04C11DB7 and give three different results; PROTOCOLS.md (c)
-//! "CRC variants look alike"). Names from the reveng catalogue
+//! NovAtel's CRC-32 all use 0x04C11DB7 and give three different results). Names from the reveng catalogue
 //! (<https://reveng.sourceforge.io/crc-catalogue/all.htm>) are unambiguous, and every CRC here is
-//! unit-tested against its catalogue check value over `"123456789"` (PROTOCOLS.md appendix).
+//! unit-tested against its catalogue check value over `"123456789"`.
 //!
 //! The value returned by [`Check::compute`] is the number the frame carries; its byte order on
 //! the wire is the protocol's business (KVH: big-endian, NovAtel: little-endian, …). Two-byte
@@ -24,8 +23,8 @@ use serde::Deserialize;
 use serde::de::{self, Deserializer, MapAccess, Visitor};
 
 /// NovAtel OEM CRC-32: reflected 0x04C11DB7 (0xEDB88320), init 0, no final XOR. Not in the
-/// reveng catalogue (CRC-32/JAMCRC has init 0xFFFFFFFF); PROTOCOLS.md §7 and appendix give the
-/// parameters and the check value 0x2DFD2D88.
+/// reveng catalogue (CRC-32/JAMCRC has init 0xFFFFFFFF); NovAtel's OEM7 documentation ("32-bit
+/// CRC") gives the algorithm; its check value is 0x2DFD2D88.
 pub const CRC_32_NOVATEL: Algorithm<u32> = Algorithm {
     width: 32,
     poly: 0x04c1_1db7,
@@ -78,41 +77,41 @@ pub struct CustomCrc {
 /// Which integrity check a frame carries (names are the reveng catalogue's, lower case).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CheckKind {
-    /// `crc-32/mpeg-2`: KVH 1750/1775, STIM300 (PROTOCOLS.md §4, §5).
+    /// `crc-32/mpeg-2`: KVH 1750/1775, STIM300.
     Crc32Mpeg2,
-    /// `crc-32/iso-hdlc`: zlib/Ethernet CRC-32, HDLC FCS-32, ADIS16495 burst (§6.1).
+    /// `crc-32/iso-hdlc`: zlib/Ethernet CRC-32, HDLC FCS-32, ADIS16495 burst.
     Crc32IsoHdlc,
     /// `crc-32/iscsi`: CRC-32C (Castagnoli).
     Crc32Iscsi,
     /// `crc-32/jamcrc`: zlib CRC-32 without the final XOR (not NovAtel's: init differs).
     Crc32Jamcrc,
-    /// `crc-32/novatel`: NovAtel OEM logs (§7); not a catalogue entry, see [`CRC_32_NOVATEL`].
+    /// `crc-32/novatel`: NovAtel OEM logs; not a catalogue entry, see [`CRC_32_NOVATEL`].
     Crc32Novatel,
-    /// `crc-16/xmodem`: iXCOM (§3), VectorNav (§6.5).
+    /// `crc-16/xmodem`: iXCOM, VectorNav.
     Crc16Xmodem,
-    /// `crc-16/ibm-sdlc`: HDLC/SDLC FCS-16, X.25 (§8).
+    /// `crc-16/ibm-sdlc`: HDLC/SDLC FCS-16, X.25.
     Crc16IbmSdlc,
-    /// `crc-16/mcrf4xx`: MAVLink's "X.25" accumulator, before CRC_EXTRA (§6.6).
+    /// `crc-16/mcrf4xx`: MAVLink's "X.25" accumulator, before CRC_EXTRA.
     Crc16Mcrf4xx,
     /// `crc-16/kermit`: the "true" CCITT CRC.
     Crc16Kermit,
     /// `crc-16/ibm-3740`: "CCITT-FALSE".
     Crc16Ibm3740,
-    /// `sum-8`: 8-bit sum of the bytes, wrapping (KVH extended-BIT message, §4).
+    /// `sum-8`: 8-bit sum of the bytes, wrapping (KVH extended-BIT message).
     Sum8,
     /// `xor-8`: XOR of the bytes.
     Xor8,
-    /// `zero-sum-8`: the byte that makes the 8-bit sum of data and check 0 (Xsens, §6.4).
+    /// `zero-sum-8`: the byte that makes the 8-bit sum of data and check 0 (Xsens).
     ZeroSum8,
     /// `fletcher-16/ubx`: u-blox's two running 8-bit sums (mod 256, not RFC 1146's mod 255),
-    /// returned as `CK_A | CK_B << 8` so that little-endian writes CK_A first (§6.3).
+    /// returned as `CK_A | CK_B << 8` so that little-endian writes CK_A first.
     Fletcher16Ubx,
-    /// `sum-16/le`: wrapping sum of little-endian 16-bit words (Honeywell HG4930, §2.1).
+    /// `sum-16/le`: wrapping sum of little-endian 16-bit words (Honeywell HG4930).
     Sum16Le,
-    /// `sum-16/be`: wrapping sum of big-endian 16-bit words (Epson UART burst, §6.2).
+    /// `sum-16/be`: wrapping sum of big-endian 16-bit words (Epson UART burst).
     Sum16Be,
     /// `zero-sum-16/le`: the word that makes the LE word sum of data and check 0 (an LN-200
-    /// checksum candidate, §1.4 [U]).
+    /// checksum candidate [U]).
     ZeroSum16Le,
     /// A CRC given by its parameters.
     Custom(CustomCrc),
@@ -652,8 +651,8 @@ mod tests {
         Check::named(name).unwrap()
     }
 
-    /// Catalogue check values over "123456789": PROTOCOLS.md appendix for the first seven,
-    /// RUST-NOTES.md §3.3 / reveng for KERMIT, IBM-3740, ISCSI; reveng for JAMCRC.
+    /// Catalogue check values over "123456789" from the reveng catalogue (NovAtel's from its
+    /// CRC-32 routine).
     #[test]
     fn catalogue_check_values() {
         let cases: &[(&str, u64)] = &[
@@ -721,7 +720,7 @@ mod tests {
         );
     }
 
-    /// PROTOCOLS.md §4: real KVH 1750 Format A frame (TRECVT/ros_kvh1750 test/utest.cpp
+    /// Real KVH 1750 Format A frame (TRECVT/ros_kvh1750 test/utest.cpp
     /// "basic"), CRC-32/MPEG-2 over bytes 0..32, stored big-endian.
     #[test]
     fn kvh1750_real_frame() {
@@ -737,7 +736,7 @@ mod tests {
         );
     }
 
-    /// PROTOCOLS.md §4: KVH extended-BIT message `FE 81 00 AA` + 6 bytes + 1-byte additive
+    /// KVH extended-BIT message `FE 81 00 AA` + 6 bytes + 1-byte additive
     /// checksum over all preceding bytes (the documented normal message).
     #[test]
     fn kvh_extended_bit_sum8() {
@@ -745,7 +744,7 @@ mod tests {
         assert_eq!(named("sum-8").compute(&f[..10]), 0x23);
     }
 
-    /// PROTOCOLS.md §3: real iXCOM IMURAW frame (swift-nav/gnss-converters capture),
+    /// Real iXCOM IMURAW frame (swift-nav/gnss-converters capture),
     /// CRC-16/XMODEM over bytes 0..42, stored little-endian `49 10`.
     #[test]
     fn ixcom_imuraw_real_frame() {
@@ -758,7 +757,7 @@ mod tests {
         assert_eq!(crc, u64::from(u16::from_le_bytes([f[42], f[43]])));
     }
 
-    /// PROTOCOLS.md §7: NovAtel RAWIMUSXB worked example (EDIE round trip), NovAtel CRC-32 over
+    /// NovAtel RAWIMUSXB worked example (EDIE round trip), NovAtel CRC-32 over
     /// sync..payload, stored little-endian (0xAB4CDC13).
     #[test]
     fn novatel_rawimusxb_example() {
@@ -775,7 +774,7 @@ mod tests {
         );
     }
 
-    /// PROTOCOLS.md §6.6: pymavlink HIL_SENSOR; CRC-16/MCRF4XX over the bytes after STX, then
+    /// pymavlink HIL_SENSOR; CRC-16/MCRF4XX over the bytes after STX, then
     /// CRC_EXTRA 108; stored little-endian (0x9D52).
     #[test]
     fn mavlink_hil_sensor_example() {
@@ -793,7 +792,7 @@ mod tests {
         assert_ne!(c.compute(&f[1..n - 2]), 0x9D52);
     }
 
-    /// PROTOCOLS.md §5 constructed example (from the datasheet, not a capture): STIM300 0x93,
+    /// Constructed example (from the datasheet, not a capture): STIM300 0x93,
     /// CRC-32/MPEG-2 over the 34 bytes plus two untransmitted zero bytes = 0x0BC9E7B7.
     #[test]
     fn stim300_constructed_example_with_padding() {
@@ -809,7 +808,7 @@ mod tests {
         assert_eq!(c.compute(&padded), 0x0BC9_E7B7);
     }
 
-    /// PROTOCOLS.md appendix constructed example: HG4930 control message 0x01, 16-bit sum of
+    /// Constructed example: HG4930 control message 0x01, 16-bit sum of
     /// the 9 little-endian words before the checksum (address+ID word included) = 0xFDB1.
     #[test]
     fn hg4930_constructed_example() {
@@ -820,7 +819,7 @@ mod tests {
         assert_eq!(s, u64::from(u16::from_le_bytes([f[18], f[19]])));
     }
 
-    /// PROTOCOLS.md appendix constructed example: Epson G370 burst, 16-bit sum of the
+    /// Constructed example: Epson G370 burst, 16-bit sum of the
     /// big-endian words between header 0x80 and the checksum = 0x8CDC.
     #[test]
     fn epson_constructed_example() {

@@ -7,6 +7,8 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use super::spec::compact;
+
 /// What can go wrong with a frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum FaultKind {
@@ -103,7 +105,9 @@ impl FaultSpec {
             When::Rate(r) => {
                 if !(r.is_finite() && *r >= 0.0 && *r <= frame_rate) {
                     return Err(FaultError::Value(format!(
-                        "rate {r}/s: expected 0 to the frame rate {frame_rate}/s"
+                        "rate {}/s: expected 0 to the frame rate {}/s",
+                        compact(*r),
+                        compact(frame_rate)
                     )));
                 }
             }
@@ -111,7 +115,7 @@ impl FaultSpec {
         if !(self.duration_s.is_finite() && self.duration_s >= 0.0) {
             return Err(FaultError::Value(format!(
                 "duration {} s: expected a non-negative time",
-                self.duration_s
+                compact(self.duration_s)
             )));
         }
         if self.duration_s > 0.0 && self.kind != FaultKind::Status {

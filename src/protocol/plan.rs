@@ -1,17 +1,18 @@
 //! A frame specification compiled once into flat plans of byte offsets and conversions (one
 //! per message layout, [`super::layout`]), run per frame to encode records and decode frames
-//! (RUST-NOTES §3.2: as fast as hand-written code, and a user's TOML file needs no
-//! recompiling). The plan strings the layouts together: the schedule of messages, Δθ/ΔV
+//! (as fast as hand-written code, and a user's TOML file needs no recompiling). The plan strings the layouts together: the schedule of messages, Δθ/ΔV
 //! accumulation, the SDLC/HDLC transport and injected faults.
 
 use std::path::Path;
 
-use super::faults::{FaultError, FaultInjector, FaultKind, FrameFaults};
+use super::compile::{compile_layout, tick_step};
+use super::faults::{FaultError, FaultKind, FrameFaults};
+use super::frame::{DecodeError, Decoded, EncoderState};
 use super::framing::{self, BitWriter, Fcs, HdlcOptions, SdlcOptions};
-use super::layout::{Layout, What, compile_layout, tick_step};
-use super::spec::{FrameSpec, ScheduleBy, Source, SpecError};
+use super::layout::{Layout, What};
+use super::spec::{FrameSpec, MAX_MESSAGES, MAX_RATE_HZ, ScheduleBy, Source, SpecError, compact};
 use crate::math::Vec3;
-use crate::record::Record;
+use crate::record::{FLAG_INVALID, Record};
 
 /// What carries the frame on the line.
 #[derive(Clone, Debug)]
@@ -43,125 +44,6 @@ pub struct Plan {
     by_counter: bool,
 }
 
-/// Encoder state carried from frame to frame (the counter) and the run's time reference.
-#[derive(Clone, Debug, Default)]
-pub struct EncoderState {
-    /// Frames encoded so far (dropped ones included).
-    pub frames: u64,
-    /// Frames on which the counter did not advance (stale-counter faults).
-    pub stalled: u64,
-    /// Faults to inject, if any (boxed: the state travels inside the job's encoding).
-    pub faults: Option<Box<FaultInjector>>,
-    /// The synchronous line of an SDLC transport (NRZI level across frames).
-    pub line: Option<Box<BitWriter>>,
-    /// Reused buffer of a frame before its transport.
-    pub scratch: Vec<u8>,
-    /// Δθ and ΔV summed since an accumulating message was last sent.
-    pub sums: [Vec3; 2],
-    /// GPS week of the record time t = 0.
-    pub gps_week0: u32,
-    /// GPS seconds of week of the record time t = 0. GPS fields carry (week0, sow0) + t, kept
-    /// split so that seconds of week stay exact to the record's own time resolution. With
-    /// both 0, record times are GPS seconds since the epoch (1980-01-06).
-    pub gps_sow0: f64,
-}
-
-/// Seconds in a GPS week.
-pub const GPS_WEEK_S: f64 = 604_800.0;
-
-/// Why a frame does not decode.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum DecodeError {
-    /// Fewer bytes than a frame.
-    #[error("{got} bytes, a frame has {need}")]
-    Short {
-        /// Bytes given.
-        got: usize,
-        /// Frame length.
-        need: usize,
-    },
-    /// A constant field (sync word, fixed status) has another value.
-    #[error("field `{field}`: {got:#x}, expected {expected:#x}")]
-    Constant {
-        /// Field name.
-        field: String,
-        /// Value found.
-        got: i64,
-        /// Value expected.
-        expected: i64,
-    },
-    /// A truncated frame's length field is out of range.
-    #[error("length field {got}: expected 1 to {max}")]
-    Length {
-        /// Value found.
-        got: i64,
-        /// Full payload length.
-        max: usize,
-    },
-    /// The integrity check does not match.
-    #[error("check: frame carries {got:#x}, computed {computed:#x}")]
-    Check {
-        /// Transmitted.
-        got: u64,
-        /// Computed.
-        computed: u64,
-        /// Length of the frame whose boundary was found.
-        len: usize,
-    },
-}
-
-/// A decoded frame: every quantity field's value in SI, by field order.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Decoded {
-    /// (source, value) of each quantity, counter and status field, in wire order.
-    pub values: Vec<(Source, f64)>,
-    /// Some status word differs from its healthy value.
-    pub flagged: bool,
-    /// Index of the message layout (0 for single-layout protocols).
-    pub message: usize,
-    /// Bytes the frame took (before any transport).
-    pub len: usize,
-}
-
-impl Decoded {
-    /// The value of a source, if the frame carries it.
-    pub fn get(&self, s: Source) -> Option<f64> {
-        self.values.iter().find(|v| v.0 == s).map(|v| v.1)
-    }
-
-    /// The record contract's columns `t, gyro, accel, dtheta, dv` (13) from this frame: the
-    /// time from the time tag or GPS seconds of week; a rate the frame lacks from its
-    /// increment over `dt`, an increment from its rate times `dt` (None without `dt`).
-    pub fn contract(&self, dt: Option<f64>) -> [Option<f64>; 13] {
-        let mut out = [None; 13];
-        out[0] = self.get(Source::Time).or(self.get(Source::GpsSeconds));
-        for a in 0..3 {
-            for (rate, inc, col) in [
-                (Source::Gyro(a), Source::DTheta(a), 1 + a),
-                (Source::Accel(a), Source::Dv(a), 4 + a),
-            ] {
-                let (r, i) = (self.get(rate), self.get(inc));
-                out[col] = r.or_else(|| Some(i? / dt?));
-                out[col + 6] = i.or_else(|| Some(r? * dt?));
-            }
-        }
-        out
-    }
-
-    /// True for the quantities [`Decoded::contract`] carries.
-    pub fn in_contract(s: Source) -> bool {
-        matches!(
-            s,
-            Source::Gyro(_)
-                | Source::Accel(_)
-                | Source::DTheta(_)
-                | Source::Dv(_)
-                | Source::Time
-                | Source::GpsSeconds
-        )
-    }
-}
-
 impl Plan {
     /// Validates and compiles a spec (`path` for messages).
     pub fn compile(spec: &FrameSpec, path: &Path) -> Result<Plan, SpecError> {
@@ -169,6 +51,39 @@ impl Plan {
             path: path.to_path_buf(),
             message,
         };
+        if let Some(r) = spec.rate_hz
+            && !(r.is_finite() && r > 0.0 && r <= MAX_RATE_HZ)
+        {
+            return Err(syntax(format!(
+                "`rate_hz` = {}: expected a rate in (0, {}] Hz",
+                compact(r),
+                compact(MAX_RATE_HZ)
+            )));
+        }
+        if spec.baud == Some(0) {
+            return Err(syntax("`baud` = 0: expected a link speed in bit/s".into()));
+        }
+        let (messages, entries) = (
+            spec.message.len(),
+            spec.schedule.as_ref().map_or(0, Vec::len),
+        );
+        if messages.max(entries) > MAX_MESSAGES {
+            return Err(syntax(format!(
+                "{messages} messages, {entries} schedule entries: at most {MAX_MESSAGES} of each"
+            )));
+        }
+        if let Some((i, m)) = spec
+            .message
+            .iter()
+            .enumerate()
+            .find(|(i, m)| spec.message[..*i].iter().any(|o| o.name == m.name))
+        {
+            return Err(syntax(format!(
+                "`[[message]]` {}: a second message named `{}`",
+                i + 1,
+                m.name
+            )));
+        }
         let layouts = if spec.message.is_empty() {
             vec![compile_layout(
                 &spec.name,
@@ -252,8 +167,9 @@ impl Plan {
             {
                 *step = tick_step(*t, rate).ok_or_else(|| {
                     format!(
-                        "`{}` counts {t} ticks/s, so the rate must divide {t} (got {rate} Hz)",
-                        self.name
+                        "`{}` counts {t} ticks/s, so the rate must divide {t} (got {} Hz)",
+                        self.name,
+                        compact(rate)
                     )
                 })?;
             }
@@ -290,7 +206,10 @@ impl Plan {
 
     /// Appends the line bytes of the frame of `r` to `out`, with the faults the state's
     /// injector decides (none, one frame, two identical frames). Values beyond a field's range
-    /// saturate and raise the status overrange bits, as do the record's saturation flags.
+    /// saturate and raise the status overrange bits, as do the record's saturation flags. A
+    /// value that is not finite (or the record's [`FLAG_INVALID`]) raises the status word's
+    /// failure bits; a message without a status word with a failure model is then not sent
+    /// (counted in [`EncoderState::withheld`]).
     /// `temperature` is the sensor temperature (°C) if the frame carries one.
     pub fn encode(
         &self,
@@ -330,19 +249,30 @@ impl Plan {
         }
         // A corrupted frame carries a wrong check; without one, its transport FCS is wrong.
         let corrupt_fcs = f.corrupt && layout.check.is_none();
+        // A value that is not a measurement in a message with no status word to report it: the
+        // frame is withheld like a dropped one (its counter value skipped, a gap for a receiver)
+        // rather than sent as if healthy.
+        let withhold = |flags: u8| flags & FLAG_INVALID != 0 && !layout.reports_failure();
         match &self.transport {
             Transport::Plain => {
                 let start = out.len();
-                layout.encode(&rec, temperature, state, f, out);
-                if f.duplicate {
+                if withhold(layout.encode(&rec, temperature, state, f, out)) {
+                    out.truncate(start);
+                    state.withheld += 1;
+                } else if f.duplicate {
                     out.extend_from_within(start..);
                 }
             }
             transport => {
                 let mut frame = std::mem::take(&mut state.scratch);
                 frame.clear();
-                layout.encode(&rec, temperature, state, f, &mut frame);
-                for _ in 0..1 + usize::from(f.duplicate) {
+                let sends = if withhold(layout.encode(&rec, temperature, state, f, &mut frame)) {
+                    state.withheld += 1;
+                    0
+                } else {
+                    1 + usize::from(f.duplicate)
+                };
+                for _ in 0..sends {
                     match transport {
                         Transport::Sdlc(o) => {
                             let w = state
@@ -415,6 +345,12 @@ impl Plan {
             .any(|l| l.constants_match(bytes).is_ok())
     }
 
+    /// True when `bytes` start with the constants of some message (at least one of them
+    /// whole): the start of a frame, however short.
+    pub fn starts_frame(&self, bytes: &[u8]) -> bool {
+        self.layouts.iter().any(|l| l.starts_frame(bytes))
+    }
+
     /// The counter's (modulo, step), if the frames carry one.
     pub fn counter(&self) -> Option<(u64, u64)> {
         self.layouts
@@ -473,6 +409,25 @@ impl Plan {
     /// Names of the decoded values' fields of the first message.
     pub fn value_names(&self) -> Vec<&str> {
         self.value_names_of(0)
+    }
+
+    /// Whether some message carries a rate without its increment or an increment without its
+    /// rate, so that [`Decoded::contract`] needs the frame interval.
+    pub fn needs_interval(&self) -> bool {
+        self.value_sources().iter().any(|m| {
+            (0..3).any(|a| {
+                let has = |s: Source| m.contains(&s);
+                has(Source::Gyro(a)) != has(Source::DTheta(a))
+                    || has(Source::Accel(a)) != has(Source::Dv(a))
+            })
+        })
+    }
+
+    /// Whether every message carries a time tag [`Decoded::contract`] reads.
+    pub fn carries_time(&self) -> bool {
+        self.value_sources()
+            .iter()
+            .all(|m| m.contains(&Source::Time) || m.contains(&Source::GpsSeconds))
     }
 
     /// Whether message `m` carries Δθ/ΔV summed since it was last sent.
@@ -576,22 +531,25 @@ fn check_counter_schedule(layouts: &[Layout], slots: usize) -> Result<(), String
     Ok(())
 }
 
+/// `frame` followed by a wrong `fcs` (its first byte flipped): sent with the transport's own
+/// FCS off, a frame whose FCS does not match.
+fn with_wrong_fcs(frame: &[u8], fcs: Fcs) -> Vec<u8> {
+    let mut bad = frame.to_vec();
+    let mut wrong = fcs.bytes(frame);
+    wrong[0] ^= 1;
+    bad.extend_from_slice(&wrong[..fcs.len()]);
+    bad
+}
+
 /// One SDLC frame on the line, then marks to the next byte boundary (idle), optionally with a
 /// wrong FCS.
 fn sdlc_frame(frame: &[u8], o: &SdlcOptions, corrupt_fcs: bool, w: &mut BitWriter) {
     if corrupt_fcs {
-        let mut bad = frame.to_vec();
-        let mut fcs = o.fcs.bytes(frame);
-        fcs[0] ^= 1;
-        bad.extend_from_slice(&fcs[..o.fcs.len()]);
-        framing::sdlc_encode(
-            &bad,
-            &SdlcOptions {
-                fcs: Fcs::None,
-                ..*o
-            },
-            w,
-        );
+        let no_fcs = SdlcOptions {
+            fcs: Fcs::None,
+            ..*o
+        };
+        framing::sdlc_encode(&with_wrong_fcs(frame, o.fcs), &no_fcs, w);
     } else {
         framing::sdlc_encode(frame, o, w);
     }
@@ -601,18 +559,11 @@ fn sdlc_frame(frame: &[u8], o: &SdlcOptions, corrupt_fcs: bool, w: &mut BitWrite
 /// One asynchronous HDLC frame, optionally with a wrong FCS.
 fn hdlc_frame(frame: &[u8], o: &HdlcOptions, corrupt_fcs: bool, out: &mut Vec<u8>) {
     if corrupt_fcs {
-        let mut bad = frame.to_vec();
-        let mut fcs = o.fcs.bytes(frame);
-        fcs[0] ^= 1;
-        bad.extend_from_slice(&fcs[..o.fcs.len()]);
-        framing::hdlc_encode(
-            &bad,
-            &HdlcOptions {
-                fcs: Fcs::None,
-                ..*o
-            },
-            out,
-        );
+        let no_fcs = HdlcOptions {
+            fcs: Fcs::None,
+            ..*o
+        };
+        framing::hdlc_encode(&with_wrong_fcs(frame, o.fcs), &no_fcs, out);
     } else {
         framing::hdlc_encode(frame, o, out);
     }

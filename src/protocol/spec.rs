@@ -353,9 +353,31 @@ pub struct FrameSpec {
     pub test_vector: Vec<TestVector>,
 }
 
+/// Most fields in one message: several times the longest real frame's (MAVLink 2's 255-byte
+/// payload of one-byte fields would need 265), so that a runaway generated file is refused
+/// rather than compiled.
+pub const MAX_FIELDS: usize = 512;
+/// Most bytes in one frame (fields and check), before any transport: MAVLink 2's longest packet
+/// is 280 bytes; the IMU frames here have 13 to 72.
+pub const MAX_FRAME_BYTES: usize = 2048;
+/// Most messages of one protocol, and most entries in its schedule.
+pub const MAX_MESSAGES: usize = 256;
+/// Largest specification file read (bytes); the built-ins have 3 to 10 kB.
+pub const MAX_SPEC_BYTES: u64 = 1 << 20;
+/// Highest `rate_hz` a spec can give (Hz), as for a run's `--rate`.
+pub const MAX_RATE_HZ: f64 = 1e7;
+
 /// A specification that cannot be used, naming the file, the field and the problem.
 #[derive(Debug, thiserror::Error)]
 pub enum SpecError {
+    /// Neither a built-in protocol nor a spec file.
+    #[error("unknown protocol `{name}`: neither a built-in ({builtin}) nor an existing spec file")]
+    Unknown {
+        /// The name or path given.
+        name: String,
+        /// The built-in names, comma-separated.
+        builtin: String,
+    },
     /// Unreadable file.
     #[error("{path}: cannot read")]
     Io {
@@ -393,6 +415,16 @@ pub enum SpecError {
     },
 }
 
+/// A number for a message: as written when short, in exponent form when huge or tiny (a
+/// 300-digit `1e300` stays `1e300`).
+pub fn compact(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e12).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 impl FrameSpec {
     /// Parses spec text; `path` is used in messages.
     pub fn parse(text: &str, path: &Path) -> Result<FrameSpec, SpecError> {
@@ -400,14 +432,5 @@ impl FrameSpec {
             path: path.to_path_buf(),
             message: e.to_string().trim().replace('\n', " "),
         })
-    }
-
-    /// Reads and parses a spec file.
-    pub fn read(path: &Path) -> Result<FrameSpec, SpecError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SpecError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        FrameSpec::parse(&text, path)
     }
 }

@@ -2,8 +2,9 @@
 //! SDLC/HDLC transport), resynchronises after garbage, and counts what a receiver would flag —
 //! check failures, counter gaps, repeated frames and counters, status failures, skipped bytes.
 
+use super::frame::{DecodeError, Decoded};
 use super::framing::{ByteUnstuffer, FrameError, SdlcDecoder};
-use super::plan::{DecodeError, Decoded, Plan, Transport};
+use super::plan::{Plan, Transport};
 use super::spec::Source;
 
 /// What a stream contained besides good frames.
@@ -26,6 +27,33 @@ pub struct StreamStats {
     pub skipped_bytes: u64,
     /// SDLC/HDLC frames rejected for framing (aborted, misaligned, wrong length or constants).
     pub framing_errors: u64,
+    /// A frame begun but cut short by the end of the input ([`StreamDecoder::finish`]).
+    pub truncated: u64,
+}
+
+/// The stream's frame interval from the time tags of its frames: the smallest positive
+/// difference between consecutive ones (a lost frame only lengthens one difference, a repeated
+/// frame or a wrapped timestamp gives none that counts).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FrameInterval {
+    last: Option<f64>,
+    dt: Option<f64>,
+}
+
+impl FrameInterval {
+    /// Takes a frame's time tag; returns the interval known so far (s).
+    pub fn observe(&mut self, d: &Decoded) -> Option<f64> {
+        if let Some(t) = d.get(Source::Time).or(d.get(Source::GpsSeconds)) {
+            if let Some(l) = self.last {
+                let step = t - l;
+                if step > 0.0 && self.dt.is_none_or(|dt| step < dt) {
+                    self.dt = Some(step);
+                }
+            }
+            self.last = Some(t);
+        }
+        self.dt
+    }
 }
 
 /// What the decoder remembers of the previous good frame.
@@ -79,6 +107,33 @@ impl StreamDecoder {
     /// Counts so far.
     pub fn stats(&self) -> StreamStats {
         self.tally.stats
+    }
+
+    /// The input has ended: counts a frame begun and not finished as truncated, and any other
+    /// bytes left over as skipped.
+    pub fn finish(&mut self) {
+        let stats = &mut self.tally.stats;
+        match &mut self.deframer {
+            Deframer::Plain(buf) => {
+                // A frame start: constants that match, or right after a good frame when the
+                // frames have none.
+                let start = (0..buf.len()).find(|&p| {
+                    self.plan.starts_frame(&buf[p..])
+                        || (p == 0 && self.tally.locked && !self.plan.has_sync())
+                });
+                stats.skipped_bytes += start.unwrap_or(buf.len()) as u64;
+                stats.truncated += u64::from(start.is_some());
+                buf.clear();
+            }
+            Deframer::Sdlc(dec) => {
+                stats.truncated += u64::from(dec.pending_bits() >= 8);
+                dec.reset();
+            }
+            Deframer::Hdlc(dec) => {
+                stats.truncated += u64::from(dec.pending() > 0);
+                dec.reset();
+            }
+        }
     }
 
     /// Feeds bytes; calls `frame` for every good frame, in order (duplicates included).

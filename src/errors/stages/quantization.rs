@@ -6,10 +6,8 @@ use crate::errors::model::{Sensor, StageKind, TriadModel};
 use crate::errors::process::{QuantMode, Quantizer};
 use crate::units::Lsb;
 
-/// Record flag: a gyro axis was saturated.
-pub const FLAG_GYRO_SATURATED: u8 = 1;
-/// Record flag: an accelerometer axis was saturated.
-pub const FLAG_ACCEL_SATURATED: u8 = 2;
+/// The record owns its status flags; saturation sets these.
+pub use crate::record::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED};
 
 /// The output interface of one triad.
 #[derive(Clone, Debug)]
