@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use crate::errors::ErrorChain;
 use crate::generator::IdealImu;
 use crate::motion::Motion;
-use crate::motion::sampled::{ModelError, ModelSettings, SampledMotion};
+use crate::motion::sampled::{ModelError, ModelSettings};
 use crate::output::{self, Format};
 use crate::record::Record;
 use crate::scenes::{self, SceneParamError, SceneParams, UnknownScene};
@@ -80,22 +80,7 @@ pub enum JobError {
 pub fn build_motion(source: &SourceSpec, model: ModelSettings) -> Result<AnyMotion, JobError> {
     match source {
         SourceSpec::Scene(name, params) => Ok(AnyMotion::Scene(scenes::build(name, params)??)),
-        SourceSpec::File(path) => {
-            let samples = trajectory::read(path)?;
-            if samples.len() < model.min_samples() {
-                return Err(TrajectoryError::TooFewSamples {
-                    path: path.clone(),
-                    got: samples.len(),
-                    need: model.min_samples(),
-                }
-                .into());
-            }
-            let m = SampledMotion::new(&samples, model).map_err(|source| JobError::Model {
-                path: path.clone(),
-                source,
-            })?;
-            Ok(AnyMotion::Sampled(m))
-        }
+        SourceSpec::File(path) => Ok(AnyMotion::Sampled(trajectory::open_motion(path, model)?)),
     }
 }
 
