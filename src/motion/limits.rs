@@ -56,13 +56,18 @@ pub fn check_sample(s: &Sample) -> Result<(), Violation> {
         );
     }
     let v = s.v_n.0;
-    let speed = s.v_n.norm();
+    let k = (0..3).fold(0, |m, k| if v[k].abs() > v[m].abs() { k } else { m });
+    // The largest component first: the norm of a huge velocity would overflow to infinity.
+    let speed = if v[k].abs() > MAX_SPEED_M_S {
+        v[k].abs()
+    } else {
+        s.v_n.norm()
+    };
     if speed > MAX_SPEED_M_S {
-        let k = (0..3).fold(0, |m, k| if v[k].abs() > v[m].abs() { k } else { m });
         return violation(
             ["vn", "ve", "vd"][k],
             format!(
-                "speed |(vn, ve, vd)| = {} m/s is above the limit of {} m/s",
+                "speed {} m/s is above the limit of {} m/s",
                 num(speed),
                 num(MAX_SPEED_M_S)
             ),
@@ -136,6 +141,8 @@ mod tests {
         assert!(e.message.contains("1e160 m is outside [-1e5, 1e8] m"), "{e:?}");
         let e = check_sample(&at(0.0, 0.0, -3.0001e4, 0.0)).unwrap_err();
         assert_eq!(e.column, "vn");
+        let e = check_sample(&at(0.0, 0.0, 1e160, 0.0)).unwrap_err();
+        assert!(e.message.contains("speed 1e160 m/s"), "{e:?}");
         let e = check_sample(&at(-2e10, 0.0, 0.0, 0.0)).unwrap_err();
         assert_eq!(e.column, "t");
         let a = at(0.0, 0.0, 0.0, 0.0);
