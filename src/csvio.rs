@@ -289,7 +289,8 @@ mod tests {
         assert_eq!(r.next_fields().unwrap(), Some(vec!["a", "b"]));
         assert_eq!(r.line_no(), 1);
         assert_eq!(r.next_fields().unwrap(), Some(vec!["1", "2"]));
-        assert_eq!((r.line_no(), r.line_offset()), (4, 14));
+        // Offset 12: the 3-byte mark, `a,b\n`, `# c\n` and the blank line precede it.
+        assert_eq!((r.line_no(), r.line_offset()), (4, 12));
         assert_eq!(r.next_fields().unwrap(), Some(vec!["3", "4"]));
         assert_eq!(r.next_fields().unwrap(), None);
         assert_eq!(r.error("x").to_string(), "x.csv:5: x");

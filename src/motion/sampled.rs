@@ -194,7 +194,7 @@ pub(super) fn make_knot<'a>(i: usize, st: Range<usize>, at: impl Fn(usize) -> &'
 pub struct SampledMotion {
     degree: Degree,
     index: Arc<Index>,
-    window: Mutex<Window>,
+    pub(super) window: Mutex<Window>,
 }
 
 impl Clone for SampledMotion {

@@ -134,11 +134,14 @@ impl IndexBuilder {
             column: v.column,
             message: v.message,
         };
+        if let Some((p, _)) = &self.prev
+            && s.t.partial_cmp(&p.t) != Some(std::cmp::Ordering::Greater)
+        {
+            return Err(ModelError::NonIncreasingTime { index });
+        }
+        // The sample's own limits first: they keep the step's differences finite.
         check_sample(s).map_err(limit)?;
         if let Some((p, _)) = &self.prev {
-            if s.t.partial_cmp(&p.t) != Some(std::cmp::Ordering::Greater) {
-                return Err(ModelError::NonIncreasingTime { index });
-            }
             check_step(p, s).map_err(limit)?;
         }
         let prev_q = self.prev.map(|p| p.1);
@@ -361,5 +364,121 @@ impl Window {
         self.prev_q = Some(c.q);
         self.conv.push(c);
         self.next_sample += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{Vec3, quat_from_euler};
+    use crate::motion::Motion;
+    use crate::motion::sampled::SampledMotion;
+
+    /// A turning, climbing vehicle sampled unevenly: heading through ±180° many times (so
+    /// the quaternion hemisphere flips), over more than two histories of knots.
+    fn samples(n: usize) -> Vec<Sample> {
+        (0..n)
+            .map(|i| {
+                let t = i as f64 * 0.01 + 0.003 * ((i * 7919) % 13) as f64 / 13.0;
+                Sample {
+                    t,
+                    lat: 0.7 + 1e-6 * t,
+                    lon: 0.1,
+                    h: 100.0 + t,
+                    v_n: Vec3::new(50.0 * (0.3 * t).cos(), 50.0 * (0.3 * t).sin(), -1.0),
+                    q_b_n: quat_from_euler(0.1 * (2.0 * t).sin(), 0.05, 0.3 * t),
+                }
+            })
+            .collect()
+    }
+
+    /// Knots recomputed after a rewind to a checkpoint equal those computed going forward, to
+    /// the bit: a window stepped back in every way (a little, past the history, to the start,
+    /// by index and by time) answers exactly as a copy that only ever moves forward. A wrong
+    /// checkpoint hemisphere, knot base or stale sample would change some value.
+    #[test]
+    fn rewinds_are_bit_identical_to_forward_evaluation() {
+        let n = 2 * HISTORY + 5 * CHECKPOINT_EVERY + 37;
+        let s = samples(n);
+        let forward = SampledMotion::new(&s, ModelSettings::default()).unwrap();
+        let jumpy = forward.clone();
+        let times: Vec<f64> = (0..n - 1).step_by(97).map(|i| s[i].t + 0.004).collect();
+        let mut expected = Vec::new();
+        let mut hint = 0;
+        for &t in &times {
+            hint = forward.piece_at(t, hint);
+            expected.push((hint, forward.sense(hint, t), forward.piece_end(hint)));
+        }
+        // Largest jumps first and both directions: end, start, middle, then strides back.
+        let mut order: Vec<usize> = vec![times.len() - 1, 0, times.len() / 2];
+        order.extend((0..times.len()).rev().step_by(3));
+        order.extend((0..times.len()).step_by(5));
+        for &k in &order {
+            let t = times[k];
+            let p = jumpy.piece_at(t, 0);
+            assert_eq!(p, expected[k].0, "piece at t = {t}");
+            // Brute force: the last sample at or before t.
+            assert_eq!(p, s.iter().rposition(|x| x.t <= t).unwrap().min(n - 2));
+            assert_eq!(jumpy.sense(p, t), expected[k].1, "sense at t = {t}");
+            assert_eq!(jumpy.piece_end(p), expected[k].2);
+        }
+        assert_eq!(jumpy.pose(times[3]), forward.pose(times[3]));
+        assert!(jumpy.failure().is_none());
+    }
+
+    /// A window never holds more than about two histories of knots, however far it moves.
+    #[test]
+    fn window_is_bounded() {
+        let n = 4 * HISTORY;
+        let s = samples(n);
+        let m = SampledMotion::new(&s, ModelSettings::default()).unwrap();
+        let mut hint = 0;
+        for i in 0..n - 1 {
+            hint = m.piece_at(s[i].t, hint);
+            let _ = m.sense(hint, s[i].t);
+        }
+        let w = m.window.lock().unwrap();
+        assert!(w.knots.len() <= 2 * HISTORY + 1, "{} knots", w.knots.len());
+        assert!(w.conv.len() <= 64 + 2 * 15, "{} samples", w.conv.len());
+    }
+
+    /// A model whose source ends early (the file shrank) evaluates to NaN and says why.
+    #[test]
+    fn lost_source_gives_nan_and_a_reason() {
+        let s = samples(3000);
+        let mut b = IndexBuilder::new(ModelSettings::default());
+        for (i, x) in s.iter().enumerate() {
+            b.push(x, Mark(i as u64, 0)).unwrap();
+        }
+        let short = MemorySamples {
+            samples: Arc::new(s[..2000].to_vec()),
+            next: 0,
+        };
+        let m = SampledMotion::from_source(Box::new(short), b.finish().unwrap(), ModelSettings::default());
+        let p = m.piece_at(s[100].t, 0);
+        assert!(m.sense(p, s[100].t).f_b.x().is_finite());
+        let p = m.piece_at(s[2500].t, p);
+        assert!(m.sense(p, s[2500].t).f_b.x().is_nan());
+        assert_eq!(m.failure().unwrap(), "ended after 2000 samples");
+    }
+
+    /// The first pass refuses what the limits refuse, naming the sample.
+    #[test]
+    fn index_builder_checks_order_and_limits() {
+        let s = samples(20);
+        let mut b = IndexBuilder::new(ModelSettings::default());
+        b.push(&s[1], Mark(0, 0)).unwrap();
+        assert_eq!(
+            b.push(&s[0], Mark(1, 0)),
+            Err(ModelError::NonIncreasingTime { index: 1 })
+        );
+        let mut high = s[2];
+        high.h = 1e160;
+        let e = b.push(&high, Mark(1, 0)).unwrap_err();
+        assert!(matches!(e, ModelError::Limit { index: 1, column: "h", .. }), "{e:?}");
+        assert_eq!(
+            b.finish().unwrap_err(),
+            ModelError::TooFewSamples { got: 1, need: 9 }
+        );
     }
 }
