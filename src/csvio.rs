@@ -106,7 +106,11 @@ pub fn clip(text: &str) -> String {
 pub fn num(x: f64) -> String {
     let plain = x.to_string();
     let short = format!("{x:e}");
-    if short.len() < plain.len() { short } else { plain }
+    if short.len() < plain.len() {
+        short
+    } else {
+        plain
+    }
 }
 
 /// Parses a field as a finite number; the message (for a column error) quotes the clipped text.
@@ -141,7 +145,10 @@ pub struct CsvLines<R> {
 impl CsvLines<BufReader<Box<dyn Read + Send>>> {
     /// Opens `path` (stdin for `-`).
     pub fn open(path: &Path) -> Result<Self, FileError> {
-        Ok(CsvLines::new(BufReader::with_capacity(1 << 16, open(path)?), path))
+        Ok(CsvLines::new(
+            BufReader::with_capacity(1 << 16, open(path)?),
+            path,
+        ))
     }
 }
 
@@ -219,7 +226,9 @@ impl<R: BufRead> CsvLines<R> {
 
     /// The next data line split at commas into trimmed fields.
     pub fn next_fields(&mut self) -> Result<Option<Vec<&str>>, FileError> {
-        Ok(self.next_line()?.map(|l| l.split(',').map(str::trim).collect()))
+        Ok(self
+            .next_line()?
+            .map(|l| l.split(',').map(str::trim).collect()))
     }
 
     /// One raw line into `self.text` (without its end of line); false at the end of input.
@@ -304,7 +313,10 @@ mod tests {
         let e = r.next_line().unwrap_err().to_string();
         assert!(e.starts_with("x.csv:2: line longer than"), "{e}");
         let e = parse_finite(&field[..100_000]).unwrap_err();
-        assert!(e.len() < 100 && e.contains("(100000 bytes) is not a number"), "{e}");
+        assert!(
+            e.len() < 100 && e.contains("(100000 bytes) is not a number"),
+            "{e}"
+        );
         assert_eq!(parse_finite("-inf").unwrap_err(), "`-inf` is not finite");
     }
 

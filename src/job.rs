@@ -564,11 +564,17 @@ mod tests {
         .unwrap();
         let e = plan(&motion, 1e7, Some(1.4e9), Some(1e-3)).unwrap_err();
         let m = e.to_string();
-        assert!(m.contains("held to 2.384185791015625e-7 s") && m.contains("1e-7 s"), "{m}");
+        assert!(
+            m.contains("held to 2.384185791015625e-7 s") && m.contains("1e-7 s"),
+            "{m}"
+        );
         let g = plan(&motion, 1e3, Some(1.4e9), Some(1.0)).unwrap();
         // Accepted runs have Δt-spaced tags to 0.1 %.
         let tags: Vec<f64> = (0..=g.count).map(|k| g.t0 + k as f64 / g.rate_hz).collect();
-        assert!(tags.windows(2).all(|w| ((w[1] - w[0]) * 1e3 - 1.0).abs() <= 1e-3));
+        assert!(
+            tags.windows(2)
+                .all(|w| ((w[1] - w[0]) * 1e3 - 1.0).abs() <= 1e-3)
+        );
         assert!(plan(&motion, 1e7, Some(0.0), Some(1e-3)).is_ok());
         // At 4.4 kHz the 2.4e-7 s spacing is just over 1/1000 of Δt = 2.27e-4 s.
         assert!(plan(&motion, 4.4e3, Some(1.4e9), Some(1.0)).is_err());

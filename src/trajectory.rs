@@ -125,12 +125,25 @@ impl<R: BufRead> TrajectoryReader<R> {
             v_n: Vec3::new(vn, ve, vd),
             q_b_n: quat_from_euler(roll.to_radians(), pitch.to_radians(), yaw.to_radians()),
         };
-        let col = |name: &str| self.order.iter().position(|&k| COLUMNS[k] == name).unwrap_or(0) + 1;
-        let at = |name: &'static str, m: String| self.lines.error(m).in_column(col(name), name);
+        let col = |name: &str| {
+            self.order
+                .iter()
+                .position(|&k| COLUMNS[k] == name)
+                .unwrap_or(0)
+                + 1
+        };
+        let at = |name: &'static str, m: String| match name {
+            "" => self.lines.error(m),
+            _ => self.lines.error(m).in_column(col(name), name),
+        };
         if let Some(prev) = &self.prev
             && t <= prev.t
         {
-            let m = format!("{} does not increase (previous sample at {})", num(t), num(prev.t));
+            let m = format!(
+                "{} does not increase (previous sample at {})",
+                num(t),
+                num(prev.t)
+            );
             return Err(at("t", m));
         }
         // The sample's own limits first: they keep the step's differences finite.
@@ -189,7 +202,10 @@ pub fn open_motion(path: &Path, settings: ModelSettings) -> Result<SampledMotion
             pos: 0,
         }),
     };
-    let mut reader = TrajectoryReader::new(CsvLines::new(BufReader::with_capacity(1 << 16, input), path))?;
+    let mut reader = TrajectoryReader::new(CsvLines::new(
+        BufReader::with_capacity(1 << 16, input),
+        path,
+    ))?;
     let mut index = IndexBuilder::new(settings);
     while let Some(s) = reader.next_sample()? {
         let l = reader.lines();
@@ -200,7 +216,10 @@ pub fn open_motion(path: &Path, settings: ModelSettings) -> Result<SampledMotion
     let got = index.len();
     let index = index.finish().map_err(|_| {
         let need = settings.min_samples();
-        FileError::file(path, format!("{got} samples, but the motion model needs at least {need}"))
+        FileError::file(
+            path,
+            format!("{got} samples, but the motion model needs at least {need}"),
+        )
     })?;
     let source = FileSamples {
         file,
@@ -208,7 +227,11 @@ pub fn open_motion(path: &Path, settings: ModelSettings) -> Result<SampledMotion
         order: reader.order,
         reader: None,
     };
-    Ok(SampledMotion::from_source(Box::new(source), index, settings))
+    Ok(SampledMotion::from_source(
+        Box::new(source),
+        index,
+        settings,
+    ))
 }
 
 /// An unnamed temporary file (created and at once unlinked) for a copy of stdin.
@@ -268,14 +291,20 @@ struct FileSamples {
 impl SampleSource for FileSamples {
     fn next_sample(&mut self) -> Result<Option<Sample>, String> {
         let r = self.reader.as_mut().ok_or("read before a rewind")?;
-        r.next_sample().map_err(|e| format!("{e} (the file changed while in use?)"))
+        r.next_sample()
+            .map_err(|e| format!("{e} (the file changed while in use?)"))
     }
     fn rewind(&mut self, mark: Mark) -> Result<(), String> {
         let input = At {
             file: self.file.clone(),
             pos: mark.0,
         };
-        let lines = CsvLines::resume(BufReader::with_capacity(1 << 16, input), &self.path, mark.0, mark.1);
+        let lines = CsvLines::resume(
+            BufReader::with_capacity(1 << 16, input),
+            &self.path,
+            mark.0,
+            mark.1,
+        );
         self.reader = Some(TrajectoryReader::resume(lines, self.order.clone()));
         Ok(())
     }
@@ -363,7 +392,11 @@ mod tests {
         let mut t = String::from("# a turn\nyaw,t,lat,lon,h,vn,ve,vd,roll,pitch\n");
         for i in 0..n {
             let s = i as f64 * 0.01;
-            t += &format!("{},{s},45,2,{},30,0,0,1,2\n", (170.0 + 40.0 * s) % 360.0 - 180.0, 100.0 + s);
+            t += &format!(
+                "{},{s},45,2,{},30,0,0,1,2\n",
+                (170.0 + 40.0 * s) % 360.0 - 180.0,
+                100.0 + s
+            );
             if i % 500 == 0 {
                 t += "\n# marks\n";
             }
@@ -399,13 +432,25 @@ mod tests {
         let head = "t,lat,lon,h,vn,ve,vd,roll,pitch,yaw\n0,45,2,0,0,0,0,0,0,0\n";
         let e = |row: &str| parse(&format!("{head}{row}\n"), p).unwrap_err().to_string();
         let m = e("1,45,2,1e160,0,0,0,0,0,0");
-        assert!(m.starts_with("x.csv:3: column 4 (`h`): height 1e160 m is outside [-1e5, 1e8] m"), "{m}");
+        assert!(
+            m.starts_with("x.csv:3: column 4 (`h`): height 1e160 m is outside [-1e5, 1e8] m"),
+            "{m}"
+        );
         let m = e("1,45,2,0,0,0,1e160,0,0,0");
-        assert!(m.starts_with("x.csv:3: column 7 (`vd`): speed 1e160 m/s"), "{m}");
+        assert!(
+            m.starts_with("x.csv:3: column 7 (`vd`): speed 1e160 m/s"),
+            "{m}"
+        );
         let m = e("1e-9,45,2,0,0,0,0,0,0,0");
-        assert!(m.contains("column 1 (`t`)") && m.contains("at least 1e-6 s apart"), "{m}");
+        assert!(
+            m.contains("column 1 (`t`)") && m.contains("at least 1e-6 s apart"),
+            "{m}"
+        );
         let m = e("0.25,45,2,0,30000,0,0,0,0,0");
-        assert!(m.contains("implies 1.2e5 m/s², above the limit of 1e5 m/s²"), "{m}");
+        assert!(
+            m.contains("implies 1.2e5 m/s², above the limit of 1e5 m/s²"),
+            "{m}"
+        );
         let m = e(&format!("1,45,2,{},0,0,0,0,0,0", "9".repeat(50_000)));
         assert!(m.len() < 200 && m.contains("(50000 bytes)"), "{m}");
     }

@@ -226,7 +226,12 @@ fn read_csv(
                             format!(
                                 "no column for {} (columns: {}; map them with --columns, e.g. t,gx,gy,gz,ax,ay,az)",
                                 role_name(want),
-                                names.iter().take(20).map(|n| clip(n)).collect::<Vec<_>>().join(",")
+                                names
+                                    .iter()
+                                    .take(20)
+                                    .map(|n| clip(n))
+                                    .collect::<Vec<_>>()
+                                    .join(",")
                             ),
                         ));
                     }
@@ -241,9 +246,7 @@ fn read_csv(
         let need = used.iter().map(|u| u.0 + 1).max().unwrap_or(0);
         if fields.len() < need {
             let got = fields.len();
-            return Err(lines.error(format!(
-                "{got} fields, the column mapping needs {need}"
-            )));
+            return Err(lines.error(format!("{got} fields, the column mapping needs {need}")));
         }
         let mut v = [0.0; 6];
         let mut t = f64::NAN;

@@ -26,7 +26,8 @@ pub const MAX_RATE_RAD_S: f64 = 1.0e4;
 /// A value beyond a limit: the trajectory column it concerns and what is wrong.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Violation {
-    /// The trajectory column (`t`, `h`, `vn`, …) most to blame.
+    /// The trajectory column (`t`, `h`, `vn`, …) most to blame; empty for the attitude,
+    /// which three columns give together.
     pub column: &'static str,
     /// What is wrong, with the value and the limit.
     pub message: String,
@@ -106,9 +107,9 @@ pub fn check_step(prev: &Sample, s: &Sample) -> Result<(), Violation> {
     let rate = angle / dt;
     if rate > MAX_RATE_RAD_S {
         return violation(
-            "roll",
+            "",
             format!(
-                "the attitude change from the previous sample implies {} rad/s, above the limit of {} rad/s",
+                "the attitude change (roll, pitch, yaw) from the previous sample implies {} rad/s, above the limit of {} rad/s",
                 num(rate),
                 num(MAX_RATE_RAD_S)
             ),
@@ -138,7 +139,10 @@ mod tests {
         assert!(check_sample(&at(0.0, MAX_HEIGHT_M, MAX_SPEED_M_S, 0.0)).is_ok());
         let e = check_sample(&at(0.0, 1e160, 0.0, 0.0)).unwrap_err();
         assert_eq!(e.column, "h");
-        assert!(e.message.contains("1e160 m is outside [-1e5, 1e8] m"), "{e:?}");
+        assert!(
+            e.message.contains("1e160 m is outside [-1e5, 1e8] m"),
+            "{e:?}"
+        );
         let e = check_sample(&at(0.0, 0.0, -3.0001e4, 0.0)).unwrap_err();
         assert_eq!(e.column, "vn");
         let e = check_sample(&at(0.0, 0.0, 1e160, 0.0)).unwrap_err();
@@ -148,11 +152,14 @@ mod tests {
         let a = at(0.0, 0.0, 0.0, 0.0);
         // 1 g over 10 ms and 1 rad/s are fine; the limits are exceeded just beyond them.
         assert!(check_step(&a, &at(0.01, 0.0, 0.098, 0.01)).is_ok());
-        assert_eq!(check_step(&a, &at(1e-7, 0.0, 0.0, 0.0)).unwrap_err().column, "t");
+        assert_eq!(
+            check_step(&a, &at(1e-7, 0.0, 0.0, 0.0)).unwrap_err().column,
+            "t"
+        );
         let e = check_step(&a, &at(0.01, 0.0, 1000.1, 0.0)).unwrap_err();
         assert!(e.message.contains("above the limit of 1e5 m/s²"), "{e:?}");
         let e = check_step(&a, &at(1e-4, 0.0, 0.0, 1.0001)).unwrap_err();
-        assert_eq!(e.column, "roll");
+        assert_eq!(e.column, "");
         assert!(e.message.contains("above the limit of 1e4 rad/s"), "{e:?}");
     }
 }

@@ -156,7 +156,10 @@ pub(super) fn make_knot<'a>(i: usize, st: Range<usize>, at: impl Fn(usize) -> &'
     let mut j = Vec3::ZERO;
     let mut omega = Vec3::ZERO;
     let mut omega_dot = Vec3::ZERO;
-    let phi: Vec<Vec3> = st.clone().map(|k| c.q.conj().mul(at(k).q).to_rotvec()).collect();
+    let phi: Vec<Vec3> = st
+        .clone()
+        .map(|k| c.q.conj().mul(at(k).q).to_rotvec())
+        .collect();
     for (m, k) in st.enumerate() {
         // Velocity differences relative to the centre keep the sums well scaled.
         let dv = at(k).v - c.v;

@@ -454,7 +454,11 @@ mod tests {
             samples: Arc::new(s[..2000].to_vec()),
             next: 0,
         };
-        let m = SampledMotion::from_source(Box::new(short), b.finish().unwrap(), ModelSettings::default());
+        let m = SampledMotion::from_source(
+            Box::new(short),
+            b.finish().unwrap(),
+            ModelSettings::default(),
+        );
         let p = m.piece_at(s[100].t, 0);
         assert!(m.sense(p, s[100].t).f_b.x().is_finite());
         let p = m.piece_at(s[2500].t, p);
@@ -475,7 +479,17 @@ mod tests {
         let mut high = s[2];
         high.h = 1e160;
         let e = b.push(&high, Mark(1, 0)).unwrap_err();
-        assert!(matches!(e, ModelError::Limit { index: 1, column: "h", .. }), "{e:?}");
+        assert!(
+            matches!(
+                e,
+                ModelError::Limit {
+                    index: 1,
+                    column: "h",
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
         assert_eq!(
             b.finish().unwrap_err(),
             ModelError::TooFewSamples { got: 1, need: 9 }

@@ -10,8 +10,8 @@ use std::f64::consts::PI;
 use serde::{Deserialize, Serialize};
 
 use crate::earth;
-use crate::motion::limits;
 use crate::math::quat_from_euler;
+use crate::motion::limits;
 use crate::quadrature::GaussLegendre;
 pub use fixed::{FixedScene, PolarScene};
 pub use flight::{FlightPiece, FlightScene};
@@ -211,7 +211,12 @@ pub fn build(name: &str, p: &SceneParams) -> Result<Result<Scene, SceneParamErro
         )?;
         check("h_m", p.h_m, HEIGHTS.contains(&p.h_m), HEIGHT_RANGE)?;
         let check_speed = || {
-            check("speed_m_s", p.speed_m_s, SPEEDS.contains(&p.speed_m_s), SPEED_RANGE)
+            check(
+                "speed_m_s",
+                p.speed_m_s,
+                SPEEDS.contains(&p.speed_m_s),
+                SPEED_RANGE,
+            )
         };
         // A roll oscillation's peak rate, amplitude × 2πf, within the limit of the kinematics.
         let osc_rate = r(p.roll_osc_deg).abs() * 2.0 * PI * p.roll_osc_hz.abs();
