@@ -258,7 +258,7 @@ impl Window {
             }
         }
         // The window must start at or before t (or at knot 0) and reach past it (or the end).
-        if self.knots.first().is_none_or(|k| !(k.t <= t)) && self.knot_base > 0 {
+        if self.knots.first().is_none_or(|k| k.t > t || t.is_nan()) && self.knot_base > 0 {
             let c = self.index.checkpoints.partition_point(|c| c.t <= t);
             // One checkpoint earlier: its first computable knot precedes the one sought.
             let c = c.saturating_sub(2);
@@ -433,9 +433,9 @@ mod tests {
         let s = samples(n);
         let m = SampledMotion::new(&s, ModelSettings::default()).unwrap();
         let mut hint = 0;
-        for i in 0..n - 1 {
-            hint = m.piece_at(s[i].t, hint);
-            let _ = m.sense(hint, s[i].t);
+        for x in &s[..n - 1] {
+            hint = m.piece_at(x.t, hint);
+            let _ = m.sense(hint, x.t);
         }
         let w = m.window.lock().unwrap();
         assert!(w.knots.len() <= 2 * HISTORY + 1, "{} knots", w.knots.len());
