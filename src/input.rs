@@ -6,69 +6,35 @@
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
+use crate::csvio::{CsvLines, FileError, Place, parse_finite};
+
 use crate::output::{BIN_RECORD_BYTES, Format, decode_bin};
 use crate::record::{COLUMNS, Record};
 
-/// What is wrong with a record file, and where.
-#[derive(Debug, thiserror::Error)]
-pub enum InputError {
-    /// The file could not be opened or read (the cause is the error's source).
-    #[error("{path}: cannot read")]
-    Io {
-        /// File.
-        path: PathBuf,
-        /// Cause.
-        source: std::io::Error,
-    },
-    /// A problem on a CSV line.
-    #[error("{path}:{line}: {problem}")]
-    Line {
-        /// File.
-        path: PathBuf,
-        /// 1-based line number.
-        line: usize,
-        /// What is wrong.
-        problem: String,
-    },
-    /// A problem in a binary record.
-    #[error("{path}: record {record} (byte {offset}): {problem}")]
-    Binary {
-        /// File.
-        path: PathBuf,
-        /// 1-based record number.
-        record: u64,
-        /// Byte offset of the record.
-        offset: u64,
-        /// What is wrong.
-        problem: String,
-    },
-}
+/// What is wrong with a record file, and where (line and column, or binary record).
+pub type InputError = FileError;
 
 /// A streaming reader of records.
 pub struct RecordReader {
-    input: Box<dyn BufRead>,
+    input: Input,
     path: PathBuf,
-    format: Format,
     /// CSV: file column of each `COLUMNS` entry, and the number of header columns.
     columns: [usize; 13],
     width: usize,
-    line_no: usize,
     records: u64,
-    line: String,
+}
+
+/// The text or binary stream records come from.
+enum Input {
+    Csv(CsvLines<Box<dyn BufRead>>),
+    Bin(Box<dyn BufRead>),
 }
 
 impl RecordReader {
     /// Opens `path` (or stdin for `-`).
     pub fn open(path: &Path, format: Format) -> Result<RecordReader, InputError> {
-        let input: Box<dyn Read> = if path == Path::new("-") {
-            Box::new(std::io::stdin())
-        } else {
-            Box::new(std::fs::File::open(path).map_err(|source| InputError::Io {
-                path: path.to_path_buf(),
-                source,
-            })?)
-        };
-        RecordReader::new(BufReader::with_capacity(1 << 20, input), path, format)
+        let input = BufReader::with_capacity(1 << 20, crate::csvio::open(path)?);
+        RecordReader::new(input, path, format)
     }
 
     /// Reads from any buffered reader; `path` names it in messages.
@@ -77,128 +43,62 @@ impl RecordReader {
         path: &Path,
         format: Format,
     ) -> Result<RecordReader, InputError> {
+        let input: Box<dyn BufRead> = Box::new(input);
         let mut r = RecordReader {
-            input: Box::new(input),
+            input: match format {
+                Format::Csv => Input::Csv(CsvLines::new(input, path)),
+                Format::Bin => Input::Bin(input),
+            },
             path: path.to_path_buf(),
-            format,
             columns: std::array::from_fn(|i| i),
             width: 13,
-            line_no: 0,
             records: 0,
-            line: String::new(),
         };
-        if format == Format::Csv {
-            r.read_header()?;
+        if let Input::Csv(lines) = &mut r.input {
+            (r.columns, r.width) = read_header(lines)?;
         }
         Ok(r)
     }
 
-    fn at(&self, problem: String) -> InputError {
-        InputError::Line {
-            path: self.path.clone(),
-            line: self.line_no,
-            problem,
-        }
-    }
-
-    /// Next non-empty, non-comment line into `self.line`; false at the end.
-    fn next_line(&mut self) -> Result<bool, InputError> {
-        loop {
-            self.line.clear();
-            let n = self
-                .input
-                .read_line(&mut self.line)
-                .map_err(|source| InputError::Io {
-                    path: self.path.clone(),
-                    source,
-                })?;
-            if n == 0 {
-                return Ok(false);
-            }
-            self.line_no += 1;
-            let t = self.line.trim();
-            if !t.is_empty() && !t.starts_with('#') {
-                return Ok(true);
-            }
-        }
-    }
-
-    fn read_header(&mut self) -> Result<(), InputError> {
-        if !self.next_line()? {
-            return Err(self.at(format!("no header line (expected `{}`)", COLUMNS.join(","))));
-        }
-        let header: Vec<String> = self
-            .line
-            .trim()
-            .trim_start_matches('\u{feff}')
-            .split(',')
-            .map(|s| s.trim().to_string())
-            .collect();
-        for (i, name) in COLUMNS.iter().enumerate() {
-            match header.iter().position(|h| h == name) {
-                Some(c) => self.columns[i] = c,
-                None => {
-                    return Err(self.at(format!(
-                        "header: missing column `{name}` (expected `{}`)",
-                        COLUMNS.join(",")
-                    )));
-                }
-            }
-        }
-        self.width = header.len();
-        Ok(())
-    }
-
     fn csv_record(&mut self) -> Result<Option<Record>, InputError> {
-        if !self.next_line()? {
+        let Input::Csv(lines) = &mut self.input else {
+            unreachable!("CSV input");
+        };
+        if !lines.advance()? {
             return Ok(None);
         }
-        let fields: Vec<&str> = self.line.trim().split(',').map(str::trim).collect();
+        let fields: Vec<&str> = lines.fields().collect();
         if fields.len() != self.width {
             let problem = format!("{} fields, expected {}", fields.len(), self.width);
-            return Err(self.at(problem));
+            return Err(lines.error(problem));
         }
         let mut v = [0.0; 13];
         for (i, name) in COLUMNS.iter().enumerate() {
             let c = self.columns[i];
-            let text = fields[c];
-            match text.parse::<f64>() {
-                Ok(x) if x.is_finite() => v[i] = x,
-                Ok(_) => {
-                    let p = format!("column {} (`{name}`): `{text}` is not finite", c + 1);
-                    return Err(self.at(p));
-                }
-                Err(_) => {
-                    let p = format!("column {} (`{name}`): `{text}` is not a number", c + 1);
-                    return Err(self.at(p));
-                }
-            }
+            v[i] = parse_finite(fields[c]).map_err(|m| lines.error(m).in_column(c + 1, name))?;
         }
         Ok(Some(Record::from_values(&v)))
     }
 
     fn bin_record(&mut self) -> Result<Option<Record>, InputError> {
+        let Input::Bin(input) = &mut self.input else {
+            unreachable!("binary input");
+        };
         let mut buf = [0u8; BIN_RECORD_BYTES];
         let mut got = 0;
         while got < buf.len() {
-            let n = self
-                .input
+            let n = input
                 .read(&mut buf[got..])
-                .map_err(|source| InputError::Io {
-                    path: self.path.clone(),
-                    source,
-                })?;
+                .map_err(|e| FileError::io(&self.path, e))?;
             if n == 0 {
                 break;
             }
             got += n;
         }
         let offset = self.records * BIN_RECORD_BYTES as u64;
-        let err = |problem: String| InputError::Binary {
-            path: self.path.clone(),
-            record: self.records + 1,
-            offset,
-            problem,
+        let err = |message: String| FileError {
+            place: Place::Record(self.records + 1, offset),
+            ..FileError::file(&self.path, message)
         };
         if got == 0 {
             return Ok(None);
@@ -217,19 +117,40 @@ impl RecordReader {
 
     /// Where the last record came from, for messages: `file:line` or `file: record N`.
     pub fn position(&self) -> String {
-        match self.format {
-            Format::Csv => format!("{}:{}", self.path.display(), self.line_no),
-            Format::Bin => format!("{}: record {}", self.path.display(), self.records),
+        match &self.input {
+            Input::Csv(l) => format!("{}:{}", self.path.display(), l.line_no()),
+            Input::Bin(_) => format!("{}: record {}", self.path.display(), self.records),
         }
     }
+}
+
+/// Reads the header: the file column of each of `COLUMNS`, and the number of columns.
+fn read_header<R: BufRead>(lines: &mut CsvLines<R>) -> Result<([usize; 13], usize), InputError> {
+    let expected = COLUMNS.join(",");
+    if !lines.advance()? {
+        return Err(lines.error(format!("no header line (expected `{expected}`)")));
+    }
+    let header: Vec<&str> = lines.fields().collect();
+    let mut columns = [0; 13];
+    for (i, name) in COLUMNS.iter().enumerate() {
+        match header.iter().position(|h| h == name) {
+            Some(c) => columns[i] = c,
+            None => {
+                return Err(lines.error(format!(
+                    "header: missing column `{name}` (expected `{expected}`)"
+                )));
+            }
+        }
+    }
+    Ok((columns, header.len()))
 }
 
 impl Iterator for RecordReader {
     type Item = Result<Record, InputError>;
     fn next(&mut self) -> Option<Self::Item> {
-        let r = match self.format {
-            Format::Csv => self.csv_record(),
-            Format::Bin => self.bin_record(),
+        let r = match self.input {
+            Input::Csv(_) => self.csv_record(),
+            Input::Bin(_) => self.bin_record(),
         };
         if let Ok(Some(_)) = r {
             self.records += 1;

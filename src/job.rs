@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use crate::errors::ErrorChain;
 use crate::generator::IdealImu;
 use crate::motion::Motion;
-use crate::motion::sampled::{ModelError, ModelSettings, SampledMotion};
+use crate::motion::sampled::{ModelError, ModelSettings};
 use crate::output::{self, Format};
 use crate::record::Record;
 use crate::scenes::{self, SceneParamError, SceneParams, UnknownScene};
@@ -71,6 +71,21 @@ pub enum JobError {
         /// What is expected.
         expected: &'static str,
     },
+    /// Time tags too coarse for the record interval (see [`TIME_RESOLUTION`]).
+    #[error(
+        "times up to {} s are held to {} s, more than 1/{} of the record interval {} s: \
+         successive time tags t₀ + k/rate would not be Δt apart (give an earlier --start, \
+         e.g. the time since the run began, or a lower --rate)",
+        crate::csvio::num(*t), crate::csvio::num(*ulp), 1.0 / TIME_RESOLUTION, crate::csvio::num(*dt)
+    )]
+    TimeResolution {
+        /// Largest |time| of the run (s).
+        t: f64,
+        /// Spacing of f64 values there (s).
+        ulp: f64,
+        /// Record interval (s).
+        dt: f64,
+    },
     /// Writing failed.
     #[error("writing output: {0}")]
     Io(#[from] std::io::Error),
@@ -80,22 +95,7 @@ pub enum JobError {
 pub fn build_motion(source: &SourceSpec, model: ModelSettings) -> Result<AnyMotion, JobError> {
     match source {
         SourceSpec::Scene(name, params) => Ok(AnyMotion::Scene(scenes::build(name, params)??)),
-        SourceSpec::File(path) => {
-            let samples = trajectory::read(path)?;
-            if samples.len() < model.min_samples() {
-                return Err(TrajectoryError::TooFewSamples {
-                    path: path.clone(),
-                    got: samples.len(),
-                    need: model.min_samples(),
-                }
-                .into());
-            }
-            let m = SampledMotion::new(&samples, model).map_err(|source| JobError::Model {
-                path: path.clone(),
-                source,
-            })?;
-            Ok(AnyMotion::Sampled(m))
-        }
+        SourceSpec::File(path) => Ok(AnyMotion::Sampled(trajectory::open_motion(path, model)?)),
     }
 }
 
@@ -157,11 +157,28 @@ pub fn plan(
             end: m1,
         });
     }
+    check_time_resolution(t0.abs().max(t_last.abs()), 1.0 / rate_hz)?;
     Ok(Grid {
         t0,
         rate_hz,
         count: count as u64,
     })
+}
+
+/// Largest spacing of representable times near a run's times, as a fraction of the record
+/// interval. A time tag t₀ + k/rate is rounded to the nearest f64, off by up to half that
+/// spacing, so successive tags differ from Δt by up to one spacing: at 1/1000 of Δt the tags
+/// keep Δt to 0.1 % (t₀ = 1.4e9 s, a Unix time, allows rates up to about 4 kHz).
+pub const TIME_RESOLUTION: f64 = 1.0e-3;
+
+/// Refuses a run whose largest |time| `t` is held more coarsely than [`TIME_RESOLUTION`]·`dt`.
+fn check_time_resolution(t: f64, dt: f64) -> Result<(), JobError> {
+    // Spacing of f64 values at t: the next representable value above |t|, minus |t|.
+    let ulp = f64::from_bits(t.to_bits() + 1) - t;
+    if ulp > TIME_RESOLUTION * dt {
+        return Err(JobError::TimeResolution { t, ulp, dt });
+    }
+    Ok(())
 }
 
 /// What the main output carries.
@@ -534,6 +551,33 @@ mod tests {
             assert_eq!(n, 50);
             assert_eq!([preamble.as_bytes(), &all].concat(), whole);
         }
+    }
+
+    /// `--start 1.4e9 --rate 1e7` (issue: 4 195 distinct tags in 10 000 records) is refused
+    /// naming the spacing; the same start at 1 kHz, and 1e7 Hz near t = 0, are accepted.
+    #[test]
+    fn unresolvable_time_tags_are_refused() {
+        let motion = build_motion(
+            &SourceSpec::Scene("static".into(), SceneParams::defaults_for("static")),
+            ModelSettings::default(),
+        )
+        .unwrap();
+        let e = plan(&motion, 1e7, Some(1.4e9), Some(1e-3)).unwrap_err();
+        let m = e.to_string();
+        assert!(
+            m.contains("held to 2.384185791015625e-7 s") && m.contains("1e-7 s"),
+            "{m}"
+        );
+        let g = plan(&motion, 1e3, Some(1.4e9), Some(1.0)).unwrap();
+        // Accepted runs have Δt-spaced tags to 0.1 %.
+        let tags: Vec<f64> = (0..=g.count).map(|k| g.t0 + k as f64 / g.rate_hz).collect();
+        assert!(
+            tags.windows(2)
+                .all(|w| ((w[1] - w[0]) * 1e3 - 1.0).abs() <= 1e-3)
+        );
+        assert!(plan(&motion, 1e7, Some(0.0), Some(1e-3)).is_ok());
+        // At 4.4 kHz the 2.4e-7 s spacing is just over 1/1000 of Δt = 2.27e-4 s.
+        assert!(plan(&motion, 4.4e3, Some(1.4e9), Some(1.0)).is_err());
     }
 
     fn plan_grid(motion: &AnyMotion) -> Grid {

@@ -15,6 +15,7 @@
 
 pub mod analysis;
 pub mod config;
+pub mod csvio;
 pub mod earth;
 pub mod errors;
 pub mod generator;

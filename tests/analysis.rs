@@ -446,7 +446,7 @@ fn analyze_bad_input_is_named() {
     let e = err(imu_emu(["analyze", &path]));
     assert!(
         e.contains(&format!(
-            "{path}:4: field `gyro_x` (column 2): `abc` is not a number"
+            "{path}:4: column 2 (`gyro_x`): `abc` is not a number"
         )),
         "{e}"
     );

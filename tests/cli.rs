@@ -1148,3 +1148,164 @@ fn closed_stdout_is_not_an_error() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+// ---------------------------------------------------------------------------------------------
+// Input limits, streaming trajectories, survey setup, time resolution (issue 10, input side).
+
+// Values that would make the kinematics overflow are refused at their line and column with the
+// limit, before any output: height and speed of a sample, and the acceleration and angular
+// rate implied between two samples.
+#[test]
+fn trajectory_beyond_physical_limits() {
+    let row = |t: &str, h: &str, vn: &str, yaw: &str| format!("{t},45,2,{h},{vn},0,0,0,0,{yaw}\n");
+    let ok = row("10", "100", "0", "30");
+    for (bad, line_col, needles) in [
+        (
+            row("10.1", "1e160", "0", "30"),
+            "column 4 (`h`)",
+            ["height 1e160 m", "outside [-1e5, 1e8] m"],
+        ),
+        (
+            row("10.1", "100", "1e160", "30"),
+            "column 5 (`vn`)",
+            ["speed 1e160 m/s", "limit of 3e4 m/s"],
+        ),
+        (
+            row("10.25", "100", "30000", "30"),
+            "column 5 (`vn`)",
+            ["implies 1.2e5 m/s²", "limit of 1e5 m/s²"],
+        ),
+        (
+            row("10.0001", "100", "0", "120"),
+            "attitude change (roll, pitch, yaw)",
+            ["rad/s", "limit of 1e4 rad/s"],
+        ),
+        (
+            row("10.0000001", "100", "0", "30"),
+            "column 1 (`t`)",
+            ["at least 1e-6 s apart", ""],
+        ),
+    ] {
+        let text = format!("{TRAJ_HEADER}\n{ok}{bad}");
+        let r = reject_trajectory(&text, &[]);
+        r.at(3, &[line_col, needles[0], needles[1]]);
+    }
+}
+
+// A scene-file parameter that would overflow the kinematics is refused with its key and range.
+#[test]
+fn scene_parameters_beyond_limits() {
+    for (params, key, range) in [
+        (
+            "scene = \"straight\"\n[trajectory.params]\nh_m = 1e160",
+            "h_m",
+            "[−1e5, 1e8] m",
+        ),
+        (
+            "scene = \"circle\"\n[trajectory.params]\nspeed_m_s = 1e160",
+            "speed_m_s",
+            "3e4",
+        ),
+        (
+            "scene = \"circle\"\n[trajectory.params]\nradius_m = 1e-300",
+            "radius_m",
+            "1e5 m/s²",
+        ),
+        (
+            "scene = \"survey\"\n[trajectory.params]\nlines = 100001",
+            "lines",
+            "at most 100000",
+        ),
+        (
+            "scene = \"coning\"\n[trajectory.params]\ncone_hz = 1e9",
+            "cone_hz",
+            "1592 Hz",
+        ),
+    ] {
+        let (p, e) = reject_scene_file(&format!("[trajectory]\n{params}\n"));
+        let msg = format!("{p}: `trajectory.params.{key}`: ");
+        assert_mentions(&e, &[&msg, range]);
+    }
+}
+
+// A field of 100 000 characters is echoed cut, with its length: the message stays short.
+#[test]
+fn trajectory_long_field_is_echoed_cut() {
+    let long = "x".repeat(100_000);
+    let text = format!("{TRAJ_HEADER}\n10,45,2,{long},0,0,0,0,0,0\n");
+    let r = reject_trajectory(&text, &[]);
+    r.at(2, &["column 4 (`h`)", "(100000 bytes) is not a number"]);
+    assert!(r.stderr.len() < 400, "{} bytes of message", r.stderr.len());
+}
+
+// `--trajectory -` reads the trajectory from stdin (streamed through a temporary copy) and
+// gives the same bytes as the file, including a start in the middle (a rewind).
+#[test]
+fn trajectory_from_stdin() {
+    use std::io::Write;
+    let dir = TempDir::new().unwrap();
+    let csv = dir.path().join("survey.csv");
+    succeeded(run!(
+        "trajectory --scene survey --duration 60 --rate 50 -o",
+        csv
+    ));
+    let args = "generate --rate 200 --format bin --start 20 --duration 30 --trajectory";
+    let from_file = succeeded(run!(args, csv));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+        .args(args.split_whitespace().chain(["-"]))
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let text = std::fs::read(&csv).unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let writer = std::thread::spawn(move || stdin.write_all(&text));
+    let out = child.wait_with_output().unwrap();
+    writer.join().unwrap().unwrap();
+    assert_eq!(succeeded(out), from_file);
+    assert_eq!(from_file.len(), 30 * 200 * 104);
+}
+
+// A survey of 100 000 lines is set up in well under a second (the quadratic setup took
+// minutes); the 20 s bound leaves room for a loaded machine.
+#[test]
+fn survey_with_many_lines_sets_up_fast() {
+    let dir = TempDir::new().unwrap();
+    let scene = dir.path().join("s.toml");
+    write(
+        &scene,
+        "[trajectory]\nscene = \"survey\"\n[trajectory.params]\nlines = 100000\n",
+    );
+    let started = std::time::Instant::now();
+    let out = succeeded(run!("generate --rate 10 --duration 1 --format bin", scene));
+    assert_eq!(out.len(), 10 * 104);
+    let took = started.elapsed().as_secs_f64();
+    assert!(took < 20.0, "setup took {took} s");
+}
+
+// Time tags that cannot hold the record interval are refused (t₀ = 1.4e9 s is held to
+// 2.4e-7 s, more than 1/1000 of 1e-7 s), naming the spacing and the remedy; a rate the
+// tags can resolve at the same start is accepted.
+#[test]
+fn unresolvable_time_tags_are_refused() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("imu.bin");
+    let e = failed(run!(
+        "generate --scene static --start 1.4e9 --rate 1e7 --duration 0.001 --format bin -o",
+        out
+    ));
+    assert_mentions(
+        &e,
+        &[
+            "held to 2.384185791015625e-7 s",
+            "1/1000 of the record interval 1e-7 s",
+            "--start",
+        ],
+    );
+    assert_no_output(dir.path(), "imu.bin");
+    succeeded(run!(
+        "generate --scene static --start 1.4e9 --rate 1000 --duration 1 --format bin -o",
+        out
+    ));
+}

@@ -5,8 +5,9 @@
 
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
+use crate::csvio::{CsvLines, FileError, clip, parse_finite};
 use crate::protocol::spec::Source;
 use crate::protocol::{Plan, StreamDecoder, StreamStats};
 
@@ -90,76 +91,7 @@ pub struct ReadSummary {
 }
 
 /// Input that cannot be analysed, with the file, line and field at fault.
-#[derive(Debug, thiserror::Error)]
-pub enum ReadError {
-    /// The file cannot be read.
-    #[error("{path}: {source}")]
-    Io {
-        /// File.
-        path: PathBuf,
-        /// Cause.
-        #[source]
-        source: std::io::Error,
-    },
-    /// A field that is not a number.
-    #[error("{path}:{line}: field `{field}` (column {column}): `{text}` is not a number")]
-    NotNumber {
-        /// File.
-        path: PathBuf,
-        /// 1-based line.
-        line: u64,
-        /// Column name.
-        field: String,
-        /// 1-based column.
-        column: usize,
-        /// The text found.
-        text: String,
-    },
-    /// A line with too few fields.
-    #[error("{path}:{line}: {got} fields, the column mapping needs {need}")]
-    ShortLine {
-        /// File.
-        path: PathBuf,
-        /// 1-based line.
-        line: u64,
-        /// Fields found.
-        got: usize,
-        /// Fields needed.
-        need: usize,
-    },
-    /// A column the analysis needs is missing.
-    #[error("{path}: no column for {what} ({hint})")]
-    MissingColumn {
-        /// File.
-        path: PathBuf,
-        /// Which quantity.
-        what: String,
-        /// What was found / how to map it.
-        hint: String,
-    },
-    /// A binary file that is not whole records.
-    #[error(
-        "{path}: {bytes} bytes is not a whole number of {record}-byte records (record {index} is cut short)"
-    )]
-    Truncated {
-        /// File.
-        path: PathBuf,
-        /// File size.
-        bytes: u64,
-        /// Record size.
-        record: usize,
-        /// 0-based index of the incomplete record.
-        index: u64,
-    },
-    /// Frames that carry no rate or increment of some axis.
-    #[error("{path}: the protocol's frames carry no {what}")]
-    FrameContent {
-        /// File.
-        path: PathBuf,
-        /// What is missing.
-        what: String,
-    },
-}
+pub type ReadError = FileError;
 
 const CHANNEL_NAMES: [&str; 6] = [
     "gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z",
@@ -173,10 +105,7 @@ pub fn read(
     dt: Option<f64>,
     mut sample: impl FnMut(f64, &[f64; 6]),
 ) -> Result<ReadSummary, ReadError> {
-    let io = |source| ReadError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
+    let io = |source| FileError::io(path, source);
     let file = File::open(path).map_err(io)?;
     match format {
         InputFormat::Csv(o) => read_csv(path, BufReader::with_capacity(1 << 16, file), o, sample),
@@ -190,12 +119,13 @@ pub fn read(
                     0 => break,
                     crate::output::BIN_RECORD_BYTES => {}
                     _ => {
-                        return Err(ReadError::Truncated {
-                            path: path.to_path_buf(),
-                            bytes,
-                            record: crate::output::BIN_RECORD_BYTES,
-                            index: n,
-                        });
+                        return Err(FileError::file(
+                            path,
+                            format!(
+                                "{bytes} bytes is not a whole number of {}-byte records (record {n} is cut short)",
+                                crate::output::BIN_RECORD_BYTES
+                            ),
+                        ));
                     }
                 }
                 let v = crate::output::decode_bin(&rec);
@@ -233,30 +163,16 @@ type FrameLayout = (Vec<(Source, f64)>, Option<Source>);
 
 fn read_csv(
     path: &Path,
-    mut r: impl BufRead,
+    r: impl BufRead,
     o: &CsvOptions,
     mut sample: impl FnMut(f64, &[f64; 6]),
 ) -> Result<ReadSummary, ReadError> {
-    let io = |source| ReadError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let mut line = String::new();
-    let mut lineno = 0u64;
+    let mut lines = CsvLines::new(r, path);
     // (column index, role) of the columns used, and their display names.
     let mut map: Option<ColumnMap> = None;
     let mut n = 0u64;
-    loop {
-        line.clear();
-        if r.read_line(&mut line).map_err(io)? == 0 {
-            break;
-        }
-        lineno += 1;
-        let text = line.trim_end_matches(['\n', '\r']);
-        if text.trim().is_empty() || text.starts_with('#') {
-            continue;
-        }
-        let fields: Vec<&str> = text.split(',').map(str::trim).collect();
+    while lines.advance()? {
+        let fields: Vec<&str> = lines.fields().collect();
         if map.is_none() {
             let header = fields.iter().any(|f| f.parse::<f64>().is_err());
             let (roles, names): (Vec<Role>, Vec<String>) = match (&o.columns, header) {
@@ -305,14 +221,19 @@ fn read_csv(
                     Some(i) => used.push((i, want)),
                     None if want == Role::Time => {}
                     None => {
-                        return Err(ReadError::MissingColumn {
-                            path: path.to_path_buf(),
-                            what: role_name(want),
-                            hint: format!(
-                                "columns: {}; map them with --columns, e.g. t,gx,gy,gz,ax,ay,az",
-                                names.join(",")
+                        return Err(FileError::file(
+                            path,
+                            format!(
+                                "no column for {} (columns: {}; map them with --columns, e.g. t,gx,gy,gz,ax,ay,az)",
+                                role_name(want),
+                                names
+                                    .iter()
+                                    .take(20)
+                                    .map(|n| clip(n))
+                                    .collect::<Vec<_>>()
+                                    .join(",")
                             ),
-                        });
+                        ));
                     }
                 }
             }
@@ -324,27 +245,16 @@ fn read_csv(
         let (used, names) = map.as_ref().expect("set above");
         let need = used.iter().map(|u| u.0 + 1).max().unwrap_or(0);
         if fields.len() < need {
-            return Err(ReadError::ShortLine {
-                path: path.to_path_buf(),
-                line: lineno,
-                got: fields.len(),
-                need,
-            });
+            let got = fields.len();
+            return Err(lines.error(format!("{got} fields, the column mapping needs {need}")));
         }
         let mut v = [0.0; 6];
         let mut t = f64::NAN;
         for &(i, role) in used {
-            let x: f64 = fields[i]
-                .parse()
-                .ok()
-                .filter(|x: &f64| x.is_finite())
-                .ok_or_else(|| ReadError::NotNumber {
-                    path: path.to_path_buf(),
-                    line: lineno,
-                    field: names.get(i).cloned().unwrap_or_default(),
-                    column: i + 1,
-                    text: fields[i].to_string(),
-                })?;
+            let x = parse_finite(fields[i]).map_err(|m| {
+                let name = names.get(i).map_or("", String::as_str);
+                lines.error(m).in_column(i + 1, name)
+            })?;
             match role {
                 Role::Gyro(a) => v[a] = x * o.gyro_scale,
                 Role::Accel(a) => v[3 + a] = x * o.accel_scale,
@@ -383,10 +293,9 @@ fn read_frames(
     // Chosen from the first frame: each axis from its rate, else its increment over Δt.
     let mut layout: Option<Result<FrameLayout, ReadError>> = None;
     loop {
-        let k = file.read(&mut buf).map_err(|source| ReadError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let k = file
+            .read(&mut buf)
+            .map_err(|source| FileError::io(path, source))?;
         if k == 0 {
             break;
         }
@@ -428,19 +337,24 @@ fn frame_layout(
         if d.get(rate).is_some() {
             sources.push((rate, 1.0));
         } else if d.get(inc).is_some() {
-            let dt = dt.ok_or_else(|| ReadError::FrameContent {
-                path: path.to_path_buf(),
-                what: format!(
-                    "rate for {} (its increments need the sampling rate: give --rate)",
-                    CHANNEL_NAMES[i]
-                ),
+            let dt = dt.ok_or_else(|| {
+                FileError::file(
+                    path,
+                    format!(
+                        "the protocol's frames carry no rate for {} (its increments need the sampling rate: give --rate)",
+                        CHANNEL_NAMES[i]
+                    ),
+                )
             })?;
             sources.push((inc, 1.0 / dt));
         } else {
-            return Err(ReadError::FrameContent {
-                path: path.to_path_buf(),
-                what: format!("rate or increment for {}", CHANNEL_NAMES[i]),
-            });
+            return Err(FileError::file(
+                path,
+                format!(
+                    "the protocol's frames carry no rate or increment for {}",
+                    CHANNEL_NAMES[i]
+                ),
+            ));
         }
     }
     let time = [Source::Time, Source::GpsSeconds]

@@ -2,7 +2,9 @@
 //! constant, a linear ramp (optionally clamped), a warm-up exponential, or a table of (t, T)
 //! read from a CSV file and interpolated linearly. Temperatures in °C.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+use crate::csvio::{CsvLines, clip, num, parse_finite};
 
 /// A temperature profile T(t).
 #[derive(Clone, Debug, PartialEq)]
@@ -61,101 +63,52 @@ impl TemperatureProfile {
     }
 }
 
-/// A temperature table that cannot be used.
-#[derive(Debug, thiserror::Error)]
-pub enum TableError {
-    /// Unreadable file.
-    #[error("{path}: cannot read")]
-    Io {
-        /// File.
-        path: PathBuf,
-        /// Cause.
-        #[source]
-        source: std::io::Error,
-    },
-    /// A bad line.
-    #[error("{path}:{line}: {message}")]
-    Line {
-        /// File.
-        path: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// What is wrong.
-        message: String,
-    },
-}
+/// A temperature table that cannot be used (file, line, column).
+pub type TableError = crate::csvio::FileError;
 
 /// Parses a temperature table: header `t,T` (or `t,temperature`), `#` comments, strictly
 /// increasing t, finite values.
 pub fn parse_table(text: &str, path: &Path) -> Result<TemperatureProfile, TableError> {
-    let err = |line: usize, message: String| TableError::Line {
-        path: path.to_path_buf(),
-        line,
-        message,
-    };
-    let mut rows: Vec<(f64, f64)> = Vec::new();
-    let mut header_seen = false;
-    for (i, raw) in text.lines().enumerate() {
-        let line = raw.trim().trim_start_matches('\u{feff}');
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if !header_seen {
-            if fields != ["t", "T"] && fields != ["t", "temperature"] {
-                return Err(err(
-                    i + 1,
-                    format!("header: expected `t,T`, found `{line}`"),
-                ));
-            }
-            header_seen = true;
-            continue;
-        }
-        if fields.len() != 2 {
-            return Err(err(
-                i + 1,
-                format!("{} fields, expected 2 (t,T)", fields.len()),
-            ));
-        }
-        let mut v = [0.0; 2];
-        for (c, (f, name)) in fields.iter().zip(["t", "T"]).enumerate() {
-            v[c] = f
-                .parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| {
-                    err(
-                        i + 1,
-                        format!("column {} (`{name}`): `{f}` is not a finite number", c + 1),
-                    )
-                })?;
-        }
-        if let Some(last) = rows.last()
-            && v[0] <= last.0
-        {
-            return Err(err(
-                i + 1,
-                format!(
-                    "column 1 (`t`): {} does not increase (previous {})",
-                    v[0], last.0
-                ),
-            ));
-        }
-        rows.push((v[0], v[1]));
-    }
-    if rows.is_empty() {
-        return Err(err(text.lines().count().max(1), "no data rows".into()));
-    }
-    Ok(TemperatureProfile::Table(rows))
+    table(CsvLines::new(text.as_bytes(), path))
 }
 
 /// Reads a temperature table file.
 pub fn read_table(path: &Path) -> Result<TemperatureProfile, TableError> {
-    let text = std::fs::read_to_string(path).map_err(|source| TableError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    parse_table(&text, path)
+    table(CsvLines::open(path)?)
+}
+
+fn table<R: std::io::BufRead>(mut lines: CsvLines<R>) -> Result<TemperatureProfile, TableError> {
+    if !lines.advance()? {
+        return Err(lines.error("no header line (expected `t,T`)"));
+    }
+    let header: Vec<&str> = lines.fields().collect();
+    if header != ["t", "T"] && header != ["t", "temperature"] {
+        let found = clip(lines.current());
+        return Err(lines.error(format!("header: expected `t,T`, found {found}")));
+    }
+    let mut rows: Vec<(f64, f64)> = Vec::new();
+    while lines.advance()? {
+        let fields: Vec<&str> = lines.fields().collect();
+        if fields.len() != 2 {
+            let n = fields.len();
+            return Err(lines.error(format!("{n} fields, expected 2 (t,T)")));
+        }
+        let mut v = [0.0; 2];
+        for (c, (f, name)) in fields.iter().zip(["t", "T"]).enumerate() {
+            v[c] = parse_finite(f).map_err(|m| lines.error(m).in_column(c + 1, name))?;
+        }
+        if let Some(last) = rows.last()
+            && v[0] <= last.0
+        {
+            let m = format!("{} does not increase (previous {})", num(v[0]), num(last.0));
+            return Err(lines.error(m).in_column(1, "t"));
+        }
+        rows.push((v[0], v[1]));
+    }
+    if rows.is_empty() {
+        return Err(lines.error("no data rows"));
+    }
+    Ok(TemperatureProfile::Table(rows))
 }
 
 #[cfg(test)]

@@ -6,7 +6,9 @@
 //! quadrature splits its intervals at piece boundaries, so its order is never lost to a kink.
 
 pub mod fd;
+pub mod limits;
 pub mod sampled;
+pub mod stream;
 
 use crate::kinematics::Sensed;
 use crate::math::{Quat, Vec3};

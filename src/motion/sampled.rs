@@ -15,7 +15,11 @@
 //!   model whose ω and specific force are continuous with continuous derivatives across knots;
 //!   the cubic variant (value and first derivative) is kept for the accuracy/cost table.
 
-use super::fd::{fornberg, stencil};
+use std::ops::Range;
+use std::sync::{Arc, Mutex};
+
+use super::fd::fornberg;
+use super::stream::{Index, IndexBuilder, Mark, MemorySamples, SampleSource, Window};
 use super::{Motion, Pose};
 use crate::earth::{Geodetic, ecef_to_geodetic};
 use crate::kinematics::{EcefState, Sensed, sense_ecef};
@@ -72,9 +76,10 @@ impl ModelSettings {
     }
 }
 
+/// The model between two samples is fixed by these values at each end.
 #[derive(Clone, Copy, Debug)]
-struct Knot {
-    t: f64,
+pub(super) struct Knot {
+    pub(super) t: f64,
     r: Vec3,
     v: Vec3,
     a: Vec3,
@@ -84,11 +89,135 @@ struct Knot {
     qdd: Quat,
 }
 
-/// A sampled trajectory turned into a continuous, piecewise-polynomial motion.
-#[derive(Clone, Debug)]
+impl Knot {
+    /// A knot whose every value is NaN: what a model that lost its input evaluates to.
+    pub(super) const NAN: Knot = {
+        let v = Vec3::new(f64::NAN, f64::NAN, f64::NAN);
+        let q = Quat { w: f64::NAN, v };
+        Knot {
+            t: f64::NAN,
+            r: v,
+            v,
+            a: v,
+            j: v,
+            q,
+            qd: q,
+            qdd: q,
+        }
+    };
+}
+
+/// A sample in Earth-fixed quantities: time, r^e, ṙ^e and C_b^e.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Conv {
+    pub(super) t: f64,
+    r: Vec3,
+    v: Vec3,
+    pub(super) q: Quat,
+}
+
+impl Conv {
+    /// A sample that could not be read.
+    pub(super) const NAN: Conv = {
+        let v = Vec3::new(f64::NAN, f64::NAN, f64::NAN);
+        Conv {
+            t: f64::NAN,
+            r: v,
+            v,
+            q: Quat { w: f64::NAN, v },
+        }
+    };
+}
+
+/// Converts a sample; `prev_q` is the previous sample's C_b^e, whose hemisphere it keeps so
+/// that the R⁴ curve is continuous.
+pub(super) fn convert(s: &Sample, prev_q: Option<Quat>) -> Conv {
+    let g = Geodetic::from_radians(s.lat, s.lon, s.h);
+    let mut q = g.q_n_e().mul(s.q_b_n);
+    if let Some(prev) = prev_q
+        && prev.dot4(q) < 0.0
+    {
+        q = q.scale(-1.0);
+    }
+    Conv {
+        t: s.t,
+        r: g.to_ecef(),
+        v: g.c_n_e().mul_vec(s.v_n),
+        q,
+    }
+}
+
+/// Knot `i` from the converted samples of its stencil `st` (`at(k)` is sample k).
+pub(super) fn make_knot<'a>(i: usize, st: Range<usize>, at: impl Fn(usize) -> &'a Conv) -> Knot {
+    let t: Vec<f64> = st.clone().map(|k| at(k).t).collect();
+    let c = at(i);
+    let w = fornberg(c.t, &t, 2);
+    let mut a = Vec3::ZERO;
+    let mut j = Vec3::ZERO;
+    let mut omega = Vec3::ZERO;
+    let mut omega_dot = Vec3::ZERO;
+    let phi: Vec<Vec3> = st
+        .clone()
+        .map(|k| c.q.conj().mul(at(k).q).to_rotvec())
+        .collect();
+    for (m, k) in st.enumerate() {
+        // Velocity differences relative to the centre keep the sums well scaled.
+        let dv = at(k).v - c.v;
+        a += dv * w[1][m];
+        j += dv * w[2][m];
+    }
+    for (m, p) in phi.iter().enumerate() {
+        omega += *p * w[1][m];
+        omega_dot += *p * w[2][m];
+    }
+    // q̇ = ½ q ⊗ ω and q̈ = q ⊗ (−|ω|²/4, ω̇/2): consistent with |q| = 1 to second order.
+    let qd = c.q.mul(Quat {
+        w: 0.0,
+        v: omega * 0.5,
+    });
+    let qdd = c.q.mul(Quat {
+        w: -0.25 * omega.dot(omega),
+        v: omega_dot * 0.5,
+    });
+    Knot {
+        t: c.t,
+        r: c.r,
+        v: c.v,
+        a,
+        j,
+        q: c.q,
+        qd,
+        qdd,
+    }
+}
+
+/// A sampled trajectory turned into a continuous, piecewise-polynomial motion. The knots are
+/// computed on demand in a sliding window over the samples (see [`super::stream`]), so a
+/// model of a file of any length holds a bounded number of them.
 pub struct SampledMotion {
-    knots: Vec<Knot>,
     degree: Degree,
+    index: Arc<Index>,
+    pub(super) window: Mutex<Window>,
+}
+
+impl Clone for SampledMotion {
+    /// An independent model over the same samples (its own window and read position).
+    fn clone(&self) -> Self {
+        SampledMotion {
+            degree: self.degree,
+            index: self.index.clone(),
+            window: Mutex::new(self.lock().fork()),
+        }
+    }
+}
+
+impl std::fmt::Debug for SampledMotion {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SampledMotion")
+            .field("degree", &self.degree)
+            .field("samples", &self.index.len())
+            .finish_non_exhaustive()
+    }
 }
 
 /// Why a motion model could not be built.
@@ -108,102 +237,72 @@ pub enum ModelError {
         /// Zero-based sample index.
         index: usize,
     },
+    /// A value beyond the physical limits of [`super::limits`].
+    #[error("sample {index}: `{column}`: {message}")]
+    Limit {
+        /// Zero-based sample index.
+        index: usize,
+        /// The trajectory column concerned.
+        column: &'static str,
+        /// What is wrong.
+        message: String,
+    },
 }
 
 impl SampledMotion {
-    /// Builds the model. The samples must have strictly increasing time.
+    /// Builds the model of samples held in memory. The samples must have strictly increasing
+    /// time and respect the limits of [`super::limits`].
     pub fn new(samples: &[Sample], settings: ModelSettings) -> Result<SampledMotion, ModelError> {
-        let n = samples.len();
-        if n < settings.min_samples() {
-            return Err(ModelError::TooFewSamples {
-                got: n,
-                need: settings.min_samples(),
-            });
+        let mut b = IndexBuilder::new(settings);
+        for (i, s) in samples.iter().enumerate() {
+            b.push(s, Mark(i as u64, 0))?;
         }
-        if let Some(i) = (1..n).find(|&i| {
-            samples[i].t.partial_cmp(&samples[i - 1].t) != Some(std::cmp::Ordering::Greater)
-        }) {
-            return Err(ModelError::NonIncreasingTime { index: i });
-        }
-        let t: Vec<f64> = samples.iter().map(|s| s.t).collect();
-        let mut r = Vec::with_capacity(n);
-        let mut v = Vec::with_capacity(n);
-        let mut q: Vec<Quat> = Vec::with_capacity(n);
-        for s in samples {
-            let g = Geodetic::from_radians(s.lat, s.lon, s.h);
-            r.push(g.to_ecef());
-            v.push(g.c_n_e().mul_vec(s.v_n));
-            let mut qe = g.q_n_e().mul(s.q_b_n);
-            // Same hemisphere as the previous knot, so the R⁴ curve is continuous.
-            if let Some(prev) = q.last()
-                && prev.dot4(qe) < 0.0
-            {
-                qe = qe.scale(-1.0);
-            }
-            q.push(qe);
-        }
-        let mut knots = Vec::with_capacity(n);
-        let mut phi = Vec::with_capacity(settings.stencil);
-        for i in 0..n {
-            let st = stencil(i, settings.stencil, n);
-            let w = fornberg(t[i], &t[st.clone()], 2);
-            let mut a = Vec3::ZERO;
-            let mut j = Vec3::ZERO;
-            phi.clear();
-            for (m, k) in st.clone().enumerate() {
-                // Velocity differences relative to the centre keep the sums well scaled.
-                let dv = v[k] - v[i];
-                a += dv * w[1][m];
-                j += dv * w[2][m];
-                phi.push(q[i].conj().mul(q[k]).to_rotvec());
-            }
-            let mut omega = Vec3::ZERO;
-            let mut omega_dot = Vec3::ZERO;
-            for (m, p) in phi.iter().enumerate() {
-                omega += *p * w[1][m];
-                omega_dot += *p * w[2][m];
-            }
-            // q̇ = ½ q ⊗ ω and q̈ = q ⊗ (−|ω|²/4, ω̇/2): consistent with |q| = 1 to second order.
-            let qd = q[i].mul(Quat {
-                w: 0.0,
-                v: omega * 0.5,
-            });
-            let qdd = q[i].mul(Quat {
-                w: -0.25 * omega.dot(omega),
-                v: omega_dot * 0.5,
-            });
-            knots.push(Knot {
-                t: t[i],
-                r: r[i],
-                v: v[i],
-                a,
-                j,
-                q: q[i],
-                qd,
-                qdd,
-            });
-        }
-        Ok(SampledMotion {
-            knots,
+        let source = Box::new(MemorySamples {
+            samples: Arc::new(samples.to_vec()),
+            next: 0,
+        });
+        Ok(SampledMotion::from_source(source, b.finish()?, settings))
+    }
+
+    /// The model of the samples `source` delivers, which `index` describes (built by an
+    /// [`IndexBuilder`] over the same samples).
+    pub fn from_source(
+        source: Box<dyn SampleSource>,
+        index: Index,
+        settings: ModelSettings,
+    ) -> SampledMotion {
+        let index = Arc::new(index);
+        SampledMotion {
             degree: settings.degree,
-        })
+            window: Mutex::new(Window::new(source, index.clone())),
+            index,
+        }
     }
 
     /// Number of samples.
     pub fn len(&self) -> usize {
-        self.knots.len()
+        self.index.len()
     }
 
     /// Always false: a model has at least `min_samples` samples.
     pub fn is_empty(&self) -> bool {
-        self.knots.is_empty()
+        self.index.len() == 0
     }
 
-    /// Full ECEF state at t on segment i (knots i and i+1).
+    /// Why the samples could not be read again after the model was built (the file changed
+    /// or vanished); the model then evaluates to NaN.
+    pub fn failure(&self) -> Option<String> {
+        self.lock().failure()
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Window> {
+        // A panic elsewhere cannot leave the window inconsistent: every update is complete.
+        self.window.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Full ECEF state at t between knots `k0` and `k1`.
     #[inline]
-    fn state(&self, i: usize, t: f64) -> (EcefState, Vec3) {
-        let k0 = &self.knots[i];
-        let k1 = &self.knots[i + 1];
+    fn state(&self, k0: &Knot, k1: &Knot, t: f64) -> (EcefState, Vec3) {
         let h = k1.t - k0.t;
         let s = (t - k0.t) / h;
         let b = Basis::new(self.degree, s);
@@ -298,39 +397,32 @@ impl Basis {
 
 impl Motion for SampledMotion {
     fn start(&self) -> f64 {
-        self.knots[0].t
+        self.index.first_time()
     }
     fn end(&self) -> f64 {
-        self.knots[self.knots.len() - 1].t
+        self.index.last_time()
     }
     fn piece_at(&self, t: f64, hint: usize) -> usize {
-        let last = self.knots.len() - 2;
-        let ks = &self.knots;
-        let h = hint.min(last);
-        if ks[h].t <= t && (h == last || t < ks[h + 1].t) {
-            return h;
-        }
-        if h < last && ks[h + 1].t <= t && (h + 1 == last || t < ks[h + 2].t) {
-            return h + 1;
-        }
-        // Index of the last knot with time ≤ t, clamped to a valid segment.
-        let idx = ks.partition_point(|k| k.t <= t);
-        idx.saturating_sub(1).min(last)
+        self.lock().piece_at(t, hint)
     }
     fn piece_end(&self, piece: usize) -> f64 {
-        if piece + 2 >= self.knots.len() {
+        if piece + 2 >= self.index.len() {
             f64::INFINITY
         } else {
-            self.knots[piece + 1].t
+            self.lock().knot(piece + 1).t
         }
     }
     #[inline]
     fn sense(&self, piece: usize, t: f64) -> Sensed {
-        sense_ecef(&self.state(piece, t).0)
+        let mut w = self.lock();
+        let (k0, k1) = w.pair(piece);
+        sense_ecef(&self.state(k0, k1, t).0)
     }
     fn pose(&self, t: f64) -> Pose {
-        let i = self.piece_at(t, 0);
-        let (s, _) = self.state(i, t);
+        let mut w = self.lock();
+        let i = w.piece_at(t, 0);
+        let (k0, k1) = w.pair(i);
+        let (s, _) = self.state(k0, k1, t);
         let q_n_e = s.pos.q_n_e();
         Pose {
             t,

@@ -66,7 +66,8 @@ impl FlightScene {
     }
 
     /// Merges independent lists of planar and height pieces (each sorted by start time, the
-    /// first starting at `start`) into pieces that are smooth in both.
+    /// first starting at `start`) into pieces that are smooth in both. Linear in the number
+    /// of pieces: one cursor per list moves forward with the sorted start times.
     pub fn merge(planar: &[(f64, Planar)], height: &[(f64, Poly)]) -> Vec<FlightPiece> {
         let mut starts: Vec<f64> = planar
             .iter()
@@ -75,11 +76,20 @@ impl FlightScene {
             .collect();
         starts.sort_by(f64::total_cmp);
         starts.dedup();
+        // The last piece of `list` starting at or before t (the first if none does), with
+        // `i` that piece's index from the previous, earlier t.
+        fn current<T>(list: &[(f64, T)], i: &mut usize, t: f64) -> usize {
+            while *i + 1 < list.len() && list[*i + 1].0 <= t {
+                *i += 1;
+            }
+            *i
+        }
+        let (mut ip, mut ih) = (0, 0);
         starts
             .into_iter()
             .map(|t| {
-                let p = planar.iter().rev().find(|p| p.0 <= t).unwrap_or(&planar[0]);
-                let h = height.iter().rev().find(|h| h.0 <= t).unwrap_or(&height[0]);
+                let p = &planar[current(planar, &mut ip, t)];
+                let h = &height[current(height, &mut ih, t)];
                 FlightPiece {
                     t_start: t,
                     planar: (p.1, p.0),

@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::earth;
 use crate::math::quat_from_euler;
+use crate::motion::limits;
 use crate::quadrature::GaussLegendre;
 pub use fixed::{FixedScene, PolarScene};
 pub use flight::{FlightPiece, FlightScene};
@@ -120,9 +121,25 @@ impl SceneParams {
     }
 }
 
+/// Heights a scene may have (m): the limits of trajectory input.
+const HEIGHTS: std::ops::RangeInclusive<f64> = limits::MIN_HEIGHT_M..=limits::MAX_HEIGHT_M;
+const HEIGHT_RANGE: &str = "a height in [−1e5, 1e8] m";
+
+/// Speeds of the moving scenes (m/s): their attitude follows the track, which needs a speed
+/// (0.01 m/s keeps the survey's turn rate g·tan(bank)/speed under the rate limit), and at
+/// most the speed limit of trajectory input.
+const SPEEDS: std::ops::RangeInclusive<f64> = 0.01..=limits::MAX_SPEED_M_S;
+const SPEED_RANGE: &str = "a positive speed in [0.01, 3e4] m/s";
+
+/// Most `survey` lines: about 100 MB of pieces, 150 days of flight at the defaults.
+pub const MAX_LINES: u32 = 100_000;
+
+/// Longest `survey` line (s).
+const MAX_LINE_S: f64 = 1.0e6;
+
 /// A scene parameter outside its valid range.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("scene `{scene}`: parameter `{key}` = {value}: {expected}")]
+#[error("scene `{scene}`: parameter `{key}` = {}: {expected}", crate::csvio::num(*value))]
 pub struct SceneParamError {
     /// Scene name.
     pub scene: String,
@@ -192,7 +209,23 @@ pub fn build(name: &str, p: &SceneParams) -> Result<Result<Scene, SceneParamErro
             p.lat_deg.abs() <= 90.0,
             "a latitude within ±90°",
         )?;
-        check("h_m", p.h_m, p.h_m > -1.0e5, "a height above −100 km")?;
+        check("h_m", p.h_m, HEIGHTS.contains(&p.h_m), HEIGHT_RANGE)?;
+        let check_speed = || {
+            check(
+                "speed_m_s",
+                p.speed_m_s,
+                SPEEDS.contains(&p.speed_m_s),
+                SPEED_RANGE,
+            )
+        };
+        // A roll oscillation's peak rate, amplitude × 2πf, within the limit of the kinematics.
+        let osc_rate = r(p.roll_osc_deg).abs() * 2.0 * PI * p.roll_osc_hz.abs();
+        check(
+            "roll_osc_hz",
+            p.roll_osc_hz,
+            osc_rate <= limits::MAX_RATE_RAD_S,
+            "a frequency whose roll rate, amplitude × 2π × frequency, is at most 1e4 rad/s",
+        )?;
         let roll_osc =
             (p.roll_osc_deg != 0.0).then(|| (r(p.roll_osc_deg), 2.0 * PI * p.roll_osc_hz));
         match name {
@@ -202,8 +235,8 @@ pub fn build(name: &str, p: &SceneParams) -> Result<Result<Scene, SceneParamErro
                     check(
                         "cone_hz",
                         p.cone_hz,
-                        p.cone_hz > 0.0,
-                        "a positive frequency",
+                        p.cone_hz > 0.0 && 2.0 * PI * p.cone_hz <= limits::MAX_RATE_RAD_S,
+                        "a positive frequency up to 1e4/2π ≈ 1592 Hz",
                     )?;
                     Some((r(p.cone_half_angle_deg), 2.0 * PI * p.cone_hz))
                 } else {
@@ -218,12 +251,7 @@ pub fn build(name: &str, p: &SceneParams) -> Result<Result<Scene, SceneParamErro
                 )))
             }
             "straight" => {
-                check(
-                    "speed_m_s",
-                    p.speed_m_s,
-                    p.speed_m_s > 0.0,
-                    "a positive speed",
-                )?;
+                check_speed()?;
                 let (s, c) = r(p.yaw_deg).sin_cos();
                 let planar = [(
                     0.0,
@@ -244,17 +272,15 @@ pub fn build(name: &str, p: &SceneParams) -> Result<Result<Scene, SceneParamErro
                 )))
             }
             "circle" => {
-                check(
-                    "speed_m_s",
-                    p.speed_m_s,
-                    p.speed_m_s > 0.0,
-                    "a positive speed",
-                )?;
+                check_speed()?;
+                let v = p.speed_m_s;
                 check(
                     "radius_m",
                     p.radius_m,
-                    p.radius_m > 0.0,
-                    "a positive radius",
+                    p.radius_m > 0.0
+                        && v * v / p.radius_m <= limits::MAX_ACCEL_M_S2
+                        && v / p.radius_m <= limits::MAX_RATE_RAD_S,
+                    "a positive radius with speed²/radius ≤ 1e5 m/s² and speed/radius ≤ 1e4 rad/s",
                 )?;
                 let sign = if p.turn_right { 1.0 } else { -1.0 };
                 let arc = Planar::Arc {
@@ -274,34 +300,35 @@ pub fn build(name: &str, p: &SceneParams) -> Result<Result<Scene, SceneParamErro
                 )))
             }
             "survey" => {
-                check(
-                    "speed_m_s",
-                    p.speed_m_s,
-                    p.speed_m_s > 0.0,
-                    "a positive speed",
-                )?;
+                check_speed()?;
                 check(
                     "bank_deg",
                     p.bank_deg,
                     p.bank_deg > 0.0 && p.bank_deg < 80.0,
                     "a bank angle in (0°, 80°)",
                 )?;
-                check("line_s", p.line_s, p.line_s > 0.0, "a positive duration")?;
+                check(
+                    "line_s",
+                    p.line_s,
+                    p.line_s > 0.0 && p.line_s <= MAX_LINE_S,
+                    "a positive duration up to 1e6 s",
+                )?;
+                check(
+                    "lines",
+                    p.lines.into(),
+                    p.lines <= MAX_LINES,
+                    "at most 100000 lines",
+                )?;
                 check(
                     "start_h_m",
                     p.start_h_m,
-                    p.start_h_m > -1.0e5,
-                    "a height above −100 km",
+                    HEIGHTS.contains(&p.start_h_m),
+                    HEIGHT_RANGE,
                 )?;
                 Ok(Scene::Flight(survey(p, roll_osc)))
             }
             "polar" => {
-                check(
-                    "speed_m_s",
-                    p.speed_m_s,
-                    p.speed_m_s > 0.0,
-                    "a positive speed",
-                )?;
+                check_speed()?;
                 let rn_pole = earth::radius_meridian(1.0) + p.h_m;
                 let mu_rate = p.speed_m_s / rn_pole;
                 // Start one minute before the pole.
@@ -329,8 +356,16 @@ fn ramp_integral(s: f64) -> f64 {
 
 /// Displacement over a curvature-ramp transition of duration `t`, starting at heading `psi0`,
 /// with heading ψ(τ) = ψ₀ + σΩt·I(τ/t) (I = ramp_integral, or s − I(s) when ramping down).
-fn transition_end(v: f64, psi0: f64, turn: f64, t: f64, up: bool) -> ([f64; 2], f64) {
-    let rule = GaussLegendre::new(16).expect("16 nodes supported");
+/// `rule` is a 16-node Gauss–Legendre rule (built once per scene: building one costs as much
+/// as thousands of transitions).
+fn transition_end(
+    rule: &GaussLegendre,
+    v: f64,
+    psi0: f64,
+    turn: f64,
+    t: f64,
+    up: bool,
+) -> ([f64; 2], f64) {
     let heading = |s: f64| {
         let i = if up {
             ramp_integral(s)
@@ -378,6 +413,7 @@ fn survey(p: &SceneParams, roll_osc: Option<(f64, f64)>) -> FlightScene {
     let mut psi: f64 = 0.0;
     let mut t = 0.0;
     let mut leg = climb_leg;
+    let rule = GaussLegendre::new(16).expect("16 nodes supported");
     for line in 0..=p.lines {
         let (s, c) = psi.sin_cos();
         planar.push((
@@ -393,7 +429,7 @@ fn survey(p: &SceneParams, roll_osc: Option<(f64, f64)>) -> FlightScene {
         let sign = if line % 2 == 0 { 1.0 } else { -1.0 };
         let w = sign * omega;
         // Roll-in: straight → arc.
-        let (d, psi_e) = transition_end(v, psi, w, t_tr, true);
+        let (d, psi_e) = transition_end(&rule, v, psi, w, t_tr, true);
         let p_e = [pos[0] + d[0], pos[1] + d[1]];
         let (sx, sy) = line_jets(pos, v, psi);
         let (ex, ey) = arc_jets(p_e, v, psi_e, w);
@@ -421,7 +457,7 @@ fn survey(p: &SceneParams, roll_osc: Option<(f64, f64)>) -> FlightScene {
         let (sa, ca) = psi_a.sin_cos();
         let p_a = [centre[0] + r * sa, centre[1] - r * ca];
         // Roll-out: arc → straight.
-        let (d, psi_f) = transition_end(v, psi_a, w, t_tr, false);
+        let (d, psi_f) = transition_end(&rule, v, psi_a, w, t_tr, false);
         let p_f = [p_a[0] + d[0], p_a[1] + d[1]];
         let (sx, sy) = arc_jets(p_a, v, psi_a, w);
         let (ex, ey) = line_jets(p_f, v, psi_f);
