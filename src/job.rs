@@ -2,9 +2,11 @@
 //! block into any writer. The binary adds flags, files and the progress bar around it.
 
 use std::io::Write;
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use crate::errors::ErrorChain;
+use crate::errors::temperature::TemperatureProfile;
 use crate::generator::IdealImu;
 use crate::motion::Motion;
 use crate::motion::sampled::{ModelError, ModelSettings, SampledMotion};
@@ -71,8 +73,24 @@ pub enum JobError {
         /// What is expected.
         expected: &'static str,
     },
-    /// Writing failed.
-    #[error("writing output: {0}")]
+    /// A record, its error-free counterpart or a side output came out non-finite: stopped
+    /// rather than written.
+    #[error("record at t = {t} s: {quantity} is {value} {stage}")]
+    NonFinite {
+        /// Record time (s).
+        t: f64,
+        /// Column of the record contract (`gyro_x`, `dv_z`, …).
+        quantity: &'static str,
+        /// The value (NaN or ±inf).
+        value: f64,
+        /// Where it appeared: in the error-free signal or after the error chain.
+        stage: &'static str,
+    },
+    /// The caller asked to stop (an interrupted run).
+    #[error("stopped before the end of the run")]
+    Stopped,
+    /// Writing failed (the cause is the error's `source()`, not repeated here).
+    #[error("writing output")]
     Io(#[from] std::io::Error),
 }
 
@@ -199,7 +217,13 @@ impl Encoding {
 
     /// Appends the main output's bytes for `records`, and the end offset of each record's
     /// bytes in `buf` to `ends`.
-    fn encode(&mut self, records: &[Record], buf: &mut Vec<u8>, ends: &mut Vec<usize>) {
+    fn encode(
+        &mut self,
+        records: &[Record],
+        profile: Option<&TemperatureProfile>,
+        buf: &mut Vec<u8>,
+        ends: &mut Vec<usize>,
+    ) {
         match self {
             Encoding::Records(f) => {
                 // One call per block (as fast as before records had ends); each record is one
@@ -222,7 +246,9 @@ impl Encoding {
                 ..
             } => {
                 for r in records {
-                    plan.encode(r, *temperature, state, buf);
+                    // The sensor temperature the error chain used for this record.
+                    let celsius = profile.map_or(*temperature, |p| p.at(r.t));
+                    plan.encode(r, celsius, state, buf);
                     ends.push(buf.len());
                 }
             }
@@ -245,6 +271,10 @@ pub struct Producer {
     truth: Vec<Record>,
     keep_truth: bool,
     rot: Vec<crate::generator::RotationTerms>,
+    /// The sensor temperature over the run, carried by frames with a temperature field.
+    temperature: Option<TemperatureProfile>,
+    /// Why production stopped early (a non-finite value), for [`Producer::take_error`].
+    error: Option<JobError>,
 }
 
 /// One block of production: the corrupted records and, if asked for, the error-free ones.
@@ -305,7 +335,39 @@ impl Producer {
             truth: Vec::new(),
             keep_truth,
             rot: Vec::new(),
+            temperature: None,
+            error: None,
         }
+    }
+
+    /// Frames with a temperature field carry `profile` at each record's time (the profile the
+    /// error chain's temperature terms follow) instead of the encoding's constant.
+    pub fn with_temperature(mut self, profile: Option<TemperatureProfile>) -> Producer {
+        self.temperature = profile;
+        self
+    }
+
+    /// The error that ended production early: the block methods return `None` both at the
+    /// end of the run and when a record came out non-finite; this tells them apart.
+    pub fn take_error(&mut self) -> Option<JobError> {
+        self.error.take()
+    }
+
+    /// Whether a record of the last block is non-finite (before or after the error chain):
+    /// nothing non-finite leaves the producer.
+    fn check_finite(records: &[Record], stage: &'static str) -> Result<(), JobError> {
+        for r in records {
+            let v = r.values();
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(JobError::NonFinite {
+                    t: r.t,
+                    quantity: crate::record::COLUMNS[i],
+                    value: v[i],
+                    stage,
+                });
+            }
+        }
+        Ok(())
     }
 
     /// A producer of records only (no wire encoding), with the default quadrature: for
@@ -353,6 +415,9 @@ impl Producer {
         }
         let first = self.k - 1;
         self.imu.fill(self.k, &mut self.block[..n]);
+        if let Err(e) = Producer::check_finite(&self.block[..n], "in the error-free signal") {
+            return self.fail(e);
+        }
         if self.keep_truth {
             self.truth.clear();
             self.truth.extend_from_slice(&self.block[..n]);
@@ -367,9 +432,19 @@ impl Producer {
             } else {
                 c.apply(&mut self.block[..n]);
             }
+            if let Err(e) = Producer::check_finite(&self.block[..n], "after the error chain") {
+                return self.fail(e);
+            }
         }
         self.k += n as u64;
         Some((first, n))
+    }
+
+    /// Ends production with `e` (kept for [`Producer::take_error`]).
+    fn fail(&mut self, e: JobError) -> Option<(u64, usize)> {
+        self.error = Some(e);
+        self.k = self.count + 1;
+        None
     }
 
     fn view(&self, first: u64, n: usize) -> Block<'_> {
@@ -390,7 +465,8 @@ impl Producer {
         ends: &mut Vec<usize>,
     ) -> Option<Block<'_>> {
         let (first, n) = self.step(max)?;
-        self.encoding.encode(&self.block[..n], out, ends);
+        let profile = self.temperature.as_ref();
+        self.encoding.encode(&self.block[..n], profile, out, ends);
         Some(self.view(first, n))
     }
 
@@ -404,7 +480,7 @@ impl Producer {
         let (first, n) = self.step(max)?;
         let encodings = std::iter::once(&mut self.encoding).chain(self.extra.iter_mut());
         for (e, (out, ends)) in encodings.zip(outs.iter_mut()) {
-            e.encode(&self.block[..n], out, ends);
+            e.encode(&self.block[..n], self.temperature.as_ref(), out, ends);
         }
         Some(self.view(first, n))
     }
@@ -421,14 +497,31 @@ pub fn run(
     grid: Grid,
     nodes: usize,
     encoding: impl Into<Encoding>,
-    mut chain: Option<ErrorChain>,
+    chain: Option<ErrorChain>,
+    out: &mut impl Write,
+    truth: Option<&mut dyn Write>,
+    injected: Option<&mut dyn Write>,
+    mut progress: impl FnMut(u64),
+) -> Result<(), JobError> {
+    let producer = Producer::new(motion, grid, nodes, encoding, chain, false)?;
+    drain(producer, out, truth, injected, |k| {
+        progress(k);
+        ControlFlow::Continue(())
+    })
+}
+
+/// Writes the whole run of a producer that has not started into `out` (and the side
+/// outputs, as [`run`] does). After each block `progress(records_done)` may stop the run
+/// early with `ControlFlow::Break`, which returns [`JobError::Stopped`]; a non-finite record
+/// stops it with [`JobError::NonFinite`] before anything of its block is written.
+pub fn drain(
+    mut producer: Producer,
     out: &mut impl Write,
     mut truth: Option<&mut dyn Write>,
     mut injected: Option<&mut dyn Write>,
-    mut progress: impl FnMut(u64),
+    mut progress: impl FnMut(u64) -> ControlFlow<()>,
 ) -> Result<(), JobError> {
-    let encoding = encoding.into();
-    let format = encoding.side();
+    let format = producer.encoding.side();
     if format == Format::Csv {
         if let Some(t) = truth.as_mut() {
             t.write_all(output::csv_header().as_bytes())?;
@@ -438,14 +531,10 @@ pub fn run(
         }
     }
     if injected.is_some() {
-        chain = Some(
-            chain
-                .take()
-                .unwrap_or_else(ErrorChain::ideal)
-                .with_components(),
-        );
+        let chain = producer.chain.take().unwrap_or_else(ErrorChain::ideal);
+        producer.chain = Some(chain.with_components());
     }
-    let mut producer = Producer::new(motion, grid, nodes, encoding, chain, truth.is_some())?;
+    producer.keep_truth = truth.is_some();
     out.write_all(producer.preamble().as_bytes())?;
     let mut buf = Vec::with_capacity(BLOCK * 104);
     let mut side = Vec::new();
@@ -468,7 +557,12 @@ pub fn run(
         }
         let done = b.first + b.records.len() as u64;
         out.write_all(&buf)?;
-        progress(done);
+        if progress(done).is_break() {
+            return Err(JobError::Stopped);
+        }
+    }
+    if let Some(e) = producer.take_error() {
+        return Err(e);
     }
     out.flush()?;
     if let Some(t) = truth.as_mut() {

@@ -32,6 +32,7 @@ pub mod realtime;
 pub mod record;
 pub mod rng;
 pub mod scenes;
+pub mod sim;
 pub mod source;
 pub mod trajectory;
 pub mod truth;

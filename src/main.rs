@@ -17,7 +17,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Generate IMU records offline, as fast as the machine allows.
-    Generate(Box<cmd::setup::GenerateArgs>),
+    Generate(Box<cmd::generate::GenerateArgs>),
     /// Write a scene's reference trajectory as trajectory CSV (the input format).
     Trajectory(cmd::info::TrajectoryArgs),
     /// List the built-in scenes.
@@ -73,6 +73,10 @@ fn main() {
         });
         if broken_pipe {
             std::process::exit(0);
+        }
+        if let Some(i) = e.downcast_ref::<cmd::Interrupted>() {
+            eprintln!("imu-emu: {i}");
+            std::process::exit(i.code);
         }
         eprintln!("error: {e:#}");
         std::process::exit(1);
