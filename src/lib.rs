@@ -28,6 +28,7 @@ pub mod output;
 pub mod plot;
 pub mod protocol;
 pub mod quadrature;
+#[cfg(feature = "realtime")]
 pub mod realtime;
 pub mod record;
 pub mod rng;

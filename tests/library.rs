@@ -3,7 +3,8 @@
 
 use std::path::Path;
 
-use imu_emu::protocol::{Source, StreamDecoder};
+use imu_emu::protocol::StreamDecoder;
+use imu_emu::protocol::spec::Source;
 use imu_emu::sim::{SimError, Simulation};
 
 // The example's own code, compiled into this test (its `main` is not called).
