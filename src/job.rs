@@ -43,8 +43,8 @@ pub enum JobError {
     /// Bad scene parameter.
     #[error(transparent)]
     SceneParam(#[from] SceneParamError),
-    /// The model cannot be built from the file.
-    #[error("{path}: {source}")]
+    /// The model cannot be built from the file (the cause is the error's `source()`).
+    #[error("{path}: cannot model the trajectory")]
     Model {
         /// File.
         path: PathBuf,

@@ -92,8 +92,8 @@ pub struct ReadSummary {
 /// Input that cannot be analysed, with the file, line and field at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum ReadError {
-    /// The file cannot be read.
-    #[error("{path}: {source}")]
+    /// The file cannot be read (the cause is the error's `source()`, not repeated here).
+    #[error("{path}: cannot read")]
     Io {
         /// File.
         path: PathBuf,

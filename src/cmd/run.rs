@@ -187,7 +187,8 @@ pub fn run(a: RunArgs) -> Result<()> {
             ("stdout".into(), Box::new(std::io::stdout()))
         } else {
             let f = std::fs::File::create(path).with_context(|| format!("creating {path}"))?;
-            (format!("file {path}"), Box::new(f))
+            let label = format!("file {path}");
+            (label.clone(), Box::new(Labeled { label, inner: f }))
         };
         let sink = Box::new(FileSink::new(
             label,
@@ -380,4 +381,35 @@ fn summary(s: &Status, planned: u64, paced: bool) -> String {
         );
     }
     out
+}
+
+/// A writer whose errors name what it writes to (the sink's label), keeping their kind.
+struct Labeled<W> {
+    label: String,
+    inner: W,
+}
+
+/// An I/O error of a labelled writer: the label, then the cause as its `source()`.
+#[derive(Debug, thiserror::Error)]
+#[error("writing {label}")]
+struct LabeledError {
+    label: String,
+    source: std::io::Error,
+}
+
+impl<W: std::io::Write> Labeled<W> {
+    fn wrap(&self, e: std::io::Error) -> std::io::Error {
+        let kind = e.kind();
+        let label = self.label.clone();
+        std::io::Error::new(kind, LabeledError { label, source: e })
+    }
+}
+
+impl<W: std::io::Write> std::io::Write for Labeled<W> {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.inner.write(b).map_err(|e| self.wrap(e))
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush().map_err(|e| self.wrap(e))
+    }
 }
