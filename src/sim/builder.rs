@@ -247,7 +247,7 @@ impl SimulationBuilder {
     }
 
     /// `FILE: `key`` when a value came from the scene file (`given`: set in code instead).
-    fn from_file(&self, given: bool, in_file: bool, key: &str) -> Option<String> {
+    fn file_key(&self, given: bool, in_file: bool, key: &str) -> Option<String> {
         match (&self.file_path, given || !in_file) {
             (Some(p), false) => Some(format!("{}: `{key}`", p.display())),
             _ => None,
@@ -302,7 +302,7 @@ impl SimulationBuilder {
     /// The motion-model settings of a trajectory file (interpolation and stencil).
     fn model_settings(&self) -> Result<ModelSettings, SimError> {
         let e = &self.file.engine;
-        let at = self.from_file(
+        let at = self.file_key(
             self.interpolation.is_some(),
             e.interpolation.is_some(),
             "engine.interpolation",
@@ -320,7 +320,7 @@ impl SimulationBuilder {
                 .at(at));
             }
         };
-        let at = self.from_file(
+        let at = self.file_key(
             self.stencil.is_some(),
             e.stencil.is_some(),
             "engine.stencil",
@@ -359,7 +359,7 @@ impl SimulationBuilder {
     /// The IMU model: setter, then the scene file's `imu.model`, then the default.
     fn resolve_imu(&self) -> Result<ImuModel, SimError> {
         let file = &self.file.imu.model;
-        let at = self.from_file(self.imu.is_some(), file.is_some(), "imu.model");
+        let at = self.file_key(self.imu.is_some(), file.is_some(), "imu.model");
         let name = match &self.imu {
             Some(Imu::Model(m)) => return Ok((**m).clone()),
             Some(Imu::Named(n)) => n.clone(),
@@ -374,7 +374,7 @@ impl SimulationBuilder {
             return Ok(Output::Frames(protocol::load(&p.to_string_lossy())?.1));
         }
         let file = &self.file.output.format;
-        let at = self.from_file(self.format.is_some(), file.is_some(), "output.format");
+        let at = self.file_key(self.format.is_some(), file.is_some(), "output.format");
         let name = (self.format.clone())
             .or(file.clone())
             .unwrap_or_else(|| self.default_format.clone());
@@ -424,8 +424,8 @@ impl SimulationBuilder {
         let o = &self.file.output;
         let start = self.start.or(o.start_s);
         let duration = self.duration.or(o.duration_s);
-        let at_start = self.from_file(self.start.is_some(), o.start_s.is_some(), "output.start_s");
-        let at_duration = self.from_file(
+        let at_start = self.file_key(self.start.is_some(), o.start_s.is_some(), "output.start_s");
+        let at_duration = self.file_key(
             self.duration.is_some(),
             o.duration_s.is_some(),
             "output.duration_s",
@@ -497,7 +497,7 @@ impl SimulationBuilder {
             if v.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
                 let e = SimError::Invalid("expected three finite numbers".into());
                 let name = key.trim_start_matches("imu.");
-                return Err(match self.from_file(given, true, key) {
+                return Err(match self.file_key(given, true, key) {
                     Some(place) => e.at(Some(place)),
                     None => e.at(Some(format!("`{name}`"))),
                 });
@@ -598,7 +598,7 @@ impl SimulationBuilder {
         };
         let mut output = self.output()?;
         let e = &self.file.engine;
-        let at = self.from_file(
+        let at = self.file_key(
             self.nodes.is_some(),
             e.quadrature_nodes.is_some(),
             "engine.quadrature_nodes",
@@ -619,7 +619,7 @@ impl SimulationBuilder {
                 })
                 .or(imu.rate_hz)
                 .unwrap_or(DEFAULT_RATE_HZ),
-            place: self.from_file(self.rate.is_some(), rate_in_file, "imu.rate_hz"),
+            place: self.file_key(self.rate.is_some(), rate_in_file, "imu.rate_hz"),
         };
         let motion = self.motion()?;
         let grid = self.grid(&motion, &source, rate.clone())?;
