@@ -630,6 +630,44 @@ mod tests {
         }
     }
 
+    /// A record that comes out NaN (a temperature table that turns NaN after 0.25 s, through
+    /// a bias temperature coefficient) ends production at that record's block: the blocks
+    /// before it are whole, nothing of its block is encoded, and the error names its time,
+    /// quantity and stage.
+    #[test]
+    fn producer_stops_at_a_non_finite_record() {
+        let model = crate::errors::template::parse(
+            "name = \"warm\"\ntemperature_ref = \"25 degC\"\n[accel]\nbias_temperature = [\"0.1 mg/degC\"]\n",
+            std::path::Path::new("warm.toml"),
+        )
+        .unwrap();
+        let profile = TemperatureProfile::Table(vec![(0.0, 25.0), (0.25, 25.0), (0.35, f64::NAN)]);
+        let chain = ErrorChain::new(&model, 10.0, 1).with_temperature(profile, &model);
+        let source = SourceSpec::Scene("static".into(), SceneParams::defaults_for("static"));
+        let motion = build_motion(&source, ModelSettings::default()).unwrap();
+        let grid = plan_grid(&motion);
+        let mut p = Producer::new(motion, grid, 3, Format::Csv, Some(chain), false).unwrap();
+        let (mut buf, mut ends) = (Vec::new(), Vec::new());
+        assert_eq!(
+            p.next_block(2, &mut buf, &mut ends).unwrap().records.len(),
+            2
+        );
+        let written = buf.len();
+        assert!(p.next_block(2, &mut buf, &mut ends).is_none());
+        assert_eq!(buf.len(), written);
+        match p.take_error() {
+            Some(JobError::NonFinite {
+                t, quantity, stage, ..
+            }) => {
+                assert!((t - 0.3).abs() < 1e-12, "t = {t}");
+                // NaN times the gyro's zero coefficient is NaN too: the first column is named.
+                assert_eq!((quantity, stage), ("gyro_x", "after the error chain"));
+            }
+            other => panic!("expected a non-finite record, got {other:?}"),
+        }
+        assert!(p.next_block(2, &mut buf, &mut ends).is_none());
+    }
+
     fn plan_grid(motion: &AnyMotion) -> Grid {
         plan(motion, 10.0, None, Some(5.0)).unwrap()
     }
