@@ -551,6 +551,19 @@ fn key_at(text: &str, offset: usize) -> Option<String> {
     })
 }
 
+/// A TOML error of `text` on one line: `line L, column C: message`. The parser's own text
+/// spans several lines (a code excerpt with a caret), which a one-line error cannot show.
+pub fn toml_error_line(text: &str, e: &toml::de::Error) -> String {
+    let message = e.message().trim().replace('\n', " ");
+    match e.span() {
+        Some(s) => {
+            let (line, column) = line_col(text, s.start);
+            format!("line {line}, column {column}: {message}")
+        }
+        None => message,
+    }
+}
+
 /// 1-based line and column of a byte offset.
 fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];

@@ -2,9 +2,11 @@
 //! block into any writer. The binary adds flags, files and the progress bar around it.
 
 use std::io::Write;
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use crate::errors::ErrorChain;
+use crate::errors::temperature::TemperatureProfile;
 use crate::generator::IdealImu;
 use crate::motion::Motion;
 use crate::motion::sampled::{ModelError, ModelSettings};
@@ -41,8 +43,8 @@ pub enum JobError {
     /// Bad scene parameter.
     #[error(transparent)]
     SceneParam(#[from] SceneParamError),
-    /// The model cannot be built from the file.
-    #[error("{path}: {source}")]
+    /// The model cannot be built from the file (the cause is the error's `source()`).
+    #[error("{path}: cannot model the trajectory")]
     Model {
         /// File.
         path: PathBuf,
@@ -86,8 +88,24 @@ pub enum JobError {
         /// Record interval (s).
         dt: f64,
     },
-    /// Writing failed.
-    #[error("writing output: {0}")]
+    /// A record, its error-free counterpart or a side output came out non-finite: stopped
+    /// rather than written.
+    #[error("record at t = {t} s: {quantity} is {value} {stage}")]
+    NonFinite {
+        /// Record time (s).
+        t: f64,
+        /// Column of the record contract (`gyro_x`, `dv_z`, …).
+        quantity: &'static str,
+        /// The value (NaN or ±inf).
+        value: f64,
+        /// Where it appeared: in the error-free signal or after the error chain.
+        stage: &'static str,
+    },
+    /// The caller asked to stop (an interrupted run).
+    #[error("stopped before the end of the run")]
+    Stopped,
+    /// Writing failed (the cause is the error's `source()`, not repeated here).
+    #[error("writing output")]
     Io(#[from] std::io::Error),
 }
 
@@ -216,7 +234,13 @@ impl Encoding {
 
     /// Appends the main output's bytes for `records`, and the end offset of each record's
     /// bytes in `buf` to `ends`.
-    fn encode(&mut self, records: &[Record], buf: &mut Vec<u8>, ends: &mut Vec<usize>) {
+    fn encode(
+        &mut self,
+        records: &[Record],
+        profile: Option<&TemperatureProfile>,
+        buf: &mut Vec<u8>,
+        ends: &mut Vec<usize>,
+    ) {
         match self {
             Encoding::Records(f) => {
                 // One call per block (as fast as before records had ends); each record is one
@@ -239,7 +263,9 @@ impl Encoding {
                 ..
             } => {
                 for r in records {
-                    plan.encode(r, *temperature, state, buf);
+                    // The sensor temperature the error chain used for this record.
+                    let celsius = profile.map_or(*temperature, |p| p.at(r.t));
+                    plan.encode(r, celsius, state, buf);
                     ends.push(buf.len());
                 }
             }
@@ -262,6 +288,10 @@ pub struct Producer {
     truth: Vec<Record>,
     keep_truth: bool,
     rot: Vec<crate::generator::RotationTerms>,
+    /// The sensor temperature over the run, carried by frames with a temperature field.
+    temperature: Option<TemperatureProfile>,
+    /// Why production stopped early (a non-finite value), for [`Producer::take_error`].
+    error: Option<JobError>,
 }
 
 /// One block of production: the corrupted records and, if asked for, the error-free ones.
@@ -322,7 +352,39 @@ impl Producer {
             truth: Vec::new(),
             keep_truth,
             rot: Vec::new(),
+            temperature: None,
+            error: None,
         }
+    }
+
+    /// Frames with a temperature field carry `profile` at each record's time (the profile the
+    /// error chain's temperature terms follow) instead of the encoding's constant.
+    pub fn with_temperature(mut self, profile: Option<TemperatureProfile>) -> Producer {
+        self.temperature = profile;
+        self
+    }
+
+    /// The error that ended production early: the block methods return `None` both at the
+    /// end of the run and when a record came out non-finite; this tells them apart.
+    pub fn take_error(&mut self) -> Option<JobError> {
+        self.error.take()
+    }
+
+    /// Whether a record of the last block is non-finite (before or after the error chain):
+    /// nothing non-finite leaves the producer.
+    fn check_finite(records: &[Record], stage: &'static str) -> Result<(), JobError> {
+        for r in records {
+            let v = r.values();
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(JobError::NonFinite {
+                    t: r.t,
+                    quantity: crate::record::COLUMNS[i],
+                    value: v[i],
+                    stage,
+                });
+            }
+        }
+        Ok(())
     }
 
     /// A producer of records only (no wire encoding), with the default quadrature: for
@@ -370,6 +432,9 @@ impl Producer {
         }
         let first = self.k - 1;
         self.imu.fill(self.k, &mut self.block[..n]);
+        if let Err(e) = Producer::check_finite(&self.block[..n], "in the error-free signal") {
+            return self.fail(e);
+        }
         if self.keep_truth {
             self.truth.clear();
             self.truth.extend_from_slice(&self.block[..n]);
@@ -384,9 +449,19 @@ impl Producer {
             } else {
                 c.apply(&mut self.block[..n]);
             }
+            if let Err(e) = Producer::check_finite(&self.block[..n], "after the error chain") {
+                return self.fail(e);
+            }
         }
         self.k += n as u64;
         Some((first, n))
+    }
+
+    /// Ends production with `e` (kept for [`Producer::take_error`]).
+    fn fail(&mut self, e: JobError) -> Option<(u64, usize)> {
+        self.error = Some(e);
+        self.k = self.count + 1;
+        None
     }
 
     fn view(&self, first: u64, n: usize) -> Block<'_> {
@@ -407,7 +482,8 @@ impl Producer {
         ends: &mut Vec<usize>,
     ) -> Option<Block<'_>> {
         let (first, n) = self.step(max)?;
-        self.encoding.encode(&self.block[..n], out, ends);
+        let profile = self.temperature.as_ref();
+        self.encoding.encode(&self.block[..n], profile, out, ends);
         Some(self.view(first, n))
     }
 
@@ -421,7 +497,7 @@ impl Producer {
         let (first, n) = self.step(max)?;
         let encodings = std::iter::once(&mut self.encoding).chain(self.extra.iter_mut());
         for (e, (out, ends)) in encodings.zip(outs.iter_mut()) {
-            e.encode(&self.block[..n], out, ends);
+            e.encode(&self.block[..n], self.temperature.as_ref(), out, ends);
         }
         Some(self.view(first, n))
     }
@@ -438,14 +514,31 @@ pub fn run(
     grid: Grid,
     nodes: usize,
     encoding: impl Into<Encoding>,
-    mut chain: Option<ErrorChain>,
+    chain: Option<ErrorChain>,
+    out: &mut impl Write,
+    truth: Option<&mut dyn Write>,
+    injected: Option<&mut dyn Write>,
+    mut progress: impl FnMut(u64),
+) -> Result<(), JobError> {
+    let producer = Producer::new(motion, grid, nodes, encoding, chain, false)?;
+    drain(producer, out, truth, injected, |k| {
+        progress(k);
+        ControlFlow::Continue(())
+    })
+}
+
+/// Writes the whole run of a producer that has not started into `out` (and the side
+/// outputs, as [`run`] does). After each block `progress(records_done)` may stop the run
+/// early with `ControlFlow::Break`, which returns [`JobError::Stopped`]; a non-finite record
+/// stops it with [`JobError::NonFinite`] before anything of its block is written.
+pub fn drain(
+    mut producer: Producer,
     out: &mut impl Write,
     mut truth: Option<&mut dyn Write>,
     mut injected: Option<&mut dyn Write>,
-    mut progress: impl FnMut(u64),
+    mut progress: impl FnMut(u64) -> ControlFlow<()>,
 ) -> Result<(), JobError> {
-    let encoding = encoding.into();
-    let format = encoding.side();
+    let format = producer.encoding.side();
     if format == Format::Csv {
         if let Some(t) = truth.as_mut() {
             t.write_all(output::csv_header().as_bytes())?;
@@ -455,14 +548,10 @@ pub fn run(
         }
     }
     if injected.is_some() {
-        chain = Some(
-            chain
-                .take()
-                .unwrap_or_else(ErrorChain::ideal)
-                .with_components(),
-        );
+        let chain = producer.chain.take().unwrap_or_else(ErrorChain::ideal);
+        producer.chain = Some(chain.with_components());
     }
-    let mut producer = Producer::new(motion, grid, nodes, encoding, chain, truth.is_some())?;
+    producer.keep_truth = truth.is_some();
     out.write_all(producer.preamble().as_bytes())?;
     let mut buf = Vec::with_capacity(BLOCK * 104);
     let mut side = Vec::new();
@@ -485,7 +574,12 @@ pub fn run(
         }
         let done = b.first + b.records.len() as u64;
         out.write_all(&buf)?;
-        progress(done);
+        if progress(done).is_break() {
+            return Err(JobError::Stopped);
+        }
+    }
+    if let Some(e) = producer.take_error() {
+        return Err(e);
     }
     out.flush()?;
     if let Some(t) = truth.as_mut() {
@@ -578,6 +672,44 @@ mod tests {
         assert!(plan(&motion, 1e7, Some(0.0), Some(1e-3)).is_ok());
         // At 4.4 kHz the 2.4e-7 s spacing is just over 1/1000 of Δt = 2.27e-4 s.
         assert!(plan(&motion, 4.4e3, Some(1.4e9), Some(1.0)).is_err());
+    }
+
+    /// A record that comes out NaN (a temperature table that turns NaN after 0.25 s, through
+    /// a bias temperature coefficient) ends production at that record's block: the blocks
+    /// before it are whole, nothing of its block is encoded, and the error names its time,
+    /// quantity and stage.
+    #[test]
+    fn producer_stops_at_a_non_finite_record() {
+        let model = crate::errors::template::parse(
+            "name = \"warm\"\ntemperature_ref = \"25 degC\"\n[accel]\nbias_temperature = [\"0.1 mg/degC\"]\n",
+            std::path::Path::new("warm.toml"),
+        )
+        .unwrap();
+        let profile = TemperatureProfile::Table(vec![(0.0, 25.0), (0.25, 25.0), (0.35, f64::NAN)]);
+        let chain = ErrorChain::new(&model, 10.0, 1).with_temperature(profile, &model);
+        let source = SourceSpec::Scene("static".into(), SceneParams::defaults_for("static"));
+        let motion = build_motion(&source, ModelSettings::default()).unwrap();
+        let grid = plan_grid(&motion);
+        let mut p = Producer::new(motion, grid, 3, Format::Csv, Some(chain), false).unwrap();
+        let (mut buf, mut ends) = (Vec::new(), Vec::new());
+        assert_eq!(
+            p.next_block(2, &mut buf, &mut ends).unwrap().records.len(),
+            2
+        );
+        let written = buf.len();
+        assert!(p.next_block(2, &mut buf, &mut ends).is_none());
+        assert_eq!(buf.len(), written);
+        match p.take_error() {
+            Some(JobError::NonFinite {
+                t, quantity, stage, ..
+            }) => {
+                assert!((t - 0.3).abs() < 1e-12, "t = {t}");
+                // NaN times the gyro's zero coefficient is NaN too: the first column is named.
+                assert_eq!((quantity, stage), ("gyro_x", "after the error chain"));
+            }
+            other => panic!("expected a non-finite record, got {other:?}"),
+        }
+        assert!(p.next_block(2, &mut buf, &mut ends).is_none());
     }
 
     fn plan_grid(motion: &AnyMotion) -> Grid {

@@ -29,10 +29,12 @@ pub mod output;
 pub mod plot;
 pub mod protocol;
 pub mod quadrature;
+#[cfg(feature = "realtime")]
 pub mod realtime;
 pub mod record;
 pub mod rng;
 pub mod scenes;
+pub mod sim;
 pub mod source;
 pub mod trajectory;
 pub mod truth;

@@ -17,7 +17,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Generate IMU records offline, as fast as the machine allows.
-    Generate(Box<cmd::setup::GenerateArgs>),
+    Generate(Box<cmd::generate::GenerateArgs>),
     /// Write a scene's reference trajectory as trajectory CSV (the input format).
     Trajectory(cmd::info::TrajectoryArgs),
     /// List the built-in scenes.
@@ -77,6 +77,10 @@ fn main() {
         // A run stopped by a signal has printed its summary; only the status is left to say.
         if let Some(i) = e.downcast_ref::<imu_emu::realtime::signal::Interrupted>() {
             std::process::exit(i.exit_code());
+        }
+        if let Some(i) = e.downcast_ref::<cmd::Interrupted>() {
+            eprintln!("imu-emu: {i}");
+            std::process::exit(i.code);
         }
         eprintln!("error: {e:#}");
         std::process::exit(1);

@@ -1,14 +1,18 @@
 //! Line plots with optional confidence bands, in one or more panels, written as PNG or SVG by
 //! `plotters` with an embedded font (DejaVu Sans, `assets/`), so no system library or font is
 //! needed. Axes are linear or logarithmic per panel; log axes label their ticks as plain
-//! numbers or powers of ten.
+//! numbers or powers of ten. The panels are plain data; drawing them needs the `plot` feature.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
+#[cfg(feature = "plot")]
 use plotters::coord::Shift;
+#[cfg(feature = "plot")]
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+#[cfg(feature = "plot")]
 use plotters::prelude::*;
 
+#[cfg(feature = "plot")]
 /// The family name the embedded font is registered under.
 const FONT: &str = "sans-serif";
 
@@ -62,6 +66,7 @@ pub enum PlotError {
     },
 }
 
+#[cfg(feature = "plot")]
 /// Colours of the palette (the first three for x, y, z).
 const PALETTE: [RGBColor; 6] = [
     RGBColor(31, 119, 180),
@@ -72,6 +77,7 @@ const PALETTE: [RGBColor; 6] = [
     RGBColor(0, 0, 0),
 ];
 
+#[cfg(feature = "plot")]
 fn register_font() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
@@ -84,9 +90,10 @@ fn register_font() {
     });
 }
 
+#[cfg(feature = "plot")]
 /// Renders `panels` in a grid of `columns` columns into `path` (.png or .svg) of `size` pixels.
 pub fn render(
-    path: &Path,
+    path: &std::path::Path,
     panels: &[Panel],
     columns: usize,
     size: (u32, u32),
@@ -115,6 +122,7 @@ pub fn render(
     }
 }
 
+#[cfg(feature = "plot")]
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     panels: &[Panel],
@@ -137,6 +145,7 @@ fn draw<DB: DrawingBackend>(
     Ok(())
 }
 
+#[cfg(feature = "plot")]
 /// Range of the finite (and, on a log axis, positive) values, padded; (1, 10) when empty.
 fn extent(
     p: &Panel,
@@ -185,6 +194,7 @@ pub fn tick_label(v: f64) -> String {
     }
 }
 
+#[cfg(feature = "plot")]
 fn panel<DB, X, Y>(area: &DrawingArea<DB, Shift>, p: &Panel, x: X, y: Y) -> Result<(), String>
 where
     DB: DrawingBackend,
@@ -277,9 +287,10 @@ mod tests {
         assert_eq!(tick_label(0.0), "0");
     }
 
+    #[cfg(feature = "plot")]
     #[test]
     fn unknown_extension_is_refused() {
-        let e = render(Path::new("x.jpg"), &[], 1, (10, 10)).unwrap_err();
+        let e = render(std::path::Path::new("x.jpg"), &[], 1, (10, 10)).unwrap_err();
         assert!(e.to_string().contains(".png or .svg"));
     }
 }

@@ -1309,3 +1309,205 @@ fn unresolvable_time_tags_are_refused() {
         out
     ));
 }
+
+// ---------------------------------------------------------------------------------------------
+// The library core behind the commands: non-finite values, interruption, messages, shared
+// flags and scene files everywhere.
+
+// A record that comes out non-finite (here a temperature ramp of 1e308 °C/s through a bias
+// temperature coefficient, infinite from the first record on) stops the run with the record's
+// time and quantity; nothing is written, no file left behind, exit status non-zero.
+#[test]
+fn non_finite_record_stops_the_run() {
+    let dir = TempDir::new().unwrap();
+    let t = dir.path().join("warm.toml");
+    write(
+        &t,
+        "name = \"warm\"\ntemperature_ref = \"25 degC\"\n[accel]\nbias_temperature = [\"0.1 mg/degC\", \"2e-4 mg/degC^2\"]\n",
+    );
+    let scene = dir.path().join("s.toml");
+    write(
+        &scene,
+        "[trajectory]\nscene = \"static\"\n[temperature]\nprofile = \"ramp\"\nstart_celsius = 25\nrate_celsius_per_s = 1e308\n",
+    );
+    let out = dir.path().join("imu.csv");
+    let truth = dir.path().join("truth.csv");
+    let e = failed(run!(
+        "generate --rate 10 --duration 5 --imu",
+        t,
+        scene,
+        "-o",
+        out,
+        "--truth",
+        truth
+    ));
+    assert_mentions(
+        &e,
+        &[
+            "record at t = 0.1 s",
+            "accel_x",
+            "inf",
+            "after the error chain",
+        ],
+    );
+    assert_no_output(dir.path(), "imu.csv");
+    assert_no_output(dir.path(), "truth.csv");
+}
+
+// SIGINT or SIGTERM during `generate` removes the unfinished hidden file, says the run was
+// interrupted and exits 130 or 143 as a shell reports the signal.
+#[test]
+fn interrupted_generate_leaves_no_partial_file() {
+    for (signal, code) in [("-INT", 130), ("-TERM", 143)] {
+        let dir = TempDir::new().unwrap();
+        let out = dir.path().join("imu.bin");
+        // Far more records than the test waits for.
+        let child = Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+            .args(["generate", "--scene", "static", "--rate", "1000"])
+            .args(["--duration", "1e6", "--format", "bin", "-o"])
+            .arg(&out)
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let partial = dir.path().join(format!(".imu.bin.partial-{}", child.id()));
+        let t0 = std::time::Instant::now();
+        while std::fs::metadata(&partial).map_or(true, |m| m.len() == 0) {
+            assert!(t0.elapsed().as_secs() < 60, "no partial file after 60 s");
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        let kill = Command::new("kill")
+            .args([signal, &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success());
+        let done = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&done.stderr);
+        assert_eq!(done.status.code(), Some(code), "{signal}: {stderr}");
+        assert_mentions(&stderr, &["interrupted"]);
+        assert_no_output(dir.path(), "imu.bin");
+    }
+}
+
+// A duration shorter than one sample says so, instead of a span "outside the trajectory".
+#[test]
+fn duration_shorter_than_one_sample() {
+    let e = failed(run!("generate --rate 1 --duration 0.5"));
+    assert_mentions(
+        &e,
+        &["`duration` = 0.5 s", "shorter than one sample at 1 Hz"],
+    );
+    assert!(!e.contains("outside the trajectory"), "{e}");
+}
+
+// Messages: numbers in exponent form rather than 300 digits; a missing file's cause once;
+// a TOML syntax error in a template on one line with its line and column; the file a `run`
+// file sink failed to write named; `run --help` without the stale protocol default.
+#[test]
+fn messages_are_short_and_say_it_once() {
+    let e = failed(run!("generate --duration 1 --rate 1e300"));
+    assert_mentions(&e, &["`rate` = 1e300"]);
+    assert!(e.len() < 200, "{e}");
+
+    let dir = TempDir::new().unwrap();
+    let missing = dir.path().join("missing.csv");
+    for args in [
+        vec![OsStr::new("analyze"), missing.as_os_str()],
+        vec![
+            OsStr::new("generate"),
+            OsStr::new("--trajectory"),
+            missing.as_os_str(),
+        ],
+    ] {
+        let e = failed(imu_emu(None, args));
+        assert_mentions(&e, &[&path_str(&missing)]);
+        assert_eq!(e.matches("os error 2").count(), 1, "{e}");
+    }
+
+    let t = dir.path().join("t.toml");
+    write(&t, "name = \"x\"\n[gyro\n");
+    let e = failed(run!("generate --duration 1 --imu", t));
+    assert_mentions(&e, &[&path_str(&t), "line 2, column 6", "unclosed table"]);
+    assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+
+    // /proc/version opens for writing but refuses the bytes.
+    if Path::new("/proc/version").exists() {
+        let e = failed(run!("run --duration 0.1 --file /proc/version"));
+        assert_mentions(&e, &["/proc/version"]);
+    }
+
+    let help = String::from_utf8(succeeded(run!("run --help"))).unwrap();
+    assert!(!help.contains("until ln200 is built in"), "{help}");
+    assert_mentions(&help, &["--format", "ln200 frames in `run`"]);
+}
+
+// `generate` and `run` share their simulation flags: the same `--format`, `--imu`, `--rate`,
+// `--seed` give the same frames from both (run unpaced into a file).
+#[test]
+fn generate_and_run_share_flags_and_frames() {
+    let dir = TempDir::new().unwrap();
+    let g = dir.path().join("g.kvh");
+    let r = dir.path().join("r.kvh");
+    let flags = "--scene circle --imu ln200 --format kvh1750 --rate 200 --duration 2 --seed 5";
+    succeeded(run!(&format!("generate {flags} -o"), g));
+    succeeded(run!(&format!("run {flags} --file"), r));
+    let (a, b) = (std::fs::read(&g).unwrap(), std::fs::read(&r).unwrap());
+    assert!(!a.is_empty() && a.len() % 400 == 0, "{} bytes", a.len());
+    assert!(a == b, "generate and run wrote different frames");
+}
+
+// `navigate` takes the scene file the records came from: a circle of 300 m (not the built-in
+// 500 m) navigates to within metres with `--scene-file`; the built-in scene's defaults are
+// a different reference, kilometres off.
+#[test]
+fn navigate_takes_a_scene_file() {
+    let dir = TempDir::new().unwrap();
+    let scene = dir.path().join("c.toml");
+    write(
+        &scene,
+        "[trajectory]\nscene = \"circle\"\n[trajectory.params]\nradius_m = 300\n[output]\nduration_s = 20\n",
+    );
+    let rec = dir.path().join("c.bin");
+    succeeded(run!("generate --rate 200 --format bin -o", rec, scene));
+    let final_error = |reference: &[&OsStr]| {
+        let args = [OsStr::new("navigate"), rec.as_os_str()];
+        let out = succeeded(imu_emu(
+            None,
+            args.into_iter().chain(reference.iter().copied()),
+        ));
+        let text = String::from_utf8(out).unwrap();
+        let line = text.lines().find(|l| l.starts_with("max error")).unwrap();
+        let m: f64 = line.split_whitespace().nth(3).unwrap().parse().unwrap();
+        m
+    };
+    let own = final_error(&[OsStr::new("--scene-file"), scene.as_os_str()]);
+    assert!(own < 1.0, "navigated against its own scene file: {own} m");
+    let other = final_error(&[OsStr::new("--scene"), OsStr::new("circle")]);
+    assert!(other > 100.0, "against the default circle: {other} m");
+}
+
+// `trajectory` takes a scene file: its parameters shape the exported trajectory.
+#[test]
+fn trajectory_takes_a_scene_file() {
+    let dir = TempDir::new().unwrap();
+    let scene = dir.path().join("c.toml");
+    write(
+        &scene,
+        "[trajectory]\nscene = \"circle\"\n[trajectory.params]\nradius_m = 300\n",
+    );
+    let own = succeeded(run!("trajectory --rate 10 --duration 5", scene));
+    let builtin = succeeded(run!("trajectory --rate 10 --duration 5 --scene circle"));
+    let last = |b: &[u8]| {
+        String::from_utf8(b.to_vec())
+            .unwrap()
+            .lines()
+            .last()
+            .unwrap()
+            .to_string()
+    };
+    assert_ne!(last(&own), last(&builtin));
+    let lines = String::from_utf8(own).unwrap();
+    assert_eq!(
+        lines.lines().filter(|l| !l.starts_with('#')).count(),
+        1 + 51
+    );
+}

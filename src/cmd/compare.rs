@@ -5,21 +5,20 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 
-use imu_emu::job::{self, SourceSpec};
-use imu_emu::motion::sampled::ModelSettings;
+use imu_emu::job;
 use imu_emu::nav::Settings;
 use imu_emu::nav::montecarlo::{self, Plan, TemplateResult};
 use imu_emu::output::AtomicFile;
-use imu_emu::scenes::SceneParams;
 
 #[derive(clap::Args)]
 pub struct CompareArgs {
     /// IMU templates to compare, comma-separated (names from `imu-emu templates`, or files).
     #[arg(long, value_delimiter = ',', required = true)]
     pub imu: Vec<String>,
-    /// Built-in scene (default parameters).
-    #[arg(long, default_value = imu_emu::scenes::DEFAULT)]
-    pub scene: String,
+    /// The mission: a scene file (`--scene-file`), a built-in scene or a trajectory CSV
+    /// [default: the survey scene].
+    #[command(flatten)]
+    pub reference: super::setup::ReferenceArgs,
     /// Monte Carlo runs per template.
     #[arg(long, default_value_t = 20)]
     pub runs: usize,
@@ -148,8 +147,7 @@ pub fn compare(a: CompareArgs) -> Result<()> {
             );
         }
     }
-    let source = SourceSpec::Scene(a.scene.clone(), SceneParams::defaults_for(&a.scene));
-    let motion = job::build_motion(&source, ModelSettings::default())?;
+    let motion = a.reference.builder()?.motion()?;
     let grid = job::plan(&motion, a.rate, None, a.duration)?;
     let outage_records = match a.outage {
         None => None,
@@ -193,8 +191,11 @@ pub fn compare(a: CompareArgs) -> Result<()> {
     let mut out = std::io::stdout().lock();
     writeln!(
         out,
-        "compare: scene {}, {} Hz, {mode}; {} runs per template, seed {}",
-        a.scene, grid.rate_hz, a.runs, a.seed
+        "compare: {}, {} Hz, {mode}; {} runs per template, seed {}",
+        a.reference.name(),
+        grid.rate_hz,
+        a.runs,
+        a.seed
     )?;
     writeln!(
         out,

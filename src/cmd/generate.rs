@@ -1,88 +1,97 @@
 //! `imu-emu generate`: records or frames offline, as fast as the machine allows.
 
 use std::io::{IsTerminal, Write};
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicI32, Ordering};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 
-use imu_emu::job;
 use imu_emu::output::AtomicFile;
+use imu_emu::sim::SideOutputs;
 
-use super::setup::{GenerateArgs, resolve};
+use super::Interrupted;
+use super::setup::{SimArgs, announce};
+
+#[derive(clap::Args)]
+pub struct GenerateArgs {
+    #[command(flatten)]
+    pub sim: SimArgs,
+    /// Output file, or - for stdout [default: the scene file's `output.path`, else stdout].
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Also write the error-free records here (same format and time grid).
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+    /// Also write the error each stage injected into each record here (same format).
+    #[arg(long)]
+    pub truth_errors: Option<PathBuf>,
+}
+
+fn buffered(f: &mut AtomicFile) -> std::io::BufWriter<&mut AtomicFile> {
+    std::io::BufWriter::with_capacity(1 << 20, f)
+}
+
+/// A file committed only when the whole run succeeded (dropped, it leaves nothing behind).
+fn create(path: &Path) -> Result<(AtomicFile, PathBuf)> {
+    let f = AtomicFile::create(path).with_context(|| format!("creating {}", path.display()))?;
+    Ok((f, path.to_path_buf()))
+}
 
 pub fn generate(a: GenerateArgs) -> Result<()> {
-    let r = resolve(a)?;
-    let motion = job::build_motion(&r.source, r.model).map_err(|e| r.locate(e))?;
-    let grid = job::plan(&motion, r.rate, r.start, r.duration).map_err(|e| r.locate(e))?;
-    let chain = r.chain(&grid)?;
+    let sim = a.sim.builder("ideal", "csv")?.build()?;
+    announce(&sim);
+    let grid = sim.grid();
+    let output = a.output.or(sim.output_path().map(Path::to_path_buf));
     let show = std::io::stderr().is_terminal() && grid.count >= 500_000;
     let bar = if show {
         indicatif::ProgressBar::new(grid.count)
     } else {
         indicatif::ProgressBar::hidden()
     };
+    let faults = sim.faults().cloned();
+    let caught = watch_signals()?;
     let started = Instant::now();
-    // Side files (error-free truth, injected errors): written beside the output, committed
-    // only when the whole run succeeded.
-    let side = |p: &Option<PathBuf>| -> Result<Option<(AtomicFile, PathBuf)>> {
-        p.as_ref()
-            .map(|p| {
-                Ok((
-                    AtomicFile::create(p).with_context(|| format!("creating {}", p.display()))?,
-                    p.clone(),
-                ))
-            })
-            .transpose()
+    let mut truth_file = a.truth.as_deref().map(create).transpose()?;
+    let mut errors_file = a.truth_errors.as_deref().map(create).transpose()?;
+    let to_stdout = output.as_deref().is_none_or(|p| p == Path::new("-"));
+    let mut file = match (&output, to_stdout) {
+        (Some(path), false) => Some(create(path)?),
+        _ => None,
     };
-    let mut truth_file = side(&r.truth)?;
-    let mut errors_file = side(&r.truth_errors)?;
+    let label = file
+        .as_ref()
+        .map_or("stdout".to_string(), |(_, p)| p.display().to_string());
     {
-        let mut truth_out = truth_file
-            .as_mut()
-            .map(|(f, _)| std::io::BufWriter::with_capacity(1 << 20, f));
-        let mut errors_out = errors_file
-            .as_mut()
-            .map(|(f, _)| std::io::BufWriter::with_capacity(1 << 20, f));
-        let truth_w = truth_out.as_mut().map(|w| w as &mut dyn Write);
-        let errors_w = errors_out.as_mut().map(|w| w as &mut dyn Write);
-        let to_stdout = r.output.as_deref().is_none_or(|p| p == Path::new("-"));
-        let mut file = match (&r.output, to_stdout) {
-            (Some(path), false) => Some((
-                AtomicFile::create(path).with_context(|| format!("creating {}", path.display()))?,
-                path.clone(),
+        let mut truth_out = truth_file.as_mut().map(|(f, _)| buffered(f));
+        let mut errors_out = errors_file.as_mut().map(|(f, _)| buffered(f));
+        let mut out: Box<dyn Write + '_> = match file.as_mut() {
+            Some((f, _)) => Box::new(buffered(f)),
+            None => Box::new(std::io::BufWriter::with_capacity(
+                1 << 20,
+                std::io::stdout().lock(),
             )),
-            _ => None,
         };
-        let label = file
-            .as_ref()
-            .map_or("stdout".to_string(), |(_, p)| p.display().to_string());
-        {
-            let mut out: Box<dyn Write + '_> = match file.as_mut() {
-                Some((f, _)) => Box::new(std::io::BufWriter::with_capacity(1 << 20, f)),
-                None => Box::new(std::io::BufWriter::with_capacity(
-                    1 << 20,
-                    std::io::stdout().lock(),
-                )),
-            };
-            job::run(
-                motion,
-                grid,
-                r.nodes,
-                r.encoding(),
-                chain,
-                &mut out,
-                truth_w,
-                errors_w,
-                |k| bar.set_position(k),
-            )
-            .with_context(|| format!("writing {label}"))?;
-            out.flush()?;
+        let side = SideOutputs {
+            truth: truth_out.as_mut().map(|w| w as &mut dyn Write),
+            injected: errors_out.as_mut().map(|w| w as &mut dyn Write),
+        };
+        let result = sim.write_with(&mut out, side, |k| {
+            bar.set_position(k);
+            match caught.load(Ordering::Relaxed) {
+                0 => ControlFlow::Continue(()),
+                _ => ControlFlow::Break(()),
+            }
+        });
+        if let Some(e) = Interrupted::from_signal(caught.load(Ordering::Relaxed)) {
+            // The unfinished files are removed when they drop.
+            bar.finish_and_clear();
+            return Err(e.into());
         }
-        if let Some((f, path)) = file {
-            f.commit()
-                .with_context(|| format!("finishing {}", path.display()))?;
-        }
+        result.with_context(|| format!("writing {label}"))?;
+        out.flush()?;
         for w in [truth_out.as_mut(), errors_out.as_mut()]
             .into_iter()
             .flatten()
@@ -90,12 +99,12 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
             w.flush()?;
         }
     }
-    for (f, p) in [truth_file, errors_file].into_iter().flatten() {
+    for (f, p) in [file, truth_file, errors_file].into_iter().flatten() {
         f.commit()
             .with_context(|| format!("finishing {}", p.display()))?;
     }
     bar.finish_and_clear();
-    if let Some(f) = &r.faults {
+    if let Some(f) = faults {
         eprintln!("imu-emu: faults injected: {}", f.tally().summary());
     }
     if show {
@@ -107,4 +116,36 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Catches SIGINT and SIGTERM from now on (tokio's handlers, no unsafe code): the returned
+/// flag holds the signal number once one arrived, so the run can stop between blocks and
+/// remove its unfinished files.
+fn watch_signals() -> Result<Arc<AtomicI32>> {
+    use tokio::signal::unix::{SignalKind, signal};
+    let caught = Arc::new(AtomicI32::new(0));
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    // Registered here, before the output files exist, so no signal can kill the process
+    // while it holds them.
+    let (mut int, mut term) = rt.block_on(async {
+        Ok::<_, std::io::Error>((
+            signal(SignalKind::interrupt())?,
+            signal(SignalKind::terminate())?,
+        ))
+    })?;
+    let flag = caught.clone();
+    std::thread::Builder::new()
+        .name("imu-signals".into())
+        .spawn(move || {
+            rt.block_on(async move {
+                let number = tokio::select! {
+                    _ = int.recv() => 2,
+                    _ = term.recv() => 15,
+                };
+                flag.store(number, Ordering::Relaxed);
+            })
+        })?;
+    Ok(caught)
 }

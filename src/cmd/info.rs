@@ -5,20 +5,20 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use imu_emu::job::{self, SourceSpec};
-use imu_emu::motion::sampled::ModelSettings;
 use imu_emu::output::AtomicFile;
-use imu_emu::scenes;
 
 #[derive(clap::Args)]
 pub struct TrajectoryArgs {
-    /// Built-in scene.
-    #[arg(long, default_value = scenes::DEFAULT)]
-    pub scene: String,
+    #[command(flatten)]
+    pub source: super::setup::SourceArgs,
     /// Sample rate (Hz).
     #[arg(long, default_value_t = 100.0)]
     pub rate: f64,
-    /// Duration (s) [default: the scene's; 60 s for unbounded scenes].
+    /// Start time (s) [default: the scene file's `output.start_s`, else the trajectory's start].
+    #[arg(long, allow_negative_numbers = true)]
+    pub start: Option<f64>,
+    /// Duration (s) [default: the scene file's `output.duration_s`, else the scene's; 60 s
+    /// for unbounded scenes].
     #[arg(long)]
     pub duration: Option<f64>,
     /// Output file, or - for stdout.
@@ -55,19 +55,22 @@ pub fn list_templates() -> Result<()> {
 }
 
 pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
-    let params = scenes::SceneParams::defaults_for(&a.scene);
-    let motion = job::build_motion(
-        &SourceSpec::Scene(a.scene.clone(), params),
-        ModelSettings::default(),
-    )?;
+    let mut b = a.source.builder()?.rate(a.rate);
+    if let Some(s) = a.start {
+        b = b.start(s);
+    }
+    if let Some(d) = a.duration {
+        b = b.duration(d);
+    }
     // Samples at t₀ + k/rate for k = 0..=n, including the start.
-    let grid = job::plan(&motion, a.rate, None, a.duration)?;
+    let sim = b.build()?;
+    let (motion, grid) = (sim.motion(), sim.grid());
     let text = imu_emu::trajectory::sample_motion(
-        &motion,
+        motion,
         grid.t0,
         grid.rate_hz,
         grid.count,
-        Some(&format!("imu-emu trajectory of scene {}", a.scene)),
+        Some(&format!("imu-emu trajectory of {}", a.source.name())),
     );
     if a.output == Path::new("-") {
         std::io::stdout().write_all(text.as_bytes())?;

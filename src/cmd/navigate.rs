@@ -7,14 +7,11 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 
 use imu_emu::input::RecordReader;
-use imu_emu::job::{self, SourceSpec};
 use imu_emu::math::euler_from_quat;
-use imu_emu::motion::sampled::ModelSettings;
 use imu_emu::motion::{Motion, Pose};
 use imu_emu::nav::{NavState, Navigator, Settings, StateError};
 use imu_emu::output::{AtomicFile, Format};
 use imu_emu::record::Record;
-use imu_emu::scenes::SceneParams;
 
 #[derive(clap::Args)]
 pub struct NavigateArgs {
@@ -23,16 +20,10 @@ pub struct NavigateArgs {
     /// Input format: csv or bin [default: bin for a .bin file, else csv].
     #[arg(long)]
     pub format: Option<String>,
-    /// Reference: the built-in scene (default parameters) the records were generated from.
-    #[arg(
-        long,
-        conflicts_with = "trajectory",
-        required_unless_present = "trajectory"
-    )]
-    pub scene: Option<String>,
-    /// Reference: a trajectory CSV (t,lat,lon,h,vn,ve,vd,roll,pitch,yaw).
-    #[arg(long)]
-    pub trajectory: Option<PathBuf>,
+    /// The reference the records were generated from: a scene file (`--scene-file`, with its
+    /// scene parameters or trajectory file), a built-in scene or a trajectory CSV.
+    #[command(flatten)]
+    pub reference: super::setup::ReferenceArgs,
     /// IMU rate (Hz) [default: from the first two record times].
     #[arg(long)]
     pub rate: Option<f64>,
@@ -103,12 +94,10 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
         None if a.input.extension().is_some_and(|e| e == "bin") => Format::Bin,
         None => Format::Csv,
     };
-    let source = match (&a.scene, &a.trajectory) {
-        (Some(s), _) => SourceSpec::Scene(s.clone(), SceneParams::defaults_for(s)),
-        (None, Some(t)) => SourceSpec::File(t.clone()),
-        (None, None) => bail!("give the reference: --scene NAME or --trajectory FILE"),
-    };
-    let motion = job::build_motion(&source, ModelSettings::default())?;
+    if !a.reference.given() {
+        bail!("give the reference: --scene-file FILE, --scene NAME or --trajectory FILE");
+    }
+    let motion = a.reference.builder()?.motion()?;
     let settings = Settings {
         samples: a.samples.unwrap_or(Settings::default().samples),
         stages: a.stages.unwrap_or(Settings::default().stages),

@@ -2,14 +2,13 @@
 //! files; tokio runs the control plane (signals, status line), the pacer its own thread.
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use anyhow::{Context, Result, bail};
 
-use imu_emu::job::{self, Producer};
-use imu_emu::motion::Motion;
+use imu_emu::job;
 use imu_emu::protocol::Plan;
 use imu_emu::realtime::pacer::{self, Clocking, Pacing, Routed, Status};
 use imu_emu::realtime::serial::{Framing, SerialSink, check_link};
@@ -18,7 +17,7 @@ use imu_emu::realtime::sink::FileSink;
 use imu_emu::realtime::udp::{self, UdpSink};
 use imu_emu::realtime::{self, clock, pty::PtySink};
 
-use super::setup::{Defaults, GenerateArgs, Output, SourceArgs, resolve_with};
+use super::setup::{SimArgs, announce, require_frames};
 
 /// The protocol `run` speaks by default: LN-200-style frames.
 pub const DEFAULT_PROTOCOL: &str = "ln200";
@@ -30,31 +29,7 @@ pub const FOREVER_S: f64 = 365.0 * 86_400.0;
 #[derive(clap::Args)]
 pub struct RunArgs {
     #[command(flatten)]
-    pub source: SourceArgs,
-    /// IMU error model: a template name or file [default: ln200].
-    #[arg(long)]
-    pub imu: Option<String>,
-    /// Built-in protocol of the frames [default: ln200 (kvh1750 until ln200 is built in)].
-    #[arg(long, conflicts_with = "protocol_file")]
-    pub protocol: Option<String>,
-    /// Frames of a protocol described in a spec file.
-    #[arg(long)]
-    pub protocol_file: Option<PathBuf>,
-    /// IMU rate (Hz) [default: the protocol's nominal rate].
-    #[arg(long)]
-    pub rate: Option<f64>,
-    /// Duration (s) [default: the trajectory's end; until Ctrl-C for unbounded scenes].
-    #[arg(long)]
-    pub duration: Option<f64>,
-    /// Simulation time t₀ of the first interval (s) [default: the trajectory's start].
-    #[arg(long, allow_negative_numbers = true)]
-    pub start: Option<f64>,
-    /// Master seed of the random error processes [default: 20261124].
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// GPS time of record time 0 as WEEK,SECONDS_OF_WEEK (frames with GPS time fields).
-    #[arg(long, value_parser = super::setup::parse_gps_time)]
-    pub gps_time: Option<(u32, f64)>,
+    pub sim: SimArgs,
     /// Pseudo-terminal sink: the slave is published at PATH (a symlink); repeatable. Every
     /// sink takes `,protocol=NAME` (built-in name or spec file) to speak its own protocol.
     /// Without any sink, one pty is opened and its /dev/pts path printed.
@@ -96,14 +71,6 @@ pub struct RunArgs {
     /// warning).
     #[arg(long)]
     pub realtime: bool,
-    /// Gauss–Legendre nodes per interval [default: 3].
-    #[arg(long)]
-    pub quadrature: Option<usize>,
-    /// Inject a fault into the frames: KIND@T1,T2,… (record times, s) or KIND~RATE (mean
-    /// events per second); KIND is corrupt-check, drop, duplicate, stale-counter or status.
-    /// Repeatable; adds to the scene file's [faults].
-    #[arg(long = "fault", value_parser = imu_emu::protocol::FaultSpec::parse_flag)]
-    pub faults: Vec<imu_emu::protocol::FaultSpec>,
     /// More log output (-v info, -vv debug).
     #[arg(short, long, action = clap::ArgAction::Count)]
     pub verbose: u8,
@@ -133,11 +100,11 @@ pub fn run(a: RunArgs) -> Result<()> {
             a.max_behind_ms
         );
     }
-    if let Some(p) = a.protocol.as_deref()
+    if let Some(p) = a.sim.format.as_deref()
         && imu_emu::output::Format::from_name(p).is_some()
     {
         bail!(
-            "--protocol {p}: `run` streams protocol frames; use `generate --format {p}` for records"
+            "--format {p}: `run` streams protocol frames; use `generate --format {p}` for records"
         );
     }
     let speed = match a.speed.as_deref() {
@@ -153,45 +120,12 @@ pub fn run(a: RunArgs) -> Result<()> {
         .as_deref()
         .map(|s| clock::parse_utc(s).map_err(|e| anyhow::anyhow!("--start-at {e}")))
         .transpose()?;
-    let defaults = Defaults {
-        imu: DEFAULT_IMU,
-        format: DEFAULT_PROTOCOL,
-    };
-    let duration_given = a.duration.is_some();
-    let r = resolve_with(
-        GenerateArgs {
-            source: a.source,
-            rate: a.rate,
-            duration: a.duration,
-            start: a.start,
-            format: a.protocol,
-            protocol_file: a.protocol_file,
-            gps_time: a.gps_time,
-            output: None,
-            imu: a.imu,
-            seed: a.seed,
-            truth: None,
-            truth_errors: None,
-            quadrature: a.quadrature,
-            interp: None,
-            stencil: None,
-            faults: a.faults,
-        },
-        &defaults,
-    )?;
-    let plan = match &r.format {
-        Output::Frames(p) => p.clone(),
-        Output::Records(f) => {
-            bail!("output format {f:?}: `run` streams protocol frames; use `generate` for records")
-        }
-    };
-    let motion = job::build_motion(&r.source, r.model).map_err(|e| r.locate(e))?;
-    let duration = match r.duration {
-        None if !duration_given && !motion.end().is_finite() => Some(FOREVER_S),
-        d => d,
-    };
-    let grid = job::plan(&motion, r.rate, r.start, duration).map_err(|e| r.locate(e))?;
-    let chain = r.chain(&grid)?;
+    let sim = (a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?)
+        .unbounded_duration(FOREVER_S)
+        .build()?;
+    announce(&sim);
+    let plan = require_frames(&sim, "run")?;
+    let grid = sim.grid();
     let only_files = a.pty.is_empty() && a.serial.is_empty() && a.udp.is_empty();
     let speed = speed.unwrap_or(if only_files && !a.file.is_empty() {
         f64::INFINITY
@@ -273,7 +207,8 @@ pub fn run(a: RunArgs) -> Result<()> {
             ("stdout".into(), Box::new(std::io::stdout()))
         } else {
             let f = std::fs::File::create(path).with_context(|| format!("creating {path}"))?;
-            (format!("file {path}"), Box::new(f))
+            let label = format!("file {path}");
+            (label.clone(), Box::new(Labeled { label, inner: f }))
         };
         let sink = Box::new(FileSink::new(
             label,
@@ -284,7 +219,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     }
     let n_streams = streams.plans.len();
     let extra: Vec<job::Encoding> = (streams.plans.into_iter().skip(1))
-        .map(|p| r.frames_encoding(p))
+        .map(|p| sim.frames_encoding(p))
         .collect();
 
     let pacing = if paced {
@@ -302,9 +237,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     } else {
         Pacing::Unpaced
     };
-    let producer = Producer::new(motion, grid, r.nodes, r.encoding(), chain, false)
-        .map_err(|e| r.locate(e))?
-        .with_extra_encodings(extra);
+    let producer = sim.producer()?.with_extra_encodings(extra);
     let block = realtime::block_len(frames_per_s);
     tracing::info!(
         "{} records at {} Hz, {}; blocks of {block} frames, {} in flight",
@@ -458,4 +391,35 @@ fn summary(s: &Status, planned: u64, paced: bool) -> String {
         );
     }
     out
+}
+
+/// A writer whose errors name what it writes to (the sink's label), keeping their kind.
+struct Labeled<W> {
+    label: String,
+    inner: W,
+}
+
+/// An I/O error of a labelled writer: the label, then the cause as its `source()`.
+#[derive(Debug, thiserror::Error)]
+#[error("writing {label}")]
+struct LabeledError {
+    label: String,
+    source: std::io::Error,
+}
+
+impl<W: std::io::Write> Labeled<W> {
+    fn wrap(&self, e: std::io::Error) -> std::io::Error {
+        let kind = e.kind();
+        let label = self.label.clone();
+        std::io::Error::new(kind, LabeledError { label, source: e })
+    }
+}
+
+impl<W: std::io::Write> std::io::Write for Labeled<W> {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.inner.write(b).map_err(|e| self.wrap(e))
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush().map_err(|e| self.wrap(e))
+    }
 }

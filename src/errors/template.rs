@@ -96,7 +96,7 @@ pub fn load(name_or_path: &str) -> Result<ImuModel, TemplateError> {
 pub fn parse(text: &str, path: &Path) -> Result<ImuModel, TemplateError> {
     let syntax = |e: toml::de::Error| TemplateError::Syntax {
         path: path.to_path_buf(),
-        message: e.to_string().trim().replace('\n', " "),
+        message: crate::config::toml_error_line(text, &e),
     };
     let mut table: toml::Table = text.parse().map_err(syntax)?;
     if let Some(base) = table.remove("base") {

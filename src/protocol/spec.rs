@@ -430,7 +430,7 @@ impl FrameSpec {
     pub fn parse(text: &str, path: &Path) -> Result<FrameSpec, SpecError> {
         toml::from_str(text).map_err(|e| SpecError::Syntax {
             path: path.to_path_buf(),
-            message: e.to_string().trim().replace('\n', " "),
+            message: crate::config::toml_error_line(text, &e),
         })
     }
 }

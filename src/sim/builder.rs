@@ -1,0 +1,661 @@
+//! [`SimulationBuilder`]: a scene file (optional) and setters over it, resolved into a
+//! [`Simulation`]. Every value that came from the file and is refused names the file's key.
+
+use std::path::{Path, PathBuf};
+
+use super::{Output, SimError, Simulation};
+use crate::config::{self, SceneFile};
+use crate::errors::ErrorChain;
+use crate::errors::temperature::TemperatureProfile;
+use crate::errors::template::ImuModel;
+use crate::errors::vibration::{Vibration, VibrationSpec};
+use crate::generator::DEFAULT_NODES;
+use crate::job::{self, Grid, JobError, SourceSpec};
+use crate::motion::Motion;
+use crate::motion::sampled::{Degree, ModelSettings};
+use crate::output::Format;
+use crate::protocol::{self, FaultInjector, FaultSpec};
+use crate::scenes;
+use crate::source::AnyMotion;
+
+/// The IMU of a builder: a template name or file, or a model built in code.
+#[derive(Clone, Debug)]
+enum Imu {
+    Named(String),
+    Model(Box<ImuModel>),
+}
+
+/// Settings of a simulation: a scene file's values, overridden by the setters.
+#[derive(Clone, Debug)]
+pub struct SimulationBuilder {
+    file: SceneFile,
+    file_path: Option<PathBuf>,
+    scene: Option<String>,
+    trajectory: Option<PathBuf>,
+    imu: Option<Imu>,
+    rate: Option<f64>,
+    start: Option<f64>,
+    duration: Option<f64>,
+    format: Option<String>,
+    protocol_file: Option<PathBuf>,
+    gps_time: Option<(u32, f64)>,
+    faults: Vec<FaultSpec>,
+    seed: Option<u64>,
+    nodes: Option<usize>,
+    interpolation: Option<String>,
+    stencil: Option<usize>,
+    temperature: Option<TemperatureProfile>,
+    mounting_deg: Option<[f64; 3]>,
+    lever_arm_m: Option<[f64; 3]>,
+    vibration: Option<VibrationSpec>,
+    default_imu: String,
+    default_format: String,
+    unbounded_duration: f64,
+}
+
+impl Default for SimulationBuilder {
+    fn default() -> SimulationBuilder {
+        SimulationBuilder {
+            file: SceneFile::default(),
+            file_path: None,
+            scene: None,
+            trajectory: None,
+            imu: None,
+            rate: None,
+            start: None,
+            duration: None,
+            format: None,
+            protocol_file: None,
+            gps_time: None,
+            faults: Vec::new(),
+            seed: None,
+            nodes: None,
+            interpolation: None,
+            stencil: None,
+            temperature: None,
+            mounting_deg: None,
+            lever_arm_m: None,
+            vibration: None,
+            default_imu: "ideal".into(),
+            default_format: "csv".into(),
+            unbounded_duration: job::DEFAULT_UNBOUNDED_DURATION_S,
+        }
+    }
+}
+
+/// The default IMU rate when neither a setting, the protocol nor the template gives one (Hz).
+pub const DEFAULT_RATE_HZ: f64 = 400.0;
+
+/// A number for a message: at most 17 significant digits, exponent form when large or small
+/// (a 1e300 rate is not 301 digits).
+pub fn short_number(x: f64) -> String {
+    let a = x.abs();
+    if x.is_finite() && a != 0.0 && !(1e-4..1e15).contains(&a) {
+        format!("{x:e}")
+    } else {
+        x.to_string()
+    }
+}
+
+impl SimulationBuilder {
+    /// Reads the scene file at `path`; the setters called afterwards override its values.
+    pub fn scene_file(mut self, path: impl AsRef<Path>) -> Result<SimulationBuilder, SimError> {
+        let path = path.as_ref();
+        self.file = SceneFile::read(path)?;
+        self.file_path = Some(path.to_path_buf());
+        Ok(self)
+    }
+
+    /// A built-in scene (`scenes::NAMES`), with the scene file's `[trajectory.params]` if any.
+    pub fn scene(mut self, name: impl Into<String>) -> SimulationBuilder {
+        self.scene = Some(name.into());
+        self.trajectory = None;
+        self
+    }
+
+    /// A trajectory CSV (`t,lat,lon,h,vn,ve,vd,roll,pitch,yaw`) instead of a scene.
+    pub fn trajectory(mut self, path: impl Into<PathBuf>) -> SimulationBuilder {
+        self.trajectory = Some(path.into());
+        self.scene = None;
+        self
+    }
+
+    /// The IMU error model: a built-in template name or a template file.
+    pub fn imu(mut self, name_or_path: impl Into<String>) -> SimulationBuilder {
+        self.imu = Some(Imu::Named(name_or_path.into()));
+        self
+    }
+
+    /// The IMU error model, built in code.
+    pub fn imu_model(mut self, model: ImuModel) -> SimulationBuilder {
+        self.imu = Some(Imu::Model(Box::new(model)));
+        self
+    }
+
+    /// The IMU output rate (Hz).
+    pub fn rate(mut self, hz: f64) -> SimulationBuilder {
+        self.rate = Some(hz);
+        self
+    }
+
+    /// The start time t₀ (s).
+    pub fn start(mut self, t0: f64) -> SimulationBuilder {
+        self.start = Some(t0);
+        self
+    }
+
+    /// The duration (s).
+    pub fn duration(mut self, seconds: f64) -> SimulationBuilder {
+        self.duration = Some(seconds);
+        self
+    }
+
+    /// The output: `csv`, `bin`, or a built-in protocol's name.
+    pub fn format(mut self, name: impl Into<String>) -> SimulationBuilder {
+        self.format = Some(name.into());
+        self
+    }
+
+    /// Frames of the protocol described in a spec file (overrides [`Self::format`]).
+    pub fn protocol_file(mut self, path: impl Into<PathBuf>) -> SimulationBuilder {
+        self.protocol_file = Some(path.into());
+        self
+    }
+
+    /// The GPS time (week, seconds of week) of record time 0, for frames with GPS time.
+    pub fn gps_time(mut self, week: u32, seconds_of_week: f64) -> SimulationBuilder {
+        self.gps_time = Some((week, seconds_of_week));
+        self
+    }
+
+    /// A fault injected into the frames, in addition to the scene file's `[faults]`.
+    pub fn fault(mut self, spec: FaultSpec) -> SimulationBuilder {
+        self.faults.push(spec);
+        self
+    }
+
+    /// The master seed of every random error process.
+    pub fn seed(mut self, seed: u64) -> SimulationBuilder {
+        self.seed = Some(seed);
+        self
+    }
+
+    /// Gauss–Legendre nodes per interval (1 to 16).
+    pub fn quadrature_nodes(mut self, nodes: usize) -> SimulationBuilder {
+        self.nodes = Some(nodes);
+        self
+    }
+
+    /// Motion-model polynomials of a trajectory file: `cubic` or `quintic`.
+    pub fn interpolation(mut self, name: impl Into<String>) -> SimulationBuilder {
+        self.interpolation = Some(name.into());
+        self
+    }
+
+    /// Finite-difference stencil (samples, 3 to 15) of a trajectory file's knot derivatives.
+    pub fn stencil(mut self, samples: usize) -> SimulationBuilder {
+        self.stencil = Some(samples);
+        self
+    }
+
+    /// The sensor temperature over the run (overrides the scene file's `[temperature]`).
+    pub fn temperature(mut self, profile: TemperatureProfile) -> SimulationBuilder {
+        self.temperature = Some(profile);
+        self
+    }
+
+    /// The case's attitude in the body, [roll, pitch, yaw] of C_c^b in degrees.
+    pub fn mounting_deg(mut self, roll_pitch_yaw: [f64; 3]) -> SimulationBuilder {
+        self.mounting_deg = Some(roll_pitch_yaw);
+        self
+    }
+
+    /// The lever arm from the trajectory's reference point to the IMU, case frame (m).
+    pub fn lever_arm_m(mut self, arm: [f64; 3]) -> SimulationBuilder {
+        self.lever_arm_m = Some(arm);
+        self
+    }
+
+    /// The vibration of the IMU (overrides the scene file's `[vibration]`).
+    pub fn vibration(mut self, spec: VibrationSpec) -> SimulationBuilder {
+        self.vibration = Some(spec);
+        self
+    }
+
+    /// The IMU template and the output used when neither a setter nor the scene file names
+    /// one (library default: `ideal`, `csv`).
+    pub fn defaults(mut self, imu: &str, format: &str) -> SimulationBuilder {
+        self.default_imu = imu.into();
+        self.default_format = format.into();
+        self
+    }
+
+    /// The duration of a run on an unbounded scene when none is given (s).
+    pub fn unbounded_duration(mut self, seconds: f64) -> SimulationBuilder {
+        self.unbounded_duration = seconds;
+        self
+    }
+
+    /// The scene file's `output.path`, if it gives one.
+    pub fn output_path(&self) -> Option<&Path> {
+        self.file.output.path.as_deref()
+    }
+
+    /// The scene file, if one was read.
+    pub fn scene_file_path(&self) -> Option<&Path> {
+        self.file_path.as_deref()
+    }
+
+    /// `FILE: `key`` when a value came from the scene file (`given`: set in code instead).
+    fn file_key(&self, given: bool, in_file: bool, key: &str) -> Option<String> {
+        match (&self.file_path, given || !in_file) {
+            (Some(p), false) => Some(format!("{}: `{key}`", p.display())),
+            _ => None,
+        }
+    }
+
+    /// The scene file's path, or `<settings>` for messages about values set in code.
+    fn file_label(&self) -> PathBuf {
+        self.file_path
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("<settings>"))
+    }
+
+    /// The directory that relative paths in the scene file are resolved against.
+    fn base(&self) -> PathBuf {
+        (self.file_path.as_deref().and_then(Path::parent))
+            .map(Path::to_path_buf)
+            .unwrap_or_default()
+    }
+
+    /// The source and whether its scene name and its parameters came from the scene file.
+    fn source(&self) -> Result<(SourceSpec, bool, bool), SimError> {
+        let t = &self.file.trajectory;
+        let label = self.file_label();
+        let from_params = t.params.is_some() && self.trajectory.is_none();
+        if let Some(path) = &self.trajectory {
+            return Ok((SourceSpec::File(path.clone()), false, false));
+        }
+        if let Some(s) = &self.scene {
+            let params = config::scene_params(s, t.params.as_ref()).map_err(|m| {
+                SimError::Invalid(m).at(Some(format!("{}: `trajectory.params`", label.display())))
+            })?;
+            return Ok((SourceSpec::Scene(s.clone(), params), false, from_params));
+        }
+        let spec = match (&t.scene, &t.file) {
+            (Some(_), Some(_)) => {
+                return Err(
+                    SimError::Invalid("give either `scene` or `file`, not both".into())
+                        .at(Some(format!("{}: `trajectory`", label.display()))),
+                );
+            }
+            (_, Some(f)) => SourceSpec::File(self.base().join(f)),
+            (Some(s), None) => SourceSpec::Scene(s.clone(), self.file.scene_params(s, &label)?),
+            (None, None) => SourceSpec::Scene(
+                scenes::DEFAULT.into(),
+                self.file.scene_params(scenes::DEFAULT, &label)?,
+            ),
+        };
+        Ok((spec, t.scene.is_some(), from_params))
+    }
+
+    /// The motion-model settings of a trajectory file (interpolation and stencil).
+    fn model_settings(&self) -> Result<ModelSettings, SimError> {
+        let e = &self.file.engine;
+        let at = self.file_key(
+            self.interpolation.is_some(),
+            e.interpolation.is_some(),
+            "engine.interpolation",
+        );
+        let interp = (self.interpolation.clone())
+            .or(e.interpolation.clone())
+            .unwrap_or_else(|| "quintic".into());
+        let degree = match interp.as_str() {
+            "cubic" => Degree::Cubic,
+            "quintic" => Degree::Quintic,
+            other => {
+                return Err(SimError::Invalid(format!(
+                    "interpolation `{other}`: expected `cubic` or `quintic`"
+                ))
+                .at(at));
+            }
+        };
+        let at = self.file_key(
+            self.stencil.is_some(),
+            e.stencil.is_some(),
+            "engine.stencil",
+        );
+        let stencil = (self.stencil.or(e.stencil)).unwrap_or(ModelSettings::default().stencil);
+        if !(3..=15).contains(&stencil) {
+            return Err(
+                SimError::Invalid(format!("stencil {stencil}: expected 3 to 15 samples")).at(at),
+            );
+        }
+        Ok(ModelSettings { degree, stencil })
+    }
+
+    /// The motion model of the source alone (for commands that need only the reference
+    /// trajectory); errors name the scene-file key or the trajectory file.
+    pub fn motion(&self) -> Result<AnyMotion, SimError> {
+        let (source, scene_from_file, params_from_file) = self.source()?;
+        let model = self.model_settings()?;
+        job::build_motion(&source, model).map_err(|e| {
+            let label = self.file_label();
+            let place = match &e {
+                JobError::UnknownScene(_) if scene_from_file => {
+                    Some(format!("{}: `trajectory.scene`", label.display()))
+                }
+                JobError::SceneParam(p) if params_from_file => Some(format!(
+                    "{}: `trajectory.params.{}`",
+                    label.display(),
+                    p.key
+                )),
+                _ => None,
+            };
+            SimError::from(e).at(place)
+        })
+    }
+
+    /// The IMU model: setter, then the scene file's `imu.model`, then the default.
+    fn resolve_imu(&self) -> Result<ImuModel, SimError> {
+        let file = &self.file.imu.model;
+        let at = self.file_key(self.imu.is_some(), file.is_some(), "imu.model");
+        let name = match &self.imu {
+            Some(Imu::Model(m)) => return Ok((**m).clone()),
+            Some(Imu::Named(n)) => n.clone(),
+            None => file.clone().unwrap_or_else(|| self.default_imu.clone()),
+        };
+        super::load_template(&name).map_err(|e| e.at(at))
+    }
+
+    /// The output encoding: a protocol file, else `csv`, `bin` or a built-in protocol.
+    fn output(&self) -> Result<Output, SimError> {
+        if let Some(p) = &self.protocol_file {
+            return Ok(Output::Frames(protocol::load(&p.to_string_lossy())?.1));
+        }
+        let file = &self.file.output.format;
+        let at = self.file_key(self.format.is_some(), file.is_some(), "output.format");
+        let name = (self.format.clone())
+            .or(file.clone())
+            .unwrap_or_else(|| self.default_format.clone());
+        if let Some(f) = Format::from_name(&name) {
+            return Ok(Output::Records(f));
+        }
+        let builtin = protocol::builtin_names();
+        if builtin.contains(&name.as_str()) {
+            return Ok(Output::Frames(protocol::load(&name)?.1));
+        }
+        Err(SimError::Invalid(format!(
+            "output format `{name}`: expected `csv`, `bin` or a protocol ({})",
+            builtin.join(", ")
+        ))
+        .at(at))
+    }
+
+    /// The places (scene-file keys, trajectory file) that set the span, for span errors.
+    fn span_place(&self, source: &SourceSpec) -> Option<String> {
+        let mut place = Vec::new();
+        let o = &self.file.output;
+        let keys: Vec<String> = [
+            (
+                "output.start_s",
+                self.start.is_none() && o.start_s.is_some(),
+            ),
+            (
+                "output.duration_s",
+                self.duration.is_none() && o.duration_s.is_some(),
+            ),
+        ]
+        .into_iter()
+        .filter(|k| k.1)
+        .map(|k| format!("`{}`", k.0))
+        .collect();
+        if let (Some(f), false) = (&self.file_path, keys.is_empty()) {
+            place.push(format!("{}: {}", f.display(), keys.join(", ")));
+        }
+        if let SourceSpec::File(path) = source {
+            place.push(path.display().to_string());
+        }
+        (!place.is_empty()).then(|| place.join(": "))
+    }
+
+    /// The time grid; refuses a rate, start or duration that cannot be, saying which and why.
+    fn grid(&self, motion: &AnyMotion, source: &SourceSpec, rate: Rate) -> Result<Grid, SimError> {
+        let o = &self.file.output;
+        let start = self.start.or(o.start_s);
+        let duration = self.duration.or(o.duration_s);
+        let at_start = self.file_key(self.start.is_some(), o.start_s.is_some(), "output.start_s");
+        let at_duration = self.file_key(
+            self.duration.is_some(),
+            o.duration_s.is_some(),
+            "output.duration_s",
+        );
+        let setting = |key: &str, value: f64, expected: &str| {
+            SimError::Invalid(format!("`{key}` = {}: {expected}", short_number(value)))
+        };
+        if !(rate.hz.is_finite() && rate.hz > 0.0 && rate.hz <= 1.0e7) {
+            return Err(setting("rate", rate.hz, "a rate in (0, 1e7] Hz").at(rate.place));
+        }
+        if let Some(t0) = start.filter(|t| !t.is_finite()) {
+            return Err(setting("start", t0, "a finite time").at(at_start));
+        }
+        let duration = match duration {
+            Some(d) if !(d.is_finite() && d > 0.0) => {
+                return Err(
+                    setting("duration", d, "a positive duration in seconds").at(at_duration)
+                );
+            }
+            Some(d) if (d * rate.hz + 1e-9) < 1.0 => {
+                return Err(SimError::Invalid(format!(
+                    "`duration` = {} s is shorter than one sample at {} Hz ({} s): no record to write",
+                    short_number(d),
+                    short_number(rate.hz),
+                    short_number(1.0 / rate.hz)
+                ))
+                .at(at_duration));
+            }
+            None if !motion.end().is_finite() => Some(self.unbounded_duration),
+            d => d,
+        };
+        job::plan(motion, rate.hz, start, duration).map_err(|e| {
+            let place = match &e {
+                JobError::Span { .. } => self.span_place(source),
+                JobError::Setting { key, .. } => match *key {
+                    "rate" => rate.place.clone(),
+                    "start" => at_start.clone(),
+                    "duration" => at_duration.clone(),
+                    _ => None,
+                },
+                _ => None,
+            };
+            SimError::from(e).at(place)
+        })
+    }
+
+    /// The error chain of `imu` with the temperature, mounting, lever arm and vibration;
+    /// `None` when nothing would change the error-free records.
+    fn chain(
+        &self,
+        imu: &ImuModel,
+        rate_hz: f64,
+        seed: u64,
+        temperature: Option<&TemperatureProfile>,
+        warnings: &mut Vec<String>,
+    ) -> Result<Option<ErrorChain>, SimError> {
+        let label = self.file_label();
+        let mut chain = ErrorChain::new(imu, rate_hz, seed);
+        if let Some(p) = temperature {
+            chain = chain.with_temperature(p.clone(), imu);
+        }
+        let f = &self.file.imu;
+        let mounting = self.mounting_deg.or(f.mounting_deg);
+        let lever_arm = self.lever_arm_m.or(f.lever_arm_m);
+        for (key, v, given) in [
+            ("imu.mounting_deg", mounting, self.mounting_deg.is_some()),
+            ("imu.lever_arm_m", lever_arm, self.lever_arm_m.is_some()),
+        ] {
+            if v.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
+                let e = SimError::Invalid("expected three finite numbers".into());
+                let name = key.trim_start_matches("imu.");
+                return Err(match self.file_key(given, true, key) {
+                    Some(place) => e.at(Some(place)),
+                    None => e.at(Some(format!("`{name}`"))),
+                });
+            }
+        }
+        if let Some([roll, pitch, yaw]) = mounting {
+            // The file gives the case's attitude in the body (C_c^b); the chain wants C_b^c.
+            let q_c_b = crate::math::quat_from_euler(
+                roll.to_radians(),
+                pitch.to_radians(),
+                yaw.to_radians(),
+            );
+            chain = chain.with_mounting(q_c_b.conj());
+        }
+        if let Some(r) = lever_arm {
+            chain = chain.with_lever_arm(crate::math::Vec3(r));
+        }
+        let vibration = match &self.vibration {
+            Some(v) => v.clone(),
+            None => self.file.vibration.spec(&label)?,
+        };
+        if !vibration.is_empty() {
+            let place = format!("{}: `vibration`", label.display());
+            let v = Vibration::new(&vibration, 1.0 / rate_hz, seed)
+                .map_err(|e| SimError::Invalid(e.to_string()).at(Some(place)))?;
+            for s in v.random_summaries() {
+                if let Some(f) = s.truncated_at_hz {
+                    warnings.push(format!(
+                        "random vibration on {} {} cut at the Nyquist frequency {f} Hz",
+                        s.sensor.name(),
+                        ["x", "y", "z"][s.axis]
+                    ));
+                }
+            }
+            chain = chain.with_vibration(v);
+        }
+        if imu.grade != "ideal" && !imu.has_error_figures() {
+            warnings.push(format!(
+                "template `{}` has no error figures (no public source was found; see its file): the output is error-free apart from the interface's quantization and range",
+                imu.name
+            ));
+        }
+        Ok((!chain.is_empty()).then_some(chain))
+    }
+
+    /// The scene file's `[faults]` plus the faults set in code, checked against the output.
+    fn faults(
+        &self,
+        output: &Output,
+        rate: f64,
+        seed: u64,
+    ) -> Result<Option<FaultInjector>, SimError> {
+        let label = self.file_label();
+        let section = &self.file.faults;
+        let mut specs = section.specs(&label, rate)?;
+        let from_file = specs.len();
+        for f in &self.faults {
+            f.validate(rate).map_err(|e| {
+                SimError::Invalid(e.to_string()).at(Some(format!("fault {}", f.kind.name())))
+            })?;
+        }
+        specs.extend(self.faults.iter().cloned());
+        if specs.is_empty() {
+            return Ok(None);
+        }
+        let Output::Frames(plan) = output else {
+            return Err(SimError::Invalid(
+                "faults apply to protocol frames: choose a protocol as the output format".into(),
+            ));
+        };
+        for (i, s) in specs.iter().enumerate() {
+            if let Err(e) = plan.supports(s.kind) {
+                let place = if i < from_file {
+                    format!("{}: `faults.event[{i}].kind`", label.display())
+                } else {
+                    format!("fault {}", s.kind.name())
+                };
+                return Err(SimError::Invalid(e.to_string()).at(Some(place)));
+            }
+        }
+        Ok(Some(FaultInjector::new(
+            specs,
+            rate,
+            section.seed.unwrap_or(seed),
+        )))
+    }
+
+    /// Resolves every setting (setters over the scene file over the defaults) and assembles
+    /// the simulation: motion, grid, error chain and encoding.
+    pub fn build(self) -> Result<Simulation, SimError> {
+        let label = self.file_label();
+        let (source, _, _) = self.source()?;
+        let imu = self.resolve_imu()?;
+        let seed = (self.seed.or(self.file.imu.seed)).unwrap_or(crate::rng::DEFAULT_SEED);
+        let temperature = match &self.temperature {
+            Some(p) => Some(p.clone()),
+            None => self.file.temperature.profile(&label, &self.base())?,
+        };
+        let mut output = self.output()?;
+        let e = &self.file.engine;
+        let at = self.file_key(
+            self.nodes.is_some(),
+            e.quadrature_nodes.is_some(),
+            "engine.quadrature_nodes",
+        );
+        let nodes = (self.nodes.or(e.quadrature_nodes)).unwrap_or(DEFAULT_NODES);
+        if !(1..=crate::quadrature::MAX_NODES).contains(&nodes) {
+            return Err(SimError::Invalid(format!(
+                "quadrature {nodes}: expected 1 to 16 Gauss–Legendre nodes"
+            ))
+            .at(at));
+        }
+        let rate_in_file = self.file.imu.rate_hz.is_some();
+        let rate = Rate {
+            hz: (self.rate.or(self.file.imu.rate_hz))
+                .or(match &output {
+                    Output::Frames(p) => p.rate_hz,
+                    Output::Records(_) => None,
+                })
+                .or(imu.rate_hz)
+                .unwrap_or(DEFAULT_RATE_HZ),
+            place: self.file_key(self.rate.is_some(), rate_in_file, "imu.rate_hz"),
+        };
+        let motion = self.motion()?;
+        let grid = self.grid(&motion, &source, rate.clone())?;
+        if let Output::Frames(plan) = &mut output {
+            plan.set_rate(grid.rate_hz)
+                .map_err(|e| SimError::Invalid(e).at(rate.place.clone()))?;
+        }
+        let faults = self.faults(&output, grid.rate_hz, seed)?;
+        let mut warnings = Vec::new();
+        let chain = self.chain(
+            &imu,
+            grid.rate_hz,
+            seed,
+            temperature.as_ref(),
+            &mut warnings,
+        )?;
+        Ok(Simulation {
+            motion,
+            grid,
+            nodes,
+            output,
+            chain,
+            imu,
+            seed,
+            temperature,
+            faults,
+            gps_time: self.gps_time,
+            output_path: self.file.output.path.clone(),
+            warnings,
+        })
+    }
+}
+
+/// The IMU rate and the scene-file key it came from, if it did.
+#[derive(Clone)]
+struct Rate {
+    hz: f64,
+    place: Option<String>,
+}
