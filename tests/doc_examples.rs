@@ -56,7 +56,9 @@ fn extract(page: &str, text: &str) -> Result<Vec<Example>, String> {
         let Some(info) = line.strip_prefix("```") else {
             if !line.is_empty() {
                 if let Some(at) = pending_skip {
-                    return Err(format!("{page}:{at}: no-test marker not followed by a code block"));
+                    return Err(format!(
+                        "{page}:{at}: no-test marker not followed by a code block"
+                    ));
                 }
             }
             i += 1;
@@ -83,7 +85,9 @@ fn extract(page: &str, text: &str) -> Result<Vec<Example>, String> {
         i = close + 1;
     }
     if let Some(at) = pending_skip {
-        return Err(format!("{page}:{at}: no-test marker not followed by a code block"));
+        return Err(format!(
+            "{page}:{at}: no-test marker not followed by a code block"
+        ));
     }
     Ok(out)
 }
@@ -95,7 +99,11 @@ fn console_commands(body: &[&str]) -> String {
     let kept: Vec<&str> = body
         .iter()
         .map(|l| {
-            let cmd = if continued { Some(*l) } else { l.strip_prefix("$ ") };
+            let cmd = if continued {
+                Some(*l)
+            } else {
+                l.strip_prefix("$ ")
+            };
             continued = cmd.is_some_and(|c| c.trim_end().ends_with('\\'));
             cmd.unwrap_or("")
         })
@@ -208,7 +216,10 @@ fn run_page(page: &str, examples: &[Example], dir: &Path) -> Result<(), String> 
             .nth(line - ex.first_line)
             .unwrap_or("")
             .trim();
-        let tail: Vec<&str> = stderr.lines().filter(|l| !l.starts_with("@@doc-line")).collect();
+        let tail: Vec<&str> = stderr
+            .lines()
+            .filter(|l| !l.starts_with("@@doc-line"))
+            .collect();
         let tail = tail[tail.len().saturating_sub(15)..].join("\n");
         return Err(format!(
             "{page}:{line}: `{command}` failed ({}):\n{tail}",
@@ -226,7 +237,9 @@ fn pages(root: &Path) -> Vec<PathBuf> {
         .filter(|p| p.extension().is_some_and(|x| x == "md"))
         .collect();
     docs.sort();
-    std::iter::once(root.join("README.md")).chain(docs).collect()
+    std::iter::once(root.join("README.md"))
+        .chain(docs)
+        .collect()
 }
 
 #[test]
@@ -323,13 +336,61 @@ fn the_wrapper_caps_durations_only() {
         run(&["generate", "--duration", "600", "-o", "x"], "2"),
         "generate --duration 2 -o x"
     );
-    assert_eq!(run(&["generate", "--duration", "0.5"], "2"), "generate --duration 0.5");
+    assert_eq!(
+        run(&["generate", "--duration", "0.5"], "2"),
+        "generate --duration 0.5"
+    );
     assert_eq!(run(&["run", "--pty", "p"], "2"), "run --pty p --duration 2");
     assert_eq!(
         run(&["compare", "--outage", "60"], "2"),
         "compare --outage 2 --duration 2"
     );
-    assert_eq!(run(&["decode", "--protocol", "x", "f.bin"], "2"), "decode --protocol x f.bin");
-    assert_eq!(run(&["decode", "--serial", "p"], "2"), "decode --serial p --duration 2");
-    assert_eq!(run(&["run", "--duration", "600"], "0"), "run --duration 600");
+    assert_eq!(
+        run(&["decode", "--protocol", "x", "f.bin"], "2"),
+        "decode --protocol x f.bin"
+    );
+    assert_eq!(
+        run(&["decode", "--serial", "p"], "2"),
+        "decode --serial p --duration 2"
+    );
+    assert_eq!(
+        run(&["run", "--duration", "600"], "0"),
+        "run --duration 600"
+    );
+}
+
+/// The pages cite only what a reader of this repository has: every relative link resolves to a
+/// file here, and no page points at notes kept outside it.
+#[test]
+fn links_resolve_and_no_page_cites_outside_notes() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut bad = Vec::new();
+    for page in pages(root) {
+        let label = page.strip_prefix(root).unwrap().display().to_string();
+        let text = std::fs::read_to_string(&page).unwrap();
+        for (n, line) in text.lines().enumerate() {
+            for name in [
+                "DESIGN.md",
+                "DESIGN §",
+                "RUST-NOTES",
+                "PROTOCOLS.md",
+                "HIL.md",
+                "shared/",
+            ] {
+                if line.contains(name) {
+                    bad.push(format!("{label}:{}: cites `{name}`", n + 1));
+                }
+            }
+            for target in line.split("](").skip(1).filter_map(|t| t.split(')').next()) {
+                let path = target.split('#').next().unwrap_or("");
+                if path.is_empty() || path.contains("://") || path.starts_with("mailto:") {
+                    continue;
+                }
+                if !page.parent().unwrap().join(path).exists() {
+                    bad.push(format!("{label}:{}: link to missing `{path}`", n + 1));
+                }
+            }
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
