@@ -15,7 +15,7 @@
 //!   `--duration` and `--outage` at `IMU_EMU_DOC_SECONDS` simulated seconds (default 2) and gives
 //!   `run`, `compare`, `validate` and live `decode` that duration when they have none. The binary
 //!   itself reads no such variable; `IMU_EMU_DOC_SECONDS=0` runs every example exactly as
-//!   written (minutes, not seconds).
+//!   written (the better part of an hour).
 //! * `cargo run --release -- ARGS` is the built binary with ARGS, so the test runs it as
 //!   `imu-emu ARGS` (running cargo inside `cargo test` would wait on the build lock).
 //!
@@ -189,9 +189,10 @@ fn run_page(page: &str, examples: &[Example], dir: &Path) -> Result<(), String> 
     let preamble_lines = PREAMBLE.lines().count();
     for ex in examples {
         // The timeout only guards against a hang (a reader waiting on a device that never
-        // comes); the capped examples of a page take seconds.
+        // comes): capped examples take seconds, uncapped ones stream whole scenes in real time.
+        let limit = if cap_seconds() == "0" { "7200" } else { "300" };
         let output = Command::new("timeout")
-            .args(["--kill-after=5", "300", "bash", "-c"])
+            .args(["--kill-after=5", limit, "bash", "-c"])
             .arg(format!("{PREAMBLE}{}", ex.script))
             .current_dir(dir)
             .env("PATH", &path)
