@@ -1,5 +1,6 @@
 #!/bin/sh
-# Regenerates the analysis figures in docs/ (README, "analyze"): run from the repository root.
+# Regenerates the figures in docs/ (docs/analysis.md, docs/navigator.md): run from the
+# repository root after `cargo build --release`.
 set -eu
 bin=${IMU_EMU:-target/release/imu-emu}
 tmp=$(mktemp -d)
@@ -10,3 +11,6 @@ trap 'rm -rf "$tmp"' EXIT
 # STIM300: adds bias instability, 200 Hz, 2 h static.
 "$bin" generate --scene static --imu stim300 --rate 200 --duration 7200 --format bin -o "$tmp/stim300.bin"
 "$bin" analyze "$tmp/stim300.bin" --imu stim300 --plot docs/adev-stim300.png
+# compare: error growth over 60 s GNSS outages on the survey scene, five grades.
+"$bin" compare --imu ln200,hg1700,stim300,adis16405,mpu6000 --scene survey --runs 20 --outage 60 \
+    --csv "$tmp/growth.csv" --plot docs/compare-survey-60s.png
