@@ -30,7 +30,7 @@ mutations=(
   "pacer-50ms-late|s/(start \+ \(k as u128 \* 1_000_000_000_000_000 \/ self\.frames_per_s_uhz\) as i128)/\$1 + 50_000_000/|realtime|every frame sent 50 ms late"
   "skipped-not-counted|s/st\.skipped \+= \(from - i\) as u64;/st.skipped += 0;/|realtime|frames skipped by catch-up not counted"
   "dropped-not-counted|s/self\.stats\.dropped \+= ends\.len\(\) as u64;/self.stats.dropped += 0;/g|realtime|frames dropped at a sink (no reader, slow reader) not counted"
-  "rate-lsb-noop|s/(let v = &mut sel\(r\)\.0\[i\];\s*)\*v = q\.apply\(\*v\);/\$1let _ = q.apply(*v);/|quantization gauss_markov error_model|rate-LSB quantization (Lsb::Rate) a no-op"
+  "rate-lsb-noop|s/(let v = &mut s\.rate\(r\)\.0\[i\];\s*)\*v = q\.apply\(\*v\);/\$1let _ = q.apply(*v);/|quantization gauss_markov error_model|rate-LSB quantization (Lsb::Rate) a no-op"
   "gm-euler|s/let phi = \(-dt \/ tau\)\.exp\(\);\n(\s*)\/\/ 1 − e\^\{−2x\} without cancellation for small x\.\n\s*let q = sigma \* \(-\(-2\.0 \* dt \/ tau\)\.exp_m1\(\)\)\.sqrt\(\);/let phi = 1.0 - dt \/ tau;\n\$1let q = sigma * (2.0 * dt \/ tau).sqrt();/|gauss_markov error_model|Gauss–Markov discretised with Euler"
   "gm-noise-105|s/(let q = sigma \* \(-\(-2\.0 \* dt \/ tau\)\.exp_m1\(\)\)\.sqrt\(\));/\$1 * 1.05;/|gauss_markov error_model|Gauss–Markov driving noise ×1.05"
   "generator-late-24h|s/(let t = self\.t0 \+ \(base \+ x\) \/ self\.rate_hz;)/\$1\n                    let t = if t > 86_399.0 { t + 0.05 } else { t };/|closed_form|generator evaluating the motion 50 ms late in the last second of a 24 h run"

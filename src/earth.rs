@@ -1,5 +1,6 @@
 //! WGS-84 Earth model: constants, radii of curvature, normal gravity, and the geodetic ↔ ECEF
-//! conversions (DESIGN §1). Pure math, no I/O.
+//! conversions (NIMA TR8350.2, *Department of Defense World Geodetic System 1984*, ch. 3–4).
+//! Pure math, no I/O.
 
 use crate::math::{Mat3, Quat, Vec3};
 

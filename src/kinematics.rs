@@ -96,7 +96,7 @@ mod tests {
     use super::*;
     use crate::math::quat_from_euler;
 
-    /// DESIGN §1 worked check: static, level, heading north at 41° N, 0 m.
+    /// Worked check (docs/signals.md): static, level, heading north at 41° N, 0 m.
     #[test]
     fn static_41n_matches_design_worked_check() {
         let lat = 41f64.to_radians();

@@ -1,4 +1,4 @@
-//! Named random streams (DESIGN §4): one master seed per run, and for every random process an
+//! Named random streams: one master seed per run, and for every random process an
 //! independent Xoshiro256++ stream seeded from the master seed and the process's name, so the
 //! output does not depend on block size or thread count, and adding a term leaves every other
 //! term's draws unchanged.

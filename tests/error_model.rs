@@ -1,4 +1,4 @@
-//! The error model (DESIGN §3–4) against its closed forms, one term at a time, with fixed seeds.
+//! The error model (docs/error-model.md) against its closed forms, one term at a time, with fixed seeds.
 //!
 //! Records are static, zero-motion inputs (or constant rates and ±g positions) built directly,
 //! so nothing here depends on the motion models: every difference between input and output is
@@ -850,7 +850,7 @@ quantization = "1e-4 m/s"
 }
 
 // ---------------------------------------------------------------------------------------------
-// Reproducibility (DESIGN §4).
+// Reproducibility: one named stream per random process (src/rng.rs).
 
 /// A template with every term, deterministic and stochastic.
 const FULL: &str = r#"

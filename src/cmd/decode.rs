@@ -4,7 +4,7 @@
 use std::io::{ErrorKind, Read, Write};
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
@@ -54,13 +54,6 @@ pub struct DecodeArgs {
     /// (t, gyro, accel, dtheta, dv, then the frame's other fields: counter, status, …).
     #[arg(long)]
     pub native: bool,
-}
-
-/// Set by SIGINT/SIGTERM: stop reading and print the tally.
-static STOP: AtomicBool = AtomicBool::new(false);
-
-extern "C" fn on_signal(_: libc::c_int) {
-    STOP.store(true, Ordering::Relaxed);
 }
 
 /// Where bytes come from.
@@ -150,19 +143,12 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
             ),
         })
     };
-    if live {
-        // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
-        unsafe {
-            use nix::sys::signal::{SaFlags, SigAction, SigHandler, SigSet, Signal, sigaction};
-            let act = SigAction::new(
-                SigHandler::Handler(on_signal),
-                SaFlags::empty(),
-                SigSet::empty(),
-            );
-            sigaction(Signal::SIGINT, &act)?;
-            sigaction(Signal::SIGTERM, &act)?;
-        }
-    }
+    // Live input ends on Ctrl-C / SIGTERM with its tally printed, like a finished stream.
+    let stop = if live {
+        Some(imu_emu::realtime::signal::watch()?)
+    } else {
+        None
+    };
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     // Columns: the record contract (unless --native), then every message's other value
     // fields, merged by name (plus the message name when the protocol interleaves several);
@@ -239,7 +225,8 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         .duration
         .map(|d| started + Duration::from_secs_f64(d.max(0.0)));
     let limit = a.frames.unwrap_or(u64::MAX);
-    while !STOP.load(Ordering::Relaxed) && dec.stats().frames < limit {
+    while stop.as_ref().is_none_or(|s| s.load(Ordering::Relaxed) == 0) && dec.stats().frames < limit
+    {
         if deadline.is_some_and(|d| Instant::now() >= d) {
             break;
         }

@@ -3,8 +3,7 @@
 use std::io::{IsTerminal, Write};
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicI32, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -52,7 +51,7 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
         indicatif::ProgressBar::hidden()
     };
     let faults = sim.faults().cloned();
-    let caught = watch_signals()?;
+    let caught = imu_emu::realtime::signal::watch()?;
     let started = Instant::now();
     let mut truth_file = a.truth.as_deref().map(create).transpose()?;
     let mut errors_file = a.truth_errors.as_deref().map(create).transpose()?;
@@ -116,36 +115,4 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
         );
     }
     Ok(())
-}
-
-/// Catches SIGINT and SIGTERM from now on (tokio's handlers, no unsafe code): the returned
-/// flag holds the signal number once one arrived, so the run can stop between blocks and
-/// remove its unfinished files.
-fn watch_signals() -> Result<Arc<AtomicI32>> {
-    use tokio::signal::unix::{SignalKind, signal};
-    let caught = Arc::new(AtomicI32::new(0));
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()?;
-    // Registered here, before the output files exist, so no signal can kill the process
-    // while it holds them.
-    let (mut int, mut term) = rt.block_on(async {
-        Ok::<_, std::io::Error>((
-            signal(SignalKind::interrupt())?,
-            signal(SignalKind::terminate())?,
-        ))
-    })?;
-    let flag = caught.clone();
-    std::thread::Builder::new()
-        .name("imu-signals".into())
-        .spawn(move || {
-            rt.block_on(async move {
-                let number = tokio::select! {
-                    _ = int.recv() => 2,
-                    _ = term.recv() => 15,
-                };
-                flag.store(number, Ordering::Relaxed);
-            })
-        })?;
-    Ok(caught)
 }

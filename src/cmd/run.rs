@@ -296,13 +296,18 @@ pub fn run(a: RunArgs) -> Result<()> {
         .join()
         .map_err(|_| anyhow::anyhow!("the pacer thread panicked"))??;
     // The producer ends once the pacer has dropped its channel.
-    drop(rt.block_on(producer_task));
+    let failed = rt
+        .block_on(producer_task)
+        .map_err(|e| anyhow::anyhow!("the producer task failed: {e}"))?;
     eprintln!(
         "imu-emu: {}{}",
         interrupted.map_or(String::new(), |i| format!("{i}: ")),
         summary(&final_status, grid.count, paced)
     );
     // After the summary: the exit status tells a script the run did not complete.
+    if let Some(e) = failed {
+        return Err(anyhow::Error::new(e).context("stopped: nothing non-finite was sent"));
+    }
     interrupted.map_or(Ok(()), |i| Err(i.into()))
 }
 

@@ -65,14 +65,15 @@ pub const CHANNEL_BLOCKS: usize = 8;
 /// Runs `producer` to the end (or until the receiver hangs up), sending blocks of `block`
 /// frames in `streams` encodings (the main one and the producer's extra ones); reuses the
 /// buffers the pacer returns on `recycled`. Blocking: call it on its own thread (or
-/// `spawn_blocking`).
+/// `spawn_blocking`). Returns why production stopped early (a non-finite record), if it did:
+/// nothing of the bad block was sent, and the caller reports it.
 pub fn produce(
     mut producer: Producer,
     block: usize,
     streams: usize,
     tx: tokio::sync::mpsc::Sender<FrameBlock>,
     mut recycled: tokio::sync::mpsc::Receiver<FrameBlock>,
-) {
+) -> Option<crate::job::JobError> {
     loop {
         let mut b = recycled.try_recv().unwrap_or_default();
         b.streams.resize_with(streams, Default::default);
@@ -81,11 +82,11 @@ pub fn produce(
             ends.clear();
         }
         let Some(out) = producer.next_block_multi(block, &mut b.streams) else {
-            return;
+            return producer.take_error();
         };
         b.first = out.first;
         if tx.blocking_send(b).is_err() {
-            return;
+            return None;
         }
     }
 }

@@ -1,7 +1,8 @@
 //! The pacer: one dedicated OS thread that writes frame k (1-based) at the absolute deadline
 //! start + k·Δt/speed — record k covers (t_{k−1}, t_k], and a real IMU sends it at the end of
 //! its interval — sleeping with `clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)` and 1 ns
-//! timer slack (RUST-NOTES §1: tokio's timer is 1–2 ms late). Deadlines are integer
+//! timer slack (tokio's timer has millisecond granularity, as the `tokio::time::sleep` docs
+//! say: too coarse for frames 1 ms apart). Deadlines are integer
 //! nanoseconds computed from k, so nothing accumulates: frame N's deadline error does not
 //! grow with N.
 //!
@@ -284,6 +285,7 @@ fn publish(status: &Mutex<Status>, st: &mut Status, pending: &mut Vec<i128>, sin
 /// Asks for `SCHED_FIFO` priority 50 for this thread; false (with a warning) when refused.
 fn set_fifo() -> bool {
     let param = libc::sched_param { sched_priority: 50 };
+    // Neither std nor nix wraps sched_setscheduler.
     // SAFETY: plain syscall on the calling thread with a valid parameter block.
     let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
     if rc == 0 {

@@ -1,6 +1,6 @@
 //! Pseudo-terminal sink: a raw pty pair whose slave is published at a stable path (a symlink,
 //! like socat's `link=`). Readers may come and go; with none, frames are dropped and counted
-//! and the emulator runs on unchanged (RUST-NOTES §2).
+//! and the emulator runs on unchanged (docs/realtime.md).
 
 use std::io;
 use std::os::fd::{AsFd, AsRawFd, OwnedFd};
@@ -178,6 +178,7 @@ impl Sink for PtySink {
         std::thread::sleep(std::time::Duration::from_millis(5));
         for _ in 0..200 {
             let mut queued: libc::c_int = 0;
+            // nix and std have no safe FIONREAD (nix only generates unsafe ioctl wrappers).
             // SAFETY: FIONREAD writes one int through a valid pointer.
             let rc = unsafe { libc::ioctl(slave.as_raw_fd(), libc::FIONREAD, &mut queued) };
             if rc != 0 || queued == 0 || !self.reader_present()? {

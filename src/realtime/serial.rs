@@ -97,6 +97,7 @@ impl SerialSink {
             .flow_control(FlowControl::None)
             .open_native()
             .map_err(|e| io::Error::other(format!("{dev}: {e}")))?;
+        // serialport's TTYPort gives only a raw descriptor (no `AsFd`), hence the borrow.
         // SAFETY: the descriptor belongs to `port`, which outlives every use of it here.
         set_nonblocking(unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) })?;
         Ok(SerialSink {

@@ -3,6 +3,8 @@
 //! interrupted run from a complete one.
 
 use std::io;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicI32, Ordering};
 
 use tokio::signal::unix::{Signal, SignalKind, signal};
 
@@ -29,6 +31,26 @@ impl StopSignals {
             _ = self.term.recv() => libc::SIGTERM,
         }
     }
+}
+
+/// Catches SIGINT and SIGTERM from now on, for commands that do not run inside tokio: the
+/// returned flag holds the signal's number once one arrived (0 before), so a loop can stop
+/// between two steps and clean up. tokio's handlers on a small thread of their own: no
+/// signal-handler code of ours (a handler may only do async-signal-safe things).
+pub fn watch() -> io::Result<Arc<AtomicI32>> {
+    let caught = Arc::new(AtomicI32::new(0));
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    // Registered before returning, so no signal after this call kills the process.
+    let mut signals = rt.block_on(async { StopSignals::new() })?;
+    let flag = caught.clone();
+    std::thread::Builder::new()
+        .name("imu-signals".into())
+        .spawn(move || {
+            rt.block_on(async move { flag.store(signals.recv().await, Ordering::Relaxed) })
+        })?;
+    Ok(caught)
 }
 
 /// A run ended by a signal, after its summary: an error, so the process exits non-zero.

@@ -3,7 +3,7 @@
 //! keep up, and an unpaced run waits for it so that no frame is lost).
 
 use std::io::{self, Write};
-use std::os::fd::{AsFd, AsRawFd, BorrowedFd};
+use std::os::fd::{AsFd, BorrowedFd};
 
 /// What a sink delivered.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -113,13 +113,7 @@ impl FdWriter {
 }
 
 fn raw_write(fd: BorrowedFd, bytes: &[u8]) -> io::Result<usize> {
-    // SAFETY: `fd` is a valid open descriptor for the borrow, `bytes` a valid buffer.
-    let n = unsafe { libc::write(fd.as_raw_fd(), bytes.as_ptr().cast(), bytes.len()) };
-    if n < 0 {
-        Err(io::Error::last_os_error())
-    } else {
-        Ok(n as usize)
-    }
+    Ok(nix::unistd::write(fd, bytes)?)
 }
 
 /// Sets `O_NONBLOCK` on a descriptor.

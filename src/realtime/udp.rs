@@ -159,22 +159,11 @@ impl Sink for UdpSink {
 /// Asks for a 4 MiB receive buffer so a receiver descheduled for a while loses no datagram:
 /// SO_RCVBUFFORCE where privileged, else SO_RCVBUF (capped by net.core.rmem_max).
 pub fn grow_receive_buffer(sock: &UdpSocket) {
-    use std::os::fd::AsRawFd;
-    let size: libc::c_int = 4 << 20;
-    for opt in [libc::SO_RCVBUFFORCE, libc::SO_RCVBUF] {
-        // SAFETY: setsockopt reads one int through a valid pointer of the stated length.
-        let rc = unsafe {
-            libc::setsockopt(
-                sock.as_raw_fd(),
-                libc::SOL_SOCKET,
-                opt,
-                (&size as *const libc::c_int).cast(),
-                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-            )
-        };
-        if rc == 0 {
-            return;
-        }
+    use nix::sys::socket::{setsockopt, sockopt};
+    let size = 4usize << 20;
+    if setsockopt(sock, sockopt::RcvBufForce, &size).is_err() {
+        // Unprivileged: the kernel caps the request at net.core.rmem_max; best effort.
+        let _ = setsockopt(sock, sockopt::RcvBuf, &size);
     }
 }
 
