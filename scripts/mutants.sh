@@ -61,7 +61,7 @@ for m in "${mutations[@]}"; do
     echo "| $name | $what | $tests | applies (${changed[0]}); not run |"
   else
     one="$work/$name.log"
-    if (cd "$copy" && cargo test --release $targets -- --test-threads 1) >"$one" 2>&1; then
+    if (cd "$copy" && cargo test --release --no-fail-fast $targets) >"$one" 2>&1; then
       echo "| $name | $what | $tests | **survived** (${changed[0]}) |"
       status=1
     else
