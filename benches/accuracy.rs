@@ -1,7 +1,7 @@
 //! Run time against error of the error-free signal, for each motion-model and quadrature
 //! setting, on the reference cases sampled at 10, 100 and 1000 Hz (IMU at 1 kHz).
 //!
-//! `cargo bench --bench accuracy` prints the table the README shows. Error = max |Δ| of the
+//! `cargo bench --bench accuracy` prints the table docs/motion-model.md shows. Error = max |Δ| of the
 //! interval-mean rates against the analytic scene integrated with a 10-node rule (exact to
 //! round-off); "interior" leaves out the first and last second.
 

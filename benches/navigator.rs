@@ -1,6 +1,6 @@
 //! The reference navigator's run time against closure error, for each algorithm order.
 //!
-//! `cargo bench --bench navigator` prints the table the README shows: error-free records of
+//! `cargo bench --bench navigator` prints the table docs/navigator.md shows: error-free records of
 //! `survey` (600 s) and `coning` (60 s) at 400 Hz, generated once, navigated from the true
 //! initial state with each setting; ns per update (one core, records already in memory)
 //! and the final 3-D position and attitude errors.

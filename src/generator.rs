@@ -9,7 +9,7 @@ use crate::quadrature::GaussLegendre;
 use crate::record::Record;
 
 /// Default number of Gauss–Legendre nodes per interval (order 2n); chosen from the
-/// run-time-against-error table of `cargo bench --bench accuracy` (see README).
+/// run-time-against-error table of `cargo bench --bench accuracy` (docs/motion-model.md).
 pub const DEFAULT_NODES: usize = 3;
 
 /// What a sensor away from the IMU's reference point adds needs over each interval: the change

@@ -11,7 +11,7 @@
 //! [`generator`] (increments by [`quadrature`]) → [`output`] (CSV / binary records).
 //!
 //! Conventions: NED local level, body x forward / y right / z down, C_b^n = Rz(ψ)Ry(θ)Rx(φ),
-//! SI units inside; see the README.
+//! SI units inside; see docs/signals.md.
 
 pub mod analysis;
 pub mod config;

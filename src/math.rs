@@ -1,7 +1,7 @@
 //! Small fixed-size linear algebra in f64: 3-vectors, 3×3 matrices and quaternions.
 //!
 //! Hand-rolled rather than a general crate because the hot path needs only these few
-//! operations, they inline completely, and the build stays light (see README, "Design").
+//! operations, they inline completely, and the build stays light (see docs/design.md).
 
 use std::ops::{Add, AddAssign, Mul, Neg, Sub};
 

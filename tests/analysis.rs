@@ -251,7 +251,7 @@ fn p(path: &Path) -> &str {
 
 /// The LN-200 (white noise and carried LSB quantization, 400 Hz) for 600 s, static: every
 /// specified term (Q and N of six channels) within its 99 % band. Over 20 seeds one of the
-/// 240 terms fell outside (README); this seed is the default one. A template with the gyro
+/// 240 terms fell outside (docs/analysis.md); this seed is the default one. A template with the gyro
 /// noise 30 % low fails on the three gyro N rows.
 #[test]
 fn analyze_ln200_end_to_end() {

@@ -3,7 +3,7 @@
 //! pole — plus the time base, extreme rates and the accuracy of trajectories read from files.
 //!
 //! The closed forms are written independently of the library's kinematics and Earth model:
-//! here from the README's formulas (Conventions) directly, with WGS-84 written out again, or in
+//! here from the formulas of docs/signals.md (Conventions) directly, with WGS-84 written out again, or in
 //! `imu_emu::truth` (the definition, eq. 1–2 in the paper's matrix form with numerically
 //! differentiated attitude, velocity and position, on its own WGS-84; coning and the polar
 //! flight), which `imu-emu validate` reports from too. Where the physics is exact, tolerances
@@ -29,7 +29,7 @@ fn e2() -> f64 {
     F * (2.0 - F)
 }
 
-/// WGS-84 normal gravity (README, Conventions), written out again here.
+/// WGS-84 normal gravity (docs/signals.md, Conventions), written out again here.
 fn gamma(lat: f64, h: f64) -> f64 {
     let s2 = lat.sin().powi(2);
     let g0 = 9.780_325_335_9 * (1.0 + 0.001_931_852_652_41 * s2) / (1.0 - e2() * s2).sqrt();
@@ -104,7 +104,7 @@ fn static_level_closed_form_across_the_planet() {
     }
 }
 
-/// The README's worked check (static, level, north, 41° N, 0 m), to the digits it gives.
+/// The worked check of docs/signals.md (static, level, north, 41° N, 0 m), to the digits it gives.
 #[test]
 fn design_worked_check_at_41n() {
     let r = &records(
@@ -619,7 +619,7 @@ fn interval_means_for_dt_from_10us_to_1s() {
 /// better: circle R 500 m at 50 m/s at 100 Hz (tool: 3.4e-13 rad/s, 2.5e-8 m/s²); 20° roll
 /// oscillation at 1 Hz at 100 Hz (1.6e-12, 4.5e-6); 10 g turn + 1000 °/s roll at 1 kHz
 /// (4e-10, 6e-5). The interior is held to the tool's figures divided by the factor we reach
-/// with margin (README, "Accuracy"); the whole record, ends included, to ~3× what this model
+/// with margin (docs/motion-model.md, accuracy); the whole record, ends included, to ~3× what this model
 /// measures (circle 1.2e-13 rad/s and 3.5e-12 m/s², roll 3.9e-13 and 2.6e-12, 10 g turn
 /// 6.0e-12 and 1.7e-10), so a regression far below the tool's figures still shows.
 #[test]

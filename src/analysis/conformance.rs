@@ -13,7 +13,7 @@
 //!
 //! a 99 % band. Why one point and not the least-squares covariance over all octaves: the
 //! octave estimates come from the same samples and are strongly correlated at short τ, so
-//! treating them as independent overstates the information (see the README's "analyze"
+//! treating them as independent overstates the information (see docs/analysis.md, "analyze"
 //! section for the seed sweep). A wrong term (e.g. white noise off by a √Δt factor) lands far
 //! outside it. Model allowances (relative, where the fit model is not
 //! exactly what is generated):

@@ -1,7 +1,7 @@
 //! The motion model of a sampled trajectory (a CSV file): piecewise Hermite polynomials in the
 //! Earth-fixed frame, with knot derivatives from high-order finite differences.
 //!
-//! Why this shape (README "Motion model" has the measurements):
+//! Why this shape (docs/motion-model.md has the measurements):
 //! * **Earth-fixed (ECEF) quantities** — position r^e, velocity ṙ^e and attitude C_b^e are
 //!   smooth through the poles and across the ±180° heading wrap, where NED values jump.
 //! * **Specific force from the velocity samples, never from positions.** A position in

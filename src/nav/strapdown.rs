@@ -47,7 +47,7 @@ pub struct Settings {
 
 impl Default for Settings {
     /// Six samples (exact for quintic signals), three stages (order 6): from the closure
-    /// table in the README — on `coning` 60 s at 400 Hz, 4 / 6 / 8 samples close to 3e-8 /
+    /// table in docs/navigator.md — on `coning` 60 s at 400 Hz, 4 / 6 / 8 samples close to 3e-8 /
     /// 4e-11 / 6e-12 m; `survey` is 4.4e-7 m for any window ≥ 2 (limited by its bank-rate
     /// breakpoints); 2 stages lose a factor 20 on `coning`, 4 gain nothing.
     fn default() -> Settings {
