@@ -1511,3 +1511,28 @@ fn trajectory_takes_a_scene_file() {
         1 + 51
     );
 }
+
+// A reader that stops early (`imu-emu analyze … | head`) ends the command quietly with status 0:
+// the report is one write at the end, and a broken pipe is not an error of ours (it panicked in
+// println! before).
+#[test]
+fn analyze_into_a_closed_pipe_ends_quietly() {
+    let dir = TempDir::new().unwrap();
+    let rec = dir.path().join("imu.bin");
+    succeeded(run!(
+        "generate --scene static --imu stim300 --rate 200 --duration 20 --format bin -o",
+        rec
+    ));
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+        .arg("analyze")
+        .arg(&rec)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader is gone before anything was written
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {err}", out.status);
+    assert!(!err.contains("panicked"), "{err}");
+}

@@ -1,6 +1,7 @@
 //! `imu-emu analyze`: statistics, Allan deviation with fitted IEEE terms, and PSD of a
 //! recording (ours or anyone's), optionally against a template, with plots.
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
@@ -130,36 +131,44 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
             "imu-emu analyze: warning: time steps range from {smin} s to {smax} s; the analysis assumes uniform sampling at Δt = {dt} s"
         );
     }
+    // The report goes to stdout in one write at the end, so a reader that stops early
+    // (`… | head`) ends the command quietly (main treats a broken pipe as success) instead of
+    // a panic in println!.
+    let mut text = String::new();
     if let Some(s) = summary.frames {
-        println!(
+        writeln!(
+            text,
             "frames: {} decoded, {} check failures, {} counter gaps, {} bytes skipped",
             s.frames, s.check_failures, s.counter_gaps, s.skipped_bytes
-        );
+        )?;
     }
-    println!(
+    writeln!(
+        text,
         "{}: {} samples, Δt = {} s ({} Hz), {:.1} s",
         a.input.display(),
         res.samples,
         digits12(dt),
         digits12(1.0 / dt),
         res.samples as f64 * dt
-    );
-    println!();
-    print!("{}", report::stats_table(&res));
-    println!();
-    println!(
+    )?;
+    writeln!(text)?;
+    write!(text, "{}", report::stats_table(&res))?;
+    writeln!(text)?;
+    writeln!(
+        text,
         "IEEE 952 terms, least squares on the octave Allan variance: σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π)B² + K²τ/3 + R²τ²/2"
-    );
+    )?;
     let rows = model.as_ref().map(|m| term_rows(m, &res));
-    print!("{}", report::term_table(&res, rows.as_deref()));
+    write!(text, "{}", report::term_table(&res, rows.as_deref()))?;
     if let Some(rows) = &rows {
         let failed = rows.iter().filter(|r| r.pass == Some(false)).count();
         let checked = rows.iter().filter(|r| r.pass.is_some()).count();
-        println!(
+        writeln!(
+            text,
             "template `{}`: {} of {checked} specified terms within their bands",
             model.as_ref().map_or("", |m| m.name.as_str()),
             checked - failed
-        );
+        )?;
     }
     let theory = model.as_ref().map(|m| channel_theory(m, dt));
     let title = a
@@ -174,6 +183,7 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     if let Some(p) = &a.csv {
         write_file(p, report::curves_csv(&res, theory.as_deref()).as_bytes())?;
     }
+    std::io::Write::write_all(&mut std::io::stdout().lock(), text.as_bytes())?;
     Ok(())
 }
 
