@@ -370,6 +370,12 @@ impl Producer {
         self.error.take()
     }
 
+    /// After the last block: `Err` if production stopped early on a non-finite value, so a
+    /// consumer of [`Producer::next_records`] never takes a short run for a whole one.
+    pub fn finished(&mut self) -> Result<(), JobError> {
+        self.take_error().map_or(Ok(()), Err)
+    }
+
     /// Whether a record of the last block is non-finite (before or after the error chain):
     /// nothing non-finite leaves the producer.
     fn check_finite(records: &[Record], stage: &'static str) -> Result<(), JobError> {

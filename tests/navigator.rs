@@ -358,3 +358,23 @@ fn gyro_bias_gives_schuler_bounded_tilt() {
         "tilt {tilt_max} rad, classic {classic_tilt} rad"
     );
 }
+
+/// A producer that stops on a non-finite record (a temperature table that turns NaN at
+/// 0.35 s, through an accelerometer bias coefficient) is an error of the closure, not a
+/// shorter closure that looks fine.
+#[test]
+fn closure_refuses_a_run_cut_short_by_a_non_finite_record() {
+    use imu_emu::errors::ErrorChain;
+    use imu_emu::errors::temperature::TemperatureProfile;
+    let model = imu_emu::errors::template::parse(
+        "name = \"warm\"\ntemperature_ref = \"25 degC\"\n[accel]\nbias_temperature = [\"0.1 mg/degC\"]\n",
+        std::path::Path::new("warm.toml"),
+    )
+    .unwrap();
+    let profile = TemperatureProfile::Table(vec![(0.0, 25.0), (0.25, 25.0), (0.35, f64::NAN)]);
+    let m = scene("static");
+    let grid = job::plan(&m, 10.0, None, Some(5.0)).unwrap();
+    let chain = ErrorChain::new(&model, 10.0, 1).with_temperature(profile, &model);
+    let e = close(&m, &grid, Settings::default(), Some(chain), 1).unwrap_err();
+    assert!(e.to_string().contains("accel_x"), "{e}");
+}

@@ -174,6 +174,7 @@ fn static_analysis(
     while let Some(b) = producer.next_records(imu_emu::job::BLOCK) {
         b.records.iter().for_each(|r| an.push_record(r));
     }
+    producer.finished()?;
     Ok(an.finish(1.0 / grid.rate_hz))
 }
 

@@ -34,7 +34,7 @@ pub fn close(
     settings: Settings,
     chain: Option<ErrorChain>,
     check_every: u64,
-) -> Result<Closure, SettingsError> {
+) -> Result<Closure, CloseError> {
     let start = NavState::from_pose(&motion.pose(grid.t0));
     let mut nav = Navigator::new(start, grid.rate_hz, settings)?;
     let mut producer = Producer::records(motion.clone(), *grid, chain);
@@ -60,6 +60,7 @@ pub fn close(
             }
         }
     }
+    producer.finished()?;
     Ok(out)
 }
 
@@ -81,5 +82,5 @@ pub fn close_scene(name: &str, rate_hz: f64, seconds: Option<f64>) -> Result<Clo
     let source = SourceSpec::Scene(name.to_string(), SceneParams::defaults_for(name));
     let motion = job::build_motion(&source, ModelSettings::default())?;
     let grid = job::plan(&motion, rate_hz, None, seconds)?;
-    Ok(close(&motion, &grid, Settings::default(), None, 100)?)
+    close(&motion, &grid, Settings::default(), None, 100)
 }

@@ -9,7 +9,8 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use super::strapdown::{NavState, Navigator, Settings, SettingsError, StateError};
+use super::closure::CloseError;
+use super::strapdown::{NavState, Navigator, Settings, StateError};
 use crate::errors::ErrorChain;
 use crate::errors::template::ImuModel;
 use crate::job::{BLOCK, Grid, Producer};
@@ -120,7 +121,7 @@ fn run_one(
     offsets: &[u64],
     outage: u64,
     outages: u64,
-) -> Result<RunErrors, SettingsError> {
+) -> Result<RunErrors, CloseError> {
     let g = &plan.grid;
     let chain = ErrorChain::new(model, g.rate_hz, run_seed(plan.seed, run));
     let total = outage * outages;
@@ -147,6 +148,7 @@ fn run_one(
             }
         }
     }
+    producer.finished()?;
     Ok(out)
 }
 
@@ -156,15 +158,15 @@ fn imu_time(g: &Grid, k: u64) -> f64 {
 }
 
 /// Runs the plan for every model, in parallel, and returns one result per model (in order).
-pub fn compare(plan: &Plan, models: &[ImuModel]) -> Result<Vec<TemplateResult>, SettingsError> {
+pub fn compare(plan: &Plan, models: &[ImuModel]) -> Result<Vec<TemplateResult>, CloseError> {
     let outage = plan.outage_records.unwrap_or(plan.grid.count).max(1);
     let outages = (plan.grid.count / outage).max(1);
     let outage = outage.min(plan.grid.count);
     let offsets = sample_offsets(outage, plan.points);
     let jobs = models.len() * plan.runs;
     let next = AtomicUsize::new(0);
-    let results: Mutex<Vec<Option<Result<RunErrors, SettingsError>>>> =
-        Mutex::new(vec![None; jobs]);
+    let results: Mutex<Vec<Option<Result<RunErrors, CloseError>>>> =
+        Mutex::new((0..jobs).map(|_| None).collect());
     std::thread::scope(|scope| {
         for _ in 0..plan.threads.clamp(1, jobs.max(1)) {
             scope.spawn(|| {
@@ -182,12 +184,13 @@ pub fn compare(plan: &Plan, models: &[ImuModel]) -> Result<Vec<TemplateResult>, 
             });
         }
     });
-    let results = results.into_inner().expect("workers finished");
+    let mut results = results.into_inner().expect("workers finished").into_iter();
     let mut out = Vec::with_capacity(models.len());
-    for (m, model) in models.iter().enumerate() {
-        let runs: Vec<RunErrors> = results[m * plan.runs..(m + 1) * plan.runs]
-            .iter()
-            .map(|r| r.clone().expect("every job ran"))
+    for model in models {
+        let runs: Vec<RunErrors> = results
+            .by_ref()
+            .take(plan.runs)
+            .map(|r| r.expect("every job ran"))
             .collect::<Result<_, _>>()?;
         let per_run = offsets.len();
         let growth = offsets
