@@ -74,13 +74,9 @@ fn main() {
         if broken_pipe {
             std::process::exit(0);
         }
-        // A run stopped by a signal has printed its summary; only the status is left to say.
+        // A command stopped by a signal has said so; only the exit status is left to give.
         if let Some(i) = e.downcast_ref::<imu_emu::realtime::signal::Interrupted>() {
             std::process::exit(i.exit_code());
-        }
-        if let Some(i) = e.downcast_ref::<cmd::Interrupted>() {
-            eprintln!("imu-emu: {i}");
-            std::process::exit(i.code);
         }
         eprintln!("error: {e:#}");
         std::process::exit(1);

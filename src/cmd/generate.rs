@@ -11,8 +11,8 @@ use anyhow::{Context, Result};
 use imu_emu::output::AtomicFile;
 use imu_emu::sim::SideOutputs;
 
-use super::Interrupted;
 use super::setup::{SimArgs, announce};
+use imu_emu::realtime::signal::Interrupted;
 
 #[derive(clap::Args)]
 pub struct GenerateArgs {
@@ -84,9 +84,12 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
                 _ => ControlFlow::Break(()),
             }
         });
-        if let Some(e) = Interrupted::from_signal(caught.load(Ordering::Relaxed)) {
+        let sig = caught.load(Ordering::Relaxed);
+        if sig != 0 {
             // The unfinished files are removed when they drop.
             bar.finish_and_clear();
+            let e = Interrupted(sig);
+            eprintln!("imu-emu: {e}: stopped before the end, unfinished output files removed");
             return Err(e.into());
         }
         result.with_context(|| format!("writing {label}"))?;
