@@ -119,7 +119,10 @@ mod tests {
         assert!((out.f_b.z() + 9.802590).abs() < 5e-7);
     }
 
-    /// The NED and ECEF forms agree for a moving, rotating, tilted vehicle.
+    /// The NED and ECEF forms agree for a moving, rotating, tilted vehicle. Both take the
+    /// transport rate from `earth::omega_en_n` here (a consistency check of the two forms);
+    /// tests/closed_form.rs repeats it with a transport rate computed independently from
+    /// φ̇ and λ̇.
     #[test]
     fn ned_and_ecef_forms_agree() {
         let pos = Geodetic::from_radians(0.9, -1.3, 1234.0);
