@@ -91,13 +91,13 @@ impl Reconstruction {
     pub fn coefficients(&self, window: &[Vec3], target: usize, out: &mut [Vec3; MAX_SAMPLES]) {
         let len = window.len();
         let w = &self.weights[len - 1][target];
-        *out = [Vec3::ZERO; MAX_SAMPLES];
-        let mut higher = Vec3::ZERO;
+        *out = [Vec3::zeros(); MAX_SAMPLES];
+        let mut higher = Vec3::zeros();
         for m in 1..len {
             let c = window
                 .iter()
                 .zip(&w[m])
-                .fold(Vec3::ZERO, |acc, (d, wi)| acc + *d * *wi);
+                .fold(Vec3::zeros(), |acc, (d, wi)| acc + *d * *wi);
             out[m] = c;
             higher += c * (1.0 / (m + 1) as f64);
         }
@@ -111,7 +111,7 @@ pub fn eval(c: &[Vec3; MAX_SAMPLES], len: usize, tau: f64) -> Vec3 {
     c[..len]
         .iter()
         .rev()
-        .fold(Vec3::ZERO, |acc, cm| acc * tau + *cm)
+        .fold(Vec3::zeros(), |acc, cm| acc * tau + *cm)
 }
 
 /// Butcher tableau of the s-stage Gauss–Legendre collocation method on [0, 1] (order 2s).
@@ -181,7 +181,7 @@ mod tests {
                 })
                 .collect();
             for o in 0..n {
-                let mut c = [Vec3::ZERO; MAX_SAMPLES];
+                let mut c = [Vec3::zeros(); MAX_SAMPLES];
                 r.coefficients(&window, o, &mut c);
                 for tau in [0.0, 0.3, 0.77, 1.0] {
                     let t = start + o as f64 + tau;
@@ -192,7 +192,7 @@ mod tests {
                         .sum();
                     let got = eval(&c, n, tau);
                     let tol = 1e-13 * scale;
-                    let (ex, ey) = ((got.x() - want).abs(), (got.y() + 2.0 * want).abs());
+                    let (ex, ey) = ((got.x - want).abs(), (got.y + 2.0 * want).abs());
                     assert!(ex < tol && ey < 2.0 * tol, "n {n}, o {o}, τ {tau}: {ex:e}");
                 }
             }

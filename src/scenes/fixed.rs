@@ -3,7 +3,7 @@
 
 use crate::earth::{self, E2};
 use crate::kinematics::{NedState, Sensed, sense_ned};
-use crate::math::{Mat3, Quat, Vec3};
+use crate::math::{Mat3, Quat, QuatExt, Vec3};
 use crate::motion::{Motion, Pose};
 
 /// A vehicle at rest at one place, optionally in classic coning motion.
@@ -43,11 +43,11 @@ impl FixedScene {
     #[inline]
     fn attitude(&self, t: f64) -> (Quat, Mat3, Vec3) {
         match self.coning {
-            None => (self.q_ref, self.c_ref, Vec3::ZERO),
+            None => (self.q_ref, self.c_ref, Vec3::zeros()),
             Some((beta, w)) => {
                 let (s, c) = (w * t).sin_cos();
                 let (sh, ch) = (0.5 * beta).sin_cos();
-                let q = self.q_ref.mul(Quat::new(ch, 0.0, sh * c, sh * s));
+                let q = self.q_ref * Quat::new(ch, 0.0, sh * c, sh * s);
                 let sb = beta.sin();
                 let omega = Vec3::new(-2.0 * w * sh * sh, -w * sb * s, w * sb * c);
                 (q, q.to_mat(), omega)
@@ -79,8 +79,8 @@ impl Motion for FixedScene {
             r_n: earth::radius_meridian(self.sin_lat),
             r_e: earth::radius_prime_vertical(self.sin_lat),
             gravity: self.gravity,
-            v_n: Vec3::ZERO,
-            v_dot_n: Vec3::ZERO,
+            v_n: Vec3::zeros(),
+            v_dot_n: Vec3::zeros(),
             c_b_n,
             omega_nb_b,
         })
@@ -91,7 +91,7 @@ impl Motion for FixedScene {
             lat: self.lat,
             lon: self.lon,
             h: self.h,
-            v_n: Vec3::ZERO,
+            v_n: Vec3::zeros(),
             q_b_n: self.attitude(t).0,
         }
     }
@@ -141,8 +141,8 @@ impl PolarScene {
             gravity: earth::normal_gravity(s, self.h),
             v_n: Vec3::new((rn + self.h) * self.mu_rate, 0.0, 0.0),
             v_dot_n: Vec3::new(drn * self.mu_rate * self.mu_rate, 0.0, 0.0),
-            c_b_n: Mat3::IDENTITY,
-            omega_nb_b: Vec3::ZERO,
+            c_b_n: Mat3::identity(),
+            omega_nb_b: Vec3::zeros(),
         }
     }
 }
@@ -183,7 +183,7 @@ impl Motion for PolarScene {
             lat,
             lon,
             h: s.h,
-            v_n: Vec3::new(s.v_n.x() * sign, 0.0, 0.0),
+            v_n: Vec3::new(s.v_n.x * sign, 0.0, 0.0),
             q_b_n: crate::math::quat_from_euler(0.0, 0.0, yaw),
         }
     }

@@ -38,14 +38,14 @@ impl Stage for Noise {
                 let z = [rng[0].draw(), rng[1].draw(), rng[2].draw()];
                 let v = s.rate(r);
                 for i in 0..3 {
-                    v.0[i] += sigma[i] * (l[i][0] * z[0] + l[i][1] * z[1] + l[i][2] * z[2]);
+                    v[i] += sigma[i] * (l[i][0] * z[0] + l[i][1] * z[1] + l[i][2] * z[2]);
                 }
             }
             return;
         }
         for (i, (sg, g)) in sigma.iter().zip(rng.iter_mut()).enumerate() {
             for r in b.records.iter_mut() {
-                s.rate(r).0[i] += sg * g.draw();
+                s.rate(r)[i] += sg * g.draw();
             }
         }
     }
