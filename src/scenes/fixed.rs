@@ -56,19 +56,26 @@ impl FixedScene {
     }
 }
 
+/// The span methods of a scene that starts at 0, never ends and is one smooth piece.
+macro_rules! one_endless_piece {
+    () => {
+        fn start(&self) -> f64 {
+            0.0
+        }
+        fn end(&self) -> f64 {
+            f64::INFINITY
+        }
+        fn piece_at(&self, _t: f64, _hint: usize) -> usize {
+            0
+        }
+        fn piece_end(&self, _piece: usize) -> f64 {
+            f64::INFINITY
+        }
+    };
+}
+
 impl Motion for FixedScene {
-    fn start(&self) -> f64 {
-        0.0
-    }
-    fn end(&self) -> f64 {
-        f64::INFINITY
-    }
-    fn piece_at(&self, _t: f64, _hint: usize) -> usize {
-        0
-    }
-    fn piece_end(&self, _piece: usize) -> f64 {
-        f64::INFINITY
-    }
+    one_endless_piece!();
     #[inline]
     fn sense(&self, _piece: usize, t: f64) -> Sensed {
         let (_, c_b_n, omega_nb_b) = self.attitude(t);
@@ -148,18 +155,7 @@ impl PolarScene {
 }
 
 impl Motion for PolarScene {
-    fn start(&self) -> f64 {
-        0.0
-    }
-    fn end(&self) -> f64 {
-        f64::INFINITY
-    }
-    fn piece_at(&self, _t: f64, _hint: usize) -> usize {
-        0
-    }
-    fn piece_end(&self, _piece: usize) -> f64 {
-        f64::INFINITY
-    }
+    one_endless_piece!();
     #[inline]
     fn sense(&self, _piece: usize, t: f64) -> Sensed {
         sense_ned(&self.state(t))
