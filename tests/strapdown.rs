@@ -294,7 +294,7 @@ fn gauss_step(
     for (n, on) in out.iter_mut().enumerate() {
         *on += dt * (0..STAGES).map(|j| tab.b[j] * k[j][n]).sum::<f64>();
     }
-    let q = state_quat(&out).normalize();
+    let q = state_quat(&out).normalized();
     out[6] = q.w;
     out[7] = q.i;
     out[8] = q.j;

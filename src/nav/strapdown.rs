@@ -109,7 +109,7 @@ impl NavState {
             lon: geo.lon(),
             h: geo.h,
             v_n: geo.c_n_e().tr_mul(&self.v_e),
-            q_b_n: (geo.q_n_e().conjugate() * self.q_b_e).normalize(),
+            q_b_n: (geo.q_n_e().conjugate() * self.q_b_e).normalized(),
         }
     }
 
@@ -231,7 +231,7 @@ impl Navigator {
             origin: initial.r_e,
             dr: Compensated::new(Vec3::zeros()),
             v: Compensated::new(initial.v_e),
-            q_bi: QuatSum::new(initial.q_b_e.normalize()),
+            q_bi: QuatSum::new(initial.q_b_e.normalized()),
             k_ref: 0,
             t0: initial.t,
             k: 0,
@@ -270,7 +270,7 @@ impl Navigator {
     /// C_b^e now: the Earth's rotation since `k_ref`, in closed form, times C_b^{e(k_ref)}.
     fn q_b_e(&self) -> Quat {
         let turned = (self.k - self.k_ref) as f64 * self.dt;
-        (Quat::from_rotvec(W_IE * -turned) * self.q_bi.value()).normalize()
+        (Quat::from_rotvec(W_IE * -turned) * self.q_bi.value()).normalized()
     }
 
     /// Replaces position, velocity and attitude (e.g. at a GNSS fix) and keeps the IMU
@@ -300,7 +300,7 @@ impl Navigator {
         self.origin = s.r_e;
         self.dr = Compensated::new(Vec3::zeros());
         self.v = Compensated::new(s.v_e);
-        self.q_bi = QuatSum::new(s.q_b_e.normalize());
+        self.q_bi = QuatSum::new(s.q_b_e.normalized());
         self.k_ref = self.k;
     }
 
@@ -455,7 +455,7 @@ pub fn rotation_vector(settings: Settings, window: &[Vec3]) -> Vec3 {
     recon.coefficients(window, window.len() - 1, &mut c);
     let w: Vec<Vec3> = tab.c.iter().map(|&ci| eval(&c, window.len(), ci)).collect();
     (Quat::identity() + body_collocation(&tab, &w).1)
-        .normalize()
+        .normalized()
         .to_rotvec()
 }
 
