@@ -28,6 +28,8 @@ impl SimulationBuilder {
 
     /// Resolves the rig: the motion, the span and quadrature of the builder, and every unit
     /// (the scene file's `[[imu]]` entries, then those added with [`Self::unit`]). A unit's
+    /// rate is its own, else the builder's [`Self::rate`], else its protocol's nominal rate,
+    /// else its template's, else 400 Hz. A unit's
     /// seed defaults to one drawn from the master seed and its name, so two units of the
     /// same template have independent errors.
     pub fn build_rig(self) -> Result<Rig, SimError> {
@@ -74,7 +76,7 @@ impl SimulationBuilder {
                 UnitModel::Template(t) => Some(super::super::load_template(t).map_err(|e| e.at(Some(place("model"))))?),
                 UnitModel::Skew(_) => None,
             };
-            let hz = (spec.rate_hz)
+            let hz = (spec.rate_hz.or(self.rate))
                 .or(plan.as_ref().and_then(|p| p.rate_hz))
                 .or(template.as_ref().and_then(|t| t.rate_hz))
                 .unwrap_or(super::DEFAULT_RATE_HZ);
