@@ -311,3 +311,94 @@ fn parity_residual_finds_each_failure() {
         assert!(want.abs() > 10.0 * tol, "{kind}: {want:e} is not a jump");
     }
 }
+
+fn imu_emu(cwd: &std::path::Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+        .current_dir(cwd)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// `generate examples/rig.toml` writes one file per unit (LN-200 frames of 26 bytes at
+/// 400 Hz, 100 Hz CSV records, the skew unit's 1 + 2 × 9 columns) and, with `--truth`, each
+/// unit's error-free readings and its failure schedule with the random choices made inside
+/// their ranges.
+#[test]
+fn generate_writes_one_output_per_unit() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/rig.toml");
+    let out = imu_emu(dir.path(), &["generate", scene, "-o", "out", "--truth", "truth"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let d = dir.path();
+    assert_eq!(std::fs::metadata(d.join("out/nav.bin")).unwrap().len(), 8000 * 26);
+    let tactical = std::fs::read_to_string(d.join("out/tactical.csv")).unwrap();
+    assert_eq!(tactical.lines().count(), 1 + 2000);
+    let skew = std::fs::read_to_string(d.join("out/skew.csv")).unwrap();
+    assert_eq!(skew.lines().count(), 1 + 2000);
+    assert!(skew.lines().all(|l| l.split(',').count() == 19));
+    let truth = rows(&std::fs::read_to_string(d.join("truth/skew.csv")).unwrap());
+    assert_eq!(truth.len(), 2000);
+    let failures = std::fs::read_to_string(d.join("truth/skew.failures.csv")).unwrap();
+    let lines: Vec<Vec<&str>> = failures.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(lines.len(), 3, "{failures}");
+    assert_eq!(lines[0][..4], ["bias-step", "gyro_2", "2", "5"]);
+    let stuck = &lines[1];
+    let (ch, start): (usize, f64) = (stuck[2].parse().unwrap(), stuck[3].parse().unwrap());
+    assert!(stuck[0] == "stuck" && ch < 6 && (10.0..=15.0).contains(&start), "{stuck:?}");
+    assert_eq!(stuck[4], "inf");
+    // The truth's `failed` column marks the stuck channel from its start on.
+    for r in &truth {
+        let stuck_on = r[0] >= start;
+        let bias_on = (5.0..8.0).contains(&r[0]);
+        let burst_on = (12.0..13.0).contains(&r[0]);
+        let want = (stuck_on as u64) << ch | (bias_on as u64) << 2 | (burst_on as u64) << 7;
+        assert_eq!(r[19] as u64, want, "t = {}", r[0]);
+    }
+    for name in ["nav", "tactical"] {
+        let t = std::fs::read_to_string(d.join(format!("truth/{name}.failures.csv"))).unwrap();
+        assert_eq!(t.lines().count(), 1);
+    }
+}
+
+/// Bad `[[imu]]` entries are refused naming the file and the key (and the line for a wrong
+/// key or type), and nothing is written.
+#[test]
+fn bad_rig_entries_name_the_file_and_key() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let cases = [
+        ("[[imu]]\nname = \"a\"\nrate = 100.0\n", "rig.toml:5:1", "rate"),
+        ("[[imu]]\nname = \"a\"\n[[imu.gyro]]\naxis = [0.0, 0.0, 0.0]\n", "rig.toml", "imu[0].gyro[0].axis"),
+        (
+            "[[imu]]\nname = \"a\"\n[[imu.failure]]\nkind = \"stuck\"\nsensor = \"gyro_7\"\nat_s = 1.0\n",
+            "rig.toml",
+            "imu[0].failure[0].sensor",
+        ),
+        (
+            "[[imu]]\nname = \"a\"\n[[imu.failure]]\nkind = \"melt\"\nsensor = \"gyro_x\"\nat_s = 1.0\n",
+            "rig.toml",
+            "imu[0].failure[0].kind",
+        ),
+        (
+            "[[imu]]\nname = \"a\"\n[[imu.failure]]\nkind = \"bias-step\"\nsensor = \"gyro_x\"\nat_s = 1.0\n",
+            "rig.toml",
+            "imu[0].failure[0].magnitude",
+        ),
+        ("[[imu]]\nname = \"a\"\n[[imu]]\nname = \"a\"\n", "rig.toml", "imu[1].name"),
+        ("[[imu]]\nname = \"a\"\nmodel = \"nope\"\n", "rig.toml", "imu[0].model"),
+        ("[[imu]]\nname = \"a\"\nrate_hz = -5.0\n", "rig.toml", "imu[0].rate_hz"),
+        (
+            "[[imu]]\nname = \"a\"\n[[imu.failure]]\nkind = \"intermittent\"\nsensor = \"accel_y\"\nat_s = 1.0\nmagnitude = 2.0\n",
+            "rig.toml",
+            "imu[0].failure[0].magnitude",
+        ),
+    ];
+    for (text, place, key) in cases {
+        std::fs::write(dir.path().join("rig.toml"), format!("[output]\nduration_s = 1.0\n{text}")).unwrap();
+        let out = imu_emu(dir.path(), &["generate", "rig.toml", "-o", "out", "--truth", "t"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{text}");
+        assert!(err.contains(place) && err.contains(key), "{text}: {err}");
+        assert!(!dir.path().join("out/a.csv").exists() && !dir.path().join("t/a.csv").exists());
+    }
+}
