@@ -402,3 +402,15 @@ fn bad_rig_entries_name_the_file_and_key() {
         assert!(!dir.path().join("out/a.csv").exists() && !dir.path().join("t/a.csv").exists());
     }
 }
+
+/// A command that runs one IMU refuses a rig scene file rather than quietly running the
+/// default IMU.
+#[test]
+fn single_imu_commands_refuse_a_rig() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/rig.toml");
+    let out = imu_emu(dir.path(), &["run", scene, "--speed", "max", "--file", "x.bin"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("`[[imu]]`") && err.contains("rig.toml"), "{err}");
+    assert!(!dir.path().join("x.bin").exists());
+}

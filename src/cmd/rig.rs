@@ -39,6 +39,10 @@ fn directory(p: &Path) -> Result<PathBuf> {
     Ok(p.to_path_buf())
 }
 
+fn buffered(f: &mut AtomicFile) -> std::io::BufWriter<&mut AtomicFile> {
+    std::io::BufWriter::with_capacity(1 << 16, f)
+}
+
 fn create(path: PathBuf) -> Result<(AtomicFile, PathBuf)> {
     let f = AtomicFile::create(&path).with_context(|| format!("creating {}", path.display()))?;
     Ok((f, path))
@@ -92,8 +96,8 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
         let mut writers: Vec<_> = files
             .iter_mut()
             .map(|(m, s)| {
-                let buf = |f: &mut AtomicFile| std::io::BufWriter::with_capacity(1 << 16, f);
-                (buf(&mut m.0), s.as_mut().map(|(t, f)| (buf(&mut t.0), buf(&mut f.0))))
+                let side = s.as_mut().map(|(t, f)| (buffered(&mut t.0), buffered(&mut f.0)));
+                (buffered(&mut m.0), side)
             })
             .collect();
         let mut outs: Vec<UnitOutputs<'_>> = writers

@@ -611,6 +611,12 @@ impl SimulationBuilder {
     /// the simulation: motion, grid, error chain and encoding.
     pub fn build(self) -> Result<Simulation, SimError> {
         let label = self.file_label();
+        if self.is_rig() {
+            return Err(SimError::Invalid(format!(
+                "{}: lists `[[imu]]` units (a rig): this command runs one IMU; `generate` writes a rig (docs/rig.md)",
+                label.display()
+            )));
+        }
         let (source, _, _) = self.source()?;
         let imu = self.resolve_imu()?;
         let seed = (self.seed.or(self.file.imu.seed)).unwrap_or(crate::rng::DEFAULT_SEED);
