@@ -149,12 +149,25 @@ fn lever_arms_and_mountings_are_exact() {
             worst = worst.max((s[7 + j] - a.axis.dot(c_b_c.mul_vec(f_p))).abs());
         }
     }
-    assert!(worst < 1e-12, "largest difference from the closed form {worst:e}");
+    assert!(
+        worst < 1e-12,
+        "largest difference from the closed form {worst:e}"
+    );
     // The test has teeth: the tangential term (ω̇ up to 3.4 rad/s² about x, moving y and z
     // by up to 3.4 × 0.8 m/s²) and the centripetal one (about ω² r ≈ 0.01 × 1.5 m/s² on x)
     // are far above the tolerance.
-    let most = |i: usize| (0..300).map(|k| (arm[k][i] - reference[k][i]).abs()).fold(0.0, f64::max);
-    assert!(most(4) > 0.01 && most(5) > 1.0 && most(6) > 0.5, "{} {} {}", most(4), most(5), most(6));
+    let most = |i: usize| {
+        (0..300)
+            .map(|k| (arm[k][i] - reference[k][i]).abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(
+        most(4) > 0.01 && most(5) > 1.0 && most(6) > 0.5,
+        "{} {} {}",
+        most(4),
+        most(5),
+        most(6)
+    );
 }
 
 /// The projector onto the parity space of sense axes `h` (rows): P = I − H (HᵀH)⁻¹ Hᵀ.
@@ -186,7 +199,9 @@ fn inverse(m: &Mat3) -> Mat3 {
         a[r1][c1] * a[r2][c2] - a[r1][c2] * a[r2][c1]
     };
     let det: f64 = (0..3).map(|c| a[0][c] * cof(0, c)).sum();
-    Mat3(std::array::from_fn(|r| std::array::from_fn(|c| cof(c, r) / det)))
+    Mat3(std::array::from_fn(|r| {
+        std::array::from_fn(|c| cof(c, r) / det)
+    }))
 }
 
 /// Six dodecahedral gyros with white noise σ = 1e-3 rad/s per 100 Hz record, on the banked
@@ -238,7 +253,9 @@ fn parity_residual_finds_each_failure() {
     assert_eq!((main.len(), truth.len()), (6000, 6000));
     let sigma = 1e-3;
     let residual = |m: &[f64]| -> Vec<f64> {
-        (0..6).map(|i| (0..6).map(|j| p[i][j] * m[1 + j]).sum()).collect()
+        (0..6)
+            .map(|i| (0..6).map(|j| p[i][j] * m[1 + j]).sum())
+            .collect()
     };
     // kind, sensor, then channel, start, end, magnitude.
     let listed: Vec<Vec<f64>> = (out.failures.lines().skip(1))
@@ -253,7 +270,10 @@ fn parity_residual_finds_each_failure() {
         .map(|&i| residual(&main[i]).iter().map(|x| x * x).sum::<f64>() / (sigma * sigma))
         .sum::<f64>()
         / k;
-    assert!((chi2 - 3.0).abs() < 4.0 * (6.0 / k).sqrt(), "mean |p|²/σ² = {chi2} over {k}");
+    assert!(
+        (chi2 - 3.0).abs() < 4.0 * (6.0 / k).sqrt(),
+        "mean |p|²/σ² = {chi2} over {k}"
+    );
     for (n, f) in listed.iter().enumerate() {
         let (ch, start, end, a) = (f[0] as usize, f[1], f[2], f[3]);
         let kind = failures[n].0;
@@ -263,7 +283,12 @@ fn parity_residual_finds_each_failure() {
             .collect();
         assert_eq!(window.len(), 500, "{kind}");
         for &i in &window {
-            assert_eq!(truth[i][13], (1u64 << ch) as f64, "{kind} mask at {}", main[i][0]);
+            assert_eq!(
+                truth[i][13],
+                (1u64 << ch) as f64,
+                "{kind} mask at {}",
+                main[i][0]
+            );
         }
         let est = |i: usize| residual(&main[i])[ch] / c;
         let held = main[window[0] - 1][1 + ch];
@@ -279,11 +304,17 @@ fn parity_residual_finds_each_failure() {
                 Box::new(|i| a * truth_of(i).signum() - truth_of(i)),
             ),
             "intermittent" => {
-                let dropped: Vec<usize> =
-                    window.iter().copied().filter(|&i| main[i][1 + ch] == 0.0).collect();
+                let dropped: Vec<usize> = window
+                    .iter()
+                    .copied()
+                    .filter(|&i| main[i][1 + ch] == 0.0)
+                    .collect();
                 let (kk, q) = (500.0, a);
                 let d = dropped.len() as f64;
-                assert!((d - kk * q).abs() < 4.0 * (kk * q * (1.0 - q)).sqrt(), "{d} dropped");
+                assert!(
+                    (d - kk * q).abs() < 4.0 * (kk * q * (1.0 - q)).sqrt(),
+                    "{d} dropped"
+                );
                 (dropped, Box::new(|i| -truth_of(i)))
             }
             "noise-burst" => {
@@ -328,10 +359,20 @@ fn imu_emu(cwd: &std::path::Path, args: &[&str]) -> std::process::Output {
 fn generate_writes_one_output_per_unit() {
     let dir = tempfile::TempDir::new().unwrap();
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/rig.toml");
-    let out = imu_emu(dir.path(), &["generate", scene, "-o", "out", "--truth", "truth"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = imu_emu(
+        dir.path(),
+        &["generate", scene, "-o", "out", "--truth", "truth"],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let d = dir.path();
-    assert_eq!(std::fs::metadata(d.join("out/nav.bin")).unwrap().len(), 8000 * 26);
+    assert_eq!(
+        std::fs::metadata(d.join("out/nav.bin")).unwrap().len(),
+        8000 * 26
+    );
     let tactical = std::fs::read_to_string(d.join("out/tactical.csv")).unwrap();
     assert_eq!(tactical.lines().count(), 1 + 2000);
     let skew = std::fs::read_to_string(d.join("out/skew.csv")).unwrap();
@@ -340,16 +381,23 @@ fn generate_writes_one_output_per_unit() {
     let truth = rows(&std::fs::read_to_string(d.join("truth/skew.csv")).unwrap());
     assert_eq!(truth.len(), 2000);
     let failures = std::fs::read_to_string(d.join("truth/skew.failures.csv")).unwrap();
-    let lines: Vec<Vec<&str>> = failures.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    let lines: Vec<Vec<&str>> = failures
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
     assert_eq!(lines.len(), 3, "{failures}");
     assert_eq!(lines[0][..4], ["bias-step", "gyro_2", "2", "5"]);
     let stuck = &lines[1];
     let (ch, start): (usize, f64) = (stuck[2].parse().unwrap(), stuck[3].parse().unwrap());
-    assert!(stuck[0] == "stuck" && ch < 6 && (10.0..=15.0).contains(&start), "{stuck:?}");
-    assert_eq!(stuck[4], "inf");
+    assert!(
+        stuck[0] == "stuck" && ch < 6 && (10.0..=15.0).contains(&start),
+        "{stuck:?}"
+    );
+    assert_eq!(stuck[4].parse::<f64>().unwrap(), start + 4.0);
     // The truth's `failed` column marks the stuck channel from its start on.
     for r in &truth {
-        let stuck_on = r[0] >= start;
+        let stuck_on = r[0] >= start && r[0] < start + 4.0;
         let bias_on = (5.0..8.0).contains(&r[0]);
         let burst_on = (12.0..13.0).contains(&r[0]);
         let want = (stuck_on as u64) << ch | (bias_on as u64) << 2 | (burst_on as u64) << 7;
@@ -367,8 +415,16 @@ fn generate_writes_one_output_per_unit() {
 fn bad_rig_entries_name_the_file_and_key() {
     let dir = tempfile::TempDir::new().unwrap();
     let cases = [
-        ("[[imu]]\nname = \"a\"\nrate = 100.0\n", "rig.toml:5:1", "rate"),
-        ("[[imu]]\nname = \"a\"\n[[imu.gyro]]\naxis = [0.0, 0.0, 0.0]\n", "rig.toml", "imu[0].gyro[0].axis"),
+        (
+            "[[imu]]\nname = \"a\"\nrate = 100.0\n",
+            "rig.toml:5:1",
+            "rate",
+        ),
+        (
+            "[[imu]]\nname = \"a\"\n[[imu.gyro]]\naxis = [0.0, 0.0, 0.0]\n",
+            "rig.toml",
+            "imu[0].gyro[0].axis",
+        ),
         (
             "[[imu]]\nname = \"a\"\n[[imu.failure]]\nkind = \"stuck\"\nsensor = \"gyro_7\"\nat_s = 1.0\n",
             "rig.toml",
@@ -384,9 +440,21 @@ fn bad_rig_entries_name_the_file_and_key() {
             "rig.toml",
             "imu[0].failure[0].magnitude",
         ),
-        ("[[imu]]\nname = \"a\"\n[[imu]]\nname = \"a\"\n", "rig.toml", "imu[1].name"),
-        ("[[imu]]\nname = \"a\"\nmodel = \"nope\"\n", "rig.toml", "imu[0].model"),
-        ("[[imu]]\nname = \"a\"\nrate_hz = -5.0\n", "rig.toml", "imu[0].rate_hz"),
+        (
+            "[[imu]]\nname = \"a\"\n[[imu]]\nname = \"a\"\n",
+            "rig.toml",
+            "imu[1].name",
+        ),
+        (
+            "[[imu]]\nname = \"a\"\nmodel = \"nope\"\n",
+            "rig.toml",
+            "imu[0].model",
+        ),
+        (
+            "[[imu]]\nname = \"a\"\nrate_hz = -5.0\n",
+            "rig.toml",
+            "imu[0].rate_hz",
+        ),
         (
             "[[imu]]\nname = \"a\"\n[[imu.failure]]\nkind = \"intermittent\"\nsensor = \"accel_y\"\nat_s = 1.0\nmagnitude = 2.0\n",
             "rig.toml",
@@ -394,8 +462,15 @@ fn bad_rig_entries_name_the_file_and_key() {
         ),
     ];
     for (text, place, key) in cases {
-        std::fs::write(dir.path().join("rig.toml"), format!("[output]\nduration_s = 1.0\n{text}")).unwrap();
-        let out = imu_emu(dir.path(), &["generate", "rig.toml", "-o", "out", "--truth", "t"]);
+        std::fs::write(
+            dir.path().join("rig.toml"),
+            format!("[output]\nduration_s = 1.0\n{text}"),
+        )
+        .unwrap();
+        let out = imu_emu(
+            dir.path(),
+            &["generate", "rig.toml", "-o", "out", "--truth", "t"],
+        );
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{text}");
         assert!(err.contains(place) && err.contains(key), "{text}: {err}");
@@ -409,8 +484,14 @@ fn bad_rig_entries_name_the_file_and_key() {
 fn single_imu_commands_refuse_a_rig() {
     let dir = tempfile::TempDir::new().unwrap();
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/rig.toml");
-    let out = imu_emu(dir.path(), &["run", scene, "--speed", "max", "--file", "x.bin"]);
+    let out = imu_emu(
+        dir.path(),
+        &["run", scene, "--speed", "max", "--file", "x.bin"],
+    );
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("`[[imu]]`") && err.contains("rig.toml"), "{err}");
+    assert!(
+        !out.status.success() && err.contains("`[[imu]]`") && err.contains("rig.toml"),
+        "{err}"
+    );
     assert!(!dir.path().join("x.bin").exists());
 }

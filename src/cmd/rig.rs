@@ -96,7 +96,9 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
         let mut writers: Vec<_> = files
             .iter_mut()
             .map(|(m, s)| {
-                let side = s.as_mut().map(|(t, f)| (buffered(&mut t.0), buffered(&mut f.0)));
+                let side = s
+                    .as_mut()
+                    .map(|(t, f)| (buffered(&mut t.0), buffered(&mut f.0)));
                 (buffered(&mut m.0), side)
             })
             .collect();

@@ -4,8 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use serde::de::{self, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use serde::Deserialize;
+use serde::de::{self, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 
 use super::failure::{FailureKind, FailureSpec, Pick};
 use super::skew::{SkewLayout, SkewSensor};
@@ -175,11 +175,17 @@ impl UnitEntry {
                     (&self.accel, "accel", &mut layout.accels),
                 ] {
                     for (j, s) in list.iter().enumerate() {
-                        out.push(s.sensor(kind).map_err(|(k, m)| bad(&format!("{kind}[{j}].{k}"), m))?);
+                        out.push(
+                            s.sensor(kind)
+                                .map_err(|(k, m)| bad(&format!("{kind}[{j}].{k}"), m))?,
+                        );
                     }
                 }
                 if layout.channels() > 64 {
-                    return Err(bad("gyro", format!("{} sensors: at most 64", layout.channels())));
+                    return Err(bad(
+                        "gyro",
+                        format!("{} sensors: at most 64", layout.channels()),
+                    ));
                 }
                 UnitModel::Skew(layout)
             }
@@ -187,7 +193,10 @@ impl UnitEntry {
         if skew && self.format.as_deref().is_some_and(|f| f != "csv") {
             return Err(bad("format", "a skew-redundant unit writes `csv`".into()));
         }
-        for (key, v) in [("mounting_deg", self.mounting_deg), ("lever_arm_m", self.lever_arm_m)] {
+        for (key, v) in [
+            ("mounting_deg", self.mounting_deg),
+            ("lever_arm_m", self.lever_arm_m),
+        ] {
             if v.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
                 return Err(bad(key, "expected three finite numbers".into()));
             }
@@ -205,7 +214,9 @@ impl UnitEntry {
         };
         let names = spec.channel_names();
         for (j, f) in self.failure.iter().enumerate() {
-            let s = f.spec(&names).map_err(|(k, m)| bad(&format!("failure[{j}].{k}"), m))?;
+            let s = f
+                .spec(&names)
+                .map_err(|(k, m)| bad(&format!("failure[{j}].{k}"), m))?;
             spec.failures.push(s);
         }
         Ok(spec)
@@ -254,7 +265,9 @@ impl FailureEntry {
             ("kind", format!("`{}`: expected one of {all}", self.kind))
         })?;
         let among = |prefix: &str| -> Vec<usize> {
-            (0..names.len()).filter(|&i| names[i].starts_with(prefix)).collect()
+            (0..names.len())
+                .filter(|&i| names[i].starts_with(prefix))
+                .collect()
         };
         let channel = match self.sensor.as_str() {
             "random" => Pick::Random(among("")),
@@ -270,20 +283,26 @@ impl FailureEntry {
                 )
             })?),
         };
-        let pick = |fixed: Option<f64>, random: Option<[f64; 2]>, key: &'static str, need: bool| {
-            match (fixed, random) {
+        let pick =
+            |fixed: Option<f64>, random: Option<[f64; 2]>, key: &'static str, need: bool| match (
+                fixed, random,
+            ) {
                 (Some(x), None) => Ok(Pick::Fixed(x)),
                 (None, Some(r)) => Ok(Pick::Random(r.to_vec())),
                 (None, None) if !need => Ok(Pick::Fixed(0.0)),
                 _ => Err((key, format!("give either `{key}` or `random_{key}`"))),
-            }
-        };
+            };
         Ok(FailureSpec {
             kind,
             channel,
             start_s: pick(self.at_s, self.random_at_s, "at_s", true)?,
             duration_s: self.duration_s,
-            magnitude: pick(self.magnitude, self.random_magnitude, "magnitude", kind.needs_magnitude())?,
+            magnitude: pick(
+                self.magnitude,
+                self.random_magnitude,
+                "magnitude",
+                kind.needs_magnitude(),
+            )?,
         })
     }
 }

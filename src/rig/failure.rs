@@ -318,7 +318,11 @@ mod tests {
                 let mask = s.apply(t, &mut v);
                 let inside = (1.0..2.0).contains(&t);
                 let want = if inside { expect(m, t) } else { m };
-                assert!((v[1] - want).abs() < 1e-12, "{kind:?} t={t}: {} vs {want}", v[1]);
+                assert!(
+                    (v[1] - want).abs() < 1e-12,
+                    "{kind:?} t={t}: {} vs {want}",
+                    v[1]
+                );
                 assert_eq!((v[0], v[2]), (1.0, -1.0));
                 assert_eq!(mask, if inside { 2 } else { 0 }, "{kind:?} t={t}");
             }
@@ -339,7 +343,10 @@ mod tests {
             sum2 += v[1] * v[1];
         }
         let sigma = (sum2 / n as f64).sqrt();
-        assert!((sigma / 0.2 - 1.0).abs() < 4.0 / (2.0 * n as f64).sqrt(), "{sigma}");
+        assert!(
+            (sigma / 0.2 - 1.0).abs() < 4.0 / (2.0 * n as f64).sqrt(),
+            "{sigma}"
+        );
         let mut s = one(FailureKind::Intermittent, 0.3);
         let mut dropped = 0;
         for k in 0..n {
@@ -348,7 +355,10 @@ mod tests {
             dropped += (v[1] == 0.0) as usize;
         }
         let expect = 0.3 * n as f64;
-        assert!((dropped as f64 - expect).abs() < 4.0 * (expect * 0.7).sqrt(), "{dropped}");
+        assert!(
+            (dropped as f64 - expect).abs() < 4.0 * (expect * 0.7).sqrt(),
+            "{dropped}"
+        );
     }
 
     /// Random choices are reproducible from the seed, lie in their ranges, and differ

@@ -144,7 +144,9 @@ impl Unit {
     fn needs_rotation_terms(&self) -> bool {
         self.place.lever_b != Vec3::ZERO
             || match &self.body {
-                Body::Triad { chain, .. } => chain.as_ref().is_some_and(|c| c.needs_rotation_terms()),
+                Body::Triad { chain, .. } => {
+                    chain.as_ref().is_some_and(|c| c.needs_rotation_terms())
+                }
                 Body::Skew { layout, .. } => layout.has_offsets(),
             }
     }
@@ -164,7 +166,9 @@ impl Unit {
         let main = format!("t,{}\n", names.join(","));
         let truth = format!("t,{},failed\n", names.join(","));
         let main = match &self.body {
-            Body::Triad { encoding, .. } if !matches!(**encoding, Encoding::Records(Format::Csv)) => {
+            Body::Triad { encoding, .. }
+                if !matches!(**encoding, Encoding::Records(Format::Csv)) =>
+            {
                 String::new()
             }
             _ => main,
@@ -251,7 +255,8 @@ impl Unit {
                 }
                 for (row, r) in s.tvals.chunks(ch).zip(reference) {
                     let start = s.vals.len();
-                    s.vals.extend(row.iter().zip(errors.iter_mut()).map(|(x, e)| e.read(*x)));
+                    s.vals
+                        .extend(row.iter().zip(errors.iter_mut()).map(|(x, e)| e.read(*x)));
                     s.masks.push(self.failures.apply(r.t, &mut s.vals[start..]));
                 }
                 let row = &mut s.row;
@@ -422,8 +427,13 @@ impl Rig {
         for group in self.groups() {
             let grid = self.units[group[0]].grid;
             let rot_needed = group.iter().any(|&i| self.units[i].needs_rotation_terms());
-            let mut ideal =
-                IdealImu::new(self.motion.clone(), grid.rate_hz, grid.t0, grid.count, self.nodes);
+            let mut ideal = IdealImu::new(
+                self.motion.clone(),
+                grid.rate_hz,
+                grid.t0,
+                grid.count,
+                self.nodes,
+            );
             let (mut reference, mut rot) = (Vec::new(), Vec::new());
             let mut scratch: Vec<Scratch> = group.iter().map(|_| Scratch::default()).collect();
             let mut k = 1;
@@ -449,7 +459,10 @@ impl Rig {
         }
         for o in outs.iter_mut() {
             o.main.flush().map_err(JobError::from)?;
-            for w in [o.truth.as_mut(), o.failures.as_mut()].into_iter().flatten() {
+            for w in [o.truth.as_mut(), o.failures.as_mut()]
+                .into_iter()
+                .flatten()
+            {
                 w.flush().map_err(JobError::from)?;
             }
         }

@@ -171,7 +171,10 @@ mod tests {
             for c in 0..3 {
                 let s: f64 = a.iter().map(|u| u[r] * u[c]).sum();
                 let expect = if r == c { 2.0 } else { 0.0 };
-                assert!((s - expect).abs() < 8.0 * f64::EPSILON, "HᵀH[{r}][{c}] = {s}");
+                assert!(
+                    (s - expect).abs() < 8.0 * f64::EPSILON,
+                    "HᵀH[{r}][{c}] = {s}"
+                );
             }
         }
     }

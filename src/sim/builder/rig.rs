@@ -57,10 +57,18 @@ impl SimulationBuilder {
             let name_ok = !spec.name.is_empty()
                 && (spec.name.chars()).all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
             if !name_ok || units.iter().any(|u| u.name == spec.name) {
-                let why = if name_ok { "used by another unit" } else { "expected letters, digits, `_` or `-`" };
-                return Err(SimError::Invalid(format!("`{}`: {why}", spec.name)).at(Some(place("name"))));
+                let why = if name_ok {
+                    "used by another unit"
+                } else {
+                    "expected letters, digits, `_` or `-`"
+                };
+                return Err(
+                    SimError::Invalid(format!("`{}`: {why}", spec.name)).at(Some(place("name")))
+                );
             }
-            let seed = spec.seed.unwrap_or_else(|| splitmix64(master ^ fnv1a64(&format!("unit/{}", spec.name))));
+            let seed = spec
+                .seed
+                .unwrap_or_else(|| splitmix64(master ^ fnv1a64(&format!("unit/{}", spec.name))));
             let format = spec.format.clone().unwrap_or_else(|| "csv".into());
             let mut plan = match Format::from_name(&format) {
                 Some(_) => None,
@@ -68,22 +76,30 @@ impl SimulationBuilder {
                     Some(protocol::load(&format)?.1)
                 }
                 None => {
-                    let e = SimError::Invalid(format!("`{format}`: expected `csv`, `bin` or a protocol"));
+                    let e = SimError::Invalid(format!(
+                        "`{format}`: expected `csv`, `bin` or a protocol"
+                    ));
                     return Err(e.at(Some(place("format"))));
                 }
             };
             let template = match &spec.model {
-                UnitModel::Template(t) => Some(super::super::load_template(t).map_err(|e| e.at(Some(place("model"))))?),
+                UnitModel::Template(t) => {
+                    Some(super::super::load_template(t).map_err(|e| e.at(Some(place("model"))))?)
+                }
                 UnitModel::Skew(_) => None,
             };
             let hz = (spec.rate_hz.or(self.rate))
                 .or(plan.as_ref().and_then(|p| p.rate_hz))
                 .or(template.as_ref().and_then(|t| t.rate_hz))
                 .unwrap_or(super::DEFAULT_RATE_HZ);
-            let rate = Rate { hz, place: Some(place("rate_hz")) };
+            let rate = Rate {
+                hz,
+                place: Some(place("rate_hz")),
+            };
             let grid = self.grid(&motion, &source, rate)?;
             if let Some(p) = plan.as_mut() {
-                p.set_rate(grid.rate_hz).map_err(|e| SimError::Invalid(e).at(Some(place("rate_hz"))))?;
+                p.set_rate(grid.rate_hz)
+                    .map_err(|e| SimError::Invalid(e).at(Some(place("rate_hz"))))?;
             }
             let body = match (&spec.model, template) {
                 (UnitModel::Skew(layout), _) => Body::Skew {
@@ -99,7 +115,9 @@ impl SimulationBuilder {
                             temperature: DEFAULT_FRAME_CELSIUS,
                             side: Format::Csv,
                         },
-                        None => Encoding::Records(Format::from_name(&format).unwrap_or(Format::Csv)),
+                        None => {
+                            Encoding::Records(Format::from_name(&format).unwrap_or(Format::Csv))
+                        }
                     };
                     Body::Triad {
                         chain: (!chain.is_empty()).then_some(chain),
@@ -126,6 +144,11 @@ impl SimulationBuilder {
                 path: spec.path.clone(),
             });
         }
-        Ok(Rig { motion, nodes, units, warnings: Vec::new() })
+        Ok(Rig {
+            motion,
+            nodes,
+            units,
+            warnings: Vec::new(),
+        })
     }
 }
