@@ -301,7 +301,9 @@ mod tests {
     /// [start, end), and nothing outside it or on other channels.
     #[test]
     fn each_kind_acts_inside_its_window_only() {
-        let cases: [(FailureKind, f64, fn(f64, f64) -> f64); 6] = [
+        // (kind, magnitude, the reading m at time t becomes).
+        type Case = (FailureKind, f64, fn(f64, f64) -> f64);
+        let cases: [Case; 6] = [
             (FailureKind::Null, 0.0, |_, _| 0.0),
             (FailureKind::BiasStep, 0.5, |m, _| m + 0.5),
             (FailureKind::BiasRamp, 0.5, |m, t| m + 0.5 * (t - 1.0)),

@@ -35,7 +35,7 @@ pub(crate) enum Body {
     /// A three-axis IMU: its template's error chain (without mounting or lever arm, which
     /// the placement applies) and its output encoding.
     Triad {
-        chain: Option<ErrorChain>,
+        chain: Option<Box<ErrorChain>>,
         encoding: Box<Encoding>,
     },
     /// A skew-redundant unit: its sensors and their error terms; CSV output.

@@ -120,7 +120,7 @@ impl SimulationBuilder {
                         }
                     };
                     Body::Triad {
-                        chain: (!chain.is_empty()).then_some(chain),
+                        chain: (!chain.is_empty()).then(|| Box::new(chain)),
                         encoding: Box::new(encoding),
                     }
                 }
