@@ -89,23 +89,17 @@ fn projector(h: &[Vec3]) -> Vec<Vec<f64>> {
     for u in h {
         for (r, row) in m.iter_mut().enumerate() {
             for (c, x) in row.iter_mut().enumerate() {
-                *x += u.0[r] * u.0[c];
+                *x += u[r] * u[c];
             }
         }
     }
-    // (HᵀH)⁻¹ by cofactors.
-    let cof = |r: usize, c: usize| {
-        let (r1, r2, c1, c2) = ((r + 1) % 3, (r + 2) % 3, (c + 1) % 3, (c + 2) % 3);
-        m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1]
-    };
-    let det: f64 = (0..3).map(|c| m[0][c] * cof(0, c)).sum();
-    let inv = imu_emu::math::Mat3(std::array::from_fn(|r| {
-        std::array::from_fn(|c| cof(c, r) / det)
-    }));
+    let inv = imu_emu::math::Mat3::from_fn(|r, c| m[r][c])
+        .try_inverse()
+        .expect("the axes span space");
     (0..h.len())
         .map(|i| {
             (0..h.len())
-                .map(|j| (i == j) as u8 as f64 - h[i].dot(inv.mul_vec(h[j])))
+                .map(|j| (i == j) as u8 as f64 - h[i].dot(&(inv * h[j])))
                 .collect()
         })
         .collect()

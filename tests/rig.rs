@@ -4,7 +4,7 @@
 
 use std::ops::ControlFlow;
 
-use imu_emu::math::{Mat3, Vec3, quat_from_euler};
+use imu_emu::math::{Mat3, QuatExt, Vec3, quat_from_euler};
 use imu_emu::motion::Motion;
 use imu_emu::quadrature::GaussLegendre;
 use imu_emu::rig::config::UnitSpec;
@@ -69,12 +69,12 @@ fn lever_arm_term(m: &impl Motion, t0: f64, dt: f64, k: usize, r: Vec3) -> Vec3 
     let (lo, hi) = (t0 + (k - 1) as f64 * dt, t0 + k as f64 * dt);
     let alpha = (omega(hi) - omega(lo)) * (1.0 / dt);
     let gl = GaussLegendre::new(16).unwrap();
-    let mut c = Vec3::ZERO;
+    let mut c = Vec3::zeros();
     for (x, w) in gl.nodes.iter().zip(&gl.weights) {
         let o = omega(lo + x * dt);
-        c += o.cross(o.cross(r)) * *w;
+        c += o.cross(&o.cross(&r)) * *w;
     }
-    alpha.cross(r) + c
+    alpha.cross(&r) + c
 }
 
 /// Three ideal units — at the reference point; 1.5 m away; mounted at (10°, 20°, 30°) at
@@ -102,7 +102,7 @@ fn lever_arms_and_mountings_are_exact() {
             .to_vec(),
     };
     for (a, p) in layout.accels.iter_mut().zip(positions) {
-        a.position_m = Vec3(p);
+        a.position_m = Vec3::from(p);
     }
     let mut skew = UnitSpec::skew("skew", layout.clone());
     skew.lever_arm_m = r;
@@ -131,22 +131,22 @@ fn lever_arms_and_mountings_are_exact() {
     for k in 1..=reference.len() {
         let v3 = |row: &Vec<f64>, i: usize| Vec3::new(row[i], row[i + 1], row[i + 2]);
         let (w, f) = (v3(&reference[k - 1], 1), v3(&reference[k - 1], 4));
-        let f_arm = f + lever_arm_term(&motion, grid.t0, dt, k, Vec3(r));
-        let diff = |a: Vec3, b: Vec3| (a - b).max_abs();
+        let f_arm = f + lever_arm_term(&motion, grid.t0, dt, k, Vec3::from(r));
+        let diff = |a: Vec3, b: Vec3| (a - b).amax();
         worst = worst
             .max(diff(v3(&arm[k - 1], 1), w))
             .max(diff(v3(&arm[k - 1], 4), f_arm))
             .max(diff(v3(&arm[k - 1], 10), f_arm * dt) / dt)
-            .max(diff(v3(&turned[k - 1], 1), c_b_c.mul_vec(w)))
-            .max(diff(v3(&turned[k - 1], 4), c_b_c.mul_vec(f_arm)));
+            .max(diff(v3(&turned[k - 1], 1), c_b_c * w))
+            .max(diff(v3(&turned[k - 1], 4), c_b_c * f_arm));
         let s = &skew[k - 1];
         for (i, g) in layout.gyros.iter().enumerate() {
-            worst = worst.max((s[1 + i] - g.axis.dot(c_b_c.mul_vec(w))).abs());
+            worst = worst.max((s[1 + i] - g.axis.dot(&(c_b_c * w))).abs());
         }
         for (j, a) in layout.accels.iter().enumerate() {
-            let p = Vec3(r) + c_b_c.tr_mul_vec(a.position_m);
+            let p = Vec3::from(r) + c_b_c.tr_mul(&a.position_m);
             let f_p = f + lever_arm_term(&motion, grid.t0, dt, k, p);
-            worst = worst.max((s[7 + j] - a.axis.dot(c_b_c.mul_vec(f_p))).abs());
+            worst = worst.max((s[7 + j] - a.axis.dot(&(c_b_c * f_p))).abs());
         }
     }
     assert!(
@@ -172,36 +172,23 @@ fn lever_arms_and_mountings_are_exact() {
 
 /// The projector onto the parity space of sense axes `h` (rows): P = I − H (HᵀH)⁻¹ Hᵀ.
 fn parity_projector(h: &[Vec3]) -> Vec<Vec<f64>> {
-    let mut hth = Mat3([[0.0; 3]; 3]);
+    let mut hth = Mat3::zeros();
     for u in h {
         for r in 0..3 {
             for c in 0..3 {
-                hth.0[r][c] += u.0[r] * u.0[c];
+                hth[(r, c)] += u[r] * u[c];
             }
         }
     }
-    let inv = inverse(&hth);
+    let inv = hth.try_inverse().expect("the axes span space");
     let n = h.len();
     (0..n)
         .map(|i| {
             (0..n)
-                .map(|j| (i == j) as u8 as f64 - h[i].dot(inv.mul_vec(h[j])))
+                .map(|j| (i == j) as u8 as f64 - h[i].dot(&(inv * h[j])))
                 .collect()
         })
         .collect()
-}
-
-fn inverse(m: &Mat3) -> Mat3 {
-    let a = m.0;
-    let cof = |r: usize, c: usize| {
-        let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
-        let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
-        a[r1][c1] * a[r2][c2] - a[r1][c2] * a[r2][c1]
-    };
-    let det: f64 = (0..3).map(|c| a[0][c] * cof(0, c)).sum();
-    Mat3(std::array::from_fn(|r| {
-        std::array::from_fn(|c| cof(c, r) / det)
-    }))
 }
 
 /// Six dodecahedral gyros with white noise σ = 1e-3 rad/s per 100 Hz record, on the banked
@@ -246,7 +233,7 @@ fn parity_residual_finds_each_failure() {
         .duration(60.0)
         .build_rig()
         .unwrap();
-    let h: Vec<Vec3> = dodecahedron_axes().map(Vec3).to_vec();
+    let h: Vec<Vec3> = dodecahedron_axes().map(Vec3::from).to_vec();
     let p = parity_projector(&h);
     let out = write_all(rig).remove(0);
     let (main, truth) = (rows(&out.main), rows(&out.truth));

@@ -226,8 +226,8 @@ impl UnitEntry {
 impl SensorEntry {
     /// The sensor; errors give the key and the message.
     fn sensor(&self, kind: &str) -> Result<SkewSensor, (&'static str, String)> {
-        let a = Vec3(self.axis);
-        if !(a.is_finite() && a.norm() > 0.0) {
+        let a = Vec3::from(self.axis);
+        if !(crate::math::all_finite(&a) && a.norm() > 0.0) {
             return Err(("axis", "expected a finite, non-zero vector".into()));
         }
         let p = self.position_m.unwrap_or_default();
@@ -249,7 +249,7 @@ impl SensorEntry {
             return Err(("noise", "expected a density ≥ 0".into()));
         }
         let mut s = SkewSensor::along(self.axis);
-        s.position_m = Vec3(p);
+        s.position_m = Vec3::from(p);
         s.bias = value(&self.bias, bias, "bias")?;
         s.scale_factor = value(&self.scale_factor, Kind::Ratio, "scale_factor")?;
         s.noise_density = noise_density;

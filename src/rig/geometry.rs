@@ -11,24 +11,22 @@
 //! The angular rate is the same at every point of a rigid body.
 
 use crate::generator::RotationTerms;
-use crate::math::{Mat3, Vec3};
+use crate::math::{Mat3, QuatExt, Vec3};
 
 /// Interval mean of the specific force at `r` (body frame, m) given the reference point's
 /// interval mean `f_mean` and the interval's rotation terms; `inv_dt` = 1/Δt.
 #[inline]
 pub fn force_at(f_mean: Vec3, rot: &RotationTerms, inv_dt: f64, r: Vec3) -> Vec3 {
-    let w = Mat3(rot.omega_outer);
-    let tr = w.0[0][0] + w.0[1][1] + w.0[2][2];
-    f_mean + (rot.d_omega * inv_dt).cross(r) + w.mul_vec(r) - r * tr
+    let w = &rot.omega_outer;
+    f_mean + (rot.d_omega * inv_dt).cross(&r) + w * r - r * w.trace()
 }
 
 /// The rotation terms seen in axes turned by `c` (C_b^c): Δω^c = C Δω^b, W^c = C W Cᵀ, for
 /// error stages of the unit (a template's own accelerometer offsets) that work in its axes.
 pub fn rotate_terms(rot: &RotationTerms, c: &Mat3) -> RotationTerms {
-    let w = c.mul_mat(&Mat3(rot.omega_outer)).mul_mat(&c.transpose());
     RotationTerms {
-        d_omega: c.mul_vec(rot.d_omega),
-        omega_outer: w.0,
+        d_omega: c * rot.d_omega,
+        omega_outer: c * rot.omega_outer * c.transpose(),
     }
 }
 
@@ -49,26 +47,26 @@ impl Placement {
         let [r, p, y] = mounting_deg.map(f64::to_radians);
         let c_c_b = crate::math::quat_from_euler(r, p, y).to_mat();
         Placement {
-            c_b_c: (c_c_b != Mat3::IDENTITY).then(|| c_c_b.transpose()),
-            lever_b: Vec3(lever_b),
+            c_b_c: (c_c_b != Mat3::identity()).then(|| c_c_b.transpose()),
+            lever_b: Vec3::from(lever_b),
         }
     }
 
     /// Whether the unit sits at the reference point in the body's axes.
     pub fn is_identity(&self) -> bool {
-        self.c_b_c.is_none() && self.lever_b == Vec3::ZERO
+        self.c_b_c.is_none() && self.lever_b == Vec3::zeros()
     }
 
     /// A body-frame vector in the unit's axes.
     #[inline]
     pub fn to_case(&self, v: Vec3) -> Vec3 {
-        self.c_b_c.as_ref().map_or(v, |c| c.mul_vec(v))
+        self.c_b_c.as_ref().map_or(v, |c| c * v)
     }
 
     /// A vector in the unit's axes in the body frame.
     #[inline]
     pub fn to_body(&self, v: Vec3) -> Vec3 {
-        self.c_b_c.as_ref().map_or(v, |c| c.tr_mul_vec(v))
+        self.c_b_c.as_ref().map_or(v, |c| c.tr_mul(&v))
     }
 
     /// The body-frame position of a point at `p_case` (unit axes, m, from the unit's
@@ -90,20 +88,20 @@ mod tests {
     fn lever_arm_terms_match_the_closed_forms() {
         let (w, r) = (2.5, Vec3::new(0.3, -1.2, 0.7));
         let rot = RotationTerms {
-            d_omega: Vec3::ZERO,
-            omega_outer: [[0.0; 3], [0.0; 3], [0.0, 0.0, w * w]],
+            d_omega: Vec3::zeros(),
+            omega_outer: Mat3::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, w * w),
         };
         let f = force_at(Vec3::new(0.0, 0.0, -9.8), &rot, 100.0, r);
         let expect = Vec3::new(-w * w * 0.3, w * w * 1.2, -9.8);
-        assert!((f - expect).max_abs() <= 4.0 * f64::EPSILON * 9.8, "{f:?}");
+        assert!((f - expect).amax() <= 4.0 * f64::EPSILON * 9.8, "{f:?}");
         // α = 3 rad/s² over Δt = 0.01 s: Δω = 0.03 rad/s; ω ωᵀ taken as zero here.
         let rot = RotationTerms {
             d_omega: Vec3::new(0.0, 0.0, 0.03),
-            omega_outer: [[0.0; 3]; 3],
+            omega_outer: Mat3::zeros(),
         };
-        let f = force_at(Vec3::ZERO, &rot, 100.0, r);
+        let f = force_at(Vec3::zeros(), &rot, 100.0, r);
         let expect = Vec3::new(3.0 * 1.2, 3.0 * 0.3, 0.0);
-        assert!((f - expect).max_abs() <= 8.0 * f64::EPSILON * 3.6, "{f:?}");
+        assert!((f - expect).amax() <= 8.0 * f64::EPSILON * 3.6, "{f:?}");
     }
 
     /// A unit yawed 90°: body x is its −y… the body's x axis reads along the unit's −y,
@@ -112,21 +110,19 @@ mod tests {
     fn placement_turns_vectors_and_terms() {
         let p = Placement::new([0.0, 0.0, 90.0], [1.0, 0.0, 0.0]);
         let v = p.to_case(Vec3::new(1.0, 0.0, 0.0));
-        assert!((v - Vec3::new(0.0, -1.0, 0.0)).max_abs() < 1e-15, "{v:?}");
+        assert!((v - Vec3::new(0.0, -1.0, 0.0)).amax() < 1e-15, "{v:?}");
         let back = p.to_body(v);
-        assert!((back - Vec3::new(1.0, 0.0, 0.0)).max_abs() < 1e-15);
+        assert!((back - Vec3::new(1.0, 0.0, 0.0)).amax() < 1e-15);
         // A point 0.5 m along the unit's x is 0.5 m along body y, plus the lever arm.
         let q = p.point_b(Vec3::new(0.5, 0.0, 0.0));
-        assert!((q - Vec3::new(1.0, 0.5, 0.0)).max_abs() < 1e-15, "{q:?}");
+        assert!((q - Vec3::new(1.0, 0.5, 0.0)).amax() < 1e-15, "{q:?}");
         let rot = RotationTerms {
             d_omega: Vec3::new(1.0, 2.0, 3.0),
-            omega_outer: [[1.0, 2.0, 0.0], [2.0, 4.0, 0.0], [0.0, 0.0, 9.0]],
+            omega_outer: Mat3::new(1.0, 2.0, 0.0, 2.0, 4.0, 0.0, 0.0, 0.0, 9.0),
         };
         let t = rotate_terms(&rot, p.c_b_c.as_ref().unwrap());
-        assert!((t.d_omega - Vec3::new(2.0, -1.0, 3.0)).max_abs() < 1e-15);
-        let expect = [[4.0, -2.0, 0.0], [-2.0, 1.0, 0.0], [0.0, 0.0, 9.0]];
-        for (a, b) in t.omega_outer.iter().flatten().zip(expect.iter().flatten()) {
-            assert!((a - b).abs() < 1e-14, "{:?}", t.omega_outer);
-        }
+        assert!((t.d_omega - Vec3::new(2.0, -1.0, 3.0)).amax() < 1e-15);
+        let expect = Mat3::new(4.0, -2.0, 0.0, -2.0, 1.0, 0.0, 0.0, 0.0, 9.0);
+        assert!((t.omega_outer - expect).amax() < 1e-14, "{}", t.omega_outer);
     }
 }

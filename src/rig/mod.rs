@@ -142,7 +142,7 @@ impl Unit {
 
     /// Whether this unit needs the rotation terms (a lever arm, offset accelerometers).
     fn needs_rotation_terms(&self) -> bool {
-        self.place.lever_b != Vec3::ZERO
+        self.place.lever_b != Vec3::zeros()
             || match &self.body {
                 Body::Triad { chain, .. } => {
                     chain.as_ref().is_some_and(|c| c.needs_rotation_terms())
@@ -215,12 +215,12 @@ impl Unit {
                     Producer::check_finite(&s.recs, "after the error chain")?;
                 }
                 for r in s.recs.iter_mut() {
-                    let (g, a) = (r.gyro.0, r.accel.0);
+                    let (g, a) = (r.gyro, r.accel);
                     let mut v = [g[0], g[1], g[2], a[0], a[1], a[2]];
                     let mask = self.failures.apply(r.t, &mut v);
                     if mask != 0 {
-                        r.gyro = Vec3([v[0], v[1], v[2]]);
-                        r.accel = Vec3([v[3], v[4], v[5]]);
+                        r.gyro = Vec3::new(v[0], v[1], v[2]);
+                        r.accel = Vec3::new(v[3], v[4], v[5]);
                         r.dtheta = r.gyro * dt;
                         r.dv = r.accel * dt;
                     }
@@ -242,7 +242,7 @@ impl Unit {
                 for (i, r) in reference.iter().enumerate() {
                     let w_c = self.place.to_case(r.gyro);
                     for g in &layout.gyros {
-                        s.tvals.push(g.axis.dot(w_c));
+                        s.tvals.push(g.axis.dot(&w_c));
                     }
                     for a in &layout.accels {
                         let p = self.place.point_b(a.position_m);
@@ -250,7 +250,7 @@ impl Unit {
                             Some(rot) => geometry::force_at(r.accel, &rot[i], 1.0 / dt, p),
                             None => r.accel,
                         };
-                        s.tvals.push(a.axis.dot(self.place.to_case(f_b)));
+                        s.tvals.push(a.axis.dot(&self.place.to_case(f_b)));
                     }
                 }
                 for (row, r) in s.tvals.chunks(ch).zip(reference) {
@@ -295,7 +295,7 @@ fn place_triad(place: &Placement, recs: &mut [Record], rot: Option<&[RotationTer
     }
     for (i, r) in recs.iter_mut().enumerate() {
         let f = match rot {
-            Some(rot) if place.lever_b != Vec3::ZERO => {
+            Some(rot) if place.lever_b != Vec3::zeros() => {
                 geometry::force_at(r.accel, &rot[i], 1.0 / dt, place.lever_b)
             }
             _ => r.accel,

@@ -48,10 +48,10 @@ pub struct SkewSensor {
 impl SkewSensor {
     /// An error-free sensor along `axis` (normalised here) at the unit's reference point.
     pub fn along(axis: [f64; 3]) -> SkewSensor {
-        let a = Vec3(axis);
+        let a = Vec3::from(axis);
         SkewSensor {
             axis: a * (1.0 / a.norm()),
-            position_m: Vec3::ZERO,
+            position_m: Vec3::zeros(),
             bias: 0.0,
             scale_factor: 0.0,
             noise_density: 0.0,
@@ -84,7 +84,7 @@ impl SkewLayout {
 
     /// Whether an accelerometer sits away from the unit's reference point.
     pub fn has_offsets(&self) -> bool {
-        self.accels.iter().any(|s| s.position_m != Vec3::ZERO)
+        self.accels.iter().any(|s| s.position_m != Vec3::zeros())
     }
 }
 
@@ -160,10 +160,10 @@ mod tests {
     fn dodecahedron_axes_are_equiangular_and_isotropic() {
         let a = dodecahedron_axes();
         for (i, u) in a.iter().enumerate() {
-            let u = Vec3(*u);
+            let u = Vec3::from(*u);
             assert!((u.norm() - 1.0).abs() < 4.0 * f64::EPSILON);
             for v in &a[i + 1..] {
-                let c = u.dot(Vec3(*v)).abs();
+                let c = u.dot(&Vec3::from(*v)).abs();
                 assert!((c - 1.0 / 5f64.sqrt()).abs() < 4.0 * f64::EPSILON, "{c}");
             }
         }
