@@ -151,9 +151,9 @@ impl<M: Motion> IdealImu<M> {
     fn interval_mean(&mut self, k: u64) -> (Vec3, Vec3) {
         let lo = self.time_of(k - 1);
         let hi = self.time_of(k);
-        let mut piece = self.motion.piece_at(lo, self.hint);
+        let piece = self.motion.piece_at(lo, self.hint);
         self.hint = piece;
-        let mut end = self.motion.piece_end(piece);
+        let end = self.motion.piece_end(piece);
         if end >= hi {
             // The common case: one smooth piece; node times from the integer k.
             let base = (k - 1) as f64;
@@ -167,7 +167,18 @@ impl<M: Motion> IdealImu<M> {
             return (sg, sa);
         }
         // Split at every breakpoint inside the interval; weight each part by its length.
-        let inv_width = 1.0 / (hi - lo);
+        self.weighted(lo, hi, piece, end, 1.0 / (hi - lo))
+    }
+
+    /// ∫ω_ib^b dt and ∫f^b dt over (lo, hi], split at the breakpoints, times `factor`.
+    fn weighted(
+        &mut self,
+        lo: f64,
+        hi: f64,
+        mut piece: usize,
+        mut end: f64,
+        factor: f64,
+    ) -> (Vec3, Vec3) {
         let (mut sg, mut sa) = (Vec3::ZERO, Vec3::ZERO);
         let mut a = lo;
         loop {
@@ -176,7 +187,7 @@ impl<M: Motion> IdealImu<M> {
             if len > 0.0 {
                 for (x, w) in self.rule.nodes.iter().zip(&self.rule.weights) {
                     let s = self.motion.sense(piece, a + x * len);
-                    let wl = w * len * inv_width;
+                    let wl = w * len * factor;
                     sg += s.omega_ib_b * wl;
                     sa += s.f_b * wl;
                 }
@@ -188,6 +199,50 @@ impl<M: Motion> IdealImu<M> {
             a = b;
             end = self.motion.piece_end(piece);
         }
+        self.hint = piece;
         (sg, sa)
+    }
+
+    /// ∫ω_ib^b dt and ∫f^b dt over (t₀ + lo, t₀ + hi].
+    fn integral(&mut self, lo: f64, hi: f64) -> (Vec3, Vec3) {
+        let (lo, hi) = (self.t0 + lo, self.t0 + hi);
+        if self.motion.is_stationary() {
+            let s = self.motion.sense(0, self.motion.start());
+            return (s.omega_ib_b * (hi - lo), s.f_b * (hi - lo));
+        }
+        let piece = self.motion.piece_at(lo, self.hint);
+        let end = self.motion.piece_end(piece);
+        self.weighted(lo, hi, piece, end, 1.0)
+    }
+
+    /// Fills `out` with records k_first, k_first+1, … whose increments integrate over the
+    /// sensor's true intervals `timed` (relative to t₀; [`crate::timing::SensorTiming`]): the
+    /// gyro's over `timed.gyro`, the accelerometers' over `timed.accel`. The record's time tag
+    /// stays t₀ + k/rate (the sensor clock's reading) and its rates are the increments over
+    /// the nominal Δt, as a unit that divides by the interval its own clock measured reports
+    /// them.
+    pub fn fill_timed(
+        &mut self,
+        k_first: u64,
+        timed: &crate::timing::TimedBlock,
+        out: &mut [Record],
+    ) {
+        let same = timed.gyro == timed.accel;
+        for (i, r) in out.iter_mut().enumerate() {
+            let (dtheta, dv_g) = self.integral(timed.gyro[i], timed.gyro[i + 1]);
+            let dv = if same {
+                dv_g
+            } else {
+                self.integral(timed.accel[i], timed.accel[i + 1]).1
+            };
+            *r = Record {
+                t: self.time_of(k_first + i as u64),
+                gyro: dtheta * self.rate_hz,
+                accel: dv * self.rate_hz,
+                dtheta,
+                dv,
+                flags: 0,
+            };
+        }
     }
 }

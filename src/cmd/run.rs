@@ -227,8 +227,9 @@ pub fn run(a: RunArgs) -> Result<()> {
             .map(clock::start_at)
             .transpose()
             .map_err(|e| anyhow::anyhow!("--start-at {}: {e}", a.start_at.unwrap_or_default()))?;
-        let mut c =
-            Clocking::new(frames_per_s, start_ns, a.realtime).map_err(|e| anyhow::anyhow!(e))?;
+        let mut c = Clocking::new(frames_per_s, start_ns, a.realtime)
+            .map_err(|e| anyhow::anyhow!(e))?
+            .with_speed(speed);
         c.max_behind_ns = (a.max_behind_ms * 1e6) as i128;
         if c.batch > 1 {
             tracing::info!("{frames_per_s} frames/s: {} frames per wake-up", c.batch);

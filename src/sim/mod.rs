@@ -117,6 +117,7 @@ pub struct Simulation {
     gps_time: Option<(u32, f64)>,
     output_path: Option<PathBuf>,
     warnings: Vec<String>,
+    timing: Option<crate::timing::TimedRun>,
 }
 
 impl Simulation {
@@ -226,7 +227,8 @@ impl Simulation {
             self.chain,
             false,
         )?;
-        Ok(p.with_temperature(self.temperature))
+        Ok(p.with_temperature(self.temperature)
+            .with_timing(self.timing))
     }
 
     /// The records, block by block, without any wire encoding.
