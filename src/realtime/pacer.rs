@@ -350,4 +350,32 @@ mod tests {
         assert_eq!(Clocking::new(10_000.0, None, false).unwrap().batch, 10);
         assert!(Clocking::new(f64::NAN, None, false).is_err());
     }
+
+    /// Frames with their own emission times are due at start + emission/speed; batches
+    /// above 2 kHz gather the frames due within the batch's span of its first frame.
+    #[test]
+    fn emission_times_set_the_deadlines() {
+        let block = FrameBlock {
+            first: 0,
+            streams: vec![(vec![0; 4], vec![1, 2, 3, 4])],
+            emit_ns: vec![1_400_000, 2_350_000, 3_450_000, 4_400_000],
+        };
+        let c = Clocking::new(1000.0, None, false).unwrap().with_speed(2.0);
+        assert_eq!(c.deadline_in(100, &block, 1), 100 + 1_175_000);
+        assert_eq!(c.batch_end(0, &block, 0), 1);
+        let nominal = FrameBlock {
+            emit_ns: Vec::new(),
+            ..block
+        };
+        assert_eq!(c.deadline_in(0, &nominal, 1), c.deadline(0, 2));
+        // 4 kHz: batches of 4 frames, 0.75 ms past the first one's deadline.
+        let fast = Clocking::new(4000.0, None, false).unwrap();
+        let block = FrameBlock {
+            emit_ns: vec![250_000, 600_000, 1_000_000, 1_100_000],
+            ..nominal
+        };
+        assert_eq!(fast.batch, 4);
+        assert_eq!(fast.batch_end(0, &block, 0), 3);
+        assert_eq!(fast.batch_end(0, &block, 3), 4);
+    }
 }

@@ -240,6 +240,7 @@ mod tests {
             late_probability: 0.01,
             late_delay: 1e-3,
             missing_probability: 0.01,
+            ..Default::default()
         };
         let mut whole = TimedBlock::default();
         timing(m, 1000.0).fill(1, 100, &mut whole);
