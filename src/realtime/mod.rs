@@ -9,6 +9,7 @@
 //! clock never waits for a consumer.
 
 pub mod clock;
+pub mod hostclock;
 pub mod pacer;
 pub mod pty;
 pub mod serial;

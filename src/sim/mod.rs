@@ -180,6 +180,12 @@ impl Simulation {
         self.faults.as_ref()
     }
 
+    /// Sets the GPS time of record time t = 0 (week, seconds of week): frames' GPS-time
+    /// fields carry it plus the record's time tag (a time base chosen after building).
+    pub fn set_gps_time(&mut self, week: u32, seconds_of_week: f64) {
+        self.gps_time = Some((week, seconds_of_week));
+    }
+
     /// The scene file's `output.path`, if it gives one.
     pub fn output_path(&self) -> Option<&Path> {
         self.output_path.as_deref()
