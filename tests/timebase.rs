@@ -63,18 +63,13 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-/// `--time-base gps` with an IMU whose latency is 30 ms: each iXCOM frame's GPS week and
-/// seconds equal the host's GPS time when it arrived (the test's own UTC + 18 s − the GPS
-/// epoch) minus the latency and the pacer's delay. Nothing arrives more than 1 ms (the
-/// realtime-to-monotonic conversion) before ToV + 30 ms; the median delay beyond the latency
-/// is the pacer's and receiver's wake-up delay (0.1 ms measured on a loaded 2-core machine), so
-/// 20 ms bounds it with room. A time base without leap seconds is 18 s off, one in simulation
-/// time years off, a pacer ignoring the latency 30 ms early.
-#[test]
-fn gps_time_frames_leave_their_latency_after_validity() {
+/// Runs `--time-base gps` iXCOM frames at 200 Hz for 2 s from an IMU with `timing`, and
+/// returns for each frame received the host's GPS time at arrival (the test's own UTC + 18 s
+/// − the GPS epoch) minus the frame's GPS time (ms), and the run's stderr.
+fn gps_delays(timing: &str) -> (Vec<f64>, String) {
     let dir = tempfile::tempdir().unwrap();
     let imu = dir.path().join("late.toml");
-    std::fs::write(&imu, "base = \"ln200\"\n[timing]\nlatency = \"30 ms\"\n").unwrap();
+    std::fs::write(&imu, format!("base = \"ln200\"\n[timing]\n{timing}")).unwrap();
     let (dest, rx) = receive(5.0);
     let err = finish(spawn(&[
         "--time-base",
@@ -94,7 +89,7 @@ fn gps_time_frames_leave_their_latency_after_validity() {
     assert!(got.len() > 300, "{} frames; {err}", got.len());
     let (_, plan) = load("imar-ixcom").unwrap();
     let epoch_ns = 315_964_800i128 * 1_000_000_000;
-    let delays: Vec<f64> = got
+    let delays = got
         .iter()
         .map(|(at, bytes)| {
             let d = plan.decode(bytes).unwrap();
@@ -106,11 +101,26 @@ fn gps_time_frames_leave_their_latency_after_validity() {
             (host_gps - frame_gps) / 1e6
         })
         .collect();
+    (delays, err)
+}
+
+/// `--time-base gps` with an IMU whose latency is 30 ms: each frame's GPS week and seconds
+/// equal the host's GPS time when it arrived minus the latency and the pacer's delay. The
+/// pacer never writes early, so nothing arrives before ToV + 30 ms but for the microseconds of
+/// the realtime-to-monotonic conversion (0.1 ms allowed); the median delay beyond the latency
+/// is the pacer's and receiver's wake-up delay (0.1 ms measured on a loaded 2-core machine), so
+/// 20 ms bounds it with room. A time base without leap seconds is 18 s off, one in simulation
+/// time years off, a pacer ignoring the latency 30 ms early.
+#[test]
+fn gps_time_frames_leave_their_latency_after_validity() {
+    let (delays, err) = gps_delays("latency = \"30 ms\"\n");
     let earliest = delays.iter().copied().fold(f64::INFINITY, f64::min);
-    let m = median(delays.clone());
-    eprintln!("GPS time at arrival − frame GPS time: earliest {earliest:.3} ms, median {m:.3} ms");
+    let m = median(delays);
+    eprintln!(
+        "30 ms latency: GPS time at arrival − frame GPS time: earliest {earliest:.3} ms, median {m:.3} ms"
+    );
     assert!(
-        earliest > 29.0,
+        earliest > 29.9,
         "a frame {earliest:.3} ms after its ToV; {err}"
     );
     assert!(m < 50.0, "median {m:.3} ms; {err}");
@@ -118,6 +128,22 @@ fn gps_time_frames_leave_their_latency_after_validity() {
         err.contains("time base gps") && err.contains("GPS−UTC 18 s"),
         "{err}"
     );
+}
+
+/// Latency 400 µs ± 50 µs (uniform): no frame arrives before ToV + 350 µs (less the 0.1 ms
+/// clock-conversion allowance), the median arrives 400 µs plus the wake-up delay after its
+/// ToV, bounded at 20 ms as above; a frame sent at its ToV (latency ignored) is 0.35 ms early.
+#[test]
+fn latency_400_us_at_the_reader() {
+    let (delays, err) = gps_delays("latency = \"400 us\"\nlatency_spread = \"50 us\"\n");
+    let earliest = delays.iter().copied().fold(f64::INFINITY, f64::min);
+    let m = median(delays);
+    eprintln!("400 ± 50 µs latency: earliest {earliest:.3} ms, median {m:.3} ms after the ToV");
+    assert!(
+        earliest > 0.25,
+        "a frame {earliest:.3} ms after its ToV; {err}"
+    );
+    assert!(m > 0.35 && m < 20.4, "median {m:.3} ms; {err}");
 }
 
 /// Two emulators started with `--start-at next-second` within the same second put t₀ on the
