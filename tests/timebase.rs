@@ -21,9 +21,12 @@ fn utc_now_ns() -> i128 {
         .as_nanos() as i128
 }
 
+/// A datagram: CLOCK_REALTIME when `recv` returned (ns), and its bytes.
+type Arrival = (i128, Vec<u8>);
+
 /// A loopback UDP receiver on its own thread, timestamping each datagram as `recv` returns,
 /// until `secs` have passed.
-fn receive(secs: f64) -> (String, std::thread::JoinHandle<Vec<(i128, Vec<u8>)>>) {
+fn receive(secs: f64) -> (String, std::thread::JoinHandle<Vec<Arrival>>) {
     let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
     rx.set_read_timeout(Some(Duration::from_millis(100)))
         .unwrap();
@@ -183,7 +186,7 @@ fn two_emulators_started_next_second_agree() {
     let c2 = spawn(&a2.iter().map(String::as_str).collect::<Vec<_>>());
     let (e1, e2) = (finish(c1), finish(c2));
     let (_, plan) = load("kvh1750-b").unwrap();
-    let by_k = |got: Vec<(i128, Vec<u8>)>| -> Vec<(u64, i128)> {
+    let by_k = |got: Vec<Arrival>| -> Vec<(u64, i128)> {
         got.iter()
             .map(|(at, b)| {
                 let t = plan.decode(b).unwrap().contract(None)[0].unwrap();
