@@ -80,7 +80,7 @@ pub fn merge_components(
     let each = |a: &mut Components, b: &Components, f: &dyn Fn(f64) -> f64| {
         for (x, y) in a.0.iter_mut().zip(b.0.iter()) {
             for (u, v) in x.iter_mut().zip(y.iter()) {
-                for (p, q) in u.0.iter_mut().zip(v.0.iter()) {
+                for (p, q) in u.iter_mut().zip(v.iter()) {
                     *p = f(*p + q);
                 }
             }
