@@ -37,6 +37,8 @@ pub struct SceneFile {
     /// Faults injected into protocol frames.
     #[serde(default)]
     pub faults: FaultsSection,
+    /// The IMU's timing errors, overriding the template's `[timing]` key by key.
+    pub timing: Option<toml::Table>,
 }
 
 /// `[faults]`: faults injected into protocol frames (`[[faults.event]]` entries).

@@ -234,9 +234,12 @@ impl Encoding {
 
     /// Appends the main output's bytes for `records`, and the end offset of each record's
     /// bytes in `buf` to `ends`; `profile` gives frames their temperature field.
+    /// `gaps`: samples skipped before each record (empty: none), which a frame counter
+    /// steps over.
     pub fn encode(
         &mut self,
         records: &[Record],
+        gaps: &[u32],
         profile: Option<&TemperatureProfile>,
         buf: &mut Vec<u8>,
         ends: &mut Vec<usize>,
@@ -262,7 +265,8 @@ impl Encoding {
                 temperature,
                 ..
             } => {
-                for r in records {
+                for (i, r) in records.iter().enumerate() {
+                    state.frames += gaps.get(i).copied().unwrap_or(0) as u64;
                     // The sensor temperature the error chain used for this record.
                     let celsius = profile.map_or(*temperature, |p| p.at(r.t));
                     plan.encode(r, celsius, state, buf);
@@ -292,6 +296,8 @@ pub struct Producer {
     temperature: Option<TemperatureProfile>,
     /// Why production stopped early (a non-finite value), for [`Producer::take_error`].
     error: Option<JobError>,
+    /// The IMU's timing errors, when it has any.
+    timing: Option<Box<crate::timing::TimedRun>>,
 }
 
 /// One block of production: the corrupted records and, if asked for, the error-free ones.
@@ -304,6 +310,8 @@ pub struct Block<'a> {
     pub truth: &'a [Record],
     /// The error chain, for its per-record components.
     pub chain: Option<&'a ErrorChain>,
+    /// Times of validity and emission of the records, when the IMU has timing errors.
+    pub times: Option<crate::timing::Times<'a>>,
 }
 
 impl Producer {
@@ -354,7 +362,21 @@ impl Producer {
             rot: Vec::new(),
             temperature: None,
             error: None,
+            timing: None,
         }
+    }
+
+    /// Samples at the sensor clock's instants with the IMU's timing errors (`None`: on the
+    /// nominal grid): increments over the true intervals, skipped samples folded into the
+    /// next, and each record's time of validity and emission time in [`Block::times`].
+    pub fn with_timing(mut self, timing: Option<crate::timing::TimedRun>) -> Producer {
+        self.timing = timing.map(Box::new);
+        self
+    }
+
+    /// Whether the records carry times of validity and emission (timing errors).
+    pub fn is_timed(&self) -> bool {
+        self.timing.is_some()
     }
 
     /// Frames with a temperature field carry `profile` at each record's time (the profile the
@@ -446,7 +468,13 @@ impl Producer {
             self.block.resize(n, Record::default());
         }
         let first = self.k - 1;
-        self.imu.fill(self.k, &mut self.block[..n]);
+        match self.timing.as_mut() {
+            Some(t) => {
+                let timed = t.instants(self.k, n);
+                self.imu.fill_timed(self.k, timed, &mut self.block[..n]);
+            }
+            None => self.imu.fill(self.k, &mut self.block[..n]),
+        }
         if let Err(e) = Producer::check_finite(&self.block[..n], "in the error-free signal") {
             return self.fail(e);
         }
@@ -469,6 +497,22 @@ impl Producer {
             }
         }
         self.k += n as u64;
+        let n = match self.timing.as_mut() {
+            Some(t) => {
+                let comps = (self.chain.as_mut())
+                    .filter(|c| !c.components().is_empty())
+                    .map(|c| c.components_mut());
+                let truth = if self.keep_truth {
+                    &mut self.truth[..]
+                } else {
+                    &mut [][..]
+                };
+                let kept = t.compact(&mut self.block[..n], truth, comps);
+                self.truth.truncate(kept);
+                kept
+            }
+            None => n,
+        };
         Some((first, n))
     }
 
@@ -485,6 +529,7 @@ impl Producer {
             records: &self.block[..n],
             truth: &self.truth[..if self.keep_truth { n } else { 0 }],
             chain: self.chain.as_ref(),
+            times: self.timing.as_ref().map(|t| t.times()),
         }
     }
 
@@ -498,7 +543,9 @@ impl Producer {
     ) -> Option<Block<'_>> {
         let (first, n) = self.step(max)?;
         let profile = self.temperature.as_ref();
-        self.encoding.encode(&self.block[..n], profile, out, ends);
+        let gaps = self.timing.as_ref().map_or(&[][..], |t| t.times().gaps);
+        self.encoding
+            .encode(&self.block[..n], gaps, profile, out, ends);
         Some(self.view(first, n))
     }
 
@@ -511,8 +558,9 @@ impl Producer {
     ) -> Option<Block<'_>> {
         let (first, n) = self.step(max)?;
         let encodings = std::iter::once(&mut self.encoding).chain(self.extra.iter_mut());
+        let gaps = self.timing.as_ref().map_or(&[][..], |t| t.times().gaps);
         for (e, (out, ends)) in encodings.zip(outs.iter_mut()) {
-            e.encode(&self.block[..n], self.temperature.as_ref(), out, ends);
+            e.encode(&self.block[..n], gaps, self.temperature.as_ref(), out, ends);
         }
         Some(self.view(first, n))
     }
@@ -556,7 +604,12 @@ pub fn drain(
     let format = producer.encoding.side();
     if format == Format::Csv {
         if let Some(t) = truth.as_mut() {
-            t.write_all(output::csv_header().as_bytes())?;
+            let header = if producer.is_timed() {
+                output::csv_header_timed()
+            } else {
+                output::csv_header()
+            };
+            t.write_all(header.as_bytes())?;
         }
         if let Some(t) = injected.as_mut() {
             t.write_all(output::components_header().as_bytes())?;
@@ -579,7 +632,10 @@ pub fn drain(
         };
         if let Some(t) = truth.as_mut() {
             side.clear();
-            output::encode(format, b.truth, &mut side);
+            match &b.times {
+                Some(times) => output::encode_timed(format, b.truth, times, &mut side),
+                None => output::encode(format, b.truth, &mut side),
+            }
             t.write_all(&side)?;
         }
         if let (Some(w), Some(c)) = (injected.as_mut(), b.chain) {

@@ -37,6 +37,8 @@ pub mod rng;
 pub mod scenes;
 pub mod sim;
 pub mod source;
+pub mod timebase;
+pub mod timing;
 pub mod trajectory;
 pub mod truth;
 pub mod units;

@@ -35,6 +35,50 @@ pub fn csv_header() -> String {
     s
 }
 
+/// Columns a truth file adds after the record's when the IMU has timing errors: the time of
+/// validity of the gyros and of the accelerometers, and the emission time of the frame's first
+/// byte (s, on the record's time axis).
+pub const TIMING_COLUMNS: [&str; 3] = ["tov", "tov_accel", "emit"];
+
+/// The CSV header line of a truth file with [`TIMING_COLUMNS`].
+pub fn csv_header_timed() -> String {
+    let mut s = COLUMNS.join(",");
+    for c in TIMING_COLUMNS {
+        s.push(',');
+        s.push_str(c);
+    }
+    s.push('\n');
+    s
+}
+
+/// Appends `records` with their [`TIMING_COLUMNS`] from `times`: in CSV three more columns,
+/// in binary three more little-endian f64 (128 bytes per record).
+pub fn encode_timed(
+    format: Format,
+    records: &[Record],
+    times: &crate::timing::Times<'_>,
+    buf: &mut Vec<u8>,
+) {
+    let mut f = ryu::Buffer::new();
+    for (i, r) in records.iter().enumerate() {
+        encode(format, std::slice::from_ref(r), buf);
+        let extra = [times.tov[i], times.tov_accel[i], times.emit[i]].map(|x| times.t0 + x);
+        match format {
+            Format::Bin => extra
+                .iter()
+                .for_each(|v| buf.extend_from_slice(&v.to_le_bytes())),
+            Format::Csv => {
+                buf.pop();
+                for v in extra {
+                    buf.push(b',');
+                    buf.extend_from_slice(f.format(v).as_bytes());
+                }
+                buf.push(b'\n');
+            }
+        }
+    }
+}
+
 /// Bytes of one binary record.
 pub const BIN_RECORD_BYTES: usize = 104;
 

@@ -33,6 +33,8 @@ pub enum Kind {
     GSensitivity,
     /// Time → s.
     Time,
+    /// Rate of change of a ratio (a clock's frequency drift) → 1/s.
+    RatioDrift,
     /// Length → m.
     Length,
     /// Frequency → Hz.
@@ -100,6 +102,12 @@ impl Kind {
                 ("mg/sqrt(h)", G0 * 1e-3 / 60.0, false),
             ],
             Kind::Ratio => &[("ppm", 1e-6, false), ("%", 1e-2, false), ("1", 1.0, false)],
+            Kind::RatioDrift => &[
+                ("ppm/s", 1e-6, false),
+                ("ppm/h", 1e-6 / 3600.0, false),
+                ("ppm/day", 1e-6 / 86_400.0, false),
+                ("1/s", 1.0, false),
+            ],
             Kind::RatioRandomWalk => &[
                 ("ppm/sqrt(h)", 1e-6 / 60.0, false),
                 ("ppm/sqrt(s)", 1e-6, false),
@@ -131,6 +139,9 @@ impl Kind {
             ],
             Kind::Time => &[
                 ("s", 1.0, false),
+                ("ms", 1e-3, false),
+                ("us", 1e-6, false),
+                ("ns", 1e-9, false),
                 ("min", 60.0, false),
                 ("h", 3600.0, false),
             ],

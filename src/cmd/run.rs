@@ -10,6 +10,7 @@ use anyhow::{Context, Result, bail};
 
 use imu_emu::job;
 use imu_emu::protocol::Plan;
+use imu_emu::realtime::hostclock::GpsClock;
 use imu_emu::realtime::pacer::{self, Clocking, Pacing, Routed, Status};
 use imu_emu::realtime::serial::{Framing, SerialSink, check_link};
 use imu_emu::realtime::signal::{Interrupted, StopSignals};
@@ -60,10 +61,17 @@ pub struct RunArgs {
     /// every sink is a file].
     #[arg(long)]
     pub speed: Option<String>,
-    /// Wall-clock instant (UTC, RFC 3339, e.g. 2026-11-24T15:00:00Z) of simulation time t₀,
-    /// to align several emulators [default: when the first frames are ready].
+    /// Wall-clock instant of simulation time t₀, to align several emulators: RFC 3339
+    /// (2026-11-24T15:00:00Z, or with an offset like +01:00), GPS `gps:WEEK:SECONDS`, or
+    /// `next-second` [default: when the first frames are ready; with --time-base gps or utc,
+    /// next-second].
     #[arg(long)]
     pub start_at: Option<String>,
+    /// What the frames' GPS-time fields carry: `gps` (GPS time of each record from the host
+    /// clock, leap seconds applied), `utc` (UTC, no leap seconds) or `sim` (the simulation's
+    /// own time, offset by --gps-time).
+    #[arg(long, default_value = "sim", value_parser = ["gps", "utc", "sim"])]
+    pub time_base: String,
     /// Frames later than this are skipped and counted rather than sent in a burst (ms).
     #[arg(long, default_value_t = 100.0)]
     pub max_behind_ms: f64,
@@ -115,14 +123,45 @@ pub fn run(a: RunArgs) -> Result<()> {
             _ => bail!("--speed {s}: expected a positive factor (1 = real time) or `max`"),
         },
     };
-    let start_at = a
+    let leap = imu_emu::timebase::LeapTable::builtin();
+    let host = GpsClock::new(leap.clone());
+    let mut start_at = a
         .start_at
         .as_deref()
-        .map(|s| clock::parse_utc(s).map_err(|e| anyhow::anyhow!("--start-at {e}")))
+        .map(|s| {
+            imu_emu::timebase::parse_start(s, clock::realtime_ns(), &leap)
+                .map_err(|e| anyhow::anyhow!("--start-at {e}"))
+        })
         .transpose()?;
-    let sim = (a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?)
+    let mut sim = (a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?)
         .unbounded_duration(FOREVER_S)
         .build()?;
+    if a.time_base != "sim" {
+        if a.sim.gps_time.is_some() {
+            bail!("--gps-time sets the GPS reference of --time-base sim only");
+        }
+        // Record time t₀ falls on the start instant: a whole second unless given.
+        let utc0 =
+            *start_at.get_or_insert((clock::realtime_ns() / 1_000_000_000 + 1) * 1_000_000_000);
+        let base = if a.time_base == "gps" {
+            host.utc_to_gps_ns(utc0)
+        } else {
+            utc0 - imu_emu::timebase::GPS_EPOCH_UNIX_S as i128 * 1_000_000_000
+        };
+        let (week, sow) = imu_emu::timebase::week_sow(base);
+        sim.set_gps_time(week, sow - sim.grid().t0);
+        eprintln!(
+            "imu-emu: time base {}: t₀ at week {week}, {sow} s; {}",
+            a.time_base,
+            host.describe(utc0)
+        );
+        if a.time_base == "gps" && utc0 / 1_000_000_000 > leap.valid_until as i128 {
+            eprintln!(
+                "imu-emu: warning: the leap-second table is only known valid until Unix time {}; update src/timebase/leap-seconds.txt (docs/timing.md)",
+                leap.valid_until
+            );
+        }
+    }
     announce(&sim);
     let plan = require_frames(&sim, "run")?;
     let grid = sim.grid();
@@ -227,8 +266,9 @@ pub fn run(a: RunArgs) -> Result<()> {
             .map(clock::start_at)
             .transpose()
             .map_err(|e| anyhow::anyhow!("--start-at {}: {e}", a.start_at.unwrap_or_default()))?;
-        let mut c =
-            Clocking::new(frames_per_s, start_ns, a.realtime).map_err(|e| anyhow::anyhow!(e))?;
+        let mut c = Clocking::new(frames_per_s, start_ns, a.realtime)
+            .map_err(|e| anyhow::anyhow!(e))?
+            .with_speed(speed);
         c.max_behind_ns = (a.max_behind_ms * 1e6) as i128;
         if c.batch > 1 {
             tracing::info!("{frames_per_s} frames/s: {} frames per wake-up", c.batch);

@@ -15,7 +15,8 @@
 //! | velocity random walk | 100 m/s/√s (≈ 10 g/√Hz) | consumer MEMS ≈ 300 µg/√Hz |
 //! | acceleration random walk | 100 m/s²/√s | |
 //! | scale factor (constant, turn-on, σ, asymmetry) | 1 (100 %) | consumer MEMS ≈ 1–3 % |
-//! | scale-factor random walk | 1 /√s | |
+//! | scale-factor random walk, clock frequency random walk | 1 /√s | |
+//! | clock frequency drift | 1 /s | crystals age ≈ 1 ppm a year |
 //! | quadratic scale factor | 1 /(m/s²) (error = signal at 1 m/s²) | ≈ 10 µg/g² |
 //! | misalignment angle | 0.2 rad (11°): the model is first order in small angles | consumer ≈ 1–2° |
 //! | g-sensitivity | 1 (rad/s)/(m/s²) (≈ 560 deg/s/g) | consumer ≈ 0.1 deg/s/g |
@@ -48,6 +49,7 @@ pub fn max_magnitude(kind: Kind, increment: bool) -> Option<(f64, &'static str)>
         Kind::AccelRandomWalk => (100.0, "m/s^2/sqrt(s)"),
         Kind::Ratio => (1.0, "(ratio)"),
         Kind::RatioRandomWalk => (1.0, "1/sqrt(s)"),
+        Kind::RatioDrift => (1.0, "1/s"),
         Kind::Quadratic => (1.0, "1/(m/s^2)"),
         Kind::Angle => (0.2, "rad"),
         Kind::GSensitivity => (1.0, "(rad/s)/(m/s^2)"),

@@ -216,6 +216,12 @@ impl ErrorChain {
         self.capture.as_ref().map_or(&[], |c| &c.0)
     }
 
+    /// The injected errors of the last apply, to fold those of skipped samples into the next
+    /// one taken ([`crate::timing::merge`]).
+    pub fn components_mut(&mut self) -> &mut Vec<Components> {
+        &mut self.capture.get_or_insert_with(Default::default).0
+    }
+
     /// True when accelerometers sit away from the reference point: then the records must be
     /// corrupted with [`ErrorChain::apply_with`] and the generator's rotation terms.
     pub fn needs_rotation_terms(&self) -> bool {

@@ -76,6 +76,8 @@ pub struct ImuModel {
     pub order: Vec<StageKind>,
     /// Reference temperature of the temperature polynomials (°C).
     pub temperature_ref: f64,
+    /// The unit's timing errors (`[timing]`): its clock, jitter, skew, latency.
+    pub timing: crate::timing::TimingModel,
 }
 
 impl ImuModel {

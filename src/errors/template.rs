@@ -149,6 +149,7 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
             "quantization_mode",
             "order",
             "temperature_ref",
+            "timing",
         ]
         .contains(&k.as_str())
         {
@@ -240,6 +241,15 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
     };
     let gyro = triad(t.get("gyro"), "gyro", path)?;
     let accel = triad(t.get("accel"), "accel", path)?;
+    let mut timing = crate::timing::TimingModel::default();
+    if let Some(v) = t.get("timing") {
+        let table = v
+            .as_table()
+            .ok_or_else(|| key_err(path, "timing", "expected a table"))?;
+        timing
+            .apply_table(table)
+            .map_err(|e| key_err(path, &format!("timing.{}", e.key), &e.message))?;
+    }
     Ok(ImuModel {
         name: text("name").unwrap_or_else(|| {
             path.file_stem()
@@ -254,6 +264,7 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
         quantization_mode,
         order,
         temperature_ref,
+        timing,
     })
 }
 

@@ -59,70 +59,10 @@ pub fn start_at(utc_ns: i128) -> Result<i128, String> {
     Ok(utc_to_monotonic(utc_ns))
 }
 
-/// Parses an RFC 3339 UTC instant `YYYY-MM-DDTHH:MM:SS[.fff…]Z` to ns since the Unix epoch.
+/// Parses an RFC 3339 UTC instant `YYYY-MM-DDTHH:MM:SS[.fff…]Z` to ns since the Unix epoch
+/// ([`crate::timebase::parse_utc`]).
 pub fn parse_utc(s: &str) -> Result<i128, String> {
-    let bad = || format!("`{s}`: expected a UTC instant like 2026-11-24T15:00:00.000Z");
-    let body = s
-        .strip_suffix('Z')
-        .or(s.strip_suffix('z'))
-        .ok_or_else(bad)?;
-    let (date, time) = body.split_once(['T', 't', ' ']).ok_or_else(bad)?;
-    let num = |x: &str| -> Result<i64, String> {
-        if x.is_empty() || !x.bytes().all(|b| b.is_ascii_digit()) {
-            return Err(bad());
-        }
-        x.parse().map_err(|_| bad())
-    };
-    let d: Vec<&str> = date.split('-').collect();
-    let t: Vec<&str> = time.split(':').collect();
-    if d.len() != 3 || t.len() != 3 || d[0].len() != 4 {
-        return Err(bad());
-    }
-    let (y, mo, day) = (num(d[0])?, num(d[1])?, num(d[2])?);
-    let (sec, frac) = t[2].split_once('.').unwrap_or((t[2], ""));
-    let (h, mi, sec) = (num(t[0])?, num(t[1])?, num(sec)?);
-    let month_days = [
-        31,
-        28 + leap(y) as i64,
-        31,
-        30,
-        31,
-        30,
-        31,
-        31,
-        30,
-        31,
-        30,
-        31,
-    ];
-    if !(1..=12).contains(&mo) || day < 1 || day > month_days[mo as usize - 1] {
-        return Err(format!("`{s}`: no such date"));
-    }
-    if h > 23 || mi > 59 || sec > 59 || frac.len() > 9 {
-        return Err(format!("`{s}`: time of day out of range"));
-    }
-    let frac_ns = if frac.is_empty() {
-        0
-    } else {
-        num(frac)? * 10i64.pow(9 - frac.len() as u32)
-    };
-    let days = days_from_civil(y, mo, day);
-    Ok(((days * 86_400 + h * 3600 + mi * 60 + sec) as i128) * 1_000_000_000 + frac_ns as i128)
-}
-
-fn leap(y: i64) -> bool {
-    (y % 4 == 0 && y % 100 != 0) || y % 400 == 0
-}
-
-/// Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's algorithm).
-fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
-    let y = if m <= 2 { y - 1 } else { y };
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let mp = (m + 9) % 12;
-    let doy = (153 * mp + 2) / 5 + d - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146_097 + doe - 719_468
+    crate::timebase::parse_utc(s)
 }
 
 #[cfg(test)]

@@ -9,6 +9,7 @@
 //! clock never waits for a consumer.
 
 pub mod clock;
+pub mod hostclock;
 pub mod pacer;
 pub mod pty;
 pub mod serial;
@@ -27,6 +28,9 @@ pub struct FrameBlock {
     pub first: u64,
     /// Per stream: the frames' bytes back to back, and the end offset of each frame.
     pub streams: Vec<(Vec<u8>, Vec<usize>)>,
+    /// Emission time of each frame after the run's t₀ in simulated ns, when the IMU has
+    /// timing errors (latency, its own clock); empty: frame k at k·Δt, the end of its interval.
+    pub emit_ns: Vec<i64>,
 }
 
 impl FrameBlock {
@@ -85,6 +89,11 @@ pub fn produce(
             return producer.take_error();
         };
         b.first = out.first;
+        b.emit_ns.clear();
+        if let Some(t) = &out.times {
+            b.emit_ns
+                .extend(t.emit.iter().map(|e| (e * 1e9).round() as i64));
+        }
         if tx.blocking_send(b).is_err() {
             return None;
         }

@@ -54,6 +54,9 @@ pub struct Clocking {
     pub max_behind_ns: i128,
     /// Ask for `SCHED_FIFO`.
     pub realtime: bool,
+    /// Wall-clock seconds per simulated second (1/speed), for frames that carry their own
+    /// emission times ([`FrameBlock::emit_ns`]).
+    pub wall_per_sim: f64,
 }
 
 impl Clocking {
@@ -78,7 +81,41 @@ impl Clocking {
             batch,
             max_behind_ns: DEFAULT_MAX_BEHIND_NS,
             realtime,
+            wall_per_sim: 1.0,
         })
+    }
+
+    /// Emission times scaled by `speed` (simulated seconds per wall-clock second).
+    pub fn with_speed(mut self, speed: f64) -> Clocking {
+        self.wall_per_sim = 1.0 / speed;
+        self
+    }
+
+    /// Deadline of frame `i` of `block` after `start` (ns): its own emission time when the
+    /// block carries them, else the nominal one.
+    fn deadline_in(&self, start: i128, block: &FrameBlock, i: usize) -> i128 {
+        match block.emit_ns.get(i) {
+            Some(e) => start + (*e as f64 * self.wall_per_sim).round() as i128,
+            None => self.deadline(start, block.first + i as u64 + 1),
+        }
+    }
+
+    /// Index (exclusive) of the last frame of the batch that frame `i` of `block` starts.
+    fn batch_end(&self, start: i128, block: &FrameBlock, i: usize) -> usize {
+        let n = block.len();
+        if block.emit_ns.is_empty() {
+            let k = block.first + i as u64 + 1;
+            let group_end = ((k - 1) / self.batch + 1) * self.batch;
+            return (group_end - block.first).min(n as u64) as usize;
+        }
+        // Frames due within the batch's span of the first one go with it.
+        let span = self.deadline(0, self.batch - 1);
+        let limit = self.deadline_in(start, block, i) + span;
+        let mut end = i + 1;
+        while end < n && self.deadline_in(start, block, end) <= limit {
+            end += 1;
+        }
+        end
     }
 
     /// Deadline of frame `k` (1-based) after `start` (ns).
@@ -166,11 +203,9 @@ pub fn run(
         st.start_ns = Some(t0);
         let mut i = 0;
         while i < n {
-            let k = block.first + i as u64 + 1;
-            // The wake-up of k's batch: the deadline of the batch's last frame in this block.
-            let group_end = ((k - 1) / c.batch + 1) * c.batch;
-            let last = (group_end - block.first).min(n as u64) as usize; // exclusive index
-            let wake = c.deadline(t0, block.first + last as u64);
+            // The wake-up of i's batch: the deadline of the batch's last frame in this block.
+            let last = c.batch_end(t0, &block, i); // exclusive index
+            let wake = c.deadline_in(t0, &block, last - 1);
             loop {
                 if stop.load(Ordering::Relaxed) {
                     break 'blocks;
@@ -185,8 +220,7 @@ pub fn run(
             let now = monotonic_ns();
             // Skip what is too late to be worth sending; send at once what is due.
             let mut from = i;
-            while from < n && c.deadline(t0, block.first + from as u64 + 1) + c.max_behind_ns < now
-            {
+            while from < n && c.deadline_in(t0, &block, from) + c.max_behind_ns < now {
                 from += 1;
             }
             if from > i {
@@ -201,14 +235,14 @@ pub fn run(
                 }
             }
             let mut to = last.max(from);
-            while to < n && c.deadline(t0, block.first + to as u64 + 1) <= now {
+            while to < n && c.deadline_in(t0, &block, to) <= now {
                 to += 1;
             }
             if to > from {
                 write_all(&mut sinks, &block, from, to, &mut ends)?;
                 let done = monotonic_ns();
                 for j in from..to {
-                    pending.push(done - c.deadline(t0, block.first + j as u64 + 1));
+                    pending.push(done - c.deadline_in(t0, &block, j));
                 }
                 st.frames += (to - from) as u64;
             }
@@ -315,5 +349,33 @@ mod tests {
         assert_eq!(c.batch, 1);
         assert_eq!(Clocking::new(10_000.0, None, false).unwrap().batch, 10);
         assert!(Clocking::new(f64::NAN, None, false).is_err());
+    }
+
+    /// Frames with their own emission times are due at start + emission/speed; batches
+    /// above 2 kHz gather the frames due within the batch's span of its first frame.
+    #[test]
+    fn emission_times_set_the_deadlines() {
+        let block = FrameBlock {
+            first: 0,
+            streams: vec![(vec![0; 4], vec![1, 2, 3, 4])],
+            emit_ns: vec![1_400_000, 2_350_000, 3_450_000, 4_400_000],
+        };
+        let c = Clocking::new(1000.0, None, false).unwrap().with_speed(2.0);
+        assert_eq!(c.deadline_in(100, &block, 1), 100 + 1_175_000);
+        assert_eq!(c.batch_end(0, &block, 0), 1);
+        let nominal = FrameBlock {
+            emit_ns: Vec::new(),
+            ..block
+        };
+        assert_eq!(c.deadline_in(0, &nominal, 1), c.deadline(0, 2));
+        // 4 kHz: batches of 4 frames, 0.75 ms past the first one's deadline.
+        let fast = Clocking::new(4000.0, None, false).unwrap();
+        let block = FrameBlock {
+            emit_ns: vec![250_000, 600_000, 1_000_000, 1_100_000],
+            ..nominal
+        };
+        assert_eq!(fast.batch, 4);
+        assert_eq!(fast.batch_end(0, &block, 0), 3);
+        assert_eq!(fast.batch_end(0, &block, 3), 4);
     }
 }

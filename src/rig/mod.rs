@@ -226,7 +226,7 @@ impl Unit {
                     }
                     s.masks.push(mask);
                 }
-                encoding.encode(&s.recs, None, &mut s.buf, &mut s.ends);
+                encoding.encode(&s.recs, &[], None, &mut s.buf, &mut s.ends);
                 if let Some(w) = out.truth.as_mut() {
                     s.side.clear();
                     for (r, m) in s.truth.iter().zip(&s.masks) {

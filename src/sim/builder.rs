@@ -618,7 +618,16 @@ impl SimulationBuilder {
             )));
         }
         let (source, _, _) = self.source()?;
-        let imu = self.resolve_imu()?;
+        let mut imu = self.resolve_imu()?;
+        if let Some(t) = &self.file.timing {
+            imu.timing.apply_table(t).map_err(|e| {
+                SimError::Invalid(e.message).at(Some(format!(
+                    "{}: `timing.{}`",
+                    label.display(),
+                    e.key
+                )))
+            })?;
+        }
         let seed = (self.seed.or(self.file.imu.seed)).unwrap_or(crate::rng::DEFAULT_SEED);
         let temperature = match &self.temperature {
             Some(p) => Some(p.clone()),
@@ -638,7 +647,8 @@ impl SimulationBuilder {
             place: self.file_key(self.rate.is_some(), rate_in_file, "imu.rate_hz"),
         };
         let motion = self.motion()?;
-        let grid = self.grid(&motion, &source, rate.clone())?;
+        let mut grid = self.grid(&motion, &source, rate.clone())?;
+        let timing = self.timing(&imu, &motion, &mut grid, seed)?;
         if let Output::Frames(plan) = &mut output {
             plan.set_rate(grid.rate_hz)
                 .map_err(|e| SimError::Invalid(e).at(rate.place.clone()))?;
@@ -665,7 +675,54 @@ impl SimulationBuilder {
             gps_time: self.gps_time,
             output_path: self.file.output.path.clone(),
             warnings,
+            timing,
         })
+    }
+
+    /// The timing errors of `imu` over `grid`, if it has any. The sensor's instants stray
+    /// from the grid by up to [`crate::timing::TimingModel::margin`]: a run that would reach
+    /// past the motion's end by that much is shortened when no duration was asked for, and
+    /// refused when one was.
+    fn timing(
+        &self,
+        imu: &ImuModel,
+        motion: &AnyMotion,
+        grid: &mut Grid,
+        seed: u64,
+    ) -> Result<Option<crate::timing::TimedRun>, SimError> {
+        let model = imu.timing;
+        if model.is_zero() {
+            return Ok(None);
+        }
+        let duration = grid.count as f64 / grid.rate_hz;
+        let margin = model.margin(duration);
+        let end = grid.t0 + duration + margin;
+        if end > motion.end() {
+            if self.duration.or(self.file.output.duration_s).is_some() {
+                return Err(SimError::Invalid(format!(
+                    "with the IMU's timing errors its samples may fall up to {} s after the grid's end, past the trajectory's end {} s: give a duration at least that much shorter",
+                    short_number(margin),
+                    short_number(motion.end())
+                )));
+            }
+            let fit = ((motion.end() - margin - grid.t0) * grid.rate_hz).floor();
+            if fit < 1.0 {
+                return Err(SimError::Invalid(format!(
+                    "the trajectory is too short for the IMU's timing errors (margin {} s)",
+                    short_number(margin)
+                )));
+            }
+            grid.count = fit as u64;
+        }
+        let span = (motion.start() - grid.t0, motion.end() - grid.t0);
+        let duration = grid.count as f64 / grid.rate_hz;
+        let sensor = crate::timing::SensorTiming::new(model, grid.rate_hz, duration, seed, span)
+            .map_err(|e| SimError::Invalid(format!("{}: {e}", imu.name)))?;
+        Ok(Some(crate::timing::TimedRun::new(
+            sensor,
+            grid.rate_hz,
+            grid.t0,
+        )))
     }
 }
 

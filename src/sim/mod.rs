@@ -117,6 +117,7 @@ pub struct Simulation {
     gps_time: Option<(u32, f64)>,
     output_path: Option<PathBuf>,
     warnings: Vec<String>,
+    timing: Option<crate::timing::TimedRun>,
 }
 
 impl Simulation {
@@ -179,6 +180,12 @@ impl Simulation {
         self.faults.as_ref()
     }
 
+    /// Sets the GPS time of record time t = 0 (week, seconds of week): frames' GPS-time
+    /// fields carry it plus the record's time tag (a time base chosen after building).
+    pub fn set_gps_time(&mut self, week: u32, seconds_of_week: f64) {
+        self.gps_time = Some((week, seconds_of_week));
+    }
+
     /// The scene file's `output.path`, if it gives one.
     pub fn output_path(&self) -> Option<&Path> {
         self.output_path.as_deref()
@@ -226,7 +233,8 @@ impl Simulation {
             self.chain,
             false,
         )?;
-        Ok(p.with_temperature(self.temperature))
+        Ok(p.with_temperature(self.temperature)
+            .with_timing(self.timing))
     }
 
     /// The records, block by block, without any wire encoding.

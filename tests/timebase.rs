@@ -1,0 +1,221 @@
+//! Time base and emission times end to end, over UDP loopback: `run --time-base gps` frames
+//! carry the host's GPS time, each leaving the IMU's latency after its time of validity; two
+//! emulators started with `--start-at next-second` send the same records at the same instants.
+//! Bounds hold on a loaded 2-core machine (the VM stalls for milliseconds); they are derived
+//! below from what a wrong implementation would show.
+
+use std::net::UdpSocket;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use imu_emu::protocol::load;
+use imu_emu::protocol::spec::Source;
+
+const BIN: &str = env!("CARGO_BIN_EXE_imu-emu");
+
+/// CLOCK_REALTIME now (ns since the Unix epoch).
+fn utc_now_ns() -> i128 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap()
+        .as_nanos() as i128
+}
+
+/// A datagram: CLOCK_REALTIME when `recv` returned (ns), and its bytes.
+type Arrival = (i128, Vec<u8>);
+
+/// A loopback UDP receiver on its own thread, timestamping each datagram as `recv` returns,
+/// until `secs` have passed.
+fn receive(secs: f64) -> (String, std::thread::JoinHandle<Vec<Arrival>>) {
+    let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
+    rx.set_read_timeout(Some(Duration::from_millis(100)))
+        .unwrap();
+    let dest = rx.local_addr().unwrap().to_string();
+    let end = utc_now_ns() + (secs * 1e9) as i128;
+    let h = std::thread::spawn(move || {
+        let (mut got, mut buf) = (Vec::new(), [0u8; 2048]);
+        while utc_now_ns() < end {
+            if let Ok(n) = rx.recv(&mut buf) {
+                got.push((utc_now_ns(), buf[..n].to_vec()));
+            }
+        }
+        got
+    });
+    (dest, h)
+}
+
+fn spawn(args: &[&str]) -> Child {
+    Command::new(BIN)
+        .arg("run")
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+fn finish(c: Child) -> String {
+    let out = c.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{err}");
+    err
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Runs `--time-base gps` iXCOM frames at 200 Hz for 2 s from an IMU with `timing`, and
+/// returns for each frame received the host's GPS time at arrival (the test's own UTC + 18 s
+/// − the GPS epoch) minus the frame's GPS time (ms), and the run's stderr.
+fn gps_delays(timing: &str) -> (Vec<f64>, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let imu = dir.path().join("late.toml");
+    std::fs::write(&imu, format!("base = \"ln200\"\n[timing]\n{timing}")).unwrap();
+    let (dest, rx) = receive(5.0);
+    let err = finish(spawn(&[
+        "--time-base",
+        "gps",
+        "--protocol",
+        "imar-ixcom",
+        "--imu",
+        imu.to_str().unwrap(),
+        "--rate",
+        "200",
+        "--duration",
+        "2",
+        "--udp",
+        &dest,
+    ]));
+    let got = rx.join().unwrap();
+    assert!(got.len() > 300, "{} frames; {err}", got.len());
+    let (_, plan) = load("imar-ixcom").unwrap();
+    let epoch_ns = 315_964_800i128 * 1_000_000_000;
+    let delays = got
+        .iter()
+        .map(|(at, bytes)| {
+            let d = plan.decode(bytes).unwrap();
+            let week = d.get(Source::GpsWeek).unwrap();
+            let sow =
+                d.get(Source::GpsWholeSeconds).unwrap() + d.get(Source::GpsMicros).unwrap() * 1e-6;
+            let frame_gps = (week * 604_800.0 + sow) * 1e9;
+            let host_gps = (at - epoch_ns + 18_000_000_000) as f64;
+            (host_gps - frame_gps) / 1e6
+        })
+        .collect();
+    (delays, err)
+}
+
+/// `--time-base gps` with an IMU whose latency is 30 ms: each frame's GPS week and seconds
+/// equal the host's GPS time when it arrived minus the latency and the pacer's delay. The
+/// pacer never writes early, so nothing arrives before ToV + 30 ms but for the microseconds of
+/// the realtime-to-monotonic conversion (0.1 ms allowed); the median delay beyond the latency
+/// is the pacer's and receiver's wake-up delay (0.1 ms measured on a loaded 2-core machine), so
+/// 20 ms bounds it with room. A time base without leap seconds is 18 s off, one in simulation
+/// time years off, a pacer ignoring the latency 30 ms early.
+#[test]
+fn gps_time_frames_leave_their_latency_after_validity() {
+    let (delays, err) = gps_delays("latency = \"30 ms\"\n");
+    let earliest = delays.iter().copied().fold(f64::INFINITY, f64::min);
+    let m = median(delays);
+    eprintln!(
+        "30 ms latency: GPS time at arrival − frame GPS time: earliest {earliest:.3} ms, median {m:.3} ms"
+    );
+    assert!(
+        earliest > 29.9,
+        "a frame {earliest:.3} ms after its ToV; {err}"
+    );
+    assert!(m < 50.0, "median {m:.3} ms; {err}");
+    assert!(
+        err.contains("time base gps") && err.contains("GPS−UTC 18 s"),
+        "{err}"
+    );
+}
+
+/// Latency 400 µs ± 50 µs (uniform): no frame arrives before ToV + 350 µs (less the 0.1 ms
+/// clock-conversion allowance), the median arrives 400 µs plus the wake-up delay after its
+/// ToV, bounded at 20 ms as above; a frame sent at its ToV (latency ignored) is 0.35 ms early.
+#[test]
+fn latency_400_us_at_the_reader() {
+    let (delays, err) = gps_delays("latency = \"400 us\"\nlatency_spread = \"50 us\"\n");
+    let earliest = delays.iter().copied().fold(f64::INFINITY, f64::min);
+    let m = median(delays);
+    eprintln!("400 ± 50 µs latency: earliest {earliest:.3} ms, median {m:.3} ms after the ToV");
+    assert!(
+        earliest > 0.25,
+        "a frame {earliest:.3} ms after its ToV; {err}"
+    );
+    assert!(m > 0.35 && m < 20.4, "median {m:.3} ms; {err}");
+}
+
+/// Two emulators started with `--start-at next-second` within the same second put t₀ on the
+/// same whole second, so record k reaches each receiver at about the same instant: the
+/// median over k of the arrival difference stays within 5 ms (each side's wake-up delay is
+/// 0.1 ms typical, a few ms in a stall), while t₀ a second apart shows 1000 ms. The first record
+/// is due Δt after a whole second.
+#[test]
+fn two_emulators_started_next_second_agree() {
+    // Start both early in a second, so they pick the same next second.
+    while utc_now_ns() % 1_000_000_000 > 300_000_000 {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let (d1, r1) = receive(5.0);
+    let (d2, r2) = receive(5.0);
+    let args = |d: &str| -> Vec<String> {
+        [
+            "--protocol",
+            "kvh1750-b",
+            "--rate",
+            "100",
+            "--duration",
+            "2",
+            "--start",
+            "0",
+            "--start-at",
+            "next-second",
+            "--udp",
+            d,
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let a1 = args(&d1);
+    let a2 = args(&d2);
+    let c1 = spawn(&a1.iter().map(String::as_str).collect::<Vec<_>>());
+    let c2 = spawn(&a2.iter().map(String::as_str).collect::<Vec<_>>());
+    let (e1, e2) = (finish(c1), finish(c2));
+    let (_, plan) = load("kvh1750-b").unwrap();
+    let by_k = |got: Vec<Arrival>| -> Vec<(u64, i128)> {
+        got.iter()
+            .map(|(at, b)| {
+                let t = plan.decode(b).unwrap().contract(None)[0].unwrap();
+                ((t * 100.0).round() as u64, *at)
+            })
+            .collect()
+    };
+    let (g1, g2) = (by_k(r1.join().unwrap()), by_k(r2.join().unwrap()));
+    assert!(g1.len() > 150 && g2.len() > 150, "{e1}\n{e2}");
+    let diffs: Vec<f64> = g1
+        .iter()
+        .filter_map(|(k, a)| {
+            g2.iter()
+                .find(|x| x.0 == *k)
+                .map(|(_, b)| (a - b) as f64 / 1e6)
+        })
+        .collect();
+    let m = median(diffs.clone());
+    eprintln!(
+        "arrival difference between the two emulators: median {m:.3} ms over {} records",
+        diffs.len()
+    );
+    assert!(m.abs() < 5.0, "median difference {m:.3} ms\n{e1}\n{e2}");
+    // Record 1 is due 10 ms after a whole second: its arrival is 10 ms plus a wake-up delay
+    // past the second (20 ms bounds the delay as above).
+    let (k, at) = g1[0];
+    let past = ((at - k as i128 * 10_000_000).rem_euclid(1_000_000_000)) as f64 / 1e6;
+    assert!(
+        past < 20.0,
+        "record {k} arrived {past:.3} ms after its due instant"
+    );
+}
