@@ -89,6 +89,14 @@ pub fn encode(d: &Datagram) -> [u8; LEN] {
     b
 }
 
+/// Whether `frame` (at least [`LEN`] bytes) has a correct CRC: how a stream reader tells a
+/// frame from garbage that happens to start with the magic.
+pub fn crc_ok(frame: &[u8]) -> bool {
+    frame.len() >= LEN
+        && crc().compute(&frame[..CRC]) as u32
+            == u32::from_le_bytes(frame[CRC..LEN].try_into().expect("4 bytes"))
+}
+
 fn f64_at(b: &[u8], at: usize) -> f64 {
     f64::from_le_bytes(b[at..at + 8].try_into().expect("8 bytes"))
 }

@@ -199,7 +199,7 @@ mod tests {
         let want = hex(PYMAVLINK);
         // Same header but the length, same payload up to the velocities (ours ends there:
         // its airspeeds and accelerations are zeros, dropped).
-        assert_eq!(f.len(), 10 + 54 + 2);
+        assert_eq!(f.len(), 10 + 53 + 2);
         assert_eq!(&f[2..10], &want[2..10]);
         assert_eq!(&f[10..63], &want[10..63]);
         assert_eq!(

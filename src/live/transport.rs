@@ -170,6 +170,14 @@ impl Receiver {
         &self.name
     }
 
+    /// The local address of a UDP receiver (its port when bound to port 0).
+    pub fn local_addr(&self) -> Option<SocketAddr> {
+        match &self.kind {
+            Kind::Udp(s) => s.local_addr().ok(),
+            Kind::Stream(_) => None,
+        }
+    }
+
     /// Stream bytes that were outside any frame so far.
     pub fn skipped_bytes(&self) -> u64 {
         self.skipped
@@ -270,6 +278,12 @@ impl Receiver {
                     None => break,
                 },
                 InputFormat::Binary => match find(rest, &binary::MAGIC) {
+                    // A candidate that fails its CRC and holds another magic is a damaged or
+                    // short frame: it ends where the next one starts.
+                    Some(s) if rest.len() >= s + binary::LEN && !binary::crc_ok(&rest[s..]) => {
+                        let inner = find(&rest[s + 1..s + binary::LEN], &binary::MAGIC);
+                        (s, inner.map_or(binary::LEN, |j| j + 1))
+                    }
                     Some(s) => (s, binary::LEN),
                     None => (rest.len().saturating_sub(3), 0),
                 },
