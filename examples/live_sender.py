@@ -16,6 +16,7 @@ the destination takes them (for lockstep runs).
 
 import argparse
 import math
+import os
 import socket
 import struct
 import sys
@@ -164,4 +165,10 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except (BrokenPipeError, ConnectionResetError):
+        # The receiver stopped reading (its run is complete): not an error of the sender.
+        # Python flushes stdout at exit; point it at /dev/null so that flush cannot fail.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        sys.exit(0)

@@ -183,7 +183,11 @@ fn navigate(recs: &[Record], t0: f64, rate: f64) -> f64 {
 fn survey_600s_at_100hz_matches_the_scene_and_navigates() {
     let (rate, seconds) = (400.0, 600.0);
     let cases = [
-        ("plain", survey_csv(seconds + 1.0), [1e-10, 1e-8, 4e-3, 1e-4]),
+        (
+            "plain",
+            survey_csv(seconds + 1.0),
+            [1e-10, 1e-8, 4e-3, 1e-4],
+        ),
         (
             "rates",
             survey_csv_with_rates(seconds + 1.0),
@@ -293,8 +297,16 @@ fn udp_binary_damage_is_counted_and_replay_is_bit_identical() {
     println!("{}", st.summary());
     assert_eq!(st.messages, sent.len() as u64);
     assert_eq!(st.malformed, 2, "{:?}", st.problems);
-    assert!(st.problems[0].contains("udp: datagram 101, byte 148: CRC"), "{:?}", st.problems);
-    assert!(st.problems[1].contains("byte 0: 100 bytes, expected 152"), "{:?}", st.problems);
+    assert!(
+        st.problems[0].contains("udp: datagram 101, byte 148: CRC"),
+        "{:?}",
+        st.problems
+    );
+    assert!(
+        st.problems[1].contains("byte 0: 100 bytes, expected 152"),
+        "{:?}",
+        st.problems
+    );
     assert_eq!(st.duplicates, 1);
     assert_eq!(st.reordered, 1);
     // Sequence breaks: 300 (short), 400 (never sent), 500 (arrived after 501).
@@ -311,12 +323,8 @@ fn udp_binary_damage_is_counted_and_replay_is_bit_identical() {
     let dir = tempfile::TempDir::new().unwrap();
     let path = dir.path().join("input.rec");
     std::fs::write(&path, &rec).unwrap();
-    let mut rx = Receiver::open(
-        &Endpoint::Stream(path.clone()),
-        InputFormat::Binary,
-        None,
-    )
-    .unwrap();
+    let mut rx =
+        Receiver::open(&Endpoint::Stream(path.clone()), InputFormat::Binary, None).unwrap();
     let b = Simulation::builder().rate(400.0).format("ln200");
     let mut replay = Vec::new();
     let r = Lockstep::new(b, InputFormat::Binary)
@@ -326,7 +334,10 @@ fn udp_binary_damage_is_counted_and_replay_is_bit_identical() {
     assert_eq!(replay, out, "replay of the recorded input");
     // The stream cuts the short datagram at the next magic: the same two malformed messages.
     assert_eq!((r.stats.malformed, r.stats.skipped_bytes), (2, 0));
-    assert_eq!(r.stats.problems[1].split(": ").last(), Some("100 bytes, expected 152"));
+    assert_eq!(
+        r.stats.problems[1].split(": ").last(),
+        Some("100 bytes, expected 152")
+    );
 }
 
 /// CSV lines through a FIFO with bad lines among them: each named by its line and column,
@@ -351,8 +362,8 @@ fn fifo_csv_with_bad_lines() {
     let run = |text: String| {
         let f = fifo.clone();
         let writer = thread::spawn(move || std::fs::write(f, text).unwrap());
-        let mut rx = Receiver::open(&Endpoint::Stream(fifo.clone()), InputFormat::Csv, None)
-            .unwrap();
+        let mut rx =
+            Receiver::open(&Endpoint::Stream(fifo.clone()), InputFormat::Csv, None).unwrap();
         let b = Simulation::builder().rate(200.0);
         let mut out = Vec::new();
         let s = Lockstep::new(b, InputFormat::Csv)
@@ -372,7 +383,11 @@ fn fifo_csv_with_bad_lines() {
         "{:?}",
         sb.stats.problems
     );
-    assert!(sb.stats.problems[1].contains("line 53"), "{:?}", sb.stats.problems);
+    assert!(
+        sb.stats.problems[1].contains("line 53"),
+        "{:?}",
+        sb.stats.problems
+    );
 }
 
 /// MAVLink HIL_STATE_QUATERNION frames of the survey over a Unix socket pair: decoded,
@@ -409,7 +424,10 @@ fn mavlink_stream_follows_the_scene_coarsely() {
         .run(&mut rx, &mut out, None, |_| ())
         .unwrap();
     writer.join().unwrap();
-    assert_eq!((s.stats.states, s.stats.malformed, s.stats.gaps), (500, 0, 0));
+    assert_eq!(
+        (s.stats.states, s.stats.malformed, s.stats.gaps),
+        (500, 0, 0)
+    );
     let recs = records(&out);
     let e = errors_against_scene(&recs, s.grid.t0, 400.0);
     let (eg, ea) = e.all;
@@ -421,7 +439,7 @@ fn mavlink_stream_follows_the_scene_coarsely() {
 }
 
 /// A multicast source (`udp://GROUP:PORT`): the receiver joins the group and takes the
-/// datagrams sent to it over the loopback interface.
+/// datagrams sent to it (looped back to this host).
 #[test]
 fn multicast_group_is_joined() {
     let group = "239.255.77.11";
@@ -434,7 +452,9 @@ fn multicast_group_is_joined() {
     let port = rx.local_addr().unwrap().port();
     let m = survey();
     let sender = thread::spawn(move || {
-        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        // Unbound, as a simulation's sender usually is: the group is reached on the default
+        // multicast interface, the one the receiver joined on.
+        let s = UdpSocket::bind("0.0.0.0:0").unwrap();
         s.set_multicast_loop_v4(true).unwrap();
         for i in 0..40u32 {
             let d = datagram(&m.pose(i as f64 * 0.01), i);
@@ -469,7 +489,12 @@ fn cli_tcp_run_equals_the_library_and_reports() {
     let dir = tempfile::TempDir::new().unwrap();
     let out = dir.path().join("out.bin");
     let child = imu_emu()
-        .args(["run", "--motion", &format!("tcp://127.0.0.1:{port}"), "--file"])
+        .args([
+            "run",
+            "--motion",
+            &format!("tcp://127.0.0.1:{port}"),
+            "--file",
+        ])
         .arg(&out)
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -482,12 +507,14 @@ fn cli_tcp_run_equals_the_library_and_reports() {
         }
         thread::sleep(Duration::from_millis(25));
     }
-    conn.expect("the emulator listens").write_all(text.as_bytes()).unwrap();
+    conn.expect("the emulator listens")
+        .write_all(text.as_bytes())
+        .unwrap();
     let done = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&done.stderr);
     assert!(done.status.success(), "{err}");
     assert!(err.contains("1 malformed"), "{err}");
-    assert!(err.contains("line 103, byte 4: column 2 (`lat`)"), "{err}");
+    assert!(err.contains("line 102, byte 4: column 2 (`lat`)"), "{err}");
 
     let b = Simulation::builder().defaults("ln200", "ln200");
     let mut rx = Receiver::from_stream(
@@ -520,18 +547,28 @@ fn cli_refuses_bad_settings_and_short_input() {
             .unwrap();
         let _ = c.stdin.take().unwrap().write_all(stdin.as_bytes());
         let o = c.wait_with_output().unwrap();
-        (o.status.success(), String::from_utf8_lossy(&o.stderr).into_owned())
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
     };
     let (ok, err) = run(&["--input-format", "xml"], "");
-    assert!(!ok && err.contains("--input-format xml: expected csv, bin or mavlink"), "{err}");
+    assert!(
+        !ok && err.contains("--input-format xml: expected csv, bin or mavlink"),
+        "{err}"
+    );
     let (ok, err) = run(&["--time-mode", "realtime"], "");
-    assert!(!ok && err.contains("only `lockstep` is implemented"), "{err}");
+    assert!(
+        !ok && err.contains("only `lockstep` is implemented"),
+        "{err}"
+    );
     let (ok, err) = run(&["--pty", "x"], "");
     assert!(!ok && err.contains("writes to one --file"), "{err}");
     let short: String = survey_csv(0.05);
     let (ok, err) = run(&[], &short);
     assert!(
-        !ok && err.contains("stdin: the input ended after 6 usable states; the motion model needs 9"),
+        !ok && err
+            .contains("stdin: the input ended after 6 usable states; the motion model needs 9"),
         "{err}"
     );
     assert!(!out.exists(), "no partial output");

@@ -80,12 +80,14 @@ pub fn run(a: &RunArgs, source: &str) -> Result<()> {
     let out: &mut dyn Write = if path == "-" {
         stdout.insert(std::io::stdout().lock())
     } else {
-        file.insert(AtomicFile::create(Path::new(path)).with_context(|| format!("creating {path}"))?)
+        file.insert(
+            AtomicFile::create(Path::new(path)).with_context(|| format!("creating {path}"))?,
+        )
     };
     let mut record = match &l.record_input {
-        Some(p) => Some(
-            AtomicFile::create(p).with_context(|| format!("creating {}", p.display()))?,
-        ),
+        Some(p) => {
+            Some(AtomicFile::create(p).with_context(|| format!("creating {}", p.display()))?)
+        }
         None => None,
     };
     let live = std::io::stderr().is_terminal();
@@ -97,11 +99,7 @@ pub fn run(a: &RunArgs, source: &str) -> Result<()> {
         |s| {
             if live && last.elapsed() >= Duration::from_secs(1) {
                 last = Instant::now();
-                eprint!(
-                    "\r\x1b[2K{} records; {}",
-                    s.records(),
-                    s.stats().summary()
-                );
+                eprint!("\r\x1b[2K{} records; {}", s.records(), s.stats().summary());
             }
         },
     );
