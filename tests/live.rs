@@ -564,6 +564,9 @@ fn cli_refuses_bad_settings_and_short_input() {
     );
     let (ok, err) = run(&["--pty", "x"], "");
     assert!(!ok && err.contains("writes to one --file"), "{err}");
+    // Refused before any state arrives (stdin stays empty).
+    let (ok, err) = run(&["--imu", "no-such-imu"], "");
+    assert!(!ok && err.contains("no-such-imu"), "{err}");
     let short: String = survey_csv(0.05);
     let (ok, err) = run(&[], &short);
     assert!(

@@ -33,7 +33,8 @@ pub struct LiveArgs {
     /// (`--motion FILE`).
     #[arg(long, value_name = "FILE")]
     pub record_input: Option<std::path::PathBuf>,
-    /// End a --motion run after this many seconds without a UDP datagram or TCP data.
+    /// End a --motion run after this many seconds without a UDP datagram or TCP data, once
+    /// the first has arrived.
     #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
     pub input_timeout: f64,
 }

@@ -80,6 +80,9 @@ impl Lockstep {
     /// model's first knot.
     pub fn new(builder: SimulationBuilder, format: InputFormat) -> Result<Lockstep, SimError> {
         let settings = builder.model_settings()?;
+        // Every other setting (IMU, rate, encoding, faults…) is checked now, on a stand-in
+        // motion, rather than when the first states have arrived.
+        (builder.clone().scene("static").start(0.0).duration(1000.0)).build()?;
         let model = CausalMotion::new(settings);
         Ok(Lockstep {
             builder: Some(builder.live_motion(model.clone())),

@@ -97,6 +97,8 @@ pub struct Receiver {
     eof: bool,
     pending: VecDeque<Message>,
     skipped: u64,
+    /// The UDP timeout to set once the first datagram is in.
+    idle: Option<Duration>,
 }
 
 /// Largest datagram taken (bigger ones are cut, and then malformed).
@@ -104,7 +106,8 @@ const MAX_DATAGRAM: usize = 65_536;
 
 impl Receiver {
     /// Opens `endpoint` for messages of `format`. A UDP receiver, and a TCP one once
-    /// connected, end after `idle` without data (never for `None`).
+    /// connected, end after `idle` without data once the first data arrived (a rig may start
+    /// the emulator before the simulation); never for `None`.
     pub fn open(
         endpoint: &Endpoint,
         format: InputFormat,
@@ -120,7 +123,6 @@ impl Receiver {
                     }
                     _ => UdpSocket::bind(addr)?,
                 };
-                socket.set_read_timeout(idle)?;
                 (Kind::Udp(socket), format!("udp://{addr}"))
             }
             Endpoint::Tcp(addr) => {
@@ -137,7 +139,9 @@ impl Receiver {
                 (Kind::Stream(Box::new(f)), path.display().to_string())
             }
         };
-        Ok(Receiver::new(kind, format, name))
+        let mut r = Receiver::new(kind, format, name);
+        r.idle = idle;
+        Ok(r)
     }
 
     /// A receiver of the messages in a byte stream (e.g. a TCP stream a caller accepted).
@@ -162,6 +166,7 @@ impl Receiver {
             eof: false,
             pending: VecDeque::new(),
             skipped: 0,
+            idle: None,
         }
     }
 
@@ -194,6 +199,9 @@ impl Receiver {
                     let mut b = vec![0u8; MAX_DATAGRAM];
                     match s.recv(&mut b) {
                         Ok(n) => {
+                            if let Some(idle) = self.idle.take() {
+                                s.set_read_timeout(Some(idle))?;
+                            }
                             b.truncate(n);
                             self.datagram(b);
                             true
