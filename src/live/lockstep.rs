@@ -250,7 +250,7 @@ fn write_all(out: &mut dyn Write, b: &[u8]) -> Result<(), LiveError> {
 /// as the generator computes them, so the last released interval never passes `t`).
 pub fn released(grid: &Grid, t: f64) -> u64 {
     let time = |k: u64| grid.t0 + k as f64 / grid.rate_hz;
-    if !(t >= grid.t0) {
+    if t.is_nan() || t < grid.t0 {
         return 0;
     }
     let mut k = ((t - grid.t0) * grid.rate_hz).floor() as u64;

@@ -69,7 +69,7 @@ impl Malformed {
 /// Decodes messages of one format; the CSV decoder remembers the last header.
 pub enum Decoder {
     /// CSV lines.
-    Csv(csv::CsvDecoder),
+    Csv(Box<csv::CsvDecoder>),
     /// Binary datagrams.
     Binary,
     /// MAVLink frames.
@@ -80,7 +80,7 @@ impl Decoder {
     /// A decoder for `format`.
     pub fn new(format: InputFormat) -> Decoder {
         match format {
-            InputFormat::Csv => Decoder::Csv(csv::CsvDecoder::default()),
+            InputFormat::Csv => Decoder::Csv(Box::default()),
             InputFormat::Binary => Decoder::Binary,
             InputFormat::Mavlink => Decoder::Mavlink,
         }
