@@ -99,6 +99,7 @@ pub struct Receiver {
     skipped: u64,
     /// The UDP timeout to set once the first datagram is in.
     idle: Option<Duration>,
+    rbuf: Vec<u8>,
 }
 
 /// Largest datagram taken (bigger ones are cut, and then malformed).
@@ -167,6 +168,7 @@ impl Receiver {
             pending: VecDeque::new(),
             skipped: 0,
             idle: None,
+            rbuf: Vec::new(),
         }
     }
 
@@ -196,13 +198,14 @@ impl Receiver {
             }
             let got = match &mut self.kind {
                 Kind::Udp(s) => {
-                    let mut b = vec![0u8; MAX_DATAGRAM];
-                    match s.recv(&mut b) {
+                    // One receive buffer for the run; each datagram is copied out at its size.
+                    self.rbuf.resize(MAX_DATAGRAM, 0);
+                    match s.recv(&mut self.rbuf) {
                         Ok(n) => {
                             if let Some(idle) = self.idle.take() {
                                 s.set_read_timeout(Some(idle))?;
                             }
-                            b.truncate(n);
+                            let b = self.rbuf[..n].to_vec();
                             self.datagram(b);
                             true
                         }
