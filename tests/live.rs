@@ -19,7 +19,7 @@ use imu_emu::live::binary::{self, Datagram};
 use imu_emu::live::lockstep::{LiveSummary, Lockstep, released};
 use imu_emu::live::transport::{Endpoint, Receiver};
 use imu_emu::live::{InputFormat, mavlink};
-use imu_emu::math::{Vec3, euler_from_quat};
+use imu_emu::math::{QuatExt, Vec3, euler_from_quat};
 use imu_emu::motion::{Motion, Pose};
 use imu_emu::nav::{NavState, Navigator, Settings, StateError};
 use imu_emu::output::Format;
@@ -82,7 +82,7 @@ fn survey_csv_with_rates(seconds: f64) -> String {
         let (sl, cl) = p.lat.sin_cos();
         let g = Vec3::new(0.0, 0.0, earth::normal_gravity(sl, p.h));
         let coriolis = earth::omega_ie_n(sl, cl) * 2.0 + earth::omega_en_n(sl, cl, p.h, p.v_n);
-        let a_n = p.q_b_n.rotate(s.f_b) - coriolis.cross(p.v_n) + g;
+        let a_n = p.q_b_n.rotate(s.f_b) - coriolis.cross(&p.v_n) + g;
         let (r, pi, y) = euler_from_quat(p.q_b_n);
         let w = s.omega_ib_b * (180.0 / std::f64::consts::PI);
         let vals = [
@@ -90,18 +90,18 @@ fn survey_csv_with_rates(seconds: f64) -> String {
             p.lat.to_degrees(),
             p.lon.to_degrees(),
             p.h,
-            p.v_n.x(),
-            p.v_n.y(),
-            p.v_n.z(),
+            p.v_n.x,
+            p.v_n.y,
+            p.v_n.z,
             r.to_degrees(),
             pi.to_degrees(),
             y.to_degrees(),
-            w.x(),
-            w.y(),
-            w.z(),
-            a_n.x(),
-            a_n.y(),
-            a_n.z(),
+            w.x,
+            w.y,
+            w.z,
+            a_n.x,
+            a_n.y,
+            a_n.z,
         ];
         let line: Vec<String> = vals.iter().map(|v| format!("{v:?}")).collect();
         text.push_str(&line.join(","));
@@ -143,7 +143,7 @@ fn errors_against_scene(out: &[Record], t0: f64, rate: f64) -> Errors {
     };
     for (a, b) in out.iter().zip(&truth) {
         assert_eq!(a.t, b.t);
-        let (g, f) = ((a.gyro - b.gyro).max_abs(), (a.accel - b.accel).max_abs());
+        let (g, f) = ((a.gyro - b.gyro).amax(), (a.accel - b.accel).amax());
         e.all = (e.all.0.max(g), e.all.1.max(f));
         if !near(a.t) {
             e.interior = (e.interior.0.max(g), e.interior.1.max(f));
@@ -212,7 +212,7 @@ fn survey_600s_at_100hz_matches_the_scene_and_navigates() {
         assert!(e.all.0 <= ga && e.all.1 <= aa, "{label} whole run");
         assert!(worst <= 1e-3, "{label}: navigator {worst:e} m");
         for r in &mut recs {
-            r.dv.0[0] += 1e-6 / rate;
+            r.dv[0] += 1e-6 / rate;
         }
         let biased = navigate(&recs, summary.grid.t0, rate);
         assert!(biased > 1e-2, "a 1e-6 m/s² bias gives only {biased:e} m");
@@ -227,9 +227,9 @@ fn datagram(p: &Pose, seq: u32) -> [u8; binary::LEN] {
         time: p.t,
         flags: 0,
         pos: [p.lat.to_degrees(), p.lon.to_degrees(), p.h],
-        vel: p.v_n.0,
+        vel: p.v_n.into(),
         acc: [0.0; 3],
-        quat: [p.q_b_n.w, p.q_b_n.v.x(), p.q_b_n.v.y(), p.q_b_n.v.z()],
+        quat: [p.q_b_n.w, p.q_b_n.i, p.q_b_n.j, p.q_b_n.k],
         rate: [0.0; 3],
     })
 }
@@ -405,14 +405,18 @@ fn mavlink_stream_follows_the_scene_coarsely() {
         bytes.extend(mavlink::encode(
             i as u8,
             i * 10_000,
-            [q.w as f32, q.v.x() as f32, q.v.y() as f32, q.v.z() as f32],
-            s.omega_ib_b.0.map(|x| x as f32),
+            [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
+            [
+                s.omega_ib_b.x as f32,
+                s.omega_ib_b.y as f32,
+                s.omega_ib_b.z as f32,
+            ],
             [
                 (p.lat.to_degrees() * 1e7).round() as i32,
                 (p.lon.to_degrees() * 1e7).round() as i32,
                 (p.h * 1e3).round() as i32,
             ],
-            p.v_n.0.map(|x| (x * 100.0).round() as i16),
+            [p.v_n.x, p.v_n.y, p.v_n.z].map(|x| (x * 100.0).round() as i16),
         ));
     }
     let (mut a, b) = std::os::unix::net::UnixStream::pair().unwrap();

@@ -4,7 +4,7 @@
 
 use super::{Decoded, Malformed};
 use crate::earth::{Geodetic, ecef_to_geodetic, omega_en_n};
-use crate::math::{Quat, Vec3};
+use crate::math::{Quat, QuatExt, Vec3};
 use crate::motion::causal::LiveSample;
 use crate::motion::sampled::Sample;
 use crate::protocol::check::Check;
@@ -152,10 +152,10 @@ pub fn decode(b: &[u8]) -> Result<Decoded, Malformed> {
         f64_at(b, QUAT + 24),
     );
     // A sender's float32 quaternion normalised in float64 is within ~1e-7 of unit norm.
-    if (q.norm2().sqrt() - 1.0).abs() > 1e-6 {
+    if (q.norm_squared().sqrt() - 1.0).abs() > 1e-6 {
         return Err(Malformed::at(
             QUAT,
-            format!("quaternion norm {}, expected 1", q.norm2().sqrt()),
+            format!("quaternion norm {}, expected 1", q.norm_squared().sqrt()),
         ));
     }
     let q = q.normalized();
@@ -163,32 +163,32 @@ pub fn decode(b: &[u8]) -> Result<Decoded, Malformed> {
     let (sample, accel_n) = if flags & FLAG_ECEF != 0 {
         let g = ecef_to_geodetic(pos);
         let c_n_e = g.c_n_e();
-        let v_n = c_n_e.tr_mul_vec(vel);
+        let v_n = c_n_e.tr_mul(&vel);
         // r̈^e = C_n^e (v̇^n + ω_en^n × v^n), solved for v̇^n.
         let w_en = omega_en_n(g.sin_lat, g.cos_lat, g.h, v_n);
-        let a_n = c_n_e.tr_mul_vec(acc) - w_en.cross(v_n);
+        let a_n = c_n_e.tr_mul(&acc) - w_en.cross(&v_n);
         let s = Sample {
             t,
             lat: g.lat(),
             lon: g.lon(),
             h: g.h,
             v_n,
-            q_b_n: g.q_n_e().conj().mul(q),
+            q_b_n: g.q_n_e().conjugate() * q,
         };
         (s, a_n)
     } else {
-        if pos.x().abs() > 90.0 {
+        if pos.x.abs() > 90.0 {
             return Err(Malformed::at(
                 POS,
-                format!("latitude {} is outside [-90, 90] degrees", pos.x()),
+                format!("latitude {} is outside [-90, 90] degrees", pos.x),
             ));
         }
-        let g = Geodetic::from_radians(pos.x().to_radians(), pos.y().to_radians(), pos.z());
+        let g = Geodetic::from_radians(pos.x.to_radians(), pos.y.to_radians(), pos.z);
         let s = Sample {
             t,
             lat: g.lat(),
             lon: g.lon(),
-            h: pos.z(),
+            h: pos.z,
             v_n: vel,
             q_b_n: q,
         };
@@ -220,7 +220,7 @@ mod tests {
             pos: [45.0, 7.5, 250.0],
             vel: [10.0, -3.0, 0.5],
             acc: [0.1, 0.2, -0.3],
-            quat: [q.w, q.v.x(), q.v.y(), q.v.z()],
+            quat: [q.w, q.i, q.j, q.k],
             rate: [0.01, -0.02, 0.03],
         }
     }
@@ -271,15 +271,13 @@ mod tests {
         let v_n = Vec3::new(10.0, -3.0, 0.5);
         let a_n = Vec3::new(0.1, 0.2, -0.3);
         let w_en = omega_en_n(g.sin_lat, g.cos_lat, 250.0, v_n);
-        let q = g
-            .q_n_e()
-            .mul(Quat::new(d.quat[0], d.quat[1], d.quat[2], d.quat[3]));
+        let q = g.q_n_e() * Quat::new(d.quat[0], d.quat[1], d.quat[2], d.quat[3]);
         let e = Datagram {
             flags: d.flags | FLAG_ECEF,
-            pos: g.to_ecef().0,
-            vel: c_n_e.mul_vec(v_n).0,
-            acc: c_n_e.mul_vec(a_n + w_en.cross(v_n)).0,
-            quat: [q.w, q.v.x(), q.v.y(), q.v.z()],
+            pos: g.to_ecef().into(),
+            vel: (c_n_e * v_n).into(),
+            acc: (c_n_e * (a_n + w_en.cross(&v_n))).into(),
+            quat: [q.w, q.i, q.j, q.k],
             ..d
         };
         let a = decode(&encode(&d)).unwrap().state;
@@ -287,9 +285,9 @@ mod tests {
         assert!((a.sample.lat - b.sample.lat).abs() < 1e-15);
         assert!((a.sample.lon - b.sample.lon).abs() < 1e-15);
         assert!((a.sample.h - b.sample.h).abs() < 1e-8);
-        assert!((a.sample.v_n - b.sample.v_n).max_abs() < 1e-12);
-        assert!((a.accel_n.unwrap() - b.accel_n.unwrap()).max_abs() < 1e-9);
-        assert!(a.sample.q_b_n.dot4(b.sample.q_b_n).abs() > 1.0 - 1e-15);
+        assert!((a.sample.v_n - b.sample.v_n).amax() < 1e-12);
+        assert!((a.accel_n.unwrap() - b.accel_n.unwrap()).amax() < 1e-9);
+        assert!(a.sample.q_b_n.dot(&b.sample.q_b_n).abs() > 1.0 - 1e-15);
     }
 
     /// Every kind of damage is refused with the offset of the field at fault.

@@ -16,7 +16,7 @@
 //! docs/live-input.md for what that costs.
 
 use super::{Decoded, Malformed};
-use crate::math::{Quat, Vec3};
+use crate::math::{Quat, QuatExt, Vec3};
 use crate::motion::causal::LiveSample;
 use crate::motion::sampled::Sample;
 use crate::protocol::check::Check;
@@ -87,7 +87,7 @@ pub fn decode(b: &[u8]) -> Result<Option<Decoded>, Malformed> {
         return Err(Malformed::at(HEADER + i, "value is not finite"));
     }
     // float32 components: a unit quaternion's norm is within a few 1e-7 of 1.
-    let norm = q.norm2().sqrt();
+    let norm = q.norm_squared().sqrt();
     if (norm - 1.0).abs() > 1e-5 {
         return Err(Malformed::at(
             HEADER + 8,
@@ -179,10 +179,10 @@ mod tests {
         assert_eq!(s.lon, 7.5f64.to_radians());
         assert_eq!(s.h, 100.0);
         assert_eq!(s.v_n, Vec3::new(10.0, -2.0, 0.3));
-        assert_eq!(s.q_b_n, Quat::IDENTITY);
+        assert_eq!(s.q_b_n, Quat::identity());
         let w = d.state.omega_ib_b.unwrap();
-        assert_eq!(w.x(), f64::from(0.01f32));
-        assert_eq!(w.z(), f64::from(-0.03f32));
+        assert_eq!(w.x, f64::from(0.01f32));
+        assert_eq!(w.z, f64::from(-0.03f32));
     }
 
     /// Our encoder gives pymavlink's bytes but for the accelerations it does not send.

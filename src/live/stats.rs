@@ -109,8 +109,8 @@ mod tests {
                 lat: 0.0,
                 lon: 0.0,
                 h: 0.0,
-                v_n: Vec3::ZERO,
-                q_b_n: Quat::IDENTITY,
+                v_n: Vec3::zeros(),
+                q_b_n: Quat::identity(),
             }),
         }
     }

@@ -23,7 +23,7 @@ use super::sampled::{Conv, Degree, Knot, ModelSettings, Sample, convert, hermite
 use super::{Motion, Pose};
 use crate::earth::{Geodetic, OMEGA_IE, omega_en_n};
 use crate::kinematics::{Sensed, sense_ecef};
-use crate::math::{Quat, Vec3};
+use crate::math::{Quat, QuatExt, Vec3, all_finite};
 
 /// Knots kept behind the newest (the generator steps back at most one record interval; a
 /// consumer that falls further behind evaluates to NaN, which the producer refuses).
@@ -143,7 +143,7 @@ impl CausalMotion {
         if let Some((p, _)) = prev {
             check_step(&p, &s.sample).map_err(Rejected::Limit)?;
         }
-        let finite = |v: Option<Vec3>| v.is_none_or(|v| v.is_finite());
+        let finite = |v: Option<Vec3>| v.is_none_or(|v| all_finite(&v));
         if !finite(s.omega_ib_b) || !finite(s.accel_n) {
             return Err(Rejected::Limit(Violation {
                 column: "",
@@ -157,7 +157,7 @@ impl CausalMotion {
         let a_e = s.accel_n.map(|a| {
             // v^e = C_n^e v^n, so r̈^e = C_n^e (v̇^n + ω_en^n × v^n).
             let w_en = omega_en_n(g.sin_lat, g.cos_lat, x.h, x.v_n);
-            c_n_e.mul_vec(a + w_en.cross(x.v_n))
+            c_n_e * (a + w_en.cross(&x.v_n))
         });
         let omega_eb_b = s
             .omega_ib_b
@@ -222,7 +222,7 @@ fn causal_knot(st: &[Entry]) -> Knot {
         }
     };
     // Rates in the rotation-vector chart centred on the knot, where they are φ̇ and φ̈.
-    let phi = |e: &Entry| c.q.conj().mul(e.conv.q).to_rotvec();
+    let phi = |e: &Entry| (c.q.conjugate() * e.conv.q).to_rotvec();
     let (omega, omega_dot) = match (
         st[st.len() - 1].omega_eb_b,
         st.iter().all(|e| e.omega_eb_b.is_some()),
@@ -238,14 +238,8 @@ fn causal_knot(st: &[Entry]) -> Knot {
         }
     };
     // q̇ = ½ q ⊗ ω and q̈ = q ⊗ (−|ω|²/4, ω̇/2): consistent with |q| = 1 to second order.
-    let qd = c.q.mul(Quat {
-        w: 0.0,
-        v: omega * 0.5,
-    });
-    let qdd = c.q.mul(Quat {
-        w: -0.25 * omega.dot(omega),
-        v: omega_dot * 0.5,
-    });
+    let qd = c.q * Quat::from_parts(0.0, omega * 0.5);
+    let qdd = c.q * Quat::from_parts(-0.25 * omega.dot(&omega), omega_dot * 0.5);
     Knot {
         t: c.t,
         r: c.r,
@@ -262,7 +256,7 @@ fn causal_knot(st: &[Entry]) -> Knot {
 fn sum(st: &[Entry], w: &[f64], f: impl Fn(&Entry) -> Vec3) -> Vec3 {
     st.iter()
         .zip(w)
-        .fold(Vec3::ZERO, |acc, (e, wm)| acc + f(e) * *wm)
+        .fold(Vec3::zeros(), |acc, (e, wm)| acc + f(e) * *wm)
 }
 
 impl Inner {
@@ -331,10 +325,7 @@ impl Motion for CausalMotion {
                 lon: f64::NAN,
                 h: f64::NAN,
                 v_n: NAN3,
-                q_b_n: Quat {
-                    w: f64::NAN,
-                    v: NAN3,
-                },
+                q_b_n: Quat::new(f64::NAN, f64::NAN, f64::NAN, f64::NAN),
             };
         };
         let (s, _) = hermite(m.degree, k0, k1, t);
@@ -343,8 +334,8 @@ impl Motion for CausalMotion {
             lat: s.pos.lat(),
             lon: s.pos.lon(),
             h: s.pos.h,
-            v_n: s.pos.c_n_e().tr_mul_vec(s.v_e),
-            q_b_n: s.pos.q_n_e().conj().mul(s.q_b_e),
+            v_n: s.pos.c_n_e().tr_mul(&s.v_e),
+            q_b_n: s.pos.q_n_e().conjugate() * s.q_b_e,
         }
     }
 }
@@ -386,7 +377,7 @@ mod tests {
                 pos: ecef_to_geodetic(r),
                 v_e: v,
                 a_e: self.a0 + self.j0 * t,
-                q_b_e: self.q0.mul(Quat::from_rotvec(self.w * t)),
+                q_b_e: self.q0 * Quat::from_rotvec(self.w * t),
                 omega_eb_b: self.w,
             };
             (r, s)
@@ -398,8 +389,8 @@ mod tests {
                 lat: s.pos.lat(),
                 lon: s.pos.lon(),
                 h: s.pos.h,
-                v_n: s.pos.c_n_e().tr_mul_vec(s.v_e),
-                q_b_n: s.pos.q_n_e().conj().mul(s.q_b_e),
+                v_n: s.pos.c_n_e().tr_mul(&s.v_e),
+                q_b_n: s.pos.q_n_e().conjugate() * s.q_b_e,
             }
         }
     }
@@ -420,8 +411,8 @@ mod tests {
                 hint = m.piece_at(t, hint);
                 let got = m.sense(hint, t);
                 let want = sense_ecef(&c.state(t).1);
-                ew = ew.max((got.omega_ib_b - want.omega_ib_b).max_abs());
-                ef = ef.max((got.f_b - want.f_b).max_abs());
+                ew = ew.max((got.omega_ib_b - want.omega_ib_b).amax());
+                ef = ef.max((got.f_b - want.f_b).amax());
             }
         }
         (ew, ef)
@@ -462,7 +453,7 @@ mod tests {
             let (_, e) = c.state(t);
             let g = Geodetic::from_radians(s.lat, s.lon, s.h);
             let w_en = omega_en_n(g.sin_lat, g.cos_lat, s.h, s.v_n);
-            let a_n = g.c_n_e().tr_mul_vec(e.a_e) - w_en.cross(s.v_n);
+            let a_n = g.c_n_e().tr_mul(&e.a_e) - w_en.cross(&s.v_n);
             let omega = Some(e.omega_eb_b + e.q_b_e.rotate_inv(w_ie));
             let given = |a_n| LiveSample {
                 sample: s,
@@ -479,7 +470,7 @@ mod tests {
         let d = offset.sense(p, t).f_b - exact.sense(exact.piece_at(t, 0), t).f_b;
         let s = c.sample(t);
         let want = s.q_b_n.rotate_inv(Vec3::new(1.0, 0.0, 0.0));
-        assert!((d - want).max_abs() < 1e-9, "{d:?} vs {want:?}");
+        assert!((d - want).amax() < 1e-9, "{d:?} vs {want:?}");
     }
 
     /// Velocity, specific force and angular rate are continuous across a knot: both pieces
@@ -506,9 +497,9 @@ mod tests {
             let p = m.piece_at(t, 0);
             let left = m.sense(p - 1, t);
             let right = m.sense(p, t);
-            assert!((left.f_b - right.f_b).max_abs() < 1e-9, "knot {i}");
+            assert!((left.f_b - right.f_b).amax() < 1e-9, "knot {i}");
             assert!(
-                (left.omega_ib_b - right.omega_ib_b).max_abs() < 1e-12,
+                (left.omega_ib_b - right.omega_ib_b).amax() < 1e-12,
                 "knot {i}"
             );
         }
@@ -541,6 +532,6 @@ mod tests {
         assert_eq!((m.knots(), m.newest()), before);
         // Before the first knot and after the kept ones: NaN, never a stale piece.
         let fresh = CausalMotion::new(ModelSettings::default());
-        assert!(fresh.sense(0, 0.0).f_b.x().is_nan());
+        assert!(fresh.sense(0, 0.0).f_b.x.is_nan());
     }
 }
