@@ -22,6 +22,7 @@ pub mod generator;
 pub mod input;
 pub mod job;
 pub mod kinematics;
+pub mod live;
 pub mod math;
 pub mod motion;
 pub mod nav;

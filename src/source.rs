@@ -1,6 +1,8 @@
-//! The motion a run evaluates: a built-in analytic scene or a sampled trajectory.
+//! The motion a run evaluates: a built-in analytic scene, a sampled trajectory or a live
+//! stream of states.
 
 use crate::kinematics::Sensed;
+use crate::motion::causal::CausalMotion;
 use crate::motion::sampled::SampledMotion;
 use crate::motion::{Motion, Pose};
 use crate::scenes::Scene;
@@ -13,6 +15,8 @@ pub enum AnyMotion {
     Scene(Scene),
     /// A trajectory file.
     Sampled(SampledMotion),
+    /// States arriving live (a shared handle: the input side keeps pushing into it).
+    Live(CausalMotion),
 }
 
 macro_rules! each {
@@ -22,6 +26,7 @@ macro_rules! each {
             AnyMotion::Scene(Scene::Flight($m)) => $e,
             AnyMotion::Scene(Scene::Polar($m)) => $e,
             AnyMotion::Sampled($m) => $e,
+            AnyMotion::Live($m) => $e,
         }
     };
 }

@@ -5,6 +5,7 @@ pub mod compare;
 pub mod decode;
 pub mod generate;
 pub mod info;
+pub mod live;
 pub mod navigate;
 pub mod rig;
 pub mod run;

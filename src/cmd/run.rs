@@ -31,6 +31,8 @@ pub const FOREVER_S: f64 = 365.0 * 86_400.0;
 pub struct RunArgs {
     #[command(flatten)]
     pub sim: SimArgs,
+    #[command(flatten)]
+    pub live: super::live::LiveArgs,
     /// Pseudo-terminal sink: the slave is published at PATH (a symlink); repeatable. Every
     /// sink takes `,protocol=NAME` (built-in name or spec file) to speak its own protocol.
     /// Without any sink, one pty is opened and its /dev/pts path printed.
@@ -107,6 +109,10 @@ pub fn run(a: RunArgs) -> Result<()> {
             "--max-behind-ms {}: expected a non-negative number",
             a.max_behind_ms
         );
+    }
+    // A live run in lockstep writes records as well as frames.
+    if let Some(source) = &a.live.motion {
+        return super::live::run(&a, source);
     }
     if let Some(p) = a.sim.format.as_deref()
         && imu_emu::output::Format::from_name(p).is_some()

@@ -5,6 +5,7 @@
 //! analytic scenes; polynomial between two samples for a sampled trajectory). The increment
 //! quadrature splits its intervals at piece boundaries, so its order is never lost to a kink.
 
+pub mod causal;
 pub mod fd;
 pub mod limits;
 pub mod sampled;

@@ -80,13 +80,13 @@ impl ModelSettings {
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Knot {
     pub(super) t: f64,
-    r: Vec3,
-    v: Vec3,
-    a: Vec3,
-    j: Vec3,
-    q: Quat,
-    qd: Quat,
-    qdd: Quat,
+    pub(super) r: Vec3,
+    pub(super) v: Vec3,
+    pub(super) a: Vec3,
+    pub(super) j: Vec3,
+    pub(super) q: Quat,
+    pub(super) qd: Quat,
+    pub(super) qdd: Quat,
 }
 
 impl Knot {
@@ -111,8 +111,8 @@ impl Knot {
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Conv {
     pub(super) t: f64,
-    r: Vec3,
-    v: Vec3,
+    pub(super) r: Vec3,
+    pub(super) v: Vec3,
     pub(super) q: Quat,
 }
 
@@ -297,43 +297,47 @@ impl SampledMotion {
     /// Full ECEF state at t between knots `k0` and `k1`.
     #[inline]
     fn state(&self, k0: &Knot, k1: &Knot, t: f64) -> (EcefState, Vec3) {
-        let h = k1.t - k0.t;
-        let s = (t - k0.t) / h;
-        let b = Basis::new(self.degree, s);
-        let dr = k1.r - k0.r;
-        let r_rel =
-            dr * b.h1 + (k0.v * b.g0 + k1.v * b.g1) * h + (k0.a * b.k0 + k1.a * b.k1) * (h * h);
-        let dv = k1.v - k0.v;
-        let v = k0.v
-            + dv * b.h1
-            + (k0.a * b.g0 + k1.a * b.g1) * h
-            + (k0.j * b.k0 + k1.j * b.k1) * (h * h);
-        let a = dv * (b.dh1 / h) + k0.a * b.dg0 + k1.a * b.dg1 + (k0.j * b.dk0 + k1.j * b.dk1) * h;
-        let dq = k1.q - k0.q;
-        let p = k0.q
-            + dq * b.h1
-            + (k0.qd * (b.g0 * h) + k1.qd * (b.g1 * h))
-            + (k0.qdd * (b.k0 * h * h) + k1.qdd * (b.k1 * h * h));
-        let pd = dq * (b.dh1 / h)
-            + (k0.qd * b.dg0 + k1.qd * b.dg1)
-            + (k0.qdd * (b.dk0 * h) + k1.qdd * (b.dk1 * h));
-        let n2 = p.norm_squared();
-        // For q = p/|p|: ω = 2 vec(q* ⊗ q̇) = 2 vec(p* ⊗ ṗ)/|p|².
-        let omega_eb_b = (p.conjugate() * pd).imag() * (2.0 / n2);
-        let q_b_e = p * (1.0 / n2.sqrt());
-        let r = k0.r + r_rel;
-        let pos = ecef_to_geodetic(r);
-        (
-            EcefState {
-                pos,
-                v_e: v,
-                a_e: a,
-                q_b_e,
-                omega_eb_b,
-            },
-            r,
-        )
+        hermite(self.degree, k0, k1, t)
     }
+}
+
+/// Full ECEF state (and r^e) at t on the Hermite piece of `degree` between knots `k0` and
+/// `k1`: the one evaluation the file model and the live model share.
+#[inline]
+pub(super) fn hermite(degree: Degree, k0: &Knot, k1: &Knot, t: f64) -> (EcefState, Vec3) {
+    let h = k1.t - k0.t;
+    let s = (t - k0.t) / h;
+    let b = Basis::new(degree, s);
+    let dr = k1.r - k0.r;
+    let r_rel = dr * b.h1 + (k0.v * b.g0 + k1.v * b.g1) * h + (k0.a * b.k0 + k1.a * b.k1) * (h * h);
+    let dv = k1.v - k0.v;
+    let v =
+        k0.v + dv * b.h1 + (k0.a * b.g0 + k1.a * b.g1) * h + (k0.j * b.k0 + k1.j * b.k1) * (h * h);
+    let a = dv * (b.dh1 / h) + k0.a * b.dg0 + k1.a * b.dg1 + (k0.j * b.dk0 + k1.j * b.dk1) * h;
+    let dq = k1.q - k0.q;
+    let p = k0.q
+        + dq * b.h1
+        + (k0.qd * (b.g0 * h) + k1.qd * (b.g1 * h))
+        + (k0.qdd * (b.k0 * h * h) + k1.qdd * (b.k1 * h * h));
+    let pd = dq * (b.dh1 / h)
+        + (k0.qd * b.dg0 + k1.qd * b.dg1)
+        + (k0.qdd * (b.dk0 * h) + k1.qdd * (b.dk1 * h));
+    let n2 = p.norm_squared();
+    // For q = p/|p|: ω = 2 vec(q* ⊗ q̇) = 2 vec(p* ⊗ ṗ)/|p|².
+    let omega_eb_b = (p.conjugate() * pd).imag() * (2.0 / n2);
+    let q_b_e = p * (1.0 / n2.sqrt());
+    let r = k0.r + r_rel;
+    let pos = ecef_to_geodetic(r);
+    (
+        EcefState {
+            pos,
+            v_e: v,
+            a_e: a,
+            q_b_e,
+            omega_eb_b,
+        },
+        r,
+    )
 }
 
 /// Hermite basis functions on s ∈ [0, 1] and their s-derivatives.

@@ -14,6 +14,7 @@ use crate::errors::vibration::{Vibration, VibrationSpec};
 use crate::generator::DEFAULT_NODES;
 use crate::job::{self, Grid, JobError, SourceSpec};
 use crate::motion::Motion;
+use crate::motion::causal::CausalMotion;
 use crate::motion::sampled::{Degree, ModelSettings};
 use crate::output::Format;
 use crate::protocol::{self, FaultInjector, FaultSpec};
@@ -54,6 +55,7 @@ pub struct SimulationBuilder {
     default_imu: String,
     default_format: String,
     unbounded_duration: f64,
+    live: Option<CausalMotion>,
 }
 
 impl Default for SimulationBuilder {
@@ -83,6 +85,7 @@ impl Default for SimulationBuilder {
             default_imu: "ideal".into(),
             default_format: "csv".into(),
             unbounded_duration: job::DEFAULT_UNBOUNDED_DURATION_S,
+            live: None,
         }
     }
 }
@@ -121,6 +124,13 @@ impl SimulationBuilder {
     pub fn trajectory(mut self, path: impl Into<PathBuf>) -> SimulationBuilder {
         self.trajectory = Some(path.into());
         self.scene = None;
+        self
+    }
+
+    /// A live motion (states pushed by the caller as they arrive) instead of a scene or a
+    /// file; the run starts at [`SimulationBuilder::start`] or the model's first knot.
+    pub fn live_motion(mut self, motion: CausalMotion) -> SimulationBuilder {
+        self.live = Some(motion);
         self
     }
 
@@ -304,7 +314,7 @@ impl SimulationBuilder {
     }
 
     /// The motion-model settings of a trajectory file (interpolation and stencil).
-    fn model_settings(&self) -> Result<ModelSettings, SimError> {
+    pub fn model_settings(&self) -> Result<ModelSettings, SimError> {
         let e = &self.file.engine;
         let at = self.file_key(
             self.interpolation.is_some(),
@@ -341,6 +351,9 @@ impl SimulationBuilder {
     /// The motion model of the source alone (for commands that need only the reference
     /// trajectory); errors name the scene-file key or the trajectory file.
     pub fn motion(&self) -> Result<AnyMotion, SimError> {
+        if let Some(m) = &self.live {
+            return Ok(AnyMotion::Live(m.clone()));
+        }
         let (source, scene_from_file, params_from_file) = self.source()?;
         let model = self.model_settings()?;
         job::build_motion(&source, model).map_err(|e| {

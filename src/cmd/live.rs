@@ -1,0 +1,131 @@
+//! `imu-emu run --motion SOURCE`: follow a vehicle simulation's states as they arrive
+//! (docs/live-input.md). Parses and prints; the run is `imu_emu::live::lockstep`.
+
+use std::io::{IsTerminal, Write};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+
+use imu_emu::live::InputFormat;
+use imu_emu::live::lockstep::Lockstep;
+use imu_emu::live::transport::{Endpoint, Receiver};
+use imu_emu::output::AtomicFile;
+
+use super::run::{DEFAULT_IMU, DEFAULT_PROTOCOL, FOREVER_S, RunArgs};
+
+/// The live-input flags of `run`.
+#[derive(clap::Args)]
+pub struct LiveArgs {
+    /// Follow states that arrive live instead of a scene or a trajectory file:
+    /// udp://HOST:PORT (unicast or multicast), tcp://HOST:PORT (listens, takes the first
+    /// connection), - (stdin), or a FIFO or file (docs/live-input.md).
+    #[arg(long, value_name = "SOURCE")]
+    pub motion: Option<String>,
+    /// Wire format of the --motion states: csv, bin or mavlink (HIL_STATE_QUATERNION).
+    #[arg(long, default_value = "csv", value_name = "FORMAT")]
+    pub input_format: String,
+    /// How output follows --motion: lockstep (each state releases the records up to its
+    /// time, no wall clock). The real-time mode is not implemented yet.
+    #[arg(long, default_value = "lockstep", value_name = "MODE")]
+    pub time_mode: String,
+    /// Write every message received on --motion to FILE, to replay the run bit for bit
+    /// (`--motion FILE`).
+    #[arg(long, value_name = "FILE")]
+    pub record_input: Option<std::path::PathBuf>,
+    /// End a --motion run after this many seconds without a UDP datagram or TCP data, once
+    /// the first has arrived.
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    pub input_timeout: f64,
+}
+
+/// Runs `run --motion`.
+pub fn run(a: &RunArgs, source: &str) -> Result<()> {
+    let l = &a.live;
+    let format = InputFormat::from_name(&l.input_format).with_context(|| {
+        format!(
+            "--input-format {}: expected csv, bin or mavlink",
+            l.input_format
+        )
+    })?;
+    if l.time_mode != "lockstep" {
+        bail!(
+            "--time-mode {}: only `lockstep` is implemented (the real-time mode is not yet)",
+            l.time_mode
+        );
+    }
+    if !(l.input_timeout.is_finite() && l.input_timeout > 0.0) {
+        bail!(
+            "--input-timeout {}: expected a positive number of seconds",
+            l.input_timeout
+        );
+    }
+    if a.sim.source.scene.is_some() || a.sim.source.trajectory.is_some() {
+        bail!("--motion replaces --scene and --trajectory: give one source");
+    }
+    if !(a.pty.is_empty() && a.serial.is_empty() && a.udp.is_empty()) || a.file.len() != 1 {
+        bail!(
+            "--motion in lockstep writes to one --file (a path, a FIFO or - for stdout); the paced sinks (--pty, --serial, --udp) need the real-time mode, not implemented yet"
+        );
+    }
+    let endpoint = Endpoint::parse(source).map_err(|e| anyhow::anyhow!("--motion {e}"))?;
+    let builder = (a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?).unbounded_duration(FOREVER_S);
+    let run = Lockstep::new(builder, format)?;
+    let idle = Some(Duration::from_secs_f64(l.input_timeout));
+    let mut rx = Receiver::open(&endpoint, format, idle)
+        .with_context(|| format!("--motion {source}: opening"))?;
+    eprintln!("imu-emu: following {} ({})", rx.name(), l.input_format);
+
+    let path = a.file[0].as_str();
+    let (mut file, mut stdout) = (None, None);
+    let out: &mut dyn Write = if path == "-" {
+        stdout.insert(std::io::stdout().lock())
+    } else {
+        file.insert(
+            AtomicFile::create(Path::new(path)).with_context(|| format!("creating {path}"))?,
+        )
+    };
+    let mut record = match &l.record_input {
+        Some(p) => {
+            Some(AtomicFile::create(p).with_context(|| format!("creating {}", p.display()))?)
+        }
+        None => None,
+    };
+    let live = std::io::stderr().is_terminal();
+    let mut last = Instant::now();
+    let result = run.run(
+        &mut rx,
+        out,
+        record.as_mut().map(|r| r as &mut dyn Write),
+        |s| {
+            if live && last.elapsed() >= Duration::from_secs(1) {
+                last = Instant::now();
+                eprint!("\r\x1b[2K{} records; {}", s.records(), s.stats().summary());
+            }
+        },
+    );
+    if live {
+        eprint!("\r\x1b[2K");
+    }
+    // The input record is kept whatever happened: it is how a failed run is reproduced.
+    if let (Some(r), Some(p)) = (record, &l.record_input) {
+        r.commit()
+            .with_context(|| format!("writing {}", p.display()))?;
+    }
+    let s = result?;
+    if let Some(f) = file {
+        f.commit().with_context(|| format!("writing {path}"))?;
+    }
+    eprintln!(
+        "imu-emu: {} records at {} Hz from t = {} s to {} s; input: {}",
+        s.records,
+        s.grid.rate_hz,
+        s.grid.t0,
+        s.grid.t0 + s.records as f64 / s.grid.rate_hz,
+        s.stats.summary()
+    );
+    for p in &s.stats.problems {
+        eprintln!("  {p}");
+    }
+    Ok(())
+}

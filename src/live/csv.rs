@@ -1,0 +1,225 @@
+//! States as text lines: the columns of a trajectory file (`t,lat,lon,h,vn,ve,vd,roll,pitch,
+//! yaw`; s, deg, deg, m, m/s, deg) in any order, plus optional exact derivatives the
+//! simulation knows: `wx,wy,wz` (body angular rate ω_ib^b, deg/s) and `an,ae,ad` (time
+//! derivative of the NED velocity, m/s²). A header line names the columns and may be sent at
+//! any time (again over UDP, where a receiver can join late); without one the ten trajectory
+//! columns are assumed in their file order. `#` starts a comment line.
+
+use super::{Decoded, Malformed};
+use crate::csvio::{clip, num, parse_finite};
+use crate::math::{Vec3, quat_from_euler};
+use crate::motion::causal::LiveSample;
+use crate::motion::sampled::Sample;
+use crate::trajectory::COLUMNS;
+
+/// The optional columns, in groups of three that come together.
+pub const EXTRA_COLUMNS: [&str; 6] = ["wx", "wy", "wz", "an", "ae", "ad"];
+
+/// Number of known columns: the trajectory's then the extras.
+const KNOWN: usize = 16;
+
+/// The decoder's view of the columns: where each known column is in a line.
+#[derive(Clone, Debug)]
+pub struct CsvDecoder {
+    /// File column of each known column (`None`: absent).
+    at: [Option<usize>; KNOWN],
+    width: usize,
+}
+
+impl Default for CsvDecoder {
+    fn default() -> Self {
+        let mut at = [None; KNOWN];
+        for (i, a) in at.iter_mut().enumerate().take(COLUMNS.len()) {
+            *a = Some(i);
+        }
+        CsvDecoder {
+            at,
+            width: COLUMNS.len(),
+        }
+    }
+}
+
+fn name_of(k: usize) -> &'static str {
+    if k < COLUMNS.len() {
+        COLUMNS[k]
+    } else {
+        EXTRA_COLUMNS[k - COLUMNS.len()]
+    }
+}
+
+impl CsvDecoder {
+    /// Decodes one line (without or with its line end).
+    pub fn decode(&mut self, line: &[u8]) -> Result<Option<Decoded>, Malformed> {
+        let text = std::str::from_utf8(line)
+            .map_err(|e| Malformed::at(e.valid_up_to(), "not UTF-8 text"))?;
+        let text = text.trim_end_matches(['\n', '\r']);
+        let trimmed = text.trim();
+        if trimmed.is_empty() || trimmed.starts_with('#') {
+            return Ok(None);
+        }
+        let fields: Vec<&str> = text.split(',').map(str::trim).collect();
+        if fields[0].parse::<f64>().is_err() && !fields[0].is_empty() {
+            self.header(&fields)?;
+            return Ok(None);
+        }
+        self.data(text, &fields).map(Some)
+    }
+
+    fn header(&mut self, fields: &[&str]) -> Result<(), Malformed> {
+        let mut at = [None; KNOWN];
+        for (c, name) in fields.iter().enumerate() {
+            let Some(k) = (0..KNOWN).find(|&k| name_of(k) == *name) else {
+                return Err(Malformed::at(
+                    0,
+                    format!(
+                        "header: column {}: unknown column {} (expected `{}` and optionally `{}`)",
+                        c + 1,
+                        clip(name),
+                        COLUMNS.join(","),
+                        EXTRA_COLUMNS.join(",")
+                    ),
+                ));
+            };
+            if at[k].is_some() {
+                return Err(Malformed::at(
+                    0,
+                    format!("header: column {}: {} appears twice", c + 1, clip(name)),
+                ));
+            }
+            at[k] = Some(c);
+        }
+        if let Some(k) = (0..COLUMNS.len()).find(|&k| at[k].is_none()) {
+            return Err(Malformed::at(
+                0,
+                format!("header: missing column `{}`", name_of(k)),
+            ));
+        }
+        for g in [10, 13] {
+            let n = (g..g + 3).filter(|&k| at[k].is_some()).count();
+            if n != 0 && n != 3 {
+                return Err(Malformed::at(
+                    0,
+                    format!(
+                        "header: `{}` come together: give all three or none",
+                        EXTRA_COLUMNS[g - 10..g - 7].join(",")
+                    ),
+                ));
+            }
+        }
+        self.at = at;
+        self.width = fields.len();
+        Ok(())
+    }
+
+    fn data(&self, text: &str, fields: &[&str]) -> Result<Decoded, Malformed> {
+        if fields.len() != self.width {
+            return Err(Malformed::at(
+                0,
+                format!("{} fields, expected {}", fields.len(), self.width),
+            ));
+        }
+        // Byte offset of each field, for the message.
+        let mut offsets = Vec::with_capacity(fields.len());
+        let mut o = 0;
+        for f in text.split(',') {
+            offsets.push(o);
+            o += f.len() + 1;
+        }
+        let mut v = [f64::NAN; KNOWN];
+        for (k, slot) in v.iter_mut().enumerate() {
+            let Some(c) = self.at[k] else { continue };
+            let x = parse_finite(fields[c]).map_err(|m| {
+                Malformed::at(
+                    offsets[c],
+                    format!("column {} (`{}`): {m}", c + 1, name_of(k)),
+                )
+            })?;
+            if k == 1 && x.abs() > 90.0 {
+                return Err(Malformed::at(
+                    offsets[c],
+                    format!(
+                        "column {} (`lat`): {} is outside [-90, 90] degrees",
+                        c + 1,
+                        num(x)
+                    ),
+                ));
+            }
+            *slot = x;
+        }
+        let group = |g: usize| {
+            self.at[g]
+                .is_some()
+                .then(|| Vec3::new(v[g], v[g + 1], v[g + 2]))
+        };
+        let sample = Sample {
+            t: v[0],
+            lat: v[1].to_radians(),
+            lon: v[2].to_radians(),
+            h: v[3],
+            v_n: Vec3::new(v[4], v[5], v[6]),
+            q_b_n: quat_from_euler(v[7].to_radians(), v[8].to_radians(), v[9].to_radians()),
+        };
+        Ok(Decoded {
+            seq: None,
+            state: LiveSample {
+                sample,
+                omega_ib_b: group(10).map(|w| w * (std::f64::consts::PI / 180.0)),
+                accel_n: group(13),
+            },
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_columns_header_and_extras() {
+        let mut d = CsvDecoder::default();
+        let s = d.decode(b"1.5,45,7,100,1,2,3,0,0,90\n").unwrap().unwrap();
+        assert_eq!(s.state.sample.t, 1.5);
+        assert_eq!(s.state.sample.lat, 45f64.to_radians());
+        assert_eq!(s.state.sample.v_n, Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(s.state.omega_ib_b, None);
+        assert_eq!(d.decode(b"# comment\n").unwrap(), None);
+        assert_eq!(d.decode(b"\n").unwrap(), None);
+        // Another order, with both extra groups.
+        let head = b"yaw,t,lat,lon,h,vn,ve,vd,roll,pitch,an,ae,ad,wx,wy,wz";
+        assert_eq!(d.decode(head).unwrap(), None);
+        let s = d
+            .decode(b"90,2,45,7,100,1,2,3,0,0,0.5,0,-0.5,180,0,0")
+            .unwrap()
+            .unwrap();
+        assert_eq!(s.state.sample.t, 2.0);
+        assert_eq!(s.state.accel_n, Some(Vec3::new(0.5, 0.0, -0.5)));
+        assert_eq!(
+            s.state.omega_ib_b,
+            Some(Vec3::new(std::f64::consts::PI, 0.0, 0.0))
+        );
+    }
+
+    /// Bad lines name the column and its byte offset; the decoder keeps working after them.
+    #[test]
+    fn malformed_lines_name_column_and_offset() {
+        let mut d = CsvDecoder::default();
+        let e = d.decode(b"1.5,45,7,1x0,1,2,3,0,0,90").unwrap_err();
+        assert_eq!(e.offset, 9);
+        assert!(e.message.contains("column 4 (`h`)"), "{e:?}");
+        let e = d.decode(b"1.5,95,7,1,1,2,3,0,0,90").unwrap_err();
+        assert!(e.message.contains("outside [-90, 90]"), "{e:?}");
+        let e = d.decode(b"1.5,45,7").unwrap_err();
+        assert_eq!(e.message, "3 fields, expected 10");
+        let e = d
+            .decode(b"t,lat,lon,h,vn,ve,vd,roll,pitch,yaw,wx")
+            .unwrap_err();
+        assert!(e.message.contains("give all three"), "{e:?}");
+        let e = d.decode(b"t,lat,lon,h,vn,ve,vd,roll,pitch").unwrap_err();
+        assert!(e.message.contains("missing column `yaw`"), "{e:?}");
+        let e = d.decode(b"1.5,45,7,1,nan,2,3,0,0,90").unwrap_err();
+        assert!(e.message.contains("not finite"), "{e:?}");
+        let e = d.decode(b"1.5,45,\xff").unwrap_err();
+        assert_eq!(e.offset, 7);
+        assert!(d.decode(b"1.5,45,7,1,1,2,3,0,0,90").unwrap().is_some());
+    }
+}

@@ -1,0 +1,225 @@
+//! MAVLink 2 `HIL_STATE_QUATERNION` (message 115, common.xml on mavlink.io), what PX4- and
+//! ArduPilot-style simulators send as the vehicle's state. The frame check is the project's
+//! catalogue CRC-16/MCRF4XX with the message's CRC_EXTRA (4), as for the HIL_SENSOR frames of
+//! `protocols/mavlink-hil-sensor.toml`; MAVLink 2 drops trailing zero bytes of the payload,
+//! which are restored before decoding.
+//!
+//! Payload (fields by size, as MAVLink serialises them): time_usec u64 (µs), attitude
+//! quaternion f32[4] (w, x, y, z; body to NED), rollspeed, pitchspeed, yawspeed f32 (rad/s),
+//! lat, lon i32 (1e-7 deg), alt i32 (mm), vx, vy, vz i16 (cm/s, NED), ind_airspeed,
+//! true_airspeed u16 (cm/s), xacc, yacc, zacc i16 (mG).
+//!
+//! Taken: time, attitude, position, velocity, and the body rates as ω_ib^b (the simulators'
+//! gyro-like rates). Not taken: airspeeds and the accelerations (their frame and whether
+//! gravity is in them differ between simulators). The altitude is taken as height above the
+//! ellipsoid. The message's resolution is coarse (1 cm/s, float32 attitude): see
+//! docs/live-input.md for what that costs.
+
+use super::{Decoded, Malformed};
+use crate::math::{Quat, QuatExt, Vec3};
+use crate::motion::causal::LiveSample;
+use crate::motion::sampled::Sample;
+use crate::protocol::check::Check;
+
+/// Message id of HIL_STATE_QUATERNION.
+pub const MSG_ID: u32 = 115;
+/// Its CRC_EXTRA byte (from its field definitions).
+pub const CRC_EXTRA: u8 = 4;
+/// Its full payload length.
+pub const PAYLOAD: usize = 64;
+/// MAVLink 2 start byte.
+pub const STX: u8 = 0xFD;
+/// Header bytes before the payload.
+pub const HEADER: usize = 10;
+/// Incompatibility flag: the frame is signed (13 more bytes after the CRC).
+const SIGNED: u8 = 1;
+
+/// Length of the MAVLink 2 frame that starts `b` (header, payload, CRC, signature), if the
+/// header is there.
+pub fn frame_len(b: &[u8]) -> Option<usize> {
+    if b.len() < 3 || b[0] != STX {
+        return None;
+    }
+    let sig = if b[2] & SIGNED != 0 { 13 } else { 0 };
+    Some(HEADER + b[1] as usize + 2 + sig)
+}
+
+/// Decodes one frame; `None` for a valid frame of another message.
+pub fn decode(b: &[u8]) -> Result<Option<Decoded>, Malformed> {
+    let Some(len) = frame_len(b) else {
+        return Err(Malformed::at(0, "not a MAVLink 2 frame (start byte 0xFD)"));
+    };
+    if b.len() != len {
+        return Err(Malformed::at(
+            0,
+            format!("{} bytes, the header says {len}", b.len()),
+        ));
+    }
+    let n = b[1] as usize;
+    let msgid = u32::from(b[7]) | u32::from(b[8]) << 8 | u32::from(b[9]) << 16;
+    if msgid != MSG_ID {
+        return Ok(None);
+    }
+    if n > PAYLOAD {
+        return Err(Malformed::at(
+            1,
+            format!("payload {n} bytes, HIL_STATE_QUATERNION has {PAYLOAD}"),
+        ));
+    }
+    let crc_at = HEADER + n;
+    let check = Check::named("crc-16/mcrf4xx").expect("a catalogue CRC");
+    let c = check.compute_parts(&[&b[1..crc_at], &[CRC_EXTRA]]) as u16;
+    let sent = u16::from_le_bytes([b[crc_at], b[crc_at + 1]]);
+    if c != sent {
+        return Err(Malformed::at(
+            crc_at,
+            format!("CRC {sent:04x}, computed {c:04x}"),
+        ));
+    }
+    let mut p = [0u8; PAYLOAD];
+    p[..n].copy_from_slice(&b[HEADER..crc_at]);
+    let f32_at = |i: usize| f64::from(f32::from_le_bytes(p[i..i + 4].try_into().expect("4")));
+    let i32_at = |i: usize| f64::from(i32::from_le_bytes(p[i..i + 4].try_into().expect("4")));
+    let i16_at = |i: usize| f64::from(i16::from_le_bytes(p[i..i + 2].try_into().expect("2")));
+    let t = u64::from_le_bytes(p[..8].try_into().expect("8")) as f64 / 1e6;
+    let q = Quat::new(f32_at(8), f32_at(12), f32_at(16), f32_at(20));
+    if let Some(i) = (8..36).step_by(4).find(|&i| !f32_at(i).is_finite()) {
+        return Err(Malformed::at(HEADER + i, "value is not finite"));
+    }
+    // float32 components: a unit quaternion's norm is within a few 1e-7 of 1.
+    let norm = q.norm_squared().sqrt();
+    if (norm - 1.0).abs() > 1e-5 {
+        return Err(Malformed::at(
+            HEADER + 8,
+            format!("quaternion norm {norm}, expected 1"),
+        ));
+    }
+    let lat = i32_at(36) / 1e7;
+    if lat.abs() > 90.0 {
+        return Err(Malformed::at(
+            HEADER + 36,
+            format!("latitude {lat} is outside [-90, 90] degrees"),
+        ));
+    }
+    let sample = Sample {
+        t,
+        lat: lat.to_radians(),
+        lon: (i32_at(40) / 1e7).to_radians(),
+        h: i32_at(44) / 1e3,
+        v_n: Vec3::new(i16_at(48) / 100.0, i16_at(50) / 100.0, i16_at(52) / 100.0),
+        q_b_n: q.normalized(),
+    };
+    Ok(Some(Decoded {
+        seq: Some(u64::from(b[4])),
+        state: LiveSample {
+            sample,
+            omega_ib_b: Some(Vec3::new(f32_at(24), f32_at(28), f32_at(32))),
+            accel_n: None,
+        },
+    }))
+}
+
+/// Encodes a HIL_STATE_QUATERNION frame (system 1, component 1), trailing zeros dropped as
+/// MAVLink 2 senders do: for tests and replays.
+pub fn encode(
+    seq: u8,
+    time_usec: u64,
+    q: [f32; 4],
+    rates: [f32; 3],
+    pos: [i32; 3],
+    vel: [i16; 3],
+) -> Vec<u8> {
+    let mut p = Vec::with_capacity(PAYLOAD);
+    p.extend_from_slice(&time_usec.to_le_bytes());
+    for x in q.iter().chain(&rates) {
+        p.extend_from_slice(&x.to_le_bytes());
+    }
+    for x in pos {
+        p.extend_from_slice(&x.to_le_bytes());
+    }
+    for x in vel {
+        p.extend_from_slice(&x.to_le_bytes());
+    }
+    p.resize(PAYLOAD, 0);
+    let n = p.iter().rposition(|&x| x != 0).map_or(1, |i| i + 1);
+    let mut f = vec![STX, n as u8, 0, 0, seq, 1, 1];
+    f.extend_from_slice(&MSG_ID.to_le_bytes()[..3]);
+    f.extend_from_slice(&p[..n]);
+    let check = Check::named("crc-16/mcrf4xx").expect("a catalogue CRC");
+    let c = check.compute_parts(&[&f[1..], &[CRC_EXTRA]]) as u16;
+    f.extend_from_slice(&c.to_le_bytes());
+    f
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Packed by pymavlink 2.4.50: `MAVLink_hil_state_quaternion_message(1234567, [1,0,0,0],
+    /// 0.01, 0.02, -0.03, 451000000, 75000000, 100000, 1000, -200, 30, 0, 0, 10, -20, -1000)`,
+    /// system 1, component 1, sequence 3.
+    const PYMAVLINK: &str = "fd40000003010173000087d61200000000000000803f0000000000000000000000000ad7233c0ad7a33c8fc2f5bcc0b6e11ac0687804a0860100e80338ff1e00000000000a00ecff18fc4ab7";
+
+    fn hex(s: &str) -> Vec<u8> {
+        (0..s.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn decodes_the_pymavlink_frame() {
+        let b = hex(PYMAVLINK);
+        assert_eq!(frame_len(&b), Some(b.len()));
+        let d = decode(&b).unwrap().unwrap();
+        assert_eq!(d.seq, Some(3));
+        let s = d.state.sample;
+        assert_eq!(s.t, 1.234567);
+        assert_eq!(s.lat, 45.1f64.to_radians());
+        assert_eq!(s.lon, 7.5f64.to_radians());
+        assert_eq!(s.h, 100.0);
+        assert_eq!(s.v_n, Vec3::new(10.0, -2.0, 0.3));
+        assert_eq!(s.q_b_n, Quat::identity());
+        let w = d.state.omega_ib_b.unwrap();
+        assert_eq!(w.x, f64::from(0.01f32));
+        assert_eq!(w.z, f64::from(-0.03f32));
+    }
+
+    /// Our encoder gives pymavlink's bytes but for the accelerations it does not send.
+    #[test]
+    fn encoder_matches_pymavlink_layout() {
+        let f = encode(
+            3,
+            1_234_567,
+            [1.0, 0.0, 0.0, 0.0],
+            [0.01, 0.02, -0.03],
+            [451_000_000, 75_000_000, 100_000],
+            [1000, -200, 30],
+        );
+        let want = hex(PYMAVLINK);
+        // Same header but the length, same payload up to the velocities (ours ends there:
+        // its airspeeds and accelerations are zeros, dropped).
+        assert_eq!(f.len(), 10 + 53 + 2);
+        assert_eq!(&f[2..10], &want[2..10]);
+        assert_eq!(&f[10..63], &want[10..63]);
+        assert_eq!(
+            decode(&f).unwrap().unwrap().state,
+            decode(&want).unwrap().unwrap().state
+        );
+    }
+
+    #[test]
+    fn damage_and_other_messages() {
+        let mut b = hex(PYMAVLINK);
+        b[20] ^= 4;
+        let e = decode(&b).unwrap_err();
+        assert_eq!(e.offset, 74, "{e:?}");
+        let e = decode(&hex(PYMAVLINK)[..30]).unwrap_err();
+        assert!(e.message.contains("30 bytes, the header says 76"), "{e:?}");
+        assert_eq!(decode(&[0x55, 1, 2]).unwrap_err().offset, 0);
+        // A heartbeat-sized frame of another message id is skipped, whatever its CRC.
+        let mut other = hex(PYMAVLINK);
+        other[7] = 0;
+        assert_eq!(decode(&other).unwrap(), None);
+    }
+}

@@ -1,0 +1,147 @@
+//! What happened to the incoming states: taken, malformed, duplicated, reordered, missing and
+//! refused, counted and never fatal; the first problems are kept with their place.
+
+use super::Decoded;
+use crate::motion::causal::Rejected;
+
+/// Problems kept word for word (the rest are only counted).
+pub const KEEP_PROBLEMS: usize = 10;
+
+/// Counters of the input.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct InputStats {
+    /// Messages received (lines, datagrams, frames), with or without a state.
+    pub messages: u64,
+    /// States taken into the motion model.
+    pub states: u64,
+    /// Messages that could not be decoded.
+    pub malformed: u64,
+    /// States with the time (or sequence number) of the newest one.
+    pub duplicates: u64,
+    /// States older than the newest one (reordered or late): too late to be used.
+    pub reordered: u64,
+    /// Breaks in the sequence numbers.
+    pub gaps: u64,
+    /// States missing by the sequence numbers (some may arrive later, as reordered).
+    pub missing: u64,
+    /// States refused by the physical limits.
+    pub refused: u64,
+    /// Stream bytes outside any frame (garbage, a lost frame's remains).
+    pub skipped_bytes: u64,
+    /// The first [`KEEP_PROBLEMS`] problems, each with its place.
+    pub problems: Vec<String>,
+    last_seq: Option<u64>,
+}
+
+impl InputStats {
+    /// Counts a malformed message.
+    pub fn malformed(&mut self, place: &str, message: &str) {
+        self.malformed += 1;
+        self.note(format!("{place}: {message}"));
+    }
+
+    fn note(&mut self, p: String) {
+        if self.problems.len() < KEEP_PROBLEMS {
+            self.problems.push(p);
+        }
+    }
+
+    /// Counts a decoded state and what the model did with it; `modulo` is the range of the
+    /// format's sequence numbers.
+    pub fn state(&mut self, d: &Decoded, outcome: &Result<(), Rejected>, modulo: u64, place: &str) {
+        match outcome {
+            Ok(()) => {
+                self.states += 1;
+                if let (Some(s), Some(last)) = (d.seq, self.last_seq) {
+                    let ahead = s.wrapping_sub(last) % modulo;
+                    if ahead > 1 && ahead < modulo / 2 {
+                        self.gaps += 1;
+                        self.missing += ahead - 1;
+                    }
+                }
+                if d.seq.is_some() {
+                    self.last_seq = d.seq;
+                }
+            }
+            Err(Rejected::NotAfter { newest }) => {
+                if d.state.sample.t == *newest {
+                    self.duplicates += 1;
+                } else {
+                    self.reordered += 1;
+                }
+            }
+            Err(e @ Rejected::Limit(_)) => {
+                self.refused += 1;
+                self.note(format!("{place}: {e}"));
+            }
+        }
+    }
+
+    /// One line for the summary.
+    pub fn summary(&self) -> String {
+        format!(
+            "{} messages, {} states taken; {} malformed, {} duplicate, {} reordered/late, {} missing in {} gaps, {} refused, {} bytes skipped",
+            self.messages,
+            self.states,
+            self.malformed,
+            self.duplicates,
+            self.reordered,
+            self.missing,
+            self.gaps,
+            self.refused,
+            self.skipped_bytes
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{Quat, Vec3};
+    use crate::motion::causal::LiveSample;
+    use crate::motion::sampled::Sample;
+
+    fn at(seq: u64, t: f64) -> Decoded {
+        Decoded {
+            seq: Some(seq),
+            state: LiveSample::plain(Sample {
+                t,
+                lat: 0.0,
+                lon: 0.0,
+                h: 0.0,
+                v_n: Vec3::zeros(),
+                q_b_n: Quat::identity(),
+            }),
+        }
+    }
+
+    /// Gaps count across the wrap of an 8-bit counter; duplicates and reordered states are
+    /// told apart by time.
+    #[test]
+    fn gaps_duplicates_reordering() {
+        let mut s = InputStats::default();
+        let ok = Ok(());
+        s.state(&at(250, 1.0), &ok, 256, "");
+        s.state(&at(253, 1.3), &ok, 256, "");
+        s.state(&at(2, 1.8), &ok, 256, "");
+        assert_eq!((s.gaps, s.missing, s.states), (2, 2 + 4, 3));
+        s.state(
+            &at(2, 1.8),
+            &Err(Rejected::NotAfter { newest: 1.8 }),
+            256,
+            "",
+        );
+        s.state(
+            &at(1, 1.7),
+            &Err(Rejected::NotAfter { newest: 1.8 }),
+            256,
+            "",
+        );
+        assert_eq!((s.duplicates, s.reordered), (1, 1));
+        // A late state does not move the sequence back: the next one is no gap.
+        s.state(&at(3, 1.9), &ok, 256, "");
+        assert_eq!(s.gaps, 2);
+        s.malformed("x:3", "bad");
+        assert_eq!(s.problems, vec!["x:3: bad".to_string()]);
+    }
+}

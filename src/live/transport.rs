@@ -1,0 +1,442 @@
+//! Where states come from: `udp://HOST:PORT` (a datagram per message; a multicast HOST joins
+//! its group), `tcp://HOST:PORT` (listens there and takes the first connection), `-` (stdin)
+//! or a path (a file or a FIFO). Streams are cut into messages by the format: lines for CSV,
+//! the magic and fixed length for binary datagrams, the header's length for MAVLink.
+
+use std::collections::VecDeque;
+use std::io::{ErrorKind, Read};
+use std::net::{Ipv4Addr, SocketAddr, TcpListener, ToSocketAddrs, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use super::{InputFormat, binary, mavlink};
+
+/// A source of states, as given on the command line.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Endpoint {
+    /// Datagrams received at this address.
+    Udp(SocketAddr),
+    /// A stream from the first client connecting to this address.
+    Tcp(SocketAddr),
+    /// A byte stream: stdin (`-`), a file or a FIFO.
+    Stream(PathBuf),
+}
+
+impl Endpoint {
+    /// Parses `udp://HOST:PORT`, `tcp://HOST:PORT`, `-` or a path.
+    pub fn parse(s: &str) -> Result<Endpoint, String> {
+        let addr = |rest: &str| {
+            rest.to_socket_addrs()
+                .map_err(|e| format!("`{s}`: {e} (expected HOST:PORT)"))?
+                .next()
+                .ok_or_else(|| format!("`{s}`: no address"))
+        };
+        if let Some(rest) = s.strip_prefix("udp://") {
+            return Ok(Endpoint::Udp(addr(rest)?));
+        }
+        if let Some(rest) = s.strip_prefix("tcp://") {
+            return Ok(Endpoint::Tcp(addr(rest)?));
+        }
+        if s.contains("://") {
+            return Err(format!(
+                "`{s}`: unknown scheme (expected udp://HOST:PORT, tcp://HOST:PORT, - or a path)"
+            ));
+        }
+        Ok(Endpoint::Stream(PathBuf::from(s)))
+    }
+}
+
+/// Where a message was in its input, for reports.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Place {
+    /// Datagram n (1-based), line l within it (CSV; 0 for binary).
+    Datagram(u64, u64),
+    /// Line n of a stream (CSV).
+    Line(u64),
+    /// Byte offset of the frame's first byte in a stream.
+    Byte(u64),
+}
+
+impl std::fmt::Display for Place {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Place::Datagram(n, 0) => write!(f, "datagram {n}"),
+            Place::Datagram(n, l) => write!(f, "datagram {n} line {l}"),
+            Place::Line(n) => write!(f, "line {n}"),
+            Place::Byte(o) => write!(f, "byte {o}"),
+        }
+    }
+}
+
+/// One message: its bytes, where it was and when it arrived.
+#[derive(Clone, Debug)]
+pub struct Message {
+    /// The bytes (a line without its end, a datagram, a frame).
+    pub bytes: Vec<u8>,
+    /// Where it was.
+    pub place: Place,
+    /// When it was received.
+    pub arrival: Instant,
+}
+
+enum Kind {
+    Udp(UdpSocket),
+    Stream(Box<dyn Read + Send>),
+}
+
+/// Receives messages from an [`Endpoint`].
+pub struct Receiver {
+    kind: Kind,
+    format: InputFormat,
+    name: String,
+    /// Stream bytes not yet cut into messages, and the stream offset of `buf[0]`.
+    buf: Vec<u8>,
+    offset: u64,
+    lines: u64,
+    datagrams: u64,
+    eof: bool,
+    pending: VecDeque<Message>,
+    skipped: u64,
+    /// The UDP timeout to set once the first datagram is in.
+    idle: Option<Duration>,
+    rbuf: Vec<u8>,
+}
+
+/// Largest datagram taken (bigger ones are cut, and then malformed).
+const MAX_DATAGRAM: usize = 65_536;
+
+impl Receiver {
+    /// Opens `endpoint` for messages of `format`. A UDP receiver, and a TCP one once
+    /// connected, end after `idle` without data once the first data arrived (a rig may start
+    /// the emulator before the simulation); never for `None`.
+    pub fn open(
+        endpoint: &Endpoint,
+        format: InputFormat,
+        idle: Option<Duration>,
+    ) -> std::io::Result<Receiver> {
+        let (kind, name) = match endpoint {
+            Endpoint::Udp(addr) => {
+                let socket = match addr.ip() {
+                    std::net::IpAddr::V4(group) if group.is_multicast() => {
+                        let s = UdpSocket::bind((Ipv4Addr::UNSPECIFIED, addr.port()))?;
+                        s.join_multicast_v4(&group, &Ipv4Addr::UNSPECIFIED)?;
+                        s
+                    }
+                    _ => UdpSocket::bind(addr)?,
+                };
+                (Kind::Udp(socket), format!("udp://{addr}"))
+            }
+            Endpoint::Tcp(addr) => {
+                let listener = TcpListener::bind(addr)?;
+                let (stream, _) = listener.accept()?;
+                stream.set_read_timeout(idle)?;
+                (Kind::Stream(Box::new(stream)), format!("tcp://{addr}"))
+            }
+            Endpoint::Stream(path) if path == Path::new("-") => {
+                (Kind::Stream(Box::new(std::io::stdin())), "stdin".into())
+            }
+            Endpoint::Stream(path) => {
+                let f = std::fs::File::open(path)?;
+                (Kind::Stream(Box::new(f)), path.display().to_string())
+            }
+        };
+        let mut r = Receiver::new(kind, format, name);
+        r.idle = idle;
+        Ok(r)
+    }
+
+    /// A receiver of the messages in a byte stream (e.g. a TCP stream a caller accepted).
+    pub fn from_stream(r: Box<dyn Read + Send>, format: InputFormat, name: &str) -> Receiver {
+        Receiver::new(Kind::Stream(r), format, name.into())
+    }
+
+    /// A receiver of datagrams on a bound socket.
+    pub fn from_socket(s: UdpSocket, format: InputFormat, name: &str) -> Receiver {
+        Receiver::new(Kind::Udp(s), format, name.into())
+    }
+
+    fn new(kind: Kind, format: InputFormat, name: String) -> Receiver {
+        Receiver {
+            kind,
+            format,
+            name,
+            buf: Vec::new(),
+            offset: 0,
+            lines: 0,
+            datagrams: 0,
+            eof: false,
+            pending: VecDeque::new(),
+            skipped: 0,
+            idle: None,
+            rbuf: Vec::new(),
+        }
+    }
+
+    /// The input's name for messages (`udp://…`, `stdin`, a path).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The local address of a UDP receiver (its port when bound to port 0).
+    pub fn local_addr(&self) -> Option<SocketAddr> {
+        match &self.kind {
+            Kind::Udp(s) => s.local_addr().ok(),
+            Kind::Stream(_) => None,
+        }
+    }
+
+    /// Stream bytes that were outside any frame so far.
+    pub fn skipped_bytes(&self) -> u64 {
+        self.skipped
+    }
+
+    /// The next message; `None` at the end of a stream or after the idle timeout.
+    pub fn next_message(&mut self) -> std::io::Result<Option<Message>> {
+        loop {
+            if let Some(m) = self.pending.pop_front() {
+                return Ok(Some(m));
+            }
+            let got = match &mut self.kind {
+                Kind::Udp(s) => {
+                    // One receive buffer for the run; each datagram is copied out at its size.
+                    self.rbuf.resize(MAX_DATAGRAM, 0);
+                    match s.recv(&mut self.rbuf) {
+                        Ok(n) => {
+                            if let Some(idle) = self.idle.take() {
+                                s.set_read_timeout(Some(idle))?;
+                            }
+                            let b = self.rbuf[..n].to_vec();
+                            self.datagram(b);
+                            true
+                        }
+                        Err(e)
+                            if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) =>
+                        {
+                            false
+                        }
+                        Err(e) => return Err(e),
+                    }
+                }
+                Kind::Stream(_) => self.fill()?,
+            };
+            if !got && self.pending.is_empty() {
+                return Ok(None);
+            }
+        }
+    }
+
+    fn datagram(&mut self, b: Vec<u8>) {
+        self.datagrams += 1;
+        let n = self.datagrams;
+        let arrival = Instant::now();
+        if self.format != InputFormat::Csv {
+            self.pending.push_back(Message {
+                bytes: b,
+                place: Place::Datagram(n, 0),
+                arrival,
+            });
+            return;
+        }
+        for (l, line) in b.split(|&c| c == b'\n').enumerate() {
+            if line.is_empty() {
+                continue;
+            }
+            self.pending.push_back(Message {
+                bytes: line.to_vec(),
+                place: Place::Datagram(n, l as u64 + 1),
+                arrival,
+            });
+        }
+    }
+
+    /// Reads more of the stream and cuts what is complete into messages; false at its end.
+    fn fill(&mut self) -> std::io::Result<bool> {
+        if self.eof {
+            return Ok(false);
+        }
+        let Kind::Stream(r) = &mut self.kind else {
+            unreachable!("a stream")
+        };
+        let mut chunk = [0u8; 4096];
+        let n = loop {
+            match r.read(&mut chunk) {
+                Ok(n) => break n,
+                Err(e) if e.kind() == ErrorKind::Interrupted => continue,
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
+                    break 0;
+                }
+                Err(e) => return Err(e),
+            }
+        };
+        if n == 0 {
+            self.eof = true;
+        }
+        self.buf.extend_from_slice(&chunk[..n]);
+        self.cut();
+        Ok(n > 0 || !self.pending.is_empty())
+    }
+
+    /// Cuts complete messages off the front of the buffer (everything at the end of input).
+    fn cut(&mut self) {
+        let arrival = Instant::now();
+        let mut at = 0;
+        loop {
+            let rest = &self.buf[at..];
+            let (start, len) = match self.format {
+                InputFormat::Csv => match rest.iter().position(|&c| c == b'\n') {
+                    Some(i) => (0, i + 1),
+                    None if self.eof && !rest.is_empty() => (0, rest.len()),
+                    None => break,
+                },
+                InputFormat::Binary => match find(rest, &binary::MAGIC) {
+                    // A candidate that fails its CRC and holds another magic is a damaged or
+                    // short frame: it ends where the next one starts.
+                    Some(s) if rest.len() >= s + binary::LEN && !binary::crc_ok(&rest[s..]) => {
+                        let inner = find(&rest[s + 1..s + binary::LEN], &binary::MAGIC);
+                        (s, inner.map_or(binary::LEN, |j| j + 1))
+                    }
+                    Some(s) => (s, binary::LEN),
+                    None => (rest.len().saturating_sub(3), 0),
+                },
+                InputFormat::Mavlink => match rest.iter().position(|&c| c == mavlink::STX) {
+                    Some(s) => match mavlink::frame_len(&rest[s..]) {
+                        Some(l) => (s, l),
+                        None => (s, usize::MAX),
+                    },
+                    None => (rest.len(), 0),
+                },
+            };
+            // Bytes before a frame's start are garbage; keep a possible partial magic.
+            let start = if self.eof {
+                start.min(rest.len())
+            } else {
+                start
+            };
+            self.skipped += start as u64;
+            at += start;
+            let rest = &self.buf[at..];
+            if len == 0 || len == usize::MAX || rest.len() < len {
+                if self.eof {
+                    self.skipped += rest.len() as u64;
+                    at = self.buf.len();
+                }
+                break;
+            }
+            let bytes = rest[..len].to_vec();
+            let place = if self.format == InputFormat::Csv {
+                self.lines += 1;
+                Place::Line(self.lines)
+            } else {
+                Place::Byte(self.offset + at as u64)
+            };
+            let bytes = match self.format {
+                InputFormat::Csv => trim_line_end(bytes),
+                _ => bytes,
+            };
+            self.pending.push_back(Message {
+                bytes,
+                place,
+                arrival,
+            });
+            at += len;
+        }
+        self.buf.drain(..at);
+        self.offset += at as u64;
+    }
+}
+
+fn trim_line_end(mut b: Vec<u8>) -> Vec<u8> {
+    while b.last().is_some_and(|&c| c == b'\n' || c == b'\r') {
+        b.pop();
+    }
+    b
+}
+
+fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
+    hay.windows(needle.len()).position(|w| w == needle)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn messages(format: InputFormat, bytes: Vec<u8>) -> (Vec<Message>, u64) {
+        let mut r = Receiver::from_stream(Box::new(std::io::Cursor::new(bytes)), format, "x");
+        let mut out = Vec::new();
+        while let Some(m) = r.next_message().unwrap() {
+            out.push(m);
+        }
+        (out, r.skipped_bytes())
+    }
+
+    #[test]
+    fn parses_endpoints() {
+        assert_eq!(
+            Endpoint::parse("udp://127.0.0.1:5000").unwrap(),
+            Endpoint::Udp("127.0.0.1:5000".parse().unwrap())
+        );
+        assert_eq!(
+            Endpoint::parse("tcp://127.0.0.1:5001").unwrap(),
+            Endpoint::Tcp("127.0.0.1:5001".parse().unwrap())
+        );
+        assert_eq!(
+            Endpoint::parse("-").unwrap(),
+            Endpoint::Stream(PathBuf::from("-"))
+        );
+        assert!(
+            Endpoint::parse("udp://nohost")
+                .unwrap_err()
+                .contains("HOST:PORT")
+        );
+        assert!(
+            Endpoint::parse("http://x")
+                .unwrap_err()
+                .contains("unknown scheme")
+        );
+    }
+
+    /// Binary frames are found after garbage and across read boundaries; the garbage and a
+    /// truncated last frame are counted, each frame named by its byte offset.
+    #[test]
+    fn binary_stream_framing() {
+        let d = binary::Datagram {
+            seq: 1,
+            week: binary::NO_WEEK,
+            time: 1.0,
+            flags: 0,
+            pos: [0.0; 3],
+            vel: [0.0; 3],
+            acc: [0.0; 3],
+            quat: [1.0, 0.0, 0.0, 0.0],
+            rate: [0.0; 3],
+        };
+        let f = binary::encode(&d);
+        let mut s = b"junk!".to_vec();
+        for _ in 0..40 {
+            s.extend_from_slice(&f);
+        }
+        s.extend_from_slice(&f[..60]);
+        let (m, skipped) = messages(InputFormat::Binary, s);
+        assert_eq!(m.len(), 40);
+        assert_eq!(m[0].place, Place::Byte(5));
+        assert_eq!(m[39].place, Place::Byte(5 + 39 * 152));
+        assert!(m.iter().all(|m| m.bytes == f));
+        assert_eq!(skipped, 5 + 60);
+    }
+
+    #[test]
+    fn csv_and_mavlink_stream_framing() {
+        let (m, _) = messages(InputFormat::Csv, b"a,b\r\n\n1,2\n3,4".to_vec());
+        let lines: Vec<&[u8]> = m.iter().map(|m| m.bytes.as_slice()).collect();
+        assert_eq!(lines, vec![&b"a,b"[..], b"", b"1,2", b"3,4"]);
+        assert_eq!(m[3].place, Place::Line(4));
+        let f = mavlink::encode(1, 5, [1.0, 0.0, 0.0, 0.0], [0.0; 3], [1, 2, 3], [0; 3]);
+        let mut s = vec![0u8, 1, 2];
+        s.extend_from_slice(&f);
+        s.extend_from_slice(&f);
+        let (m, skipped) = messages(InputFormat::Mavlink, s);
+        assert_eq!(m.len(), 2);
+        assert_eq!(m[1].place, Place::Byte(3 + f.len() as u64));
+        assert_eq!(skipped, 3);
+    }
+}

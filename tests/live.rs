@@ -1,0 +1,583 @@
+//! Live motion input in lockstep, over real loopback sockets and pipes: the survey scene's
+//! states streamed at 100 Hz come out as records that match the analytic scene and that the
+//! reference navigator integrates back to the truth; the same input gives the same bytes, a
+//! recorded input replays to them; damaged, duplicated, reordered and missing states are
+//! counted and never fatal.
+//!
+//! Figures measured when the tests were written are printed (`--nocapture`); each bound says
+//! where it comes from.
+
+use std::io::Write;
+use std::net::{TcpListener, TcpStream, UdpSocket};
+use std::path::Path;
+use std::thread;
+use std::time::Duration;
+
+use imu_emu::earth;
+use imu_emu::input::RecordReader;
+use imu_emu::live::binary::{self, Datagram};
+use imu_emu::live::lockstep::{LiveSummary, Lockstep, released};
+use imu_emu::live::transport::{Endpoint, Receiver};
+use imu_emu::live::{InputFormat, mavlink};
+use imu_emu::math::{QuatExt, Vec3, euler_from_quat};
+use imu_emu::motion::{Motion, Pose};
+use imu_emu::nav::{NavState, Navigator, Settings, StateError};
+use imu_emu::output::Format;
+use imu_emu::record::Record;
+use imu_emu::sim::Simulation;
+use imu_emu::source::AnyMotion;
+use imu_emu::trajectory;
+
+fn survey() -> AnyMotion {
+    Simulation::builder().build().unwrap().motion().clone()
+}
+
+/// The survey scene's states from t = 0 every 10 ms to `seconds`, as trajectory CSV (what
+/// `imu-emu trajectory --rate 100` writes).
+fn survey_csv(seconds: f64) -> String {
+    trajectory::sample_motion(&survey(), 0.0, 100.0, (seconds * 100.0) as u64, None)
+}
+
+fn records(csv: &[u8]) -> Vec<Record> {
+    let r = RecordReader::new(
+        std::io::Cursor::new(csv.to_vec()),
+        Path::new("out.csv"),
+        Format::Csv,
+    )
+    .unwrap();
+    r.map(Result::unwrap).collect()
+}
+
+/// Streams `text` into a lockstep run over a TCP loopback connection.
+fn over_tcp(text: String, rate: f64, seconds: f64) -> (Vec<u8>, LiveSummary) {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let sender = thread::spawn(move || {
+        let mut s = TcpStream::connect(addr).unwrap();
+        // The run may stop reading once its duration is written.
+        let _ = s.write_all(text.as_bytes());
+    });
+    let (stream, _) = listener.accept().unwrap();
+    let mut rx = Receiver::from_stream(Box::new(stream), InputFormat::Csv, "tcp");
+    let b = Simulation::builder().rate(rate).duration(seconds);
+    let run = Lockstep::new(b, InputFormat::Csv).unwrap();
+    let mut out = Vec::new();
+    let summary = run.run(&mut rx, &mut out, None, |_| ()).unwrap();
+    sender.join().unwrap();
+    (out, summary)
+}
+
+/// The survey's states with the exact body rate (deg/s) and NED velocity rate (m/s²) the
+/// scene knows, as a simulation that sends them would: v̇^n from the sensed specific force by
+/// the navigation equation v̇^n = C_b^n f^b − (2ω_ie^n + ω_en^n) × v^n + g^n.
+fn survey_csv_with_rates(seconds: f64) -> String {
+    let m = survey();
+    let mut text = String::from("t,lat,lon,h,vn,ve,vd,roll,pitch,yaw,wx,wy,wz,an,ae,ad\n");
+    let mut hint = 0;
+    for k in 0..=(seconds * 100.0) as u64 {
+        let t = k as f64 / 100.0;
+        let p = m.pose(t);
+        hint = m.piece_at(t, hint);
+        let s = m.sense(hint, t);
+        let (sl, cl) = p.lat.sin_cos();
+        let g = Vec3::new(0.0, 0.0, earth::normal_gravity(sl, p.h));
+        let coriolis = earth::omega_ie_n(sl, cl) * 2.0 + earth::omega_en_n(sl, cl, p.h, p.v_n);
+        let a_n = p.q_b_n.rotate(s.f_b) - coriolis.cross(&p.v_n) + g;
+        let (r, pi, y) = euler_from_quat(p.q_b_n);
+        let w = s.omega_ib_b * (180.0 / std::f64::consts::PI);
+        let vals = [
+            t,
+            p.lat.to_degrees(),
+            p.lon.to_degrees(),
+            p.h,
+            p.v_n.x,
+            p.v_n.y,
+            p.v_n.z,
+            r.to_degrees(),
+            pi.to_degrees(),
+            y.to_degrees(),
+            w.x,
+            w.y,
+            w.z,
+            a_n.x,
+            a_n.y,
+            a_n.z,
+        ];
+        let line: Vec<String> = vals.iter().map(|v| format!("{v:?}")).collect();
+        text.push_str(&line.join(","));
+        text.push('\n');
+    }
+    text
+}
+
+/// Largest errors (gyro, accel) over all records and over those away from the scene's own
+/// breakpoints (where its bank acceleration jumps: no sampled model without the jump's time
+/// can follow it; a record counts as near one when a breakpoint lies within the 9 states of
+/// the stencils that made its piece, or in its piece).
+struct Errors {
+    all: (f64, f64),
+    interior: (f64, f64),
+}
+
+fn errors_against_scene(out: &[Record], t0: f64, rate: f64) -> Errors {
+    let n = out.len() as f64 / rate;
+    let m = survey();
+    let truth = Simulation::builder()
+        .rate(rate)
+        .start(t0)
+        .duration(n)
+        .build()
+        .unwrap();
+    let truth: Vec<Record> = truth.records().unwrap().flat_map(Result::unwrap).collect();
+    assert_eq!(truth.len(), out.len());
+    let mut breaks = Vec::new();
+    let mut piece = m.piece_at(t0, 0);
+    while m.piece_end(piece) < t0 + n {
+        breaks.push(m.piece_end(piece));
+        piece += 1;
+    }
+    let near = |t: f64| breaks.iter().any(|&b| t > b - 0.02 && t < b + 0.1);
+    let mut e = Errors {
+        all: (0.0, 0.0),
+        interior: (0.0, 0.0),
+    };
+    for (a, b) in out.iter().zip(&truth) {
+        assert_eq!(a.t, b.t);
+        let (g, f) = ((a.gyro - b.gyro).amax(), (a.accel - b.accel).amax());
+        e.all = (e.all.0.max(g), e.all.1.max(f));
+        if !near(a.t) {
+            e.interior = (e.interior.0.max(g), e.interior.1.max(f));
+        }
+    }
+    println!("  ({} scene breakpoints)", breaks.len());
+    e
+}
+
+/// Navigates `recs` from the scene's state at t₀: the largest 3-D position error (m).
+fn navigate(recs: &[Record], t0: f64, rate: f64) -> f64 {
+    let m = survey();
+    let start = NavState::from_pose(&m.pose(t0));
+    let mut nav = Navigator::new(start, rate, Settings::default()).unwrap();
+    let mut worst = 0.0f64;
+    for r in recs {
+        nav.step(r.dtheta, r.dv);
+        let s = nav.state();
+        worst = worst.max(StateError::of(&s, &m.pose(s.t)).pos_ned.norm());
+    }
+    worst
+}
+
+/// The acceptance case: survey states at 100 Hz over TCP loopback, 400 Hz records for
+/// 600 s, with and without the exact rates a simulation can send; errors of the records'
+/// mean rates against the analytic scene and of the navigator integrating them.
+///
+/// Measured when written (plain / with rates): away from the scene's 14 breakpoints gyro
+/// 2.4e-11 / 1.4e-12 rad/s, accel 1.5e-9 / 8.3e-11 m/s² (bounds about ×5: round-off of the
+/// one-sided stencils); over the whole run, where the survey's bank acceleration jumps
+/// between two states, gyro 1.5e-3 / 2.3e-4 rad/s and accel 7.4e-5 / 6.5e-6 m/s² (bounds
+/// ×2–3; the aim, 1e-6 rad/s and 1e-4 m/s², holds for accel everywhere and for gyro
+/// away from the jumps). Navigator: 4.4e-9 m worst over 600 s; the bound is the issue's
+/// closure bound for this scene, 1e-3 m, and a 1e-6 m/s² accelerometer bias added to the same
+/// records must break it (the comparison is live).
+#[test]
+fn survey_600s_at_100hz_matches_the_scene_and_navigates() {
+    let (rate, seconds) = (400.0, 600.0);
+    let cases = [
+        (
+            "plain",
+            survey_csv(seconds + 1.0),
+            [1e-10, 1e-8, 4e-3, 1e-4],
+        ),
+        (
+            "rates",
+            survey_csv_with_rates(seconds + 1.0),
+            [1e-11, 5e-10, 6e-4, 2e-5],
+        ),
+    ];
+    for (label, text, [gi, ai, ga, aa]) in cases {
+        let (out, summary) = over_tcp(text, rate, seconds);
+        let mut recs = records(&out);
+        assert_eq!(recs.len() as u64, summary.records);
+        assert_eq!(summary.records, (seconds * rate) as u64);
+        assert_eq!(summary.stats.malformed, 0);
+        // The model starts at its first knot: the ninth state (one-sided 9-point stencil).
+        assert_eq!(summary.grid.t0, 0.08);
+        let e = errors_against_scene(&recs, summary.grid.t0, rate);
+        let worst = navigate(&recs, summary.grid.t0, rate);
+        println!(
+            "survey 100 Hz {label} → 400 Hz lockstep: gyro max {:.2e} rad/s (interior {:.2e}), accel max {:.2e} m/s² (interior {:.2e}); navigator 600 s: max position error {worst:.2e} m",
+            e.all.0, e.interior.0, e.all.1, e.interior.1
+        );
+        assert!(e.interior.0 <= gi && e.interior.1 <= ai, "{label} interior");
+        assert!(e.all.0 <= ga && e.all.1 <= aa, "{label} whole run");
+        assert!(worst <= 1e-3, "{label}: navigator {worst:e} m");
+        for r in &mut recs {
+            r.dv[0] += 1e-6 / rate;
+        }
+        let biased = navigate(&recs, summary.grid.t0, rate);
+        assert!(biased > 1e-2, "a 1e-6 m/s² bias gives only {biased:e} m");
+    }
+}
+
+/// One survey state as a binary datagram.
+fn datagram(p: &Pose, seq: u32) -> [u8; binary::LEN] {
+    binary::encode(&Datagram {
+        seq,
+        week: binary::NO_WEEK,
+        time: p.t,
+        flags: 0,
+        pos: [p.lat.to_degrees(), p.lon.to_degrees(), p.h],
+        vel: p.v_n.into(),
+        acc: [0.0; 3],
+        quat: [p.q_b_n.w, p.q_b_n.i, p.q_b_n.j, p.q_b_n.k],
+        rate: [0.0; 3],
+    })
+}
+
+/// Binary datagrams over UDP loopback with damage: a datagram with a broken CRC, a short
+/// one, a duplicate, two swapped (the later one arrives late), one never sent. All are
+/// counted; the run goes on; the input recorded during the run replays (from a file, as a
+/// stream) to the same bytes, and a second live run gives them too.
+#[test]
+fn udp_binary_damage_is_counted_and_replay_is_bit_identical() {
+    let m = survey();
+    let mut sent: Vec<Vec<u8>> = Vec::new();
+    for i in 0..600u32 {
+        let d = datagram(&m.pose(i as f64 * 0.01), i).to_vec();
+        match i {
+            100 => {
+                let mut bad = d.clone();
+                bad[40] ^= 0x10;
+                sent.push(bad);
+                sent.push(d);
+            }
+            200 => {
+                sent.push(d.clone());
+                sent.push(d);
+            }
+            300 => sent.push(d[..100].to_vec()),
+            400 => {}
+            _ => sent.push(d),
+        }
+    }
+    // Swap 500 and 501: 501 first, 500 late.
+    let k = sent
+        .iter()
+        .position(|d| u32::from_le_bytes(d[8..12].try_into().unwrap()) == 500)
+        .unwrap();
+    sent.swap(k, k + 1);
+
+    let live = |sent: &[Vec<u8>]| -> (Vec<u8>, Vec<u8>, LiveSummary) {
+        let rx_socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+        rx_socket
+            .set_read_timeout(Some(Duration::from_millis(500)))
+            .unwrap();
+        let addr = rx_socket.local_addr().unwrap();
+        let sent = sent.to_vec();
+        let sender = thread::spawn(move || {
+            let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+            for (i, d) in sent.iter().enumerate() {
+                s.send_to(d, addr).unwrap();
+                // Paced so that the loopback receive buffer never overflows.
+                if i % 20 == 0 {
+                    thread::sleep(Duration::from_millis(2));
+                }
+            }
+        });
+        let mut rx = Receiver::from_socket(rx_socket, InputFormat::Binary, "udp");
+        let b = Simulation::builder().rate(400.0).format("ln200");
+        let run = Lockstep::new(b, InputFormat::Binary).unwrap();
+        let (mut out, mut rec) = (Vec::new(), Vec::new());
+        let s = run.run(&mut rx, &mut out, Some(&mut rec), |_| ()).unwrap();
+        sender.join().unwrap();
+        (out, rec, s)
+    };
+    let (out, rec, s) = live(&sent);
+    let st = &s.stats;
+    println!("{}", st.summary());
+    assert_eq!(st.messages, sent.len() as u64);
+    assert_eq!(st.malformed, 2, "{:?}", st.problems);
+    assert!(
+        st.problems[0].contains("udp: datagram 101, byte 148: CRC"),
+        "{:?}",
+        st.problems
+    );
+    assert!(
+        st.problems[1].contains("byte 0: 100 bytes, expected 152"),
+        "{:?}",
+        st.problems
+    );
+    assert_eq!(st.duplicates, 1);
+    assert_eq!(st.reordered, 1);
+    // Sequence breaks: 300 (short), 400 (never sent), 500 (arrived after 501).
+    assert_eq!((st.gaps, st.missing), (3, 3));
+    assert_eq!(st.states, 600 - 3);
+    // Every record whose interval the last state closes: (5.99 − 0.08)·400, to round-off.
+    assert_eq!(s.records, released(&s.grid, 5.99));
+    assert!((2363..=2364).contains(&s.records), "{}", s.records);
+    assert_eq!(out.len() as u64 % s.records, 0, "whole frames");
+
+    let (again, _, _) = live(&sent);
+    assert_eq!(again, out, "same input, same bytes");
+
+    let dir = tempfile::TempDir::new().unwrap();
+    let path = dir.path().join("input.rec");
+    std::fs::write(&path, &rec).unwrap();
+    let mut rx =
+        Receiver::open(&Endpoint::Stream(path.clone()), InputFormat::Binary, None).unwrap();
+    let b = Simulation::builder().rate(400.0).format("ln200");
+    let mut replay = Vec::new();
+    let r = Lockstep::new(b, InputFormat::Binary)
+        .unwrap()
+        .run(&mut rx, &mut replay, None, |_| ())
+        .unwrap();
+    assert_eq!(replay, out, "replay of the recorded input");
+    // The stream cuts the short datagram at the next magic: the same two malformed messages.
+    assert_eq!((r.stats.malformed, r.stats.skipped_bytes), (2, 0));
+    assert_eq!(
+        r.stats.problems[1].split(": ").last(),
+        Some("100 bytes, expected 152")
+    );
+}
+
+/// CSV lines through a FIFO with bad lines among them: each named by its line and column,
+/// counted, and the output equals that of the clean input (the bad lines carried no state
+/// the model needed: they are extra lines).
+#[test]
+fn fifo_csv_with_bad_lines() {
+    let clean = survey_csv(3.0);
+    let mut dirty = String::new();
+    for (i, line) in clean.lines().enumerate() {
+        dirty.push_str(line);
+        dirty.push('\n');
+        if i == 50 {
+            dirty.push_str("1.0,45,nope,0,0,0,0,0,0,0\n");
+            dirty.push_str("garbage\n");
+            dirty.push_str("t,lat,lon,h,vn,ve,vd,roll,pitch,yaw\n");
+        }
+    }
+    let dir = tempfile::TempDir::new().unwrap();
+    let fifo = dir.path().join("states");
+    nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::S_IRWXU).unwrap();
+    let run = |text: String| {
+        let f = fifo.clone();
+        let writer = thread::spawn(move || std::fs::write(f, text).unwrap());
+        let mut rx =
+            Receiver::open(&Endpoint::Stream(fifo.clone()), InputFormat::Csv, None).unwrap();
+        let b = Simulation::builder().rate(200.0);
+        let mut out = Vec::new();
+        let s = Lockstep::new(b, InputFormat::Csv)
+            .unwrap()
+            .run(&mut rx, &mut out, None, |_| ())
+            .unwrap();
+        writer.join().unwrap();
+        (out, s)
+    };
+    let (a, sa) = run(clean);
+    let (b, sb) = run(dirty);
+    assert_eq!(a, b);
+    assert_eq!(sa.stats.malformed, 0);
+    assert_eq!(sb.stats.malformed, 2, "{:?}", sb.stats.problems);
+    assert!(
+        sb.stats.problems[0].contains("line 52, byte 7: column 3 (`lon`)"),
+        "{:?}",
+        sb.stats.problems
+    );
+    assert!(
+        sb.stats.problems[1].contains("line 53"),
+        "{:?}",
+        sb.stats.problems
+    );
+}
+
+/// MAVLink HIL_STATE_QUATERNION frames of the survey over a Unix socket pair: decoded,
+/// counted, and the records follow the scene to the resolution the message allows (1 cm/s
+/// velocities, float32 attitude and rates: the bounds are what that resolution gives through
+/// the stencil, see docs/live-input.md).
+#[test]
+fn mavlink_stream_follows_the_scene_coarsely() {
+    let m = survey();
+    let mut bytes = Vec::new();
+    for i in 0..500u64 {
+        let p = m.pose(i as f64 * 0.01);
+        let s = m.sense(m.piece_at(p.t, 0), p.t);
+        let q = p.q_b_n;
+        bytes.extend(mavlink::encode(
+            i as u8,
+            i * 10_000,
+            [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
+            [
+                s.omega_ib_b.x as f32,
+                s.omega_ib_b.y as f32,
+                s.omega_ib_b.z as f32,
+            ],
+            [
+                (p.lat.to_degrees() * 1e7).round() as i32,
+                (p.lon.to_degrees() * 1e7).round() as i32,
+                (p.h * 1e3).round() as i32,
+            ],
+            [p.v_n.x, p.v_n.y, p.v_n.z].map(|x| (x * 100.0).round() as i16),
+        ));
+    }
+    let (mut a, b) = std::os::unix::net::UnixStream::pair().unwrap();
+    let writer = thread::spawn(move || a.write_all(&bytes).unwrap());
+    let mut rx = Receiver::from_stream(Box::new(b), InputFormat::Mavlink, "mavlink");
+    let mut out = Vec::new();
+    let s = Lockstep::new(Simulation::builder().rate(400.0), InputFormat::Mavlink)
+        .unwrap()
+        .run(&mut rx, &mut out, None, |_| ())
+        .unwrap();
+    writer.join().unwrap();
+    assert_eq!(
+        (s.stats.states, s.stats.malformed, s.stats.gaps),
+        (500, 0, 0)
+    );
+    let recs = records(&out);
+    let e = errors_against_scene(&recs, s.grid.t0, 400.0);
+    let (eg, ea) = e.all;
+    println!("survey over MAVLink: gyro max {eg:.2e} rad/s, accel max {ea:.2e} m/s²");
+    // Measured 2.7e-7 rad/s and 1.1e-4 m/s²: float32 rates and attitude given, and over these
+    // first 5 s the survey flies straight at constant speed, so the 1 cm/s velocity steps
+    // barely show; a turn at 1 cm/s resolution costs far more (docs/live-input.md).
+    assert!(eg < 1e-6 && ea < 5e-4, "{eg:e} {ea:e}");
+}
+
+/// A multicast source (`udp://GROUP:PORT`): the receiver joins the group and takes the
+/// datagrams sent to it (looped back to this host).
+#[test]
+fn multicast_group_is_joined() {
+    let group = "239.255.77.11";
+    let mut rx = Receiver::open(
+        &Endpoint::parse(&format!("udp://{group}:0")).unwrap(),
+        InputFormat::Binary,
+        Some(Duration::from_millis(500)),
+    )
+    .unwrap();
+    let port = rx.local_addr().unwrap().port();
+    let m = survey();
+    let sender = thread::spawn(move || {
+        // Unbound, as a simulation's sender usually is: the group is reached on the default
+        // multicast interface, the one the receiver joined on.
+        let s = UdpSocket::bind("0.0.0.0:0").unwrap();
+        s.set_multicast_loop_v4(true).unwrap();
+        for i in 0..40u32 {
+            let d = datagram(&m.pose(i as f64 * 0.01), i);
+            s.send_to(&d, (group, port)).unwrap();
+            thread::sleep(Duration::from_millis(1));
+        }
+    });
+    let run = Lockstep::new(Simulation::builder().rate(400.0), InputFormat::Binary).unwrap();
+    let mut out = Vec::new();
+    let s = run.run(&mut rx, &mut out, None, |_| ()).unwrap();
+    sender.join().unwrap();
+    assert_eq!((s.stats.states, s.stats.missing), (40, 0));
+    assert_eq!(s.records, released(&s.grid, 0.39));
+}
+
+fn imu_emu() -> std::process::Command {
+    std::process::Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+}
+
+/// The command line over TCP: `run --motion tcp://…` listens, takes the connection, writes
+/// the same bytes as the library run on the same input (LN-200 model and frames, `run`'s
+/// defaults), and reports the bad line with its place; the exit status is 0.
+#[test]
+fn cli_tcp_run_equals_the_library_and_reports() {
+    let mut text = survey_csv(2.0);
+    text.insert_str(text.find("\n1.0").unwrap() + 1, "1.0,x,0,0,0,0,0,0,0,0\n");
+    let port = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let dir = tempfile::TempDir::new().unwrap();
+    let out = dir.path().join("out.bin");
+    let child = imu_emu()
+        .args([
+            "run",
+            "--motion",
+            &format!("tcp://127.0.0.1:{port}"),
+            "--file",
+        ])
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut conn = None;
+    for _ in 0..200 {
+        if let Ok(c) = TcpStream::connect(("127.0.0.1", port)) {
+            conn = Some(c);
+            break;
+        }
+        thread::sleep(Duration::from_millis(25));
+    }
+    conn.expect("the emulator listens")
+        .write_all(text.as_bytes())
+        .unwrap();
+    let done = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&done.stderr);
+    assert!(done.status.success(), "{err}");
+    assert!(err.contains("1 malformed"), "{err}");
+    assert!(err.contains("line 102, byte 4: column 2 (`lat`)"), "{err}");
+
+    let b = Simulation::builder().defaults("ln200", "ln200");
+    let mut rx = Receiver::from_stream(
+        Box::new(std::io::Cursor::new(text.into_bytes())),
+        InputFormat::Csv,
+        "x",
+    );
+    let mut want = Vec::new();
+    Lockstep::new(b, InputFormat::Csv)
+        .unwrap()
+        .run(&mut rx, &mut want, None, |_| ())
+        .unwrap();
+    assert_eq!(std::fs::read(&out).unwrap(), want);
+}
+
+/// Bad flags and an input too short for the model: a clear message, a failing exit status,
+/// and no output file left behind.
+#[test]
+fn cli_refuses_bad_settings_and_short_input() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let out = dir.path().join("out.bin");
+    let run = |extra: &[&str], stdin: &str| {
+        let mut c = imu_emu()
+            .args(["run", "--motion", "-", "--file"])
+            .arg(&out)
+            .args(extra)
+            .stdin(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let _ = c.stdin.take().unwrap().write_all(stdin.as_bytes());
+        let o = c.wait_with_output().unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let (ok, err) = run(&["--input-format", "xml"], "");
+    assert!(
+        !ok && err.contains("--input-format xml: expected csv, bin or mavlink"),
+        "{err}"
+    );
+    let (ok, err) = run(&["--time-mode", "realtime"], "");
+    assert!(
+        !ok && err.contains("only `lockstep` is implemented"),
+        "{err}"
+    );
+    let (ok, err) = run(&["--pty", "x"], "");
+    assert!(!ok && err.contains("writes to one --file"), "{err}");
+    // Refused before any state arrives (stdin stays empty).
+    let (ok, err) = run(&["--imu", "no-such-imu"], "");
+    assert!(!ok && err.contains("no-such-imu"), "{err}");
+    let short: String = survey_csv(0.05);
+    let (ok, err) = run(&[], &short);
+    assert!(
+        !ok && err
+            .contains("stdin: the input ended after 6 usable states; the motion model needs 9"),
+        "{err}"
+    );
+    assert!(!out.exists(), "no partial output");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
