@@ -76,6 +76,8 @@ pub struct ImuModel {
     pub order: Vec<StageKind>,
     /// Reference temperature of the temperature polynomials (°C).
     pub temperature_ref: f64,
+    /// The unit's internal rate and output filter (`[output_filter]`), if it has one.
+    pub output_filter: Option<super::output_filter::FilterSpec>,
 }
 
 impl ImuModel {
