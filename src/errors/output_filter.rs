@@ -282,13 +282,13 @@ impl Filter {
             Design::Iir(sections) => {
                 // Transposed direct form II, section by section.
                 let mut v = x;
-                for (j, q) in sections.iter().enumerate() {
-                    let (s1, s2) = (2 * j, 2 * j + 1);
-                    for i in 0..6 {
-                        let y = q.b[0] * v[i] + self.state[s1][i];
-                        self.state[s1][i] = q.b[1] * v[i] - q.a[0] * y + self.state[s2][i];
-                        self.state[s2][i] = q.b[2] * v[i] - q.a[1] * y;
-                        v[i] = y;
+                for (q, st) in sections.iter().zip(self.state.chunks_exact_mut(2)) {
+                    let (first, second) = st.split_at_mut(1);
+                    for ((x, s1), s2) in v.iter_mut().zip(&mut first[0]).zip(&mut second[0]) {
+                        let y = q.b[0] * *x + *s1;
+                        *s1 = q.b[1] * *x - q.a[0] * y + *s2;
+                        *s2 = q.b[2] * *x - q.a[1] * y;
+                        *x = y;
                     }
                 }
                 emit.then_some(v)
