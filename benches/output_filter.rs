@@ -39,7 +39,10 @@ fn main() {
     println!("| chain | ns per output record |\n|---|---|");
     println!("| no filter, 200 Hz | {base:.1} |");
     for (name, filter) in [
-        ("moving average, 8 taps", "kind = \"moving_average\"\ntaps = 8"),
+        (
+            "moving average, 8 taps",
+            "kind = \"moving_average\"\ntaps = 8",
+        ),
         ("CIC, 3 stages of 8", "kind = \"cic\"\norder = 3\ntaps = 8"),
         (
             "FIR, 32 taps",
