@@ -151,7 +151,7 @@ fn run(m: &imu_emu::errors::ImuModel, n_out: usize, seed: u64) -> Vec<Record> {
 fn axes(out: &[Record]) -> [Vec<f64>; 6] {
     std::array::from_fn(|i| {
         out.iter()
-            .map(|r| if i < 3 { r.gyro.0[i] } else { r.accel.0[i - 3] })
+            .map(|r| if i < 3 { r.gyro[i] } else { r.accel[i - 3] })
             .collect()
     })
 }
@@ -300,8 +300,8 @@ fn a_tone_above_nyquist_aliases_through_the_response() {
         let (mut re, mut im) = (0.0, 0.0);
         for r in tail {
             let w = 2.0 * PI * 30.0 * r.t;
-            re += r.gyro.0[0] * w.cos();
-            im += r.gyro.0[0] * w.sin();
+            re += r.gyro[0] * w.cos();
+            im += r.gyro[0] * w.sin();
         }
         let amp = 2.0 * (re * re + im * im).sqrt() / tail.len() as f64;
         let want = a * s.magnitude(170.0);

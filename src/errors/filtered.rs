@@ -86,10 +86,10 @@ impl FilteredChain {
         let first = out.len();
         for r in &self.buf {
             self.flags |= r.flags;
-            let (g, a) = (r.gyro.0, r.accel.0);
+            let (g, a) = (r.gyro, r.accel);
             if let Some(y) = self.filter.push([g[0], g[1], g[2], a[0], a[1], a[2]]) {
-                let gyro = Vec3([y[0], y[1], y[2]]);
-                let accel = Vec3([y[3], y[4], y[5]]);
+                let gyro = Vec3::new(y[0], y[1], y[2]);
+                let accel = Vec3::new(y[3], y[4], y[5]);
                 out.push(Record {
                     t: r.t,
                     gyro,
