@@ -37,6 +37,8 @@ enum Command {
     Compare(cmd::compare::CompareArgs),
     /// Statistics, Allan deviation with fitted IEEE terms, and PSD of a recording, with plots.
     Analyze(Box<cmd::analyze::AnalyzeArgs>),
+    /// Plot the injected error components of a --truth-errors file over time, per sensor axis.
+    PlotErrors(cmd::plot_errors::PlotErrorsArgs),
 }
 
 fn main() {
@@ -51,6 +53,7 @@ fn main() {
         Command::Compare(a) => cmd::compare::compare(a),
         Command::Run(a) => cmd::run::run(*a),
         Command::Analyze(a) => cmd::analyze::analyze(*a),
+        Command::PlotErrors(a) => cmd::plot_errors::plot_errors(a),
         Command::Scenes => {
             for name in scenes::NAMES {
                 println!(

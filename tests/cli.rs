@@ -1536,3 +1536,27 @@ fn analyze_into_a_closed_pipe_ends_quietly() {
     assert!(out.status.success(), "{:?}: {err}", out.status);
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// `plot-errors` draws a `--truth-errors` file (PNG written); a malformed row is refused
+/// with the file and line, and no plot is left behind.
+#[test]
+fn plot_errors_draws_and_refuses_bad_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let errors = dir.path().join("errors.csv");
+    let out = dir.path().join("errors.png");
+    succeeded(run!(
+        "generate --scene static --imu adis16405:typical --duration 5 --rate 100 -o /dev/null --truth-errors",
+        errors
+    ));
+    succeeded(run!("plot-errors -o", out, errors));
+    let png = std::fs::read(&out).unwrap();
+    assert_eq!(&png[..4], b"\x89PNG");
+    let bad = dir.path().join("bad.csv");
+    let text = std::fs::read_to_string(&errors).unwrap();
+    let mut lines: Vec<&str> = text.lines().take(5).collect();
+    lines[3] = "0.03,oops";
+    write(&bad, &lines.join("\n"));
+    let msg = failed(run!(in dir.path(); "plot-errors -o bad.png bad.csv"));
+    assert_mentions(&msg, &["bad.csv", "line 4"]);
+    assert_no_output(dir.path(), "bad.png");
+}

@@ -6,6 +6,7 @@ pub mod allan;
 pub mod analyzer;
 pub mod confidence;
 pub mod conformance;
+pub mod error_plot;
 pub mod fit;
 pub mod octave_adev;
 pub mod psd;

@@ -26,32 +26,45 @@ pub struct TrajectoryArgs {
     pub output: PathBuf,
 }
 
-/// `imu-emu templates`: the built-in IMU templates and their headline figures.
+/// `imu-emu templates`: the built-in IMU templates and their headline figures, each typical
+/// profile on its own row under its template.
 pub fn list_templates() -> Result<()> {
-    use std::f64::consts::PI;
+    use imu_emu::errors::template;
     println!(
-        "{:<11} {:<11} {:>12} {:>13} {:>12} {:>13}  description",
+        "{:<17} {:<11} {:>12} {:>13} {:>12} {:>13}  description",
         "name", "grade", "gyro BI", "ARW", "accel BI", "VRW"
     );
     println!(
-        "{:<11} {:<11} {:>12} {:>13} {:>12} {:>13}",
+        "{:<17} {:<11} {:>12} {:>13} {:>12} {:>13}",
         "", "", "deg/h", "deg/sqrt(h)", "ug", "m/s/sqrt(h)"
     );
-    for name in imu_emu::errors::template::builtin_names() {
-        let m = imu_emu::errors::template::load(name)?;
-        let deg_h = 180.0 / PI * 3600.0;
-        println!(
-            "{:<11} {:<11} {:>12.3} {:>13.4} {:>12.1} {:>13.4}  {}",
-            m.name,
-            m.grade,
-            m.gyro.bias_instability[0] * deg_h,
-            m.gyro.noise[0] * 180.0 / PI * 60.0,
-            m.accel.bias_instability[0] / imu_emu::units::G0 * 1e6,
-            m.accel.noise[0] * 60.0,
-            m.description
-        );
+    let typical = template::typical_names();
+    for name in template::builtin_names() {
+        print_template_row(&template::load(name)?);
+        if typical.contains(&name) {
+            print_template_row(&template::load(&format!("{name}:{}", template::TYPICAL))?);
+        }
     }
+    println!(
+        "\n`--imu NAME` uses the datasheet figures (the default); `--imu NAME:typical` the \
+         figures read from a public recording of a real unit (docs/fidelity.md)."
+    );
     Ok(())
+}
+
+fn print_template_row(m: &imu_emu::errors::ImuModel) {
+    use std::f64::consts::PI;
+    let deg_h = 180.0 / PI * 3600.0;
+    println!(
+        "{:<17} {:<11} {:>12.3} {:>13.4} {:>12.1} {:>13.4}  {}",
+        m.name,
+        m.grade,
+        m.gyro.bias_instability[0] * deg_h,
+        m.gyro.noise[0] * 180.0 / PI * 60.0,
+        m.accel.bias_instability[0] / imu_emu::units::G0 * 1e6,
+        m.accel.noise[0] * 60.0,
+        m.description
+    );
 }
 
 pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {

@@ -8,6 +8,7 @@ pub mod info;
 pub mod live;
 pub mod navigate;
 pub mod rig;
+pub mod plot_errors;
 pub mod run;
 pub mod setup;
 pub mod validate;

@@ -279,6 +279,12 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let imu = a.imu.clone().unwrap_or_else(|| "ln200".into());
     let model = imu_emu::errors::template::load(&imu)?;
+    if model.output_filter.is_some() {
+        bail!(
+            "template `{}` has an [output_filter]: validate does not apply output filters yet",
+            model.name
+        );
+    }
     let seed = a.seed.unwrap_or(imu_emu::rng::DEFAULT_SEED);
     let second = if model.has_error_figures() {
         perturbed(&a, &model, seed)?

@@ -7,7 +7,9 @@
 
 pub mod bounds;
 pub mod chain;
+pub mod filtered;
 pub mod model;
+pub mod output_filter;
 pub mod process;
 mod stages;
 pub mod temperature;

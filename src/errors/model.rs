@@ -78,6 +78,8 @@ pub struct ImuModel {
     pub temperature_ref: f64,
     /// The unit's timing errors (`[timing]`): its clock, jitter, skew, latency.
     pub timing: crate::timing::TimingModel,
+    /// The unit's internal rate and output filter (`[output_filter]`), if it has one.
+    pub output_filter: Option<super::output_filter::FilterSpec>,
 }
 
 impl ImuModel {

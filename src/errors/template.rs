@@ -31,6 +31,9 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../templates/motionpak2.toml"),
     ),
     ("fji", include_str!("../../templates/fji.toml")),
+    ("adis16448", include_str!("../../templates/adis16448.toml")),
+    ("bmi160", include_str!("../../templates/bmi160.toml")),
+    ("navchip", include_str!("../../templates/navchip.toml")),
 ];
 
 /// A template that cannot be used, with the file and key at fault.
@@ -73,18 +76,43 @@ pub fn builtin_names() -> Vec<&'static str> {
     BUILTIN.iter().map(|b| b.0).collect()
 }
 
-/// Loads a built-in template by name or a template file by path.
-pub fn load(name_or_path: &str) -> Result<ImuModel, TemplateError> {
-    if let Some((n, text)) = BUILTIN.iter().find(|b| b.0 == name_or_path) {
-        return parse(text, Path::new(&format!("templates/{n}.toml")));
+/// The suffix that selects a template's typical profile (`ln200:typical`); `:datasheet` (the
+/// default) selects the figures the template's sources promise.
+pub const TYPICAL: &str = "typical";
+
+/// Which figures of a template to use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Profile {
+    /// The template's own figures (what the datasheet promises): the default.
+    Datasheet,
+    /// The `[typical]` table laid over them: how recorded units of that model behave.
+    Typical,
+}
+
+/// Splits `NAME:typical` / `NAME:datasheet` into the name and the profile (other text is a
+/// name or a path as given).
+pub fn split_profile(name_or_path: &str) -> (&str, Profile) {
+    match name_or_path.rsplit_once(':') {
+        Some((n, TYPICAL)) if !n.is_empty() => (n, Profile::Typical),
+        Some((n, "datasheet")) if !n.is_empty() => (n, Profile::Datasheet),
+        _ => (name_or_path, Profile::Datasheet),
     }
-    let path = Path::new(name_or_path);
+}
+
+/// Loads a built-in template by name or a template file by path, `NAME:typical` for its
+/// typical profile.
+pub fn load(name_or_path: &str) -> Result<ImuModel, TemplateError> {
+    let (name, profile) = split_profile(name_or_path);
+    if let Some((n, text)) = BUILTIN.iter().find(|b| b.0 == name) {
+        return parse_profile(text, Path::new(&format!("templates/{n}.toml")), profile);
+    }
+    let path = Path::new(name);
     if path.extension().is_some_and(|e| e == "toml") || path.exists() {
         let text = std::fs::read_to_string(path).map_err(|source| TemplateError::Io {
             path: path.to_path_buf(),
             source,
         })?;
-        return parse(&text, path);
+        return parse_profile(&text, path, profile);
     }
     Err(TemplateError::Unknown(
         name_or_path.to_string(),
@@ -92,17 +120,36 @@ pub fn load(name_or_path: &str) -> Result<ImuModel, TemplateError> {
     ))
 }
 
-/// Parses template text (`path` for messages), resolving `base`.
+/// Names of the built-in templates that carry a typical profile.
+pub fn typical_names() -> Vec<&'static str> {
+    BUILTIN
+        .iter()
+        .filter(|(_, text)| {
+            text.parse::<toml::Table>()
+                .is_ok_and(|t| t.contains_key(TYPICAL))
+        })
+        .map(|b| b.0)
+        .collect()
+}
+
+/// Parses template text (`path` for messages), resolving `base`; the datasheet profile.
 pub fn parse(text: &str, path: &Path) -> Result<ImuModel, TemplateError> {
+    parse_profile(text, path, Profile::Datasheet)
+}
+
+/// Parses template text with the chosen profile. The `[typical]` table is checked whichever
+/// profile is chosen, so a mistake in it is reported when the template is first used.
+pub fn parse_profile(text: &str, path: &Path, profile: Profile) -> Result<ImuModel, TemplateError> {
     let syntax = |e: toml::de::Error| TemplateError::Syntax {
         path: path.to_path_buf(),
         message: crate::config::toml_error_line(text, &e),
     };
     let mut table: toml::Table = text.parse().map_err(syntax)?;
     if let Some(base) = table.remove("base") {
-        let Some(base_name) = base.as_str() else {
+        let Some(base_ref) = base.as_str() else {
             return Err(key_err(path, "base", "expected a template name"));
         };
+        let (base_name, base_profile) = split_profile(base_ref);
         let (_, base_text) = BUILTIN.iter().find(|b| b.0 == base_name).ok_or_else(|| {
             key_err(
                 path,
@@ -114,17 +161,95 @@ pub fn parse(text: &str, path: &Path) -> Result<ImuModel, TemplateError> {
             )
         })?;
         let mut merged: toml::Table = base_text.parse().map_err(syntax)?;
-        for (k, v) in table {
-            match (merged.get_mut(&k), v) {
-                (Some(toml::Value::Table(m)), toml::Value::Table(o)) => m.extend(o),
-                (_, v) => {
-                    merged.insert(k, v);
-                }
-            }
+        let base_typical = merged.remove(TYPICAL);
+        if base_profile == Profile::Typical {
+            let Some(toml::Value::Table(t)) = base_typical else {
+                return Err(key_err(
+                    path,
+                    "base",
+                    &format!("template `{base_name}` has no typical profile"),
+                ));
+            };
+            overlay(&mut merged, strip_notes(t));
         }
+        overlay(&mut merged, table);
         table = merged;
     }
-    from_table(&table, path)
+    let typical = match table.remove(TYPICAL) {
+        None => None,
+        Some(toml::Value::Table(t)) => Some(t),
+        Some(_) => return Err(key_err(path, TYPICAL, "expected a table")),
+    };
+    let Some(typical) = typical else {
+        if profile == Profile::Typical {
+            return Err(key_err(
+                path,
+                TYPICAL,
+                &format!(
+                    "this template has no typical profile (built-in ones with one: {})",
+                    typical_names().join(", ")
+                ),
+            ));
+        }
+        return from_table(&table, path);
+    };
+    let source = typical
+        .get("source")
+        .and_then(|v| v.as_str())
+        .map(String::from);
+    for (k, v) in &typical {
+        let ok = match k.as_str() {
+            "source" => v.is_str(),
+            "gyro" | "accel" => v.is_table(),
+            _ => false,
+        };
+        if !ok {
+            return Err(key_err(
+                path,
+                &format!("{TYPICAL}.{k}"),
+                "expected `source` (text), `[typical.gyro]` or `[typical.accel]`",
+            ));
+        }
+    }
+    let mut over = table.clone();
+    overlay(&mut over, strip_notes(typical));
+    let prefixed = |e: TemplateError| match e {
+        TemplateError::Key { path, key, message } => TemplateError::Key {
+            path,
+            key: format!("{TYPICAL}.{key}"),
+            message,
+        },
+        e => e,
+    };
+    let typical_model = from_table(&over, path).map_err(prefixed)?;
+    if profile == Profile::Datasheet {
+        return from_table(&table, path);
+    }
+    let mut m = typical_model;
+    m.name = format!("{}:{TYPICAL}", m.name);
+    m.description = match source {
+        Some(s) => format!("{} — typical profile: {s}", m.description),
+        None => format!("{} — typical profile", m.description),
+    };
+    Ok(m)
+}
+
+/// Lays `over` onto `base`: sensor tables merge key by key, other keys replace.
+fn overlay(base: &mut toml::Table, over: toml::Table) {
+    for (k, v) in over {
+        match (base.get_mut(&k), v) {
+            (Some(toml::Value::Table(m)), toml::Value::Table(o)) => m.extend(o),
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
+
+/// The typical table without its `source` text (not a template key).
+fn strip_notes(mut t: toml::Table) -> toml::Table {
+    t.remove("source");
+    t
 }
 
 fn key_err(path: &Path, key: &str, message: &str) -> TemplateError {
@@ -150,6 +275,7 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
             "order",
             "temperature_ref",
             "timing",
+            "output_filter",
         ]
         .contains(&k.as_str())
         {
@@ -239,6 +365,20 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
                 )
             })?,
     };
+    let output_filter = match t.get("output_filter") {
+        None => None,
+        Some(toml::Value::Table(f)) => {
+            Some(super::output_filter::from_toml(f).map_err(|(k, m)| {
+                let key = if k.is_empty() {
+                    "output_filter".to_string()
+                } else {
+                    format!("output_filter.{k}")
+                };
+                key_err(path, &key, &m)
+            })?)
+        }
+        Some(_) => return Err(key_err(path, "output_filter", "expected a table")),
+    };
     let gyro = triad(t.get("gyro"), "gyro", path)?;
     let accel = triad(t.get("accel"), "accel", path)?;
     let mut timing = crate::timing::TimingModel::default();
@@ -265,6 +405,7 @@ fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, TemplateError> {
         order,
         temperature_ref,
         timing,
+        output_filter,
     })
 }
 

@@ -500,6 +500,13 @@ impl SimulationBuilder {
         warnings: &mut Vec<String>,
     ) -> Result<Option<ErrorChain>, SimError> {
         let label = self.file_label();
+        if imu.output_filter.is_some() {
+            // Never run a unit without the filter its template names.
+            return Err(SimError::Invalid(format!(
+                "template `{}` has an [output_filter]: generate and run do not apply output filters yet (the library's errors::filtered::FilteredChain does; see docs/fidelity.md)",
+                imu.name
+            )));
+        }
         let mut chain = ErrorChain::new(imu, rate_hz, seed);
         if let Some(p) = temperature {
             chain = chain.with_temperature(p.clone(), imu);
