@@ -37,6 +37,8 @@ enum Command {
     Compare(cmd::compare::CompareArgs),
     /// Statistics, Allan deviation with fitted IEEE terms, and PSD of a recording, with plots.
     Analyze(Box<cmd::analyze::AnalyzeArgs>),
+    /// Fit a template to a static recording: noise terms with intervals, report, closure check.
+    Fit(Box<cmd::fit::FitArgs>),
 }
 
 fn main() {
@@ -51,6 +53,7 @@ fn main() {
         Command::Compare(a) => cmd::compare::compare(a),
         Command::Run(a) => cmd::run::run(*a),
         Command::Analyze(a) => cmd::analyze::analyze(*a),
+        Command::Fit(a) => cmd::fit::fit(*a),
         Command::Scenes => {
             for name in scenes::NAMES {
                 println!(

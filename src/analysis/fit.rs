@@ -259,8 +259,7 @@ fn nnls(pts: &[&AdevPoint], y: &[f64], w: &[f64], floor: &dyn Fn(f64) -> f64) ->
     best.0
 }
 
-/// Unconstrained weighted least squares on the columns `cols`, by Householder QR of the
-/// row-weighted, column-normalised design (the basis values span many decades).
+/// Unconstrained weighted least squares on the columns `cols`.
 fn weighted_ls(
     pts: &[&AdevPoint],
     y: &[f64],
@@ -268,15 +267,22 @@ fn weighted_ls(
     cols: &[usize],
     floor: &dyn Fn(f64) -> f64,
 ) -> Option<Vec<f64>> {
-    let k = cols.len();
-    let mut a: Vec<Vec<f64>> = (0..k)
-        .map(|c| {
-            pts.iter()
-                .zip(w)
-                .map(|(p, w)| w.sqrt() * basis(TERMS[cols[c]], p.tau, floor))
-                .collect()
-        })
+    let a: Vec<Vec<f64>> = cols
+        .iter()
+        .map(|&c| pts.iter().map(|p| basis(TERMS[c], p.tau, floor)).collect())
         .collect();
+    weighted_lstsq(a, y, w)
+}
+
+/// Weighted least squares min Σ w_j (y_j − Σ_c x_c a_c[j])² over the columns `a`, by
+/// Householder QR of the row-weighted, column-normalised design (the basis values of the
+/// Allan-variance terms span many decades). None when a column vanishes or the design is
+/// singular.
+pub(crate) fn weighted_lstsq(mut a: Vec<Vec<f64>>, y: &[f64], w: &[f64]) -> Option<Vec<f64>> {
+    let k = a.len();
+    for col in a.iter_mut() {
+        col.iter_mut().zip(w).for_each(|(v, w)| *v *= w.sqrt());
+    }
     let norms: Vec<f64> = a
         .iter()
         .map(|col| col.iter().map(|v| v * v).sum::<f64>().sqrt())

@@ -3,8 +3,10 @@
 pub mod analyze;
 pub mod compare;
 pub mod decode;
+pub mod fit;
 pub mod generate;
 pub mod info;
+pub mod input;
 pub mod navigate;
 pub mod run;
 pub mod setup;
