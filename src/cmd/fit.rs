@@ -88,7 +88,13 @@ pub fn fit(a: FitArgs) -> Result<()> {
     )
     .context("the fitted template does not load (a bug: please report it)")?;
     let simulated = if a.report.is_some() || a.plot.is_some() {
-        Some(closure::simulate(model, rec.dt, rec.samples, a.seed, a.segment)?)
+        Some(closure::simulate(
+            model,
+            rec.dt,
+            rec.samples,
+            a.seed,
+            a.segment,
+        )?)
     } else {
         None
     };

@@ -530,13 +530,12 @@ pub fn fit_axis_with(
     let mut found: Option<Found> = None;
     let mut w = Vec::new();
     for _ in 0..PASSES {
-        w = d
-            .ms
-            .iter()
-            .zip(&model_avar)
-            .zip(&types)
-            .map(|((&m, a), t)| edf(*t, phases, m) / (a * a))
-            .collect();
+        w =
+            d.ms.iter()
+                .zip(&model_avar)
+                .zip(&types)
+                .map(|((&m, a), t)| edf(*t, phases, m) / (a * a))
+                .collect();
         let f = d.search(&w, dt, base_exclude, &bands, &gms)?;
         for (j, &m) in d.ms.iter().enumerate() {
             // A model that vanishes at a point would give it infinite weight.
@@ -572,6 +571,11 @@ pub fn fit_axis_with(
                 .filter(|f| f.cost <= found.cost + FLICKER_PENALTY)
             else {
                 continue;
+            };
+            let alt = if alt.model.c[5] > 0.0 {
+                refine(&d, &w, dt, base_exclude, &[Some(bi)], alt)
+            } else {
+                alt
             };
             let (alt_iv, alt_t) = readings(&d, &alt.model, phases);
             for (iv, a) in intervals.iter_mut().zip(alt_iv) {
@@ -659,7 +663,10 @@ fn readings(
     });
     let gm_tau_interval = gm_pair.map(|(_, sd)| {
         let z = normal_quantile_two_sided(INTERVAL_CONFIDENCE);
-        (model.gm_tau * (-z * sd).exp(), model.gm_tau * (z * sd).exp())
+        (
+            model.gm_tau * (-z * sd).exp(),
+            model.gm_tau * (z * sd).exp(),
+        )
     });
     (estimates, gm_tau_interval)
 }
@@ -746,7 +753,10 @@ fn gm_pair_dof(d: &Design, model: &Model, phases: usize) -> Option<(f64, f64)> {
         let h = 1e-4;
         // ∂g(τ/T)/∂ln T = −u g'(u), by a central difference in ln u.
         let dg = -(gm_shape(u * (h as f64).exp()) - gm_shape(u * (-h as f64).exp())) / (2.0 * h);
-        (model.part(Component::GaussMarkov, m) / total, model.c[5] * dg / total)
+        (
+            model.part(Component::GaussMarkov, m) / total,
+            model.c[5] * dg / total,
+        )
     };
     let mut best_c = f64::INFINITY;
     let mut best_t = f64::INFINITY;
@@ -762,7 +772,77 @@ fn gm_pair_dof(d: &Design, model: &Model, phases: usize) -> Option<(f64, f64)> {
             best_t = best_t.min((a1 * a1 * v2 + a2 * a2 * v1) / (det * det));
         }
     }
-    (best_c.is_finite() && best_t.is_finite()).then(|| (2.0 / best_c, best_t.sqrt()))
+    if !(best_c.is_finite() && best_t.is_finite()) {
+        return None;
+    }
+    // The pair takes the other components as known; where σ_GM trades with them (white noise
+    // below the bump, the bias-instability floor above it) their joint Fisher information
+    // over all octaves knows less: take the larger variance of the two.
+    let (joint_c, joint_t) = gm_joint_variances(d, model, phases).unwrap_or((0.0, 0.0));
+    Some((2.0 / best_c.max(joint_c), best_t.max(joint_t).sqrt()))
+}
+
+/// Relative variances of σ_GM² and of ln T from the Fisher information of all the model's
+/// parameters (each kept coefficient, and ln T) over the octaves, each octave's σ̂² with
+/// variance 2σ⁴/edf, the octaves taken as independent.
+fn gm_joint_variances(d: &Design, model: &Model, phases: usize) -> Option<(f64, f64)> {
+    let dt = model.dt;
+    let kept: Vec<Component> = COMPONENTS
+        .into_iter()
+        .filter(|&k| model.c[k as usize] > 0.0)
+        .collect();
+    let gm = kept.iter().position(|&k| k == Component::GaussMarkov)?;
+    let p = kept.len() + 1;
+    // Rows: ∂ln σ²(m)/∂ln c_k = share_k(m), and ∂ln σ²(m)/∂ln T; weight edf/2.
+    let mut info = vec![vec![0.0; p]; p];
+    for &m in &d.ms {
+        let total = model.avar(m);
+        let u = m as f64 * dt / model.gm_tau;
+        let h = 1e-4f64;
+        let dg = -(gm_shape(u * h.exp()) - gm_shape(u * (-h).exp())) / (2.0 * h);
+        let mut row: Vec<f64> = kept.iter().map(|&k| model.part(k, m) / total).collect();
+        row.push(model.c[5] * dg / total);
+        let w = edf(model.dominant(m)?.noise_type(), phases, m) / 2.0;
+        for i in 0..p {
+            for j in 0..p {
+                info[i][j] += w * row[i] * row[j];
+            }
+        }
+    }
+    let cov = invert(info)?;
+    Some((cov[gm][gm], cov[p - 1][p - 1]))
+}
+
+/// Inverse of a small symmetric positive-definite matrix by Gauss–Jordan with partial
+/// pivoting (None when singular).
+fn invert(mut a: Vec<Vec<f64>>) -> Option<Vec<Vec<f64>>> {
+    let n = a.len();
+    let mut inv: Vec<Vec<f64>> = (0..n)
+        .map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
+        .collect();
+    for c in 0..n {
+        let piv = (c..n).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if a[piv][c].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(c, piv);
+        inv.swap(c, piv);
+        let f = a[c][c];
+        a[c].iter_mut().for_each(|v| *v /= f);
+        inv[c].iter_mut().for_each(|v| *v /= f);
+        for r in 0..n {
+            if r != c {
+                let g = a[r][c];
+                if g != 0.0 {
+                    for k in 0..n {
+                        a[r][k] -= g * a[c][k];
+                        inv[r][k] -= g * inv[c][k];
+                    }
+                }
+            }
+        }
+    }
+    Some(inv)
 }
 
 #[cfg(test)]
@@ -801,8 +881,16 @@ mod tests {
             dt,
         };
         let f = fit_axis(&exact_points(&truth, 22), 1 << 23, dt).unwrap();
-        assert!((f.model.band.0 / 10.0 - 1.0).abs() < 1e-12, "{:?}", f.model.band);
-        assert!((f.model.band.1 / 1000.0 - 1.0).abs() < 1e-12, "{:?}", f.model.band);
+        assert!(
+            (f.model.band.0 / 10.0 - 1.0).abs() < 1e-12,
+            "{:?}",
+            f.model.band
+        );
+        assert!(
+            (f.model.band.1 / 1000.0 - 1.0).abs() < 1e-12,
+            "{:?}",
+            f.model.band
+        );
         assert!((f.model.gm_tau / truth.gm_tau - 1.0).abs() < 1e-12);
         for k in COMPONENTS {
             let (got, want) = (f.model.c[k as usize], truth.c[k as usize]);
@@ -810,7 +898,10 @@ mod tests {
                 assert!(f.estimate(k).is_none(), "{k:?}: {got:e}");
                 continue;
             }
-            assert!((got / want - 1.0).abs() < 1e-6, "{k:?}: {got:e} vs {want:e}");
+            assert!(
+                (got / want - 1.0).abs() < 1e-6,
+                "{k:?}: {got:e} vs {want:e}"
+            );
             let e = f.estimate(k).unwrap();
             assert!(e.lo < e.value && e.value < e.hi, "{k:?} {e:?}");
         }

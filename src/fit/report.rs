@@ -30,7 +30,10 @@ pub fn markdown(
         sig4(p.samples as f64 * p.dt)
     );
     if let Some(plot) = plot {
-        let _ = writeln!(s, "![Allan deviation: recording, fitted model, simulated from the template]({plot})\n");
+        let _ = writeln!(
+            s,
+            "![Allan deviation: recording, fitted model, simulated from the template]({plot})\n"
+        );
     }
     let _ = writeln!(
         s,
@@ -38,7 +41,11 @@ pub fn markdown(
     );
     for (ch, fit) in fits.iter().enumerate() {
         let Some(fit) = fit else {
-            let _ = writeln!(s, "| {} | (no usable Allan deviation) | | | | | |", CHANNELS[ch]);
+            let _ = writeln!(
+                s,
+                "| {} | (no usable Allan deviation) | | | | | |",
+                CHANNELS[ch]
+            );
             continue;
         };
         let gyro = ch < 3;
@@ -54,11 +61,20 @@ pub fn markdown(
                 name = format!("{name} (band {}–{} s)", sig4(b.0), sig4(b.1));
             }
             if k == Component::Ramp {
-                name = format!("{name} (not in the template: the other figures are the fit without it)");
+                name = format!(
+                    "{name} (not in the template: the other figures are the fit without it)"
+                );
             }
             if k == Component::GaussMarkov {
-                let (lo, hi) = fit.gm_tau_interval.unwrap_or((fit.model.gm_tau, fit.model.gm_tau));
-                name = format!("{name} (T = {} s, [{}, {}])", sig4(fit.model.gm_tau), sig4(lo), sig4(hi));
+                let (lo, hi) = fit
+                    .gm_tau_interval
+                    .unwrap_or((fit.model.gm_tau, fit.model.gm_tau));
+                name = format!(
+                    "{name} (T = {} s, [{}, {}])",
+                    sig4(fit.model.gm_tau),
+                    sig4(lo),
+                    sig4(hi)
+                );
             }
             let _ = writeln!(
                 s,
@@ -76,11 +92,18 @@ pub fn markdown(
     let any_line = lines.iter().any(|l| !l.is_empty());
     let _ = writeln!(s, "\n## Spectral lines\n");
     if !any_line {
-        let _ = writeln!(s, "None above the false-alarm threshold (1 in 1000 records of noise).");
+        let _ = writeln!(
+            s,
+            "None above the false-alarm threshold (1 in 1000 records of noise)."
+        );
     }
     for (ch, ls) in lines.iter().enumerate() {
         for l in ls {
-            let (u, f) = if ch < 3 { ("deg/s", 180.0 / std::f64::consts::PI) } else { ("g", 1.0 / crate::units::G0) };
+            let (u, f) = if ch < 3 {
+                ("deg/s", 180.0 / std::f64::consts::PI)
+            } else {
+                ("g", 1.0 / crate::units::G0)
+            };
             let _ = writeln!(
                 s,
                 "- {}: {} Hz, amplitude {} {u} ({}× the background)",
@@ -139,7 +162,10 @@ pub fn panels(
                 series.push(Series {
                     label: "fitted model".into(),
                     x: c.adev.iter().map(|p| p.tau).collect(),
-                    y: c.adev.iter().map(|p| fit.model.avar(p.m).sqrt() * k).collect(),
+                    y: c.adev
+                        .iter()
+                        .map(|p| fit.model.avar(p.m).sqrt() * k)
+                        .collect(),
                     band: None,
                     color: 1,
                     dashed: true,

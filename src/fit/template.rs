@@ -101,7 +101,11 @@ pub fn template_toml(p: &Provenance, fits: &[Option<AxisFit>], lines: &[Vec<Line
         triad_toml(&mut s, gyro, &axes);
         for a in 0..3 {
             for l in &lines[base + a] {
-                let (u, f) = if gyro { ("deg/s", 180.0 / std::f64::consts::PI) } else { ("g", 1.0 / crate::units::G0) };
+                let (u, f) = if gyro {
+                    ("deg/s", 180.0 / std::f64::consts::PI)
+                } else {
+                    ("g", 1.0 / crate::units::G0)
+                };
                 let _ = writeln!(
                     s,
                     "# {}: spectral line at {} Hz, amplitude {} {u} ({}× the background; not in the template: `fit --sines` writes it as a vibration sine)",
@@ -131,7 +135,11 @@ fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
         (Component::RandomWalk, "random_walk"),
     ] {
         if !kept(k) {
-            let _ = writeln!(s, "# {}: not seen on any axis (no term earned its place)", k.name());
+            let _ = writeln!(
+                s,
+                "# {}: not seen on any axis (no term earned its place)",
+                k.name()
+            );
             continue;
         }
         for a in 0..3 {
@@ -167,8 +175,15 @@ fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
         for a in 0..3 {
             let fit = axes[a].filter(|f| f.model.c[5] > 0.0);
             if let (Some(e), Some(fit)) = (est(a, Component::GaussMarkov), fit) {
-                let (lo, hi) = fit.gm_tau_interval.unwrap_or((fit.model.gm_tau, fit.model.gm_tau));
-                let extra = format!(", T = {} s [{}, {}]", sig4(fit.model.gm_tau), sig4(lo), sig4(hi));
+                let (lo, hi) = fit
+                    .gm_tau_interval
+                    .unwrap_or((fit.model.gm_tau, fit.model.gm_tau));
+                let extra = format!(
+                    ", T = {} s [{}, {}]",
+                    sig4(fit.model.gm_tau),
+                    sig4(lo),
+                    sig4(hi)
+                );
                 s.push_str(&describe(a, Component::GaussMarkov, &e, gyro, &extra));
                 taus.push(format!("\"{} s\"", sig4(fit.model.gm_tau)));
             } else {
@@ -189,16 +204,18 @@ fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
                 s.push_str(&describe(a, Component::Quantization, &e, gyro, ""));
             }
         }
-        // The template has one LSB per triad: the mean of the axes that show it; the LSB of
-        // carry-mode quantization is q = √12·Q.
-        let qs: Vec<f64> = (0..3)
+        // The template has one LSB per triad; the LSB of carry-mode quantization is q = √12·Q.
+        let mut qs: Vec<f64> = (0..3)
             .filter_map(|a| est(a, Component::Quantization).map(|e| e.value))
             .collect();
-        let q = 12f64.sqrt() * qs.iter().sum::<f64>() / qs.len() as f64;
+        qs.sort_by(f64::total_cmp);
+        // The median: an axis whose shortest octaves carry something else (a spectral line
+        // fitted as noise) must not move the others' LSB.
+        let q = 12f64.sqrt() * qs[(qs.len() - 1) / 2];
         let (u, f) = if gyro { ("rad", 1.0) } else { ("m/s", 1.0) };
         let _ = writeln!(
             s,
-            "quantization = \"{} {u}\"   # increment LSB q = √12·Q, mean of the axes that show it",
+            "quantization = \"{} {u}\"   # increment LSB q = √12·Q, median of the axes that show it",
             sig4(q * f)
         );
     }
@@ -225,7 +242,11 @@ pub fn sines_scene(p: &Provenance, lines: &[Vec<Line>]) -> String {
     );
     for (ch, ls) in lines.iter().enumerate() {
         let gyro = ch < 3;
-        let (u, f) = if gyro { ("deg/s", 180.0 / std::f64::consts::PI) } else { ("g", 1.0 / crate::units::G0) };
+        let (u, f) = if gyro {
+            ("deg/s", 180.0 / std::f64::consts::PI)
+        } else {
+            ("g", 1.0 / crate::units::G0)
+        };
         for l in ls {
             let _ = write!(
                 s,
