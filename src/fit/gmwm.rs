@@ -33,7 +33,10 @@
 //! as v·√(χ²_ν/ν), gives the 99 % interval v ∈ [v̂/√(χ²_{0.995}/ν), v̂/√(χ²_{0.005}/ν)].
 //! Bias instability is read only inside its band (there its value does not depend on where
 //! the band ends). The Gauss–Markov σ and T are read together from a pair of octaves
-//! ([`gm_pair_dof`]), since one reading cannot tell a larger σ from a shifted T.
+//! ([`gm_pair_dof`]), since one reading cannot tell a larger σ from a shifted T, or from the
+//! joint Fisher information of every parameter where that is wider. The band edges trade
+//! with their neighbours: each interval is the union over the bands whose fit is within
+//! χ²₃(99 %) of the best.
 //!
 //! What a template can hold ([`fit_triad`]): no ramp (it has no key; a better fit with one
 //! is reported beside the template's) and one band per triad.
