@@ -797,7 +797,7 @@ fn gm_joint_variances(d: &Design, model: &Model, phases: usize) -> Option<(f64, 
     let gm = kept.iter().position(|&k| k == Component::GaussMarkov)?;
     let p = kept.len() + 1;
     // Rows: ∂ln σ²(m)/∂ln c_k = share_k(m), and ∂ln σ²(m)/∂ln T; weight edf/2.
-    let mut info = vec![vec![0.0; p]; p];
+    let mut info = nalgebra::DMatrix::<f64>::zeros(p, p);
     for &m in &d.ms {
         let total = model.avar(m);
         let u = m as f64 * dt / model.gm_tau;
@@ -806,14 +806,92 @@ fn gm_joint_variances(d: &Design, model: &Model, phases: usize) -> Option<(f64, 
         let mut row: Vec<f64> = kept.iter().map(|&k| model.part(k, m) / total).collect();
         row.push(model.c[5] * dg / total);
         let w = edf(model.dominant(m)?.noise_type(), phases, m) / 2.0;
-        for i in 0..p {
-            for j in 0..p {
-                info[i][j] += w * row[i] * row[j];
+        let r = nalgebra::DVector::from_vec(row);
+        info += w * &r * r.transpose();
+    }
+    let cov = info.cholesky()?.inverse();
+    Some((cov[(gm, gm)], cov[(p - 1, p - 1)]))
+}
+
+/// The two-sided standard normal quantile of confidence c, from the χ²₁ quantile.
+fn normal_quantile_two_sided(c: f64) -> f64 {
+    crate::analysis::confidence::chi2_quantile(c, 1.0).sqrt()
+}
+
+/// The Gauss–Markov component read from a pair of octaves (σ² and T together: one reading
+/// cannot tell a larger σ from a shifted T). With a_m = ∂ln σ²(m)/∂ln σ_GM² (its share) and
+/// b_m = ∂ln σ²(m)/∂ln T, the readings ε_m (variance 2/edf_m) of octaves m < m' give
+/// δln T = (a_m ε_m' − a_m' ε_m)/det and δln σ² = (b_m' ε_m − b_m ε_m')/det, det =
+/// a_m b_m' − a_m' b_m, the octaves taken as independent and the other components as known
+/// (as `analyze`'s two-octave rule for Q and N). Returns (ν of σ_GM² = 2/var, sd of ln T) of
+/// the pair that knows each best (pairs one or two octaves apart); None without the component.
+fn gm_pair_dof(d: &Design, model: &Model, phases: usize) -> Option<(f64, f64)> {
+    if model.c[5] <= 0.0 {
+        return None;
+    }
+    let dt = model.dt;
+    let nt = Component::GaussMarkov.noise_type();
+    let ab = |m: usize| {
+        let total = model.avar(m);
+        let u = m as f64 * dt / model.gm_tau;
+        let h = 1e-4;
+        // ∂g(τ/T)/∂ln T = −u g'(u), by a central difference in ln u.
+        let dg = -(gm_shape(u * (h as f64).exp()) - gm_shape(u * (-h as f64).exp())) / (2.0 * h);
+        (
+            model.part(Component::GaussMarkov, m) / total,
+            model.c[5] * dg / total,
+        )
+    };
+    let mut best_c = f64::INFINITY;
+    let mut best_t = f64::INFINITY;
+    for (j, &m) in d.ms.iter().enumerate() {
+        for &m2 in d.ms.iter().skip(j + 1).take(2) {
+            let ((a1, b1), (a2, b2)) = (ab(m), ab(m2));
+            let det = a1 * b2 - a2 * b1;
+            if det == 0.0 || !det.is_finite() {
+                continue;
             }
+            let (v1, v2) = (2.0 / edf(nt, phases, m), 2.0 / edf(nt, phases, m2));
+            best_c = best_c.min((b2 * b2 * v1 + b1 * b1 * v2) / (det * det));
+            best_t = best_t.min((a1 * a1 * v2 + a2 * a2 * v1) / (det * det));
         }
     }
-    let cov = invert(info)?;
-    Some((cov[gm][gm], cov[p - 1][p - 1]))
+    if !(best_c.is_finite() && best_t.is_finite()) {
+        return None;
+    }
+    // The pair takes the other components as known; where σ_GM trades with them (white noise
+    // below the bump, the bias-instability floor above it) their joint Fisher information
+    // over all octaves knows less: take the larger variance of the two.
+    let (joint_c, joint_t) = gm_joint_variances(d, model, phases).unwrap_or((0.0, 0.0));
+    Some((2.0 / best_c.max(joint_c), best_t.max(joint_t).sqrt()))
+}
+
+/// Relative variances of σ_GM² and of ln T from the Fisher information of all the model's
+/// parameters (each kept coefficient, and ln T) over the octaves, each octave's σ̂² with
+/// variance 2σ⁴/edf, the octaves taken as independent.
+fn gm_joint_variances(d: &Design, model: &Model, phases: usize) -> Option<(f64, f64)> {
+    let dt = model.dt;
+    let kept: Vec<Component> = COMPONENTS
+        .into_iter()
+        .filter(|&k| model.c[k as usize] > 0.0)
+        .collect();
+    let gm = kept.iter().position(|&k| k == Component::GaussMarkov)?;
+    let p = kept.len() + 1;
+    // Rows: ∂ln σ²(m)/∂ln c_k = share_k(m), and ∂ln σ²(m)/∂ln T; weight edf/2.
+    let mut info = nalgebra::DMatrix::<f64>::zeros(p, p);
+    for &m in &d.ms {
+        let total = model.avar(m);
+        let u = m as f64 * dt / model.gm_tau;
+        let h = 1e-4f64;
+        let dg = -(gm_shape(u * h.exp()) - gm_shape(u * (-h).exp())) / (2.0 * h);
+        let mut row: Vec<f64> = kept.iter().map(|&k| model.part(k, m) / total).collect();
+        row.push(model.c[5] * dg / total);
+        let w = edf(model.dominant(m)?.noise_type(), phases, m) / 2.0;
+        let r = nalgebra::DVector::from_vec(row);
+        info += w * &r * r.transpose();
+    }
+    let cov = info.cholesky()?.inverse();
+    Some((cov[(gm, gm)], cov[(p - 1, p - 1)]))
 }
 
 /// Inverse of a small symmetric positive-definite matrix by Gauss–Jordan with partial
