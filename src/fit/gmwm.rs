@@ -753,9 +753,9 @@ fn gm_pair_dof(d: &Design, model: &Model, phases: usize) -> Option<(f64, f64)> {
     let ab = |m: usize| {
         let total = model.avar(m);
         let u = m as f64 * dt / model.gm_tau;
-        let h = 1e-4;
+        let h = 1e-4f64;
         // ∂g(τ/T)/∂ln T = −u g'(u), by a central difference in ln u.
-        let dg = -(gm_shape(u * (h as f64).exp()) - gm_shape(u * (-h as f64).exp())) / (2.0 * h);
+        let dg = -(gm_shape(u * h.exp()) - gm_shape(u * (-h).exp())) / (2.0 * h);
         (
             model.part(Component::GaussMarkov, m) / total,
             model.c[5] * dg / total,

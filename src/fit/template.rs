@@ -172,8 +172,8 @@ fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
     if kept(Component::GaussMarkov) {
         let (u, f) = unit(gyro, Component::GaussMarkov);
         let mut taus = Vec::new();
-        for a in 0..3 {
-            let fit = axes[a].filter(|f| f.model.c[5] > 0.0);
+        for (a, fit) in axes.iter().enumerate() {
+            let fit = fit.filter(|f| f.model.c[5] > 0.0);
             if let (Some(e), Some(fit)) = (est(a, Component::GaussMarkov), fit) {
                 let (lo, hi) = fit
                     .gm_tau_interval
@@ -219,8 +219,8 @@ fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
             sig4(q * f)
         );
     }
-    for a in 0..3 {
-        if let Some(e) = axes[a].and_then(|f| f.ramp_alternative) {
+    for (a, fit) in axes.iter().enumerate() {
+        if let Some(e) = fit.and_then(|f| f.ramp_alternative) {
             s.push_str(&describe(a, Component::Ramp, &e, gyro, ""));
             let _ = writeln!(
                 s,
