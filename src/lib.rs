@@ -18,6 +18,7 @@ pub mod config;
 pub mod csvio;
 pub mod earth;
 pub mod errors;
+pub mod fit;
 pub mod generator;
 pub mod input;
 pub mod job;

@@ -39,6 +39,8 @@ enum Command {
     Analyze(Box<cmd::analyze::AnalyzeArgs>),
     /// Plot the injected error components of a --truth-errors file over time, per sensor axis.
     PlotErrors(cmd::plot_errors::PlotErrorsArgs),
+    /// Fit a template to a static recording: noise terms with intervals, report, closure check.
+    Fit(Box<cmd::fit::FitArgs>),
 }
 
 fn main() {
@@ -54,6 +56,7 @@ fn main() {
         Command::Run(a) => cmd::run::run(*a),
         Command::Analyze(a) => cmd::analyze::analyze(*a),
         Command::PlotErrors(a) => cmd::plot_errors::plot_errors(a),
+        Command::Fit(a) => cmd::fit::fit(*a),
         Command::Scenes => {
             for name in scenes::NAMES {
                 println!(

@@ -260,8 +260,7 @@ fn nnls(pts: &[&AdevPoint], y: &[f64], w: &[f64], floor: &dyn Fn(f64) -> f64) ->
     best.0
 }
 
-/// Unconstrained weighted least squares on the columns `cols`, by Householder QR of the
-/// row-weighted, column-normalised design (the basis values span many decades).
+/// Unconstrained weighted least squares on the columns `cols`.
 fn weighted_ls(
     pts: &[&AdevPoint],
     y: &[f64],
@@ -269,10 +268,21 @@ fn weighted_ls(
     cols: &[usize],
     floor: &dyn Fn(f64) -> f64,
 ) -> Option<Vec<f64>> {
+    let a: Vec<Vec<f64>> = cols
+        .iter()
+        .map(|&c| pts.iter().map(|p| basis(TERMS[c], p.tau, floor)).collect())
+        .collect();
+    weighted_lstsq(a, y, w)
+}
+
+/// Weighted least squares min Σ w_j (y_j − Σ_c x_c a_c[j])² over the columns `a`, by
+/// Householder QR of the row-weighted, column-normalised design (the basis values of the
+/// Allan-variance terms span many decades). None when a column vanishes or the design is
+/// singular.
+pub(crate) fn weighted_lstsq(cols: Vec<Vec<f64>>, y: &[f64], w: &[f64]) -> Option<Vec<f64>> {
     let k = cols.len();
-    let mut a = DMatrix::from_fn(pts.len(), k, |i, c| {
-        w[i].sqrt() * basis(TERMS[cols[c]], pts[i].tau, floor)
-    });
+    let n = y.len();
+    let mut a = DMatrix::from_fn(n, k, |i, c| w[i].sqrt() * cols[c][i]);
     let norms: Vec<f64> = a.column_iter().map(|col| col.norm()).collect();
     if norms.iter().any(|n| *n == 0.0 || !n.is_finite()) {
         return None;
@@ -280,7 +290,7 @@ fn weighted_ls(
     for (mut col, n) in a.column_iter_mut().zip(&norms) {
         col /= *n;
     }
-    let mut b = DVector::from_fn(pts.len(), |i, _| w[i].sqrt() * y[i]);
+    let mut b = DVector::from_fn(n, |i, _| w[i].sqrt() * y[i]);
     let qr = a.qr();
     qr.q_tr_mul(&mut b);
     let r = qr.r();

@@ -3,12 +3,14 @@
 pub mod analyze;
 pub mod compare;
 pub mod decode;
+pub mod fit;
 pub mod generate;
 pub mod info;
+pub mod input;
 pub mod live;
 pub mod navigate;
-pub mod rig;
 pub mod plot_errors;
+pub mod rig;
 pub mod run;
 pub mod setup;
 pub mod validate;

@@ -1,0 +1,148 @@
+//! `imu-emu fit`: a template fitted to a static recording (any input `analyze` reads), with a
+//! report and the closure check against a record simulated from the template.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+
+use imu_emu::analysis::analyzer::DEFAULT_SEGMENT;
+use imu_emu::fit::closure::{self, ClosurePoint};
+use imu_emu::fit::gmwm::{AxisFit, fit_triad};
+use imu_emu::fit::template::{Provenance, sines_scene, template_toml};
+use imu_emu::fit::{lines, report};
+
+use super::analyze::write_file;
+use super::input::InputArgs;
+
+#[derive(clap::Args)]
+pub struct FitArgs {
+    #[command(flatten)]
+    pub input: InputArgs,
+    /// Write the fitted template here (TOML, loadable by --imu) [default: stdout]
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Name of the fitted template [default: the output file's stem, else "fitted"]
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Write the Markdown report here (with the closure check against a simulated record)
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Write the ADEV plot here (.png or .svg): recording, fitted model, simulated record
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Write the spectral lines found as [[vibration.sine]] entries of a scene file here
+    #[arg(long)]
+    pub sines: Option<PathBuf>,
+    /// Seed of the closure simulation
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Welch segment length in samples (a power of two)
+    #[arg(long, default_value_t = DEFAULT_SEGMENT)]
+    pub segment: usize,
+}
+
+/// `imu-emu fit`.
+pub fn fit(a: FitArgs) -> Result<()> {
+    if let Some(p) = &a.plot
+        && !p
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("svg"))
+    {
+        bail!("--plot {}: plot file must end in .png or .svg", p.display());
+    }
+    let (rec, _) = a.input.analyze(a.segment, "fit")?;
+    let samples = rec.samples as usize;
+    let triad = |base: usize| {
+        let c = &rec.channels;
+        fit_triad(
+            [&c[base].adev, &c[base + 1].adev, &c[base + 2].adev],
+            samples,
+            rec.dt,
+        )
+    };
+    let fits: Vec<Option<AxisFit>> = std::thread::scope(|s| {
+        let accel = s.spawn(|| triad(3));
+        let mut v = triad(0).to_vec();
+        v.extend(accel.join().expect("fit thread"));
+        v
+    });
+    let found: Vec<Vec<lines::Line>> = rec.channels.iter().map(|c| lines::find(&c.psd)).collect();
+    let name = a.name.clone().unwrap_or_else(|| {
+        a.output
+            .as_ref()
+            .and_then(|p| p.file_stem())
+            .map_or("fitted".into(), |s| s.to_string_lossy().into_owned())
+    });
+    let prov = Provenance {
+        name,
+        source: a.input.input.display().to_string(),
+        samples: rec.samples,
+        dt: rec.dt,
+    };
+    let toml = template_toml(&prov, &fits, &found);
+    // The template must load as written: what `--imu` will read is what was fitted.
+    let model = imu_emu::errors::template::parse(
+        &toml,
+        a.output.as_deref().unwrap_or("fitted.toml".as_ref()),
+    )
+    .context("the fitted template does not load (a bug: please report it)")?;
+    let simulated = if a.report.is_some() || a.plot.is_some() {
+        Some(closure::simulate(
+            model,
+            rec.dt,
+            rec.samples,
+            a.seed,
+            a.segment,
+        )?)
+    } else {
+        None
+    };
+    let checks: Vec<Vec<ClosurePoint>> = match &simulated {
+        Some(sim) => (0..6)
+            .map(|ch| match &fits[ch] {
+                Some(f) => closure::compare(
+                    &rec.channels[ch].adev,
+                    &sim.channels[ch].adev,
+                    &f.model,
+                    samples,
+                ),
+                None => Vec::new(),
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    let plot_name = a
+        .plot
+        .as_ref()
+        .and_then(|p| p.file_name())
+        .map(|n| n.to_string_lossy().into_owned());
+    let text = report::markdown(&prov, &fits, &found, &checks, plot_name.as_deref());
+    if let Some(p) = &a.plot {
+        let title = a
+            .input
+            .input
+            .file_name()
+            .map_or("input".into(), |n| n.to_string_lossy().into_owned());
+        let panels = report::panels(&rec, &fits, simulated.as_ref(), &title);
+        imu_emu::plot::render(p, &panels, 3, (1800, 1000))?;
+        eprintln!("imu-emu fit: plot written to {}", p.display());
+    }
+    if let Some(p) = &a.report {
+        write_file(p, text.as_bytes())?;
+        eprintln!("imu-emu fit: report written to {}", p.display());
+    }
+    if let Some(p) = &a.sines {
+        write_file(p, sines_scene(&prov, &found).as_bytes())?;
+        eprintln!("imu-emu fit: spectral lines written to {}", p.display());
+    }
+    match &a.output {
+        Some(p) => {
+            write_file(p, toml.as_bytes())?;
+            eprintln!("imu-emu fit: template written to {}", p.display());
+            std::io::Write::write_all(&mut std::io::stdout().lock(), text.as_bytes())?;
+        }
+        None => std::io::Write::write_all(&mut std::io::stdout().lock(), toml.as_bytes())?,
+    }
+    Ok(())
+}

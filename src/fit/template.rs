@@ -1,0 +1,279 @@
+//! The fitted model as template TOML (`templates/README.md` format) in datasheet units, each
+//! figure preceded by a comment saying how it was fitted and its 99 % interval, and the
+//! spectral lines as a scene file's `[[vibration.sine]]` entries. Pure text.
+
+use std::fmt::Write;
+
+use super::gmwm::{AxisFit, Component, Estimate};
+use super::lines::Line;
+use crate::analysis::fit::Term;
+use crate::analysis::report::{adev_unit, term_unit};
+
+/// What the template says about where it came from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Provenance {
+    /// Template name.
+    pub name: String,
+    /// The recording (as named on the command line).
+    pub source: String,
+    /// Samples per channel.
+    pub samples: u64,
+    /// Sampling interval (s).
+    pub dt: f64,
+}
+
+/// A number with 4 significant digits, plain or in exponent form, that parses back.
+pub fn sig4(x: f64) -> String {
+    let a = x.abs();
+    if a == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    if (1e-3..1e5).contains(&a) {
+        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.3e}")
+    }
+}
+
+/// Unit and factor (SI × factor) of a component in the template.
+pub fn unit(gyro: bool, k: Component) -> (&'static str, f64) {
+    match k {
+        Component::Quantization => term_unit(gyro, Term::Quantization),
+        Component::WhiteNoise => term_unit(gyro, Term::WhiteNoise),
+        Component::BiasInstability => term_unit(gyro, Term::BiasInstability),
+        Component::RandomWalk => term_unit(gyro, Term::RandomWalk),
+        Component::Ramp => term_unit(gyro, Term::Ramp),
+        Component::GaussMarkov => adev_unit(gyro),
+    }
+}
+
+/// One comment line on an estimate: value, interval, where read, χ² gain.
+fn describe(axis: usize, k: Component, e: &Estimate, gyro: bool, extra: &str) -> String {
+    let (u, f) = unit(gyro, k);
+    let symbol = match k {
+        Component::Quantization => "Q",
+        Component::WhiteNoise => "N",
+        Component::BiasInstability => "B",
+        Component::RandomWalk => "K",
+        Component::Ramp => "R",
+        Component::GaussMarkov => "σ",
+    };
+    format!(
+        "# {}: {symbol} = {} {u}, 99 % interval [{}, {}]{extra}; read at τ = {} s ({:.0} % of σ²), Δχ² = {} (> {:.1} to be kept)\n",
+        ["x", "y", "z"][axis],
+        sig4(e.value * f),
+        sig4(e.lo * f),
+        sig4(e.hi * f),
+        sig4(e.tau),
+        100.0 * e.share,
+        sig4(e.gain),
+        k.penalty()
+    )
+}
+
+/// The template text for the fits of the six channels (gyro x y z, accel x y z; None for a
+/// channel that could not be fitted) and the lines found in each channel.
+pub fn template_toml(p: &Provenance, fits: &[Option<AxisFit>], lines: &[Vec<Line>]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "# Fitted by `imu-emu fit` to {} ({} samples at {} Hz, {} s).\n\
+         # Method (docs/fit.md): weighted least squares of the exact Allan variance of the error\n\
+         # model's terms against the measured octave Allan variance; a term is kept when it lowers\n\
+         # χ² by more than its 99 % point (Δχ²). Intervals are 99 %, from the record length\n\
+         # (degrees of freedom of the octave where the term is read best).",
+        p.source,
+        p.samples,
+        sig4(1.0 / p.dt),
+        sig4(p.samples as f64 * p.dt)
+    );
+    let _ = writeln!(s, "name = \"{}\"", p.name.replace('"', "'"));
+    let _ = writeln!(
+        s,
+        "description = \"Fitted by imu-emu fit to {}\"",
+        p.source.replace('"', "'")
+    );
+    let _ = writeln!(s, "rate_hz = {}", sig4(1.0 / p.dt));
+    for (gyro, base) in [(true, 0), (false, 3)] {
+        let _ = writeln!(s, "\n[{}]", if gyro { "gyro" } else { "accel" });
+        let axes: Vec<Option<&AxisFit>> = (0..3).map(|a| fits[base + a].as_ref()).collect();
+        triad_toml(&mut s, gyro, &axes);
+        for a in 0..3 {
+            for l in &lines[base + a] {
+                let (u, f) = if gyro {
+                    ("deg/s", 180.0 / std::f64::consts::PI)
+                } else {
+                    ("g", 1.0 / crate::units::G0)
+                };
+                let _ = writeln!(
+                    s,
+                    "# {}: spectral line at {} Hz, amplitude {} {u} ({}× the background; not in the template: `fit --sines` writes it as a vibration sine)",
+                    ["x", "y", "z"][a],
+                    sig4(l.freq),
+                    sig4(l.amplitude * f),
+                    sig4(l.ratio)
+                );
+            }
+        }
+    }
+    s
+}
+
+fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
+    let est = |a: usize, k: Component| axes[a].and_then(|f| f.estimate(k));
+    let kept = |k: Component| (0..3).any(|a| est(a, k).is_some());
+    let values = |k: Component, f: f64, u: &str| -> String {
+        let v: Vec<String> = (0..3)
+            .map(|a| format!("\"{} {u}\"", sig4(est(a, k).map_or(0.0, |e| e.value) * f)))
+            .collect();
+        format!("[{}]", v.join(", "))
+    };
+    for (k, key) in [
+        (Component::WhiteNoise, "noise"),
+        (Component::BiasInstability, "bias_instability"),
+        (Component::RandomWalk, "random_walk"),
+    ] {
+        if !kept(k) {
+            let _ = writeln!(
+                s,
+                "# {}: not seen on any axis (no term earned its place)",
+                k.name()
+            );
+            continue;
+        }
+        for a in 0..3 {
+            if let Some(e) = est(a, k) {
+                s.push_str(&describe(a, k, &e, gyro, ""));
+            }
+        }
+        let (u, f) = unit(gyro, k);
+        let _ = writeln!(s, "{key} = {}", values(k, f, u));
+        if k == Component::BiasInstability {
+            // One band per triad in the template: the band of the axis where B gained most.
+            let (a, band) = (0..3)
+                .filter_map(|a| Some((a, est(a, k)?, axes[a]?.model.band)))
+                .max_by(|x, y| x.1.gain.total_cmp(&y.1.gain))
+                .map(|(a, _, b)| (a, b))
+                .expect("kept on some axis");
+            let _ = writeln!(
+                s,
+                "# τ band of the floor: fitted on axis {} (half-decade grid; one band per triad)",
+                ["x", "y", "z"][a]
+            );
+            let _ = writeln!(
+                s,
+                "bias_instability_band = [\"{} s\", \"{} s\"]",
+                sig4(band.0),
+                sig4(band.1)
+            );
+        }
+    }
+    if kept(Component::GaussMarkov) {
+        let (u, f) = unit(gyro, Component::GaussMarkov);
+        let mut taus = Vec::new();
+        for (a, fit) in axes.iter().enumerate() {
+            let fit = fit.filter(|f| f.model.c[5] > 0.0);
+            if let (Some(e), Some(fit)) = (est(a, Component::GaussMarkov), fit) {
+                let (lo, hi) = fit
+                    .gm_tau_interval
+                    .unwrap_or((fit.model.gm_tau, fit.model.gm_tau));
+                let extra = format!(
+                    ", T = {} s [{}, {}]",
+                    sig4(fit.model.gm_tau),
+                    sig4(lo),
+                    sig4(hi)
+                );
+                s.push_str(&describe(a, Component::GaussMarkov, &e, gyro, &extra));
+                taus.push(format!("\"{} s\"", sig4(fit.model.gm_tau)));
+            } else {
+                // An axis without the component: σ = 0 (its τ is then irrelevant).
+                taus.push("\"1 s\"".into());
+            }
+        }
+        let _ = writeln!(
+            s,
+            "bias_gm = {{ sigma = {}, tau = [{}] }}",
+            values(Component::GaussMarkov, f, u),
+            taus.join(", ")
+        );
+    }
+    if kept(Component::Quantization) {
+        for a in 0..3 {
+            if let Some(e) = est(a, Component::Quantization) {
+                s.push_str(&describe(a, Component::Quantization, &e, gyro, ""));
+            }
+        }
+        // The template has one LSB per triad; the LSB of carry-mode quantization is q = √12·Q.
+        let mut qs: Vec<f64> = (0..3)
+            .filter_map(|a| est(a, Component::Quantization).map(|e| e.value))
+            .collect();
+        qs.sort_by(f64::total_cmp);
+        // The median: an axis whose shortest octaves carry something else (a spectral line
+        // fitted as noise) must not move the others' LSB.
+        let q = 12f64.sqrt() * qs[(qs.len() - 1) / 2];
+        let (u, f) = if gyro { ("rad", 1.0) } else { ("m/s", 1.0) };
+        let _ = writeln!(
+            s,
+            "quantization = \"{} {u}\"   # increment LSB q = √12·Q, median of the axes that show it",
+            sig4(q * f)
+        );
+    }
+    for (a, fit) in axes.iter().enumerate() {
+        if let Some(e) = fit.and_then(|f| f.ramp_alternative) {
+            s.push_str(&describe(a, Component::Ramp, &e, gyro, ""));
+            let _ = writeln!(
+                s,
+                "#    a rate ramp fits better, but a template has no key for one (a slow drift such as warm-up;\n                 #    a scene's temperature ramp with `bias_temperature` makes one): the figures above are the best fit without it"
+            );
+        }
+    }
+}
+
+/// The lines as `[[vibration.sine]]` entries of a scene file on the static scene, so that
+/// `imu-emu generate LINES.toml --imu UNIT.toml` adds them (vibration belongs to the scene,
+/// not to the template).
+pub fn sines_scene(p: &Provenance, lines: &[Vec<Line>]) -> String {
+    let mut s = format!(
+        "# Spectral lines found by `imu-emu fit` in {} (docs/fit.md), as vibration sines on the\n\
+         # static scene; run with `imu-emu generate THIS.toml --imu UNIT.toml`. Phases are not\n\
+         # estimated (0).\n[trajectory]\nscene = \"static\"\n",
+        p.source
+    );
+    for (ch, ls) in lines.iter().enumerate() {
+        let gyro = ch < 3;
+        let (u, f) = if gyro {
+            ("deg/s", 180.0 / std::f64::consts::PI)
+        } else {
+            ("g", 1.0 / crate::units::G0)
+        };
+        for l in ls {
+            let _ = write!(
+                s,
+                "\n[[vibration.sine]]\nsensor = \"{}\"\naxis = \"{}\"\namplitude = \"{} {u}\"\nfrequency = \"{} Hz\"\n",
+                if gyro { "gyro" } else { "accel" },
+                ["x", "y", "z"][ch % 3],
+                sig4(l.amplitude * f),
+                sig4(l.freq)
+            );
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn four_significant_digits_round_trip() {
+        assert_eq!(sig4(0.15), "0.1500");
+        assert_eq!(sig4(1234.5678), "1235");
+        assert_eq!(sig4(2.5e-7), "2.500e-7");
+        assert_eq!(sig4(0.0), "0");
+        for x in [3.3e-9, 0.0123456, 98765.4, 1.0] {
+            let back: f64 = sig4(x).parse().unwrap();
+            assert!((back / x - 1.0).abs() < 5e-4, "{x}");
+        }
+    }
+}
