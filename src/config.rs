@@ -361,6 +361,8 @@ pub struct TrajectorySection {
     pub scene: Option<String>,
     /// Trajectory CSV path, relative to the scene file.
     pub file: Option<PathBuf>,
+    /// Motion-definition file (gnss-ins-sim CSV), relative to the scene file.
+    pub motion_def: Option<PathBuf>,
     /// Scene parameters overriding the scene's defaults.
     pub params: Option<toml::Table>,
 }

@@ -24,6 +24,7 @@ pub mod job;
 pub mod kinematics;
 pub mod math;
 pub mod motion;
+pub mod motiondef;
 pub mod nav;
 pub mod output;
 pub mod plot;

@@ -1,8 +1,10 @@
-//! The motion a run evaluates: a built-in analytic scene or a sampled trajectory.
+//! The motion a run evaluates: a built-in analytic scene, a sampled trajectory or a motion
+//! definition.
 
 use crate::kinematics::Sensed;
 use crate::motion::sampled::SampledMotion;
 use crate::motion::{Motion, Pose};
+use crate::motiondef::DefinedMotion;
 use crate::scenes::Scene;
 
 /// Any motion model, dispatched by a `match` (cheaper than a trait object in the hot loop and
@@ -13,6 +15,8 @@ pub enum AnyMotion {
     Scene(Scene),
     /// A trajectory file.
     Sampled(SampledMotion),
+    /// A motion definition.
+    Defined(DefinedMotion),
 }
 
 macro_rules! each {
@@ -22,6 +26,7 @@ macro_rules! each {
             AnyMotion::Scene(Scene::Flight($m)) => $e,
             AnyMotion::Scene(Scene::Polar($m)) => $e,
             AnyMotion::Sampled($m) => $e,
+            AnyMotion::Defined($m) => $e,
         }
     };
 }

@@ -32,6 +32,7 @@ pub struct SimulationBuilder {
     file_path: Option<PathBuf>,
     scene: Option<String>,
     trajectory: Option<PathBuf>,
+    motion_def: Option<PathBuf>,
     imu: Option<Imu>,
     rate: Option<f64>,
     start: Option<f64>,
@@ -60,6 +61,7 @@ impl Default for SimulationBuilder {
             file_path: None,
             scene: None,
             trajectory: None,
+            motion_def: None,
             imu: None,
             rate: None,
             start: None,
@@ -110,6 +112,7 @@ impl SimulationBuilder {
     pub fn scene(mut self, name: impl Into<String>) -> SimulationBuilder {
         self.scene = Some(name.into());
         self.trajectory = None;
+        self.motion_def = None;
         self
     }
 
@@ -117,6 +120,15 @@ impl SimulationBuilder {
     pub fn trajectory(mut self, path: impl Into<PathBuf>) -> SimulationBuilder {
         self.trajectory = Some(path.into());
         self.scene = None;
+        self.motion_def = None;
+        self
+    }
+
+    /// A motion-definition file (gnss-ins-sim's motion-definition CSV) instead of a scene.
+    pub fn motion_def(mut self, path: impl Into<PathBuf>) -> SimulationBuilder {
+        self.motion_def = Some(path.into());
+        self.scene = None;
+        self.trajectory = None;
         self
     }
 
@@ -276,6 +288,20 @@ impl SimulationBuilder {
         if let Some(path) = &self.trajectory {
             return Ok((SourceSpec::File(path.clone()), false, false));
         }
+        if let Some(path) = &self.motion_def {
+            return Ok((SourceSpec::MotionDef(path.clone()), false, false));
+        }
+        if self.scene.is_none() {
+            if let Some(m) = &t.motion_def {
+                if t.scene.is_some() || t.file.is_some() {
+                    return Err(SimError::Invalid(
+                        "give one of `scene`, `file` and `motion_def`".into(),
+                    )
+                    .at(Some(format!("{}: `trajectory`", label.display()))));
+                }
+                return Ok((SourceSpec::MotionDef(self.base().join(m)), false, false));
+            }
+        }
         if let Some(s) = &self.scene {
             let params = config::scene_params(s, t.params.as_ref()).map_err(|m| {
                 SimError::Invalid(m).at(Some(format!("{}: `trajectory.params`", label.display())))
@@ -413,7 +439,7 @@ impl SimulationBuilder {
         if let (Some(f), false) = (&self.file_path, keys.is_empty()) {
             place.push(format!("{}: {}", f.display(), keys.join(", ")));
         }
-        if let SourceSpec::File(path) = source {
+        if let SourceSpec::File(path) | SourceSpec::MotionDef(path) = source {
             place.push(path.display().to_string());
         }
         (!place.is_empty()).then(|| place.join(": "))
