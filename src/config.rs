@@ -33,6 +33,8 @@ pub struct SceneFile {
     /// Faults injected into protocol frames.
     #[serde(default)]
     pub faults: FaultsSection,
+    /// A native motion definition (`imu_emu::motiondef::native`), checked when it is read.
+    pub motion: Option<toml::Table>,
 }
 
 /// `[faults]`: faults injected into protocol frames (`[[faults.event]]` entries).

@@ -251,3 +251,121 @@ fn bad_files_are_refused_with_line_and_column() {
         "{e}"
     );
 }
+
+fn native(text: &str) -> Result<DefinedMotion, String> {
+    motiondef::native::parse(text, Path::new("m.toml")).map_err(|e| e.to_string())
+}
+
+fn mission() -> DefinedMotion {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/mission.toml");
+    motiondef::open(&p).unwrap()
+}
+
+/// The native example mission (take-off roll, climb, turns, figure-eight, a 360° roll,
+/// descent; 740 s) closes within 1 mm, and its sensed signal is continuous at every boundary.
+#[test]
+fn native_mission_closes_and_is_continuous() {
+    let m = mission();
+    let mut i = 0;
+    let (mut dw, mut df) = (0.0f64, 0.0f64);
+    while m.piece_end(i).is_finite() {
+        let t = m.piece_end(i);
+        let (a, b) = (m.sense(i, t), m.sense(i + 1, t));
+        dw = dw.max((a.omega_ib_b - b.omega_ib_b).max_abs());
+        df = df.max((a.f_b - b.f_b).max_abs());
+        i += 1;
+    }
+    println!("mission: {i} boundaries, largest jump ω {dw:.2e} rad/s, f {df:.2e} m/s²");
+    assert!(dw < 1e-12 && df < 1e-9, "{dw:e} {df:e}");
+    let m = AnyMotion::Defined(m);
+    let grid = job::plan(&m, 200.0, None, None).unwrap();
+    let c = close(&m, &grid, Settings::default(), None, 100).unwrap();
+    println!(
+        "mission: {} s, position {:.2e} m (max {:.2e}), velocity max {:.2e} m/s",
+        grid.count as f64 / 200.0,
+        c.last.pos_ned.norm(),
+        c.max_pos,
+        c.max_vel
+    );
+    assert!(c.max_pos <= 1e-3, "{:.3e} m", c.max_pos);
+}
+
+/// A coordinated turn at 3°/s and 50 m/s: bank atan(V·ψ̇/g), the yaw linear in the held part
+/// and the whole turn exactly 90°; a climb ends exactly at its height.
+#[test]
+fn native_turn_and_climb_against_their_closed_forms() {
+    let m = native(
+        "[motion]\nstart = { lat_deg = 45, h_m = 100, speed_m_s = 50 }\n\
+         segments = [{ turn_deg = 90, rate_deg_s = 3 }, { climb_to_m = 400, rate_m_s = 5 }]\n",
+    )
+    .unwrap();
+    let g = earth::normal_gravity(45f64.to_radians().sin(), 100.0);
+    let r = 3f64.to_radians();
+    let bank = (50.0 * r / g).atan();
+    let (t0, t1) = m.segments()[0].span;
+    // Roll-in time: the bank's minimum-jerk move within 60°/s and 60°/s², or 0.5 s.
+    let t_in = (1.875 * bank / 60f64.to_radians())
+        .max((5.7735 * bank / 60f64.to_radians()).sqrt())
+        .max(0.5);
+    for s in [0.1, 0.5, 0.9] {
+        let t = t0 + t_in + s * (t1 - t0 - 2.0 * t_in);
+        let (roll, _, yaw) = imu_emu::math::euler_from_quat(m.pose(t).q_b_n);
+        assert!((roll - bank).abs() < 1e-13, "{roll} {bank}");
+        assert!(
+            (yaw - r * (t - t0 - 0.5 * t_in)).abs() < 1e-12,
+            "t {t}: {yaw}"
+        );
+    }
+    let end = m.pose(t1);
+    let (roll, _, yaw) = imu_emu::math::euler_from_quat(end.q_b_n);
+    assert!((yaw - 90f64.to_radians()).abs() < 1e-13 && roll.abs() < 1e-15);
+    let h = m.pose(m.end()).h;
+    assert!((h - 400.0).abs() < 1e-8, "{h}");
+}
+
+/// Limits are refused naming the segment and its line; so are unknown keys and segments that
+/// give two kinds or none.
+#[test]
+fn native_limits_and_mistakes_are_refused() {
+    let start = "[motion]\nstart = { speed_m_s = 50 }\nlimits = { max_bank_deg = 30 }\n";
+    let e = native(&format!(
+        "{start}segments = [\n {{ hold_s = 1 }},\n {{ turn_deg = 90, bank_deg = 40 }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.starts_with("m.toml:6: `motion.segments[1]`: bank 40° is beyond max_bank_deg = 30°"),
+        "{e}"
+    );
+    let e = native(&format!(
+        "{start}segments = [{{ turn_deg = 90, rate_deg_s = 30 }}]\n"
+    ))
+    .unwrap_err();
+    assert!(e.contains("segments[0]") && e.contains("bank"), "{e}");
+    let e = native(&format!(
+        "{start}segments = [{{ turn_deg = 2, rate_deg_s = 3 }}]\n"
+    ))
+    .unwrap_err();
+    assert!(e.contains("shorter than its roll-in"), "{e}");
+    let e = native(&format!(
+        "{start}segments = [{{ roll_deg = 360, duration_s = 1 }}]\n"
+    ))
+    .unwrap_err();
+    assert!(e.contains("beyond max_rate_deg_s"), "{e}");
+    let e = native(&format!(
+        "{start}segments = [{{ climb_to_m = 10, rate_m_s = 60 }}]\n"
+    ))
+    .unwrap_err();
+    assert!(e.contains("rate_m_s"), "{e}");
+    let e = native(&format!(
+        "{start}segments = [{{ hold_s = 1, turn_deg = 3 }}]\n"
+    ))
+    .unwrap_err();
+    assert!(e.contains("exactly one"), "{e}");
+    let e = native(&format!("{start}segments = [\n{{ hold = 1 }}]\n")).unwrap_err();
+    assert!(e.starts_with("m.toml:5:") && e.contains("hold"), "{e}");
+    let e =
+        native("[motion]\nstart = { lat_deg = 91 }\nsegments = [{ hold_s = 1 }]\n").unwrap_err();
+    assert!(e.contains("motion.start.lat_deg"), "{e}");
+    let e = native("[imu]\nrate_hz = 1\n").unwrap_err();
+    assert!(e.contains("no `[motion]` table"), "{e}");
+}

@@ -14,6 +14,7 @@
 //! the quintic's interpolation error (≈ v·ω⁵·Δt⁶/46080, micrometres per second at 2 rad/s).
 
 pub mod gnss_ins_sim;
+pub mod native;
 pub mod profile;
 
 use std::path::Path;
@@ -85,7 +86,7 @@ fn attitude(p: &Piece, tau: f64) -> (Mat3, Vec3, [f64; 3]) {
 }
 
 /// Prescribed v^n and v̇^n on piece p at τ.
-fn prescribed(p: &Piece, tau: f64) -> (Vec3, Vec3) {
+pub(crate) fn prescribed(p: &Piece, tau: f64) -> (Vec3, Vec3) {
     let (c, w, _) = attitude(p, tau);
     let [x, y, z] = [3, 4, 5].map(|k| p.poly[k].jet(tau));
     let v_b = Vec3::new(x[0], y[0], z[0]);
@@ -258,7 +259,15 @@ impl Motion for DefinedMotion {
     }
 }
 
-/// Reads a motion-definition file: gnss-ins-sim's CSV (`.csv`).
+/// Reads a motion-definition file: the native `[motion]` table of a `.toml` file, else
+/// gnss-ins-sim's CSV.
 pub fn open(path: &Path) -> Result<DefinedMotion, FileError> {
-    gnss_ins_sim::read(path)
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+    {
+        native::read(path)
+    } else {
+        gnss_ins_sim::read(path)
+    }
 }

@@ -103,6 +103,13 @@ impl Profile {
         }
     }
 
+    /// Blends every channel from its current value, rate and acceleration to `end` (value,
+    /// rate, acceleration per channel) over `duration`.
+    pub fn blend_to(&mut self, end: [[f64; 3]; CHANNELS], duration: f64) {
+        let poly = std::array::from_fn(|k| Poly::hermite5(self.state[k], end[k], duration));
+        self.push(poly, duration);
+    }
+
     /// Moves every channel to `target` and brings its rates to zero, in the shortest time
     /// within `limits` (angles 0..3, velocities 3..6), but stops after `max_duration` like a
     /// command that runs out of time. Returns the time taken (0 when already there at rest).

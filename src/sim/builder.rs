@@ -291,6 +291,18 @@ impl SimulationBuilder {
         if let Some(path) = &self.motion_def {
             return Ok((SourceSpec::MotionDef(path.clone()), false, false));
         }
+        let embedded = self.file.motion.is_some() && self.scene.is_none();
+        if embedded {
+            if t.scene.is_some() || t.file.is_some() || t.motion_def.is_some() {
+                return Err(SimError::Invalid(
+                    "a `[motion]` table is the trajectory: remove `trajectory.scene`, \
+                     `trajectory.file` and `trajectory.motion_def`"
+                        .into(),
+                )
+                .at(Some(label.display().to_string())));
+            }
+            return Ok((SourceSpec::MotionDef(label.clone()), false, false));
+        }
         if self.scene.is_none() {
             if let Some(m) = &t.motion_def {
                 if t.scene.is_some() || t.file.is_some() {
