@@ -369,3 +369,63 @@ fn native_limits_and_mistakes_are_refused() {
     let e = native("[imu]\nrate_hz = 1\n").unwrap_err();
     assert!(e.contains("no `[motion]` table"), "{e}");
 }
+
+fn bin(args: &[&str], cwd: &Path) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .unwrap()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("imu-emu-md-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The command line: `trajectory` and `generate` take `--motion-def`; a scene file takes
+/// `trajectory.motion_def` (relative to itself) or an embedded `[motion]` table; a bad file
+/// fails with its line and leaves no output behind.
+#[test]
+fn command_line_and_scene_files() {
+    let dir = scratch("cli");
+    let turn = demo("motion_def-90deg_turn.csv");
+    let turn = turn.to_str().unwrap();
+    let out = bin(&["trajectory", "--motion-def", turn, "--rate", "10", "-o", "t.csv"], &dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(dir.join("t.csv")).unwrap();
+    assert_eq!(text.lines().filter(|l| !l.starts_with('#')).count(), 1 + 101);
+    let out = bin(
+        &["generate", "--motion-def", turn, "--rate", "100", "-o", "g.csv"],
+        &dir,
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::copy(&*turn, dir.join("turn.csv")).unwrap();
+    std::fs::create_dir_all(dir.join("sub")).unwrap();
+    std::fs::write(
+        dir.join("sub/scene.toml"),
+        "[trajectory]\nmotion_def = \"../turn.csv\"\n[output]\nduration_s = 2\n",
+    )
+    .unwrap();
+    let out = bin(&["generate", "sub/scene.toml", "--rate", "10", "-o", "s.csv"], &dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::write(
+        dir.join("embedded.toml"),
+        "[imu]\nrate_hz = 50\n[motion]\nstart = { speed_m_s = 20 }\nsegments = [{ turn_deg = 45, rate_deg_s = 5 }]\n",
+    )
+    .unwrap();
+    let out = bin(&["generate", "embedded.toml", "-o", "e.csv"], &dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::write(
+        dir.join("bad.csv"),
+        format!("{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n1,0,0,0,0,0,0,1,0\n9,0,0,0,0,0,0,1,0\n"),
+    )
+    .unwrap();
+    let out = bin(&["generate", "--motion-def", "bad.csv", "-o", "b.csv"], &dir);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("bad.csv:5: column 1"), "{err}");
+    assert!(!dir.join("b.csv").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
