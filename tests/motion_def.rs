@@ -393,15 +393,45 @@ fn command_line_and_scene_files() {
     let dir = scratch("cli");
     let turn = demo("motion_def-90deg_turn.csv");
     let turn = turn.to_str().unwrap();
-    let out = bin(&["trajectory", "--motion-def", turn, "--rate", "10", "-o", "t.csv"], &dir);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let text = std::fs::read_to_string(dir.join("t.csv")).unwrap();
-    assert_eq!(text.lines().filter(|l| !l.starts_with('#')).count(), 1 + 101);
     let out = bin(
-        &["generate", "--motion-def", turn, "--rate", "100", "-o", "g.csv"],
+        &[
+            "trajectory",
+            "--motion-def",
+            turn,
+            "--rate",
+            "10",
+            "-o",
+            "t.csv",
+        ],
         &dir,
     );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.join("t.csv")).unwrap();
+    assert_eq!(
+        text.lines().filter(|l| !l.starts_with('#')).count(),
+        1 + 101
+    );
+    let out = bin(
+        &[
+            "generate",
+            "--motion-def",
+            turn,
+            "--rate",
+            "100",
+            "-o",
+            "g.csv",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     std::fs::copy(&*turn, dir.join("turn.csv")).unwrap();
     std::fs::create_dir_all(dir.join("sub")).unwrap();
     std::fs::write(
@@ -409,23 +439,61 @@ fn command_line_and_scene_files() {
         "[trajectory]\nmotion_def = \"../turn.csv\"\n[output]\nduration_s = 2\n",
     )
     .unwrap();
-    let out = bin(&["generate", "sub/scene.toml", "--rate", "10", "-o", "s.csv"], &dir);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = bin(
+        &["generate", "sub/scene.toml", "--rate", "10", "-o", "s.csv"],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     std::fs::write(
         dir.join("embedded.toml"),
         "[imu]\nrate_hz = 50\n[motion]\nstart = { speed_m_s = 20 }\nsegments = [{ turn_deg = 45, rate_deg_s = 5 }]\n",
     )
     .unwrap();
     let out = bin(&["generate", "embedded.toml", "-o", "e.csv"], &dir);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     std::fs::write(
         dir.join("bad.csv"),
         format!("{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n1,0,0,0,0,0,0,1,0\n9,0,0,0,0,0,0,1,0\n"),
     )
     .unwrap();
-    let out = bin(&["generate", "--motion-def", "bad.csv", "-o", "b.csv"], &dir);
+    let out = bin(
+        &["generate", "--motion-def", "bad.csv", "-o", "b.csv"],
+        &dir,
+    );
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("bad.csv:5: column 1"), "{err}");
+    assert!(
+        !out.status.success() && err.contains("bad.csv:5: column 1"),
+        "{err}"
+    );
     assert!(!dir.join("b.csv").exists());
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// After the example mission's 360° roll (roll = 2π), its next turn banks from wings level
+/// instead of rolling back a full turn: |roll| never exceeds the turn's bank.
+#[test]
+fn a_turn_after_a_full_roll_banks_from_wings_level() {
+    let m = mission();
+    let (a, b) = m.segments()[12].span;
+    let worst = (0..=400)
+        .map(|i| {
+            let (roll, _, _) =
+                imu_emu::math::euler_from_quat(m.pose(a + (b - a) * i as f64 / 400.0).q_b_n);
+            roll.abs()
+        })
+        .fold(0.0, f64::max);
+    // 3°/s at 60 m/s: bank atan(60·0.0524/9.80) ≈ 17.8°.
+    assert!(
+        worst < 18f64.to_radians() && worst > 17f64.to_radians(),
+        "{}",
+        worst.to_degrees()
+    );
 }

@@ -431,9 +431,11 @@ impl Builder {
             ));
         }
         let now = self.profile.values();
+        // Bank from wings level, the nearest whole turn of roll (a 360° roll leaves 2π).
+        let level = std::f64::consts::TAU * (now[2] / std::f64::consts::TAU).round();
         let mut end = now.map(|v| [v, 0.0, 0.0]);
         end[0] = [now[0] + 0.5 * rate * t_in, rate, 0.0];
-        end[2] = [bank, 0.0, 0.0];
+        end[2] = [level + bank, 0.0, 0.0];
         self.profile.blend_to(end, t_in);
         let mut rates = [0.0; CHANNELS];
         rates[0] = rate;
@@ -443,7 +445,7 @@ impl Builder {
         let now = self.profile.values();
         let mut end = now.map(|v| [v, 0.0, 0.0]);
         end[0] = [now[0] + 0.5 * rate * t_in, 0.0, 0.0];
-        end[2] = [0.0, 0.0, 0.0];
+        end[2] = [level, 0.0, 0.0];
         self.profile.blend_to(end, t_in);
         Ok(())
     }
