@@ -57,9 +57,9 @@ fn main() {
         let n = (exact.end() * rate).round() as usize;
         for k in 0..n {
             let p = exact.pose(k as f64 * dt);
-            lat += p.v_n.0[0] / (earth::radius_meridian(p.lat.sin()) + p.h) * dt;
+            lat += p.v_n[0] / (earth::radius_meridian(p.lat.sin()) + p.h) * dt;
             lon +=
-                p.v_n.0[1] / ((earth::radius_prime_vertical(p.lat.sin()) + p.h) * p.lat.cos()) * dt;
+                p.v_n[1] / ((earth::radius_prime_vertical(p.lat.sin()) + p.h) * p.lat.cos()) * dt;
         }
         let euler = metres(lat, lon);
         println!(

@@ -348,7 +348,7 @@ pub fn mission_panels(poses: &[crate::motion::Pose]) -> Vec<Panel> {
             x_label: "t (s)".into(),
             y_label: "v (m/s)".into(),
             series: (0..3)
-                .map(|k| series(["north", "east", "down"][k], column(&|p| p.v_n.0[k]), k))
+                .map(|k| series(["north", "east", "down"][k], column(&|p| p.v_n[k]), k))
                 .collect(),
             ..Panel::default()
         },

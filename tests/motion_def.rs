@@ -71,11 +71,11 @@ fn type_1_acceleration_against_its_closed_form() {
         let p = m.pose(t);
         let v = 10.0 * t - 2.5;
         assert!(
-            (p.v_n.0[0] - v).abs() < 1e-11,
+            (p.v_n[0] - v).abs() < 1e-11,
             "t {t}: {} vs {v}",
-            p.v_n.0[0]
+            p.v_n[0]
         );
-        assert!(p.v_n.0[1].abs() < 1e-12 && p.v_n.0[2].abs() < 1e-12);
+        assert!(p.v_n[1].abs() < 1e-12 && p.v_n[2].abs() < 1e-12);
     }
     let (a, b) = (m.pose(1.0), m.pose(10.0));
     let d = meridian_arc(a.lat, b.lat, 0.0);
@@ -98,9 +98,9 @@ fn type_1_turn_against_its_closed_form() {
             let expect = (90.0 - 3.75 - 15.0 * (t - 1.5)).to_radians();
             assert!((yaw - expect).abs() < 1e-13, "t {t}: yaw {yaw} vs {expect}");
             let (s, c) = expect.sin_cos();
-            (p.v_n.0[0] - 10.0 * c)
+            (p.v_n[0] - 10.0 * c)
                 .abs()
-                .max((p.v_n.0[1] - 10.0 * s).abs())
+                .max((p.v_n[1] - 10.0 * s).abs())
         })
         .fold(0.0, f64::max);
     // The velocity is the knot quintic's: exact at knots, within its interpolation error
@@ -125,16 +125,16 @@ fn type_2_target_against_its_closed_form() {
         let v = 10.0 * (10.0 * s * s * s - 15.0 * s.powi(4) + 6.0 * s.powi(5));
         let p = m.pose(t.min(m.end()));
         assert!(
-            (p.v_n.0[0] - v).abs() < 1e-10,
+            (p.v_n[0] - v).abs() < 1e-10,
             "s {s}: {} vs {v}",
-            p.v_n.0[0]
+            p.v_n[0]
         );
     }
     // The fourth command moves along body y (east at yaw 0) with the attitude unchanged.
     let (a, b) = segs[3].span;
     let p = m.pose(0.5 * (a + b));
     assert!(
-        (p.v_n.0[1] - 5.0).abs() < 1e-10 && p.v_n.0[0].abs() < 1e-10,
+        (p.v_n[1] - 5.0).abs() < 1e-10 && p.v_n[0].abs() < 1e-10,
         "{:?}",
         p.v_n
     );
@@ -155,7 +155,7 @@ fn types_3_and_5_reach_their_targets() {
     assert!((pitch - 45.0).abs() < 1e-10, "{pitch}");
     let h = std::f64::consts::FRAC_1_SQRT_2 * 10.0;
     assert!(
-        (v.0[0] - h).abs() < 1e-9 && (v.0[2] + h).abs() < 1e-9,
+        (v[0] - h).abs() < 1e-9 && (v[2] + h).abs() < 1e-9,
         "{v:?}"
     );
     let (_, pitch, yaw, v) = after(3);
@@ -163,7 +163,7 @@ fn types_3_and_5_reach_their_targets() {
         pitch.abs() < 1e-10 && (yaw - 90.0).abs() < 1e-10,
         "{pitch} {yaw}"
     );
-    assert!((v.0[1] - 10.0).abs() < 1e-9, "{v:?}");
+    assert!((v[1] - 10.0).abs() < 1e-9, "{v:?}");
 }
 
 /// Angular rate and specific force have no jump at any piece boundary (knots, blends,
@@ -178,8 +178,8 @@ fn sensed_signal_is_continuous_at_every_boundary() {
         while m.piece_end(i).is_finite() {
             let t = m.piece_end(i);
             let (a, b) = (m.sense(i, t), m.sense(i + 1, t));
-            dw = dw.max((a.omega_ib_b - b.omega_ib_b).max_abs());
-            df = df.max((a.f_b - b.f_b).max_abs());
+            dw = dw.max((a.omega_ib_b - b.omega_ib_b).amax());
+            df = df.max((a.f_b - b.f_b).amax());
             i += 1;
             n += 1;
         }
@@ -271,8 +271,8 @@ fn native_mission_closes_and_is_continuous() {
     while m.piece_end(i).is_finite() {
         let t = m.piece_end(i);
         let (a, b) = (m.sense(i, t), m.sense(i + 1, t));
-        dw = dw.max((a.omega_ib_b - b.omega_ib_b).max_abs());
-        df = df.max((a.f_b - b.f_b).max_abs());
+        dw = dw.max((a.omega_ib_b - b.omega_ib_b).amax());
+        df = df.max((a.f_b - b.f_b).amax());
         i += 1;
     }
     println!("mission: {i} boundaries, largest jump ω {dw:.2e} rad/s, f {df:.2e} m/s²");

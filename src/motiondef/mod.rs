@@ -90,8 +90,8 @@ pub(crate) fn prescribed(p: &Piece, tau: f64) -> (Vec3, Vec3) {
     let (c, w, _) = attitude(p, tau);
     let [x, y, z] = [3, 4, 5].map(|k| p.poly[k].jet(tau));
     let v_b = Vec3::new(x[0], y[0], z[0]);
-    let a_b = Vec3::new(x[1], y[1], z[1]) + w.cross(v_b);
-    (c.mul_vec(v_b), c.mul_vec(a_b))
+    let a_b = Vec3::new(x[1], y[1], z[1]) + w.cross(&v_b);
+    (c * v_b, c * a_b)
 }
 
 /// (φ̇, λ̇, ḣ) at a geodetic position for NED velocity v.
@@ -99,7 +99,7 @@ fn geo_rates(lat: f64, h: f64, v: Vec3) -> [f64; 3] {
     let (s, c) = lat.sin_cos();
     let m = earth::radius_meridian(s) + h;
     let n = earth::radius_prime_vertical(s) + h;
-    [v.0[0] / m, v.0[1] / (n * c), -v.0[2]]
+    [v[0] / m, v[1] / (n * c), -v[2]]
 }
 
 /// Jets [value, first, second derivative] of latitude, longitude and height from position,
@@ -111,17 +111,17 @@ fn geo_jets(pos: [f64; 3], v: Vec3, a: Vec3) -> [[f64; 3]; 3] {
     let rm = earth::radius_meridian(s);
     let rn = earth::radius_prime_vertical(s);
     let (mh, nh) = (rm + h, rn + h);
-    let lat_d = v.0[0] / mh;
-    let lon_d = v.0[1] / (nh * c);
-    let h_d = -v.0[2];
+    let lat_d = v[0] / mh;
+    let lon_d = v[1] / (nh * c);
+    let h_d = -v[2];
     let drm = 3.0 * E2 * rm * s * c / w * lat_d;
     let drn = E2 * rn * s * c / w * lat_d;
-    let lat_dd = (a.0[0] - (drm + h_d) * lat_d) / mh;
-    let lon_dd = (a.0[1] - ((drn + h_d) * c - nh * s * lat_d) * lon_d) / (nh * c);
+    let lat_dd = (a[0] - (drm + h_d) * lat_d) / mh;
+    let lon_dd = (a[1] - ((drn + h_d) * c - nh * s * lat_d) * lon_d) / (nh * c);
     [
         [lat, lat_d, lat_dd],
         [lon, lon_d, lon_dd],
-        [h, h_d, -a.0[2]],
+        [h, h_d, -a[2]],
     ]
 }
 

@@ -269,7 +269,7 @@ impl Builder {
             for j in 0..n as usize {
                 for (x, w) in self.rule.nodes.iter().zip(&self.rule.weights) {
                     let tau = (j as f64 + x) * step;
-                    dh -= w * step * prescribed(p, tau).0.0[2];
+                    dh -= w * step * prescribed(p, tau).0[2];
                 }
             }
         }
