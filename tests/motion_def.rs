@@ -70,11 +70,7 @@ fn type_1_acceleration_against_its_closed_form() {
     for t in [0.5, 1.0, 3.3, 7.77, 9.999] {
         let p = m.pose(t);
         let v = 10.0 * t - 2.5;
-        assert!(
-            (p.v_n[0] - v).abs() < 1e-11,
-            "t {t}: {} vs {v}",
-            p.v_n[0]
-        );
+        assert!((p.v_n[0] - v).abs() < 1e-11, "t {t}: {} vs {v}", p.v_n[0]);
         assert!(p.v_n[1].abs() < 1e-12 && p.v_n[2].abs() < 1e-12);
     }
     let (a, b) = (m.pose(1.0), m.pose(10.0));
@@ -98,9 +94,7 @@ fn type_1_turn_against_its_closed_form() {
             let expect = (90.0 - 3.75 - 15.0 * (t - 1.5)).to_radians();
             assert!((yaw - expect).abs() < 1e-13, "t {t}: yaw {yaw} vs {expect}");
             let (s, c) = expect.sin_cos();
-            (p.v_n[0] - 10.0 * c)
-                .abs()
-                .max((p.v_n[1] - 10.0 * s).abs())
+            (p.v_n[0] - 10.0 * c).abs().max((p.v_n[1] - 10.0 * s).abs())
         })
         .fold(0.0, f64::max);
     // The velocity is the knot quintic's: exact at knots, within its interpolation error
@@ -124,11 +118,7 @@ fn type_2_target_against_its_closed_form() {
         let t = 10.0 + 18.75 * s;
         let v = 10.0 * (10.0 * s * s * s - 15.0 * s.powi(4) + 6.0 * s.powi(5));
         let p = m.pose(t.min(m.end()));
-        assert!(
-            (p.v_n[0] - v).abs() < 1e-10,
-            "s {s}: {} vs {v}",
-            p.v_n[0]
-        );
+        assert!((p.v_n[0] - v).abs() < 1e-10, "s {s}: {} vs {v}", p.v_n[0]);
     }
     // The fourth command moves along body y (east at yaw 0) with the attitude unchanged.
     let (a, b) = segs[3].span;
@@ -154,10 +144,7 @@ fn types_3_and_5_reach_their_targets() {
     let (_, pitch, _, v) = after(1);
     assert!((pitch - 45.0).abs() < 1e-10, "{pitch}");
     let h = std::f64::consts::FRAC_1_SQRT_2 * 10.0;
-    assert!(
-        (v[0] - h).abs() < 1e-9 && (v[2] + h).abs() < 1e-9,
-        "{v:?}"
-    );
+    assert!((v[0] - h).abs() < 1e-9 && (v[2] + h).abs() < 1e-9, "{v:?}");
     let (_, pitch, yaw, v) = after(3);
     assert!(
         pitch.abs() < 1e-10 && (yaw - 90.0).abs() < 1e-10,

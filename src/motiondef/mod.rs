@@ -118,11 +118,7 @@ fn geo_jets(pos: [f64; 3], v: Vec3, a: Vec3) -> [[f64; 3]; 3] {
     let drn = E2 * rn * s * c / w * lat_d;
     let lat_dd = (a[0] - (drm + h_d) * lat_d) / mh;
     let lon_dd = (a[1] - ((drn + h_d) * c - nh * s * lat_d) * lon_d) / (nh * c);
-    [
-        [lat, lat_d, lat_dd],
-        [lon, lon_d, lon_dd],
-        [h, h_d, -a[2]],
-    ]
+    [[lat, lat_d, lat_dd], [lon, lon_d, lon_dd], [h, h_d, -a[2]]]
 }
 
 impl DefinedMotion {

@@ -303,16 +303,14 @@ impl SimulationBuilder {
             }
             return Ok((SourceSpec::MotionDef(label.clone()), false, false));
         }
-        if self.scene.is_none() {
-            if let Some(m) = &t.motion_def {
-                if t.scene.is_some() || t.file.is_some() {
-                    return Err(SimError::Invalid(
-                        "give one of `scene`, `file` and `motion_def`".into(),
-                    )
-                    .at(Some(format!("{}: `trajectory`", label.display()))));
-                }
-                return Ok((SourceSpec::MotionDef(self.base().join(m)), false, false));
+        if let (None, Some(m)) = (&self.scene, &t.motion_def) {
+            if t.scene.is_some() || t.file.is_some() {
+                return Err(SimError::Invalid(
+                    "give one of `scene`, `file` and `motion_def`".into(),
+                )
+                .at(Some(format!("{}: `trajectory`", label.display()))));
             }
+            return Ok((SourceSpec::MotionDef(self.base().join(m)), false, false));
         }
         if let Some(s) = &self.scene {
             let params = config::scene_params(s, t.params.as_ref()).map_err(|m| {
