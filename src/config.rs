@@ -15,9 +15,13 @@ pub struct SceneFile {
     /// Trajectory source.
     #[serde(default)]
     pub trajectory: TrajectorySection,
-    /// IMU model and rate.
-    #[serde(default)]
+    /// IMU model and rate (`[imu]`); an `[[imu]]` list (a rig) leaves it at its default and
+    /// fills [`SceneFile::rig`].
+    #[serde(default, deserialize_with = "crate::rig::config::table_or_list")]
     pub imu: ImuSection,
+    /// The units of a rig (`[[imu]]` entries; empty for a single `[imu]`).
+    #[serde(skip)]
+    pub rig: Vec<crate::rig::config::UnitEntry>,
     /// Output.
     #[serde(default)]
     pub output: OutputSection,
@@ -462,7 +466,8 @@ impl SceneFile {
                 },
             }
         };
-        let file: SceneFile = toml::from_str(text).map_err(located)?;
+        let mut file: SceneFile = toml::from_str(text).map_err(located)?;
+        file.rig = crate::rig::config::units_of(text).map_err(located)?;
         // `[trajectory.params]` is kept as a table (the defaults depend on the scene); check its
         // keys and types now, while an error can still point at the line.
         if file.trajectory.params.is_some() {

@@ -236,8 +236,8 @@ impl Encoding {
     }
 
     /// Appends the main output's bytes for `records`, and the end offset of each record's
-    /// bytes in `buf` to `ends`.
-    fn encode(
+    /// bytes in `buf` to `ends`; `profile` gives frames their temperature field.
+    pub fn encode(
         &mut self,
         records: &[Record],
         profile: Option<&TemperatureProfile>,
@@ -381,7 +381,7 @@ impl Producer {
 
     /// Whether a record of the last block is non-finite (before or after the error chain):
     /// nothing non-finite leaves the producer.
-    fn check_finite(records: &[Record], stage: &'static str) -> Result<(), JobError> {
+    pub(crate) fn check_finite(records: &[Record], stage: &'static str) -> Result<(), JobError> {
         // x·0 is 0 for every finite x and NaN for ±inf and NaN, so one branch-free sum over
         // the block settles the common case; only a bad block is searched value by value.
         let any_bad: f64 = records

@@ -33,6 +33,7 @@ pub mod quadrature;
 #[cfg(feature = "realtime")]
 pub mod realtime;
 pub mod record;
+pub mod rig;
 pub mod rng;
 pub mod scenes;
 pub mod sim;

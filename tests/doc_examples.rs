@@ -54,12 +54,12 @@ fn extract(page: &str, text: &str) -> Result<Vec<Example>, String> {
             continue;
         }
         let Some(info) = line.strip_prefix("```") else {
-            if !line.is_empty() {
-                if let Some(at) = pending_skip {
-                    return Err(format!(
-                        "{page}:{at}: no-test marker not followed by a code block"
-                    ));
-                }
+            if !line.is_empty()
+                && let Some(at) = pending_skip
+            {
+                return Err(format!(
+                    "{page}:{at}: no-test marker not followed by a code block"
+                ));
             }
             i += 1;
             continue;

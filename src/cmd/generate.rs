@@ -19,9 +19,11 @@ pub struct GenerateArgs {
     #[command(flatten)]
     pub sim: SimArgs,
     /// Output file, or - for stdout [default: the scene file's `output.path`, else stdout].
+    /// For a rig (`[[imu]]` units): the directory of the units' files [default: `.`].
     #[arg(short, long)]
     pub output: Option<PathBuf>,
-    /// Also write the error-free records here (same format and time grid).
+    /// Also write the error-free records here (same format and time grid). For a rig: a
+    /// directory receiving each unit's error-free readings and failure schedule.
     #[arg(long)]
     pub truth: Option<PathBuf>,
     /// Also write the error each stage injected into each record here (same format).
@@ -40,6 +42,9 @@ fn create(path: &Path) -> Result<(AtomicFile, PathBuf)> {
 }
 
 pub fn generate(a: GenerateArgs) -> Result<()> {
+    if a.sim.builder("ideal", "csv")?.is_rig() {
+        return super::rig::generate(a);
+    }
     let sim = a.sim.builder("ideal", "csv")?.build()?;
     announce(&sim);
     let grid = sim.grid();

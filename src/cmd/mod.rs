@@ -6,6 +6,7 @@ pub mod decode;
 pub mod generate;
 pub mod info;
 pub mod navigate;
+pub mod rig;
 pub mod run;
 pub mod setup;
 pub mod validate;

@@ -306,19 +306,18 @@ impl ErrorChain {
 fn run(stages: &mut [Box<dyn Stage>], block: &mut Block<'_>, capture: &mut Option<Capture>) {
     for i in 0..stages.len() {
         let kind = stages[i].kind();
-        if let Some((_, snap)) = capture.as_mut() {
-            if i == 0 || stages[i - 1].kind() != kind {
-                snap.clear();
-                snap.extend(block.records.iter().map(|r| (r.gyro, r.accel)));
-            }
+        if let Some((_, snap)) = capture.as_mut()
+            && (i == 0 || stages[i - 1].kind() != kind)
+        {
+            snap.clear();
+            snap.extend(block.records.iter().map(|r| (r.gyro, r.accel)));
         }
         stages[i].apply(block);
-        if let Some((comps, snap)) = capture.as_mut() {
-            if stages.get(i + 1).is_none_or(|s| s.kind() != kind) {
-                for ((c, r), (g, a)) in comps.iter_mut().zip(block.records.iter()).zip(snap.iter())
-                {
-                    c.0[kind as usize] = [r.gyro - *g, r.accel - *a];
-                }
+        if let Some((comps, snap)) = capture.as_mut()
+            && stages.get(i + 1).is_none_or(|s| s.kind() != kind)
+        {
+            for ((c, r), (g, a)) in comps.iter_mut().zip(block.records.iter()).zip(snap.iter()) {
+                c.0[kind as usize] = [r.gyro - *g, r.accel - *a];
             }
         }
     }

@@ -145,7 +145,7 @@ impl IndexBuilder {
             check_step(p, s).map_err(limit)?;
         }
         let prev_q = self.prev.map(|p| p.1);
-        if index % CHECKPOINT_EVERY == 0 {
+        if index.is_multiple_of(CHECKPOINT_EVERY) {
             self.index.checkpoints.push(Checkpoint {
                 sample: index,
                 mark,

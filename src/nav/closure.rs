@@ -50,7 +50,7 @@ pub fn close(
         for (i, r) in b.records.iter().enumerate() {
             nav.step(r.dtheta, r.dv);
             let kk = b.first + 1 + i as u64;
-            if kk % every == 0 || kk == grid.count {
+            if kk.is_multiple_of(every) || kk == grid.count {
                 let s = nav.state();
                 let e = StateError::of(&s, &motion.pose(s.t));
                 out.max_pos = out.max_pos.max(e.pos_ned.norm());

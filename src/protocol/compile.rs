@@ -131,7 +131,7 @@ pub(super) fn compile_layout(
                         }
                         let status = status_model(f);
                         if let Some(m) = &status
-                            && (!modulo.is_power_of_two() || (m.ok as u64) % modulo != 0)
+                            && (!modulo.is_power_of_two() || !(m.ok as u64).is_multiple_of(modulo))
                         {
                             return Err(ferr(
                                 &f.name,

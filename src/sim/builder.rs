@@ -1,6 +1,8 @@
 //! [`SimulationBuilder`]: a scene file (optional) and setters over it, resolved into a
 //! [`Simulation`]. Every value that came from the file and is refused names the file's key.
 
+mod rig;
+
 use std::path::{Path, PathBuf};
 
 use super::{Output, SimError, Simulation};
@@ -49,6 +51,7 @@ pub struct SimulationBuilder {
     mounting_deg: Option<[f64; 3]>,
     lever_arm_m: Option<[f64; 3]>,
     vibration: Option<VibrationSpec>,
+    units: Vec<crate::rig::config::UnitSpec>,
     default_imu: String,
     default_format: String,
     unbounded_duration: f64,
@@ -78,6 +81,7 @@ impl Default for SimulationBuilder {
             mounting_deg: None,
             lever_arm_m: None,
             vibration: None,
+            units: Vec::new(),
             default_imu: "ideal".into(),
             default_format: "csv".into(),
             unbounded_duration: job::DEFAULT_UNBOUNDED_DURATION_S,
@@ -621,18 +625,8 @@ impl SimulationBuilder {
         )))
     }
 
-    /// Resolves every setting (setters over the scene file over the defaults) and assembles
-    /// the simulation: motion, grid, error chain and encoding.
-    pub fn build(self) -> Result<Simulation, SimError> {
-        let label = self.file_label();
-        let (source, _, _) = self.source()?;
-        let imu = self.resolve_imu()?;
-        let seed = (self.seed.or(self.file.imu.seed)).unwrap_or(crate::rng::DEFAULT_SEED);
-        let temperature = match &self.temperature {
-            Some(p) => Some(p.clone()),
-            None => self.file.temperature.profile(&label, &self.base())?,
-        };
-        let mut output = self.output()?;
+    /// Gauss–Legendre nodes per interval: setter, then `engine.quadrature_nodes`, then 3.
+    fn nodes(&self) -> Result<usize, SimError> {
         let e = &self.file.engine;
         let at = self.file_key(
             self.nodes.is_some(),
@@ -646,6 +640,28 @@ impl SimulationBuilder {
             ))
             .at(at));
         }
+        Ok(nodes)
+    }
+
+    /// Resolves every setting (setters over the scene file over the defaults) and assembles
+    /// the simulation: motion, grid, error chain and encoding.
+    pub fn build(self) -> Result<Simulation, SimError> {
+        let label = self.file_label();
+        if self.is_rig() {
+            return Err(SimError::Invalid(format!(
+                "{}: lists `[[imu]]` units (a rig): this command runs one IMU; `generate` writes a rig (docs/rig.md)",
+                label.display()
+            )));
+        }
+        let (source, _, _) = self.source()?;
+        let imu = self.resolve_imu()?;
+        let seed = (self.seed.or(self.file.imu.seed)).unwrap_or(crate::rng::DEFAULT_SEED);
+        let temperature = match &self.temperature {
+            Some(p) => Some(p.clone()),
+            None => self.file.temperature.profile(&label, &self.base())?,
+        };
+        let mut output = self.output()?;
+        let nodes = self.nodes()?;
         let rate_in_file = self.file.imu.rate_hz.is_some();
         let rate = Rate {
             hz: (self.rate.or(self.file.imu.rate_hz))

@@ -378,7 +378,7 @@ impl SdlcDecoder {
             let fill = (1u64 << bits.min(8)) - 1;
             if bits == 0 || (bits < 8 && self.acc & fill == fill) {
                 // Back-to-back or shared flags, or a few marks of interframe fill.
-            } else if self.nacc % 8 != 0 {
+            } else if !self.nacc.is_multiple_of(8) {
                 f(Err(FrameError::NotOctetAligned { bits }));
             } else if self.buf.len() + (self.nacc / 8) as usize > self.opts.max_frame {
                 f(Err(FrameError::Overlong {

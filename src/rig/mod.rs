@@ -1,0 +1,471 @@
+//! A sensor rig on one clock: several units (three-axis IMUs with an error template, or
+//! skew-redundant units of single-axis sensors) on one body, driven by one motion. Each unit
+//! has its own placement (mounting and lever arm, `geometry`), rate, seed, output and
+//! scheduled sensor failures (`failure`); units at the same rate and time grid share one
+//! evaluation of the motion per instant.
+//!
+//! Built by [`crate::sim::SimulationBuilder::build_rig`] from a scene file's `[[imu]]` list or
+//! from code; docs/rig.md describes the scene-file schema and the outputs.
+
+pub mod config;
+pub mod failure;
+pub mod geometry;
+pub mod skew;
+
+use std::io::Write;
+use std::ops::ControlFlow;
+
+use crate::errors::ErrorChain;
+use crate::generator::{IdealImu, RotationTerms};
+use crate::job::{self, Encoding, Grid, JobError, Producer};
+use crate::math::Vec3;
+use crate::output::Format;
+use crate::record::{COLUMNS, Record};
+use crate::sim::SimError;
+use crate::source::AnyMotion;
+
+pub use failure::{Failure, FailureKind, FailureSet, FailureSpec, Pick};
+pub use geometry::Placement;
+pub use skew::{SkewLayout, SkewSensor, dodecahedron_axes};
+
+use skew::ChannelErrors;
+
+/// What a unit is made of.
+pub(crate) enum Body {
+    /// A three-axis IMU: its template's error chain (without mounting or lever arm, which
+    /// the placement applies) and its output encoding.
+    Triad {
+        chain: Option<Box<ErrorChain>>,
+        encoding: Box<Encoding>,
+    },
+    /// A skew-redundant unit: its sensors and their error terms; CSV output.
+    Skew {
+        layout: SkewLayout,
+        errors: Vec<ChannelErrors>,
+    },
+}
+
+/// One unit of a rig, ready to produce.
+pub struct Unit {
+    pub(crate) name: String,
+    pub(crate) grid: Grid,
+    pub(crate) place: Placement,
+    pub(crate) body: Body,
+    pub(crate) failures: FailureSet,
+    pub(crate) seed: u64,
+    pub(crate) path: Option<std::path::PathBuf>,
+}
+
+/// Reused per-unit buffers: nothing is allocated per block once they have grown.
+#[derive(Default)]
+struct Scratch {
+    recs: Vec<Record>,
+    truth: Vec<Record>,
+    rot: Vec<RotationTerms>,
+    vals: Vec<f64>,
+    tvals: Vec<f64>,
+    masks: Vec<u64>,
+    buf: Vec<u8>,
+    side: Vec<u8>,
+    row: Vec<f64>,
+    ends: Vec<usize>,
+}
+
+/// Where one unit's outputs go.
+pub struct UnitOutputs<'a> {
+    /// The unit's readings (records, frames, or a skew unit's channels as CSV).
+    pub main: &'a mut dyn Write,
+    /// The error-free readings at the unit's place and in its axes, with a `failed` column
+    /// (bit i: channel i has an active failure), CSV.
+    pub truth: Option<&'a mut dyn Write>,
+    /// The resolved failure schedule, CSV (one line per failure).
+    pub failures: Option<&'a mut dyn Write>,
+}
+
+impl Unit {
+    /// The unit's name (unique in its rig).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The unit's time grid.
+    pub fn grid(&self) -> Grid {
+        self.grid
+    }
+
+    /// The unit's placement on the body.
+    pub fn placement(&self) -> &Placement {
+        &self.place
+    }
+
+    /// The unit's seed (its error terms' and failures' random streams).
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// The output path the scene file gives, if any.
+    pub fn path(&self) -> Option<&std::path::Path> {
+        self.path.as_deref()
+    }
+
+    /// The skew-redundant layout, if the unit is one.
+    pub fn skew(&self) -> Option<&SkewLayout> {
+        match &self.body {
+            Body::Skew { layout, .. } => Some(layout),
+            Body::Triad { .. } => None,
+        }
+    }
+
+    /// The failures, their random choices made.
+    pub fn failures(&self) -> &[Failure] {
+        self.failures.failures()
+    }
+
+    /// The channel names failures refer to: `gyro_x` … `accel_z`, or `gyro_0` … `accel_N`.
+    pub fn channel_names(&self) -> Vec<String> {
+        match &self.body {
+            Body::Triad { .. } => COLUMNS[1..7].iter().map(|s| s.to_string()).collect(),
+            Body::Skew { layout, .. } => layout.channel_names(),
+        }
+    }
+
+    /// File extension of the main output: `csv`, or `bin` for binary records and frames.
+    pub fn extension(&self) -> &'static str {
+        match &self.body {
+            Body::Triad { encoding, .. } => match **encoding {
+                Encoding::Records(Format::Csv) => "csv",
+                _ => "bin",
+            },
+            Body::Skew { .. } => "csv",
+        }
+    }
+
+    /// Whether this unit needs the rotation terms (a lever arm, offset accelerometers).
+    fn needs_rotation_terms(&self) -> bool {
+        self.place.lever_b != Vec3::zeros()
+            || match &self.body {
+                Body::Triad { chain, .. } => {
+                    chain.as_ref().is_some_and(|c| c.needs_rotation_terms())
+                }
+                Body::Skew { layout, .. } => layout.has_offsets(),
+            }
+    }
+
+    /// The header of the main output (CSV only) and of the truth file.
+    fn headers(&self) -> (String, String) {
+        let names = match &self.body {
+            Body::Triad { .. } => COLUMNS[1..].iter().map(|s| s.to_string()).collect(),
+            Body::Skew { layout, .. } => {
+                let ch = layout.channel_names();
+                let inc = |c: &String| c.replace("gyro_", "dtheta_").replace("accel_", "dv_");
+                let mut v = ch.clone();
+                v.extend(ch.iter().map(inc));
+                v
+            }
+        };
+        let main = format!("t,{}\n", names.join(","));
+        let truth = format!("t,{},failed\n", names.join(","));
+        let main = match &self.body {
+            Body::Triad { encoding, .. }
+                if !matches!(**encoding, Encoding::Records(Format::Csv)) =>
+            {
+                String::new()
+            }
+            _ => main,
+        };
+        (main, truth)
+    }
+
+    /// One block: `reference` records (reference point, body axes) and their rotation terms
+    /// → the unit's error-free readings → errors → failures → encoded into `out`.
+    fn process(
+        &mut self,
+        reference: &[Record],
+        rot: Option<&[RotationTerms]>,
+        s: &mut Scratch,
+        out: &mut UnitOutputs<'_>,
+    ) -> Result<(), JobError> {
+        let dt = 1.0 / self.grid.rate_hz;
+        let n = reference.len();
+        s.masks.clear();
+        s.buf.clear();
+        s.ends.clear();
+        match &mut self.body {
+            Body::Triad { chain, encoding } => {
+                s.recs.clear();
+                s.recs.extend_from_slice(reference);
+                place_triad(&self.place, &mut s.recs, rot, dt);
+                s.truth.clear();
+                if out.truth.is_some() {
+                    s.truth.extend_from_slice(&s.recs);
+                }
+                if let Some(c) = chain.as_mut() {
+                    let terms = match (rot, c.needs_rotation_terms()) {
+                        (Some(r), true) => {
+                            s.rot.clear();
+                            s.rot.extend(r.iter().map(|t| match &self.place.c_b_c {
+                                Some(m) => geometry::rotate_terms(t, m),
+                                None => *t,
+                            }));
+                            Some(&s.rot[..])
+                        }
+                        _ => None,
+                    };
+                    c.apply_with(&mut s.recs, terms);
+                    Producer::check_finite(&s.recs, "after the error chain")?;
+                }
+                for r in s.recs.iter_mut() {
+                    let (g, a) = (r.gyro, r.accel);
+                    let mut v = [g[0], g[1], g[2], a[0], a[1], a[2]];
+                    let mask = self.failures.apply(r.t, &mut v);
+                    if mask != 0 {
+                        r.gyro = Vec3::new(v[0], v[1], v[2]);
+                        r.accel = Vec3::new(v[3], v[4], v[5]);
+                        r.dtheta = r.gyro * dt;
+                        r.dv = r.accel * dt;
+                    }
+                    s.masks.push(mask);
+                }
+                encoding.encode(&s.recs, None, &mut s.buf, &mut s.ends);
+                if let Some(w) = out.truth.as_mut() {
+                    s.side.clear();
+                    for (r, m) in s.truth.iter().zip(&s.masks) {
+                        csv_row(&mut s.side, &r.values(), *m);
+                    }
+                    w.write_all(&s.side)?;
+                }
+            }
+            Body::Skew { layout, errors } => {
+                let ch = layout.channels();
+                s.vals.clear();
+                s.tvals.clear();
+                for (i, r) in reference.iter().enumerate() {
+                    let w_c = self.place.to_case(r.gyro);
+                    for g in &layout.gyros {
+                        s.tvals.push(g.axis.dot(&w_c));
+                    }
+                    for a in &layout.accels {
+                        let p = self.place.point_b(a.position_m);
+                        let f_b = match rot {
+                            Some(rot) => geometry::force_at(r.accel, &rot[i], 1.0 / dt, p),
+                            None => r.accel,
+                        };
+                        s.tvals.push(a.axis.dot(&self.place.to_case(f_b)));
+                    }
+                }
+                for (row, r) in s.tvals.chunks(ch).zip(reference) {
+                    let start = s.vals.len();
+                    s.vals
+                        .extend(row.iter().zip(errors.iter_mut()).map(|(x, e)| e.read(*x)));
+                    s.masks.push(self.failures.apply(r.t, &mut s.vals[start..]));
+                }
+                let row = &mut s.row;
+                for (i, r) in reference.iter().enumerate() {
+                    row.clear();
+                    row.push(r.t);
+                    row.extend_from_slice(&s.vals[i * ch..(i + 1) * ch]);
+                    row.extend(s.vals[i * ch..(i + 1) * ch].iter().map(|v| v * dt));
+                    csv_row(&mut s.buf, row, u64::MAX);
+                }
+                check_values(&s.vals, reference, ch)?;
+                if let Some(w) = out.truth.as_mut() {
+                    s.side.clear();
+                    for (i, r) in reference.iter().enumerate() {
+                        row.clear();
+                        row.push(r.t);
+                        row.extend_from_slice(&s.tvals[i * ch..(i + 1) * ch]);
+                        row.extend(s.tvals[i * ch..(i + 1) * ch].iter().map(|v| v * dt));
+                        csv_row(&mut s.side, row, s.masks[i]);
+                    }
+                    w.write_all(&s.side)?;
+                }
+            }
+        }
+        debug_assert_eq!(s.masks.len(), n);
+        out.main.write_all(&s.buf)?;
+        Ok(())
+    }
+}
+
+/// Turns reference-point records into a three-axis unit's error-free readings: the rate
+/// and the specific force at its lever arm, in its axes.
+fn place_triad(place: &Placement, recs: &mut [Record], rot: Option<&[RotationTerms]>, dt: f64) {
+    if place.is_identity() {
+        return;
+    }
+    for (i, r) in recs.iter_mut().enumerate() {
+        let f = match rot {
+            Some(rot) if place.lever_b != Vec3::zeros() => {
+                geometry::force_at(r.accel, &rot[i], 1.0 / dt, place.lever_b)
+            }
+            _ => r.accel,
+        };
+        r.gyro = place.to_case(r.gyro);
+        r.accel = place.to_case(f);
+        r.dtheta = r.gyro * dt;
+        r.dv = r.accel * dt;
+    }
+}
+
+/// A skew unit's readings are finite, or the error names the record and the channel.
+fn check_values(vals: &[f64], reference: &[Record], ch: usize) -> Result<(), JobError> {
+    match vals.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => Err(JobError::NonFinite {
+            t: reference[i / ch].t,
+            quantity: "a skew-redundant sensor's reading",
+            value: vals[i],
+            stage: "after its error terms and failures",
+        }),
+    }
+}
+
+/// Appends one CSV row: `values`, then `mask` unless it is `u64::MAX`.
+fn csv_row(buf: &mut Vec<u8>, values: &[f64], mask: u64) {
+    let mut f = ryu::Buffer::new();
+    for (i, v) in values.iter().enumerate() {
+        if i > 0 {
+            buf.push(b',');
+        }
+        buf.extend_from_slice(f.format(*v).as_bytes());
+    }
+    if mask != u64::MAX {
+        buf.push(b',');
+        buf.extend_from_slice(itoa(mask, &mut [0; 20]));
+    }
+    buf.push(b'\n');
+}
+
+/// The decimal digits of `x`, written into the end of `digits`.
+fn itoa(mut x: u64, digits: &mut [u8; 20]) -> &[u8] {
+    let mut i = digits.len();
+    loop {
+        i -= 1;
+        digits[i] = b'0' + (x % 10) as u8;
+        x /= 10;
+        if x == 0 {
+            return &digits[i..];
+        }
+    }
+}
+
+/// An assembled rig: the motion, the quadrature and the units.
+pub struct Rig {
+    pub(crate) motion: AnyMotion,
+    pub(crate) nodes: usize,
+    pub(crate) units: Vec<Unit>,
+    pub(crate) warnings: Vec<String>,
+}
+
+impl Rig {
+    /// The units, in the order given.
+    pub fn units(&self) -> &[Unit] {
+        &self.units
+    }
+
+    /// The motion every unit follows.
+    pub fn motion(&self) -> &AnyMotion {
+        &self.motion
+    }
+
+    /// Things worth telling the user that do not stop the run.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// The groups of units that share a time grid (indices into [`Rig::units`]): each group
+    /// costs one evaluation of the motion per instant.
+    pub fn groups(&self) -> Vec<Vec<usize>> {
+        let mut groups: Vec<Vec<usize>> = Vec::new();
+        for (i, u) in self.units.iter().enumerate() {
+            match groups.iter_mut().find(|g| self.units[g[0]].grid == u.grid) {
+                Some(g) => g.push(i),
+                None => groups.push(vec![i]),
+            }
+        }
+        groups
+    }
+
+    /// Writes every unit's outputs (`outs[i]` for unit i); `progress(records_done)`, summed
+    /// over units, is called after each block and may stop the run ([`JobError::Stopped`]).
+    pub fn write(
+        mut self,
+        outs: &mut [UnitOutputs<'_>],
+        mut progress: impl FnMut(u64) -> ControlFlow<()>,
+    ) -> Result<(), SimError> {
+        if outs.len() != self.units.len() {
+            return Err(SimError::Invalid(format!(
+                "{} outputs for {} units",
+                outs.len(),
+                self.units.len()
+            )));
+        }
+        for (u, o) in self.units.iter().zip(outs.iter_mut()) {
+            let (main, truth) = u.headers();
+            o.main.write_all(main.as_bytes()).map_err(JobError::from)?;
+            if let Some(t) = o.truth.as_mut() {
+                t.write_all(truth.as_bytes()).map_err(JobError::from)?;
+            }
+            if let Some(f) = o.failures.as_mut() {
+                let names = u.channel_names();
+                let mut text = String::from("kind,sensor,channel,start_s,end_s,magnitude\n");
+                for x in u.failures() {
+                    text += &format!(
+                        "{},{},{},{},{},{}\n",
+                        x.kind.name(),
+                        names[x.channel],
+                        x.channel,
+                        x.start_s,
+                        x.end_s,
+                        x.magnitude
+                    );
+                }
+                f.write_all(text.as_bytes()).map_err(JobError::from)?;
+            }
+        }
+        let mut done = 0;
+        for group in self.groups() {
+            let grid = self.units[group[0]].grid;
+            let rot_needed = group.iter().any(|&i| self.units[i].needs_rotation_terms());
+            let mut ideal = IdealImu::new(
+                self.motion.clone(),
+                grid.rate_hz,
+                grid.t0,
+                grid.count,
+                self.nodes,
+            );
+            let (mut reference, mut rot) = (Vec::new(), Vec::new());
+            let mut scratch: Vec<Scratch> = group.iter().map(|_| Scratch::default()).collect();
+            let mut k = 1;
+            while k <= grid.count {
+                let n = ((grid.count - k + 1) as usize).min(job::BLOCK);
+                reference.resize(n, Record::default());
+                ideal.fill(k, &mut reference);
+                Producer::check_finite(&reference, "in the error-free signal")?;
+                if rot_needed {
+                    rot.resize(n, RotationTerms::default());
+                    ideal.rotation_terms(k, &mut rot);
+                }
+                let terms = rot_needed.then_some(&rot[..]);
+                for (&i, s) in group.iter().zip(scratch.iter_mut()) {
+                    self.units[i].process(&reference, terms, s, &mut outs[i])?;
+                }
+                k += n as u64;
+                done += (n * group.len()) as u64;
+                if progress(done).is_break() {
+                    return Err(JobError::Stopped.into());
+                }
+            }
+        }
+        for o in outs.iter_mut() {
+            o.main.flush().map_err(JobError::from)?;
+            for w in [o.truth.as_mut(), o.failures.as_mut()]
+                .into_iter()
+                .flatten()
+            {
+                w.flush().map_err(JobError::from)?;
+            }
+        }
+        Ok(())
+    }
+}

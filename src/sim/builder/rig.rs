@@ -1,0 +1,154 @@
+//! The rig form of the builder: the scene file's `[[imu]]` list and the units added in code,
+//! on the builder's motion, span, quadrature and master seed.
+
+use super::{Rate, SimulationBuilder};
+use crate::errors::ErrorChain;
+use crate::job::Encoding;
+use crate::output::Format;
+use crate::protocol::{self, EncoderState};
+use crate::rig::config::{UnitModel, UnitSpec};
+use crate::rig::failure::FailureSet;
+use crate::rig::skew::ChannelErrors;
+use crate::rig::{Body, Placement, Rig, Unit};
+use crate::rng::{fnv1a64, splitmix64};
+use crate::sim::{DEFAULT_FRAME_CELSIUS, SimError};
+
+impl SimulationBuilder {
+    /// Adds a unit to the rig (after the scene file's `[[imu]]` entries).
+    pub fn unit(mut self, spec: UnitSpec) -> SimulationBuilder {
+        self.units.push(spec);
+        self
+    }
+
+    /// Whether the scene file lists `[[imu]]` units or units were added in code: then
+    /// [`SimulationBuilder::build_rig`] is the way to build.
+    pub fn is_rig(&self) -> bool {
+        !(self.file.rig.is_empty() && self.units.is_empty())
+    }
+
+    /// Resolves the rig: the motion, the span and quadrature of the builder, and every unit
+    /// (the scene file's `[[imu]]` entries, then those added with [`Self::unit`]). A unit's
+    /// rate is its own, else the builder's [`Self::rate`], else its protocol's nominal rate,
+    /// else its template's, else 400 Hz. A unit's
+    /// seed defaults to one drawn from the master seed and its name, so two units of the
+    /// same template have independent errors.
+    pub fn build_rig(self) -> Result<Rig, SimError> {
+        let label = self.file_label();
+        let mut specs = Vec::new();
+        for (i, e) in self.file.rig.iter().enumerate() {
+            specs.push((Some(i), e.spec(i, &label)?));
+        }
+        specs.extend(self.units.iter().cloned().map(|s| (None, s)));
+        if specs.is_empty() {
+            return Err(SimError::Invalid(
+                "a rig needs at least one unit (`[[imu]]` in the scene file)".into(),
+            ));
+        }
+        let (source, _, _) = self.source()?;
+        let motion = self.motion()?;
+        let nodes = self.nodes()?;
+        let master = (self.seed.or(self.file.imu.seed)).unwrap_or(crate::rng::DEFAULT_SEED);
+        let mut units: Vec<Unit> = Vec::new();
+        for (index, spec) in specs {
+            let place = |key: &str| match index {
+                Some(i) => format!("{}: `imu[{i}].{key}`", label.display()),
+                None => format!("unit `{}`: `{key}`", spec.name),
+            };
+            let name_ok = !spec.name.is_empty()
+                && (spec.name.chars()).all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+            if !name_ok || units.iter().any(|u| u.name == spec.name) {
+                let why = if name_ok {
+                    "used by another unit"
+                } else {
+                    "expected letters, digits, `_` or `-`"
+                };
+                return Err(
+                    SimError::Invalid(format!("`{}`: {why}", spec.name)).at(Some(place("name")))
+                );
+            }
+            let seed = spec
+                .seed
+                .unwrap_or_else(|| splitmix64(master ^ fnv1a64(&format!("unit/{}", spec.name))));
+            let format = spec.format.clone().unwrap_or_else(|| "csv".into());
+            let mut plan = match Format::from_name(&format) {
+                Some(_) => None,
+                None if protocol::builtin_names().contains(&format.as_str()) => {
+                    Some(protocol::load(&format)?.1)
+                }
+                None => {
+                    let e = SimError::Invalid(format!(
+                        "`{format}`: expected `csv`, `bin` or a protocol"
+                    ));
+                    return Err(e.at(Some(place("format"))));
+                }
+            };
+            let template = match &spec.model {
+                UnitModel::Template(t) => {
+                    Some(super::super::load_template(t).map_err(|e| e.at(Some(place("model"))))?)
+                }
+                UnitModel::Skew(_) => None,
+            };
+            let hz = (spec.rate_hz.or(self.rate))
+                .or(plan.as_ref().and_then(|p| p.rate_hz))
+                .or(template.as_ref().and_then(|t| t.rate_hz))
+                .unwrap_or(super::DEFAULT_RATE_HZ);
+            let rate = Rate {
+                hz,
+                place: Some(place("rate_hz")),
+            };
+            let grid = self.grid(&motion, &source, rate)?;
+            if let Some(p) = plan.as_mut() {
+                p.set_rate(grid.rate_hz)
+                    .map_err(|e| SimError::Invalid(e).at(Some(place("rate_hz"))))?;
+            }
+            let body = match (&spec.model, template) {
+                (UnitModel::Skew(layout), _) => Body::Skew {
+                    errors: ChannelErrors::of(layout, grid.rate_hz, seed),
+                    layout: layout.clone(),
+                },
+                (UnitModel::Template(_), Some(t)) => {
+                    let chain = ErrorChain::new(&t, grid.rate_hz, seed);
+                    let encoding = match plan {
+                        Some(plan) => Encoding::Frames {
+                            plan: Box::new(plan),
+                            state: EncoderState::default(),
+                            temperature: DEFAULT_FRAME_CELSIUS,
+                            side: Format::Csv,
+                        },
+                        None => {
+                            Encoding::Records(Format::from_name(&format).unwrap_or(Format::Csv))
+                        }
+                    };
+                    Body::Triad {
+                        chain: (!chain.is_empty()).then(|| Box::new(chain)),
+                        encoding: Box::new(encoding),
+                    }
+                }
+                (UnitModel::Template(_), None) => unreachable!("a template unit has its template"),
+            };
+            let channels = spec.channel_names().len();
+            let mut failures = Vec::new();
+            for (j, f) in spec.failures.iter().enumerate() {
+                let r = f.resolve(j, seed, channels).map_err(|(key, m)| {
+                    SimError::Invalid(m).at(Some(place(&format!("failure[{j}].{key}"))))
+                })?;
+                failures.push(r);
+            }
+            units.push(Unit {
+                name: spec.name.clone(),
+                grid,
+                place: Placement::new(spec.mounting_deg, spec.lever_arm_m),
+                body,
+                failures: FailureSet::new(failures, channels, seed),
+                seed,
+                path: spec.path.clone(),
+            });
+        }
+        Ok(Rig {
+            motion,
+            nodes,
+            units,
+            warnings: Vec::new(),
+        })
+    }
+}
