@@ -419,7 +419,7 @@ fn command_line_and_scene_files() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    std::fs::copy(&*turn, dir.join("turn.csv")).unwrap();
+    std::fs::copy(turn, dir.join("turn.csv")).unwrap();
     std::fs::create_dir_all(dir.join("sub")).unwrap();
     std::fs::write(
         dir.join("sub/scene.toml"),
