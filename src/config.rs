@@ -39,6 +39,8 @@ pub struct SceneFile {
     pub faults: FaultsSection,
     /// The IMU's timing errors, overriding the template's `[timing]` key by key.
     pub timing: Option<toml::Table>,
+    /// A native motion definition (`imu_emu::motiondef::native`), checked when it is read.
+    pub motion: Option<toml::Table>,
 }
 
 /// `[faults]`: faults injected into protocol frames (`[[faults.event]]` entries).
@@ -367,6 +369,8 @@ pub struct TrajectorySection {
     pub scene: Option<String>,
     /// Trajectory CSV path, relative to the scene file.
     pub file: Option<PathBuf>,
+    /// Motion-definition file (gnss-ins-sim CSV), relative to the scene file.
+    pub motion_def: Option<PathBuf>,
     /// Scene parameters overriding the scene's defaults.
     pub params: Option<toml::Table>,
 }

@@ -29,6 +29,8 @@ pub enum SourceSpec {
     Scene(String, SceneParams),
     /// A trajectory CSV.
     File(PathBuf),
+    /// A motion-definition file (gnss-ins-sim CSV).
+    MotionDef(PathBuf),
 }
 
 /// Everything a job can refuse, each naming what to fix.
@@ -114,6 +116,7 @@ pub fn build_motion(source: &SourceSpec, model: ModelSettings) -> Result<AnyMoti
     match source {
         SourceSpec::Scene(name, params) => Ok(AnyMotion::Scene(scenes::build(name, params)??)),
         SourceSpec::File(path) => Ok(AnyMotion::Sampled(trajectory::open_motion(path, model)?)),
+        SourceSpec::MotionDef(path) => Ok(AnyMotion::Defined(crate::motiondef::open(path)?)),
     }
 }
 

@@ -26,6 +26,7 @@ pub mod kinematics;
 pub mod live;
 pub mod math;
 pub mod motion;
+pub mod motiondef;
 pub mod nav;
 pub mod output;
 pub mod plot;

@@ -275,6 +275,88 @@ where
     Ok(())
 }
 
+/// The panels of a mission plot from poses sampled along a trajectory: the ground track
+/// (north and east from the first pose, metres on the local sphere of radii R_N, R_E there),
+/// height, attitude and NED velocity against time.
+pub fn mission_panels(poses: &[crate::motion::Pose]) -> Vec<Panel> {
+    let Some(first) = poses.first() else {
+        return Vec::new();
+    };
+    let s0 = first.lat.sin();
+    let (rn, re) = (
+        crate::earth::radius_meridian(s0) + first.h,
+        crate::earth::radius_prime_vertical(s0) + first.h,
+    );
+    let t: Vec<f64> = poses.iter().map(|p| p.t).collect();
+    let column =
+        |f: &dyn Fn(&crate::motion::Pose) -> f64| poses.iter().map(f).collect::<Vec<f64>>();
+    let series = |label: &str, y: Vec<f64>, color: usize| Series {
+        label: label.into(),
+        x: t.clone(),
+        y,
+        color,
+        ..Series::default()
+    };
+    let euler: Vec<(f64, f64, f64)> = poses
+        .iter()
+        .map(|p| crate::math::euler_from_quat(p.q_b_n))
+        .collect();
+    // Angles unwrapped (steps over ±180° removed) so that a turn or a roll is one curve.
+    let angle = |k: usize| {
+        let mut out: Vec<f64> = Vec::with_capacity(euler.len());
+        for e in &euler {
+            let mut a = [e.0, e.1, e.2][k].to_degrees();
+            if let Some(prev) = out.last() {
+                a += 360.0 * ((prev - a) / 360.0).round();
+            }
+            out.push(a);
+        }
+        out
+    };
+    let track = Series {
+        label: String::new(),
+        x: column(&|p| (p.lon - first.lon) * re * first.lat.cos()),
+        y: column(&|p| (p.lat - first.lat) * rn),
+        ..Series::default()
+    };
+    vec![
+        Panel {
+            title: "ground track".into(),
+            x_label: "east (m)".into(),
+            y_label: "north (m)".into(),
+            series: vec![track],
+            ..Panel::default()
+        },
+        Panel {
+            title: "height".into(),
+            x_label: "t (s)".into(),
+            y_label: "h (m)".into(),
+            series: vec![series("", column(&|p| p.h), 0)],
+            ..Panel::default()
+        },
+        Panel {
+            title: "attitude".into(),
+            x_label: "t (s)".into(),
+            y_label: "angle (deg)".into(),
+            series: vec![
+                series("roll", angle(0), 0),
+                series("pitch", angle(1), 1),
+                series("yaw", angle(2), 2),
+            ],
+            ..Panel::default()
+        },
+        Panel {
+            title: "velocity".into(),
+            x_label: "t (s)".into(),
+            y_label: "v (m/s)".into(),
+            series: (0..3)
+                .map(|k| series(["north", "east", "down"][k], column(&|p| p.v_n[k]), k))
+                .collect(),
+            ..Panel::default()
+        },
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

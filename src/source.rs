@@ -1,10 +1,11 @@
-//! The motion a run evaluates: a built-in analytic scene, a sampled trajectory or a live
-//! stream of states.
+//! The motion a run evaluates: a built-in analytic scene, a sampled trajectory, a motion
+//! definition or a live stream of states.
 
 use crate::kinematics::Sensed;
 use crate::motion::causal::CausalMotion;
 use crate::motion::sampled::SampledMotion;
 use crate::motion::{Motion, Pose};
+use crate::motiondef::DefinedMotion;
 use crate::scenes::Scene;
 
 /// Any motion model, dispatched by a `match` (cheaper than a trait object in the hot loop and
@@ -17,6 +18,8 @@ pub enum AnyMotion {
     Sampled(SampledMotion),
     /// States arriving live (a shared handle: the input side keeps pushing into it).
     Live(CausalMotion),
+    /// A motion definition.
+    Defined(DefinedMotion),
 }
 
 macro_rules! each {
@@ -27,6 +30,7 @@ macro_rules! each {
             AnyMotion::Scene(Scene::Polar($m)) => $e,
             AnyMotion::Sampled($m) => $e,
             AnyMotion::Live($m) => $e,
+            AnyMotion::Defined($m) => $e,
         }
     };
 }

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
+use imu_emu::motion::Motion;
 use imu_emu::output::AtomicFile;
 
 #[derive(clap::Args)]
@@ -24,6 +25,9 @@ pub struct TrajectoryArgs {
     /// Output file, or - for stdout.
     #[arg(short, long, default_value = "-")]
     pub output: PathBuf,
+    /// Also plot the mission (ground track, height, attitude, velocity) to this .png or .svg.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
 }
 
 /// `imu-emu templates`: the built-in IMU templates and their headline figures, each typical
@@ -92,6 +96,16 @@ pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
             .with_context(|| format!("creating {}", a.output.display()))?;
         f.write_all(text.as_bytes())?;
         f.commit()?;
+    }
+    if let Some(p) = &a.plot {
+        // At most ~4000 points per curve whatever the rate: enough for a page-wide plot.
+        let n = grid.count + 1;
+        let stride = n.div_ceil(4000).max(1);
+        let poses: Vec<_> = (0..n)
+            .step_by(stride as usize)
+            .map(|k| motion.pose(grid.t0 + k as f64 / grid.rate_hz))
+            .collect();
+        imu_emu::plot::render(p, &imu_emu::plot::mission_panels(&poses), 2, (1600, 1200))?;
     }
     Ok(())
 }

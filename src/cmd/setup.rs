@@ -18,14 +18,22 @@ pub struct SourceArgs {
     #[arg(long, conflicts_with = "trajectory")]
     pub scene: Option<String>,
     /// Trajectory CSV: t,lat,lon,h,vn,ve,vd,roll,pitch,yaw.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "motion_def")]
     pub trajectory: Option<PathBuf>,
+    /// Motion definition: a gnss-ins-sim motion-definition CSV (docs/motion-definitions.md).
+    #[arg(long, conflicts_with = "scene")]
+    pub motion_def: Option<PathBuf>,
 }
 
 impl SourceArgs {
     /// How messages name the source.
     pub fn name(&self) -> String {
-        source_name(&self.scene_file, &self.scene, &self.trajectory)
+        source_name(
+            &self.scene_file,
+            &self.scene,
+            &self.trajectory,
+            &self.motion_def,
+        )
     }
 
     /// The builder of the scene file (if any) with the scene or trajectory flag over it.
@@ -34,6 +42,7 @@ impl SourceArgs {
             self.scene_file.as_ref(),
             self.scene.as_ref(),
             self.trajectory.as_ref(),
+            self.motion_def.as_ref(),
         )
     }
 }
@@ -49,19 +58,30 @@ pub struct ReferenceArgs {
     #[arg(long, conflicts_with = "trajectory")]
     pub scene: Option<String>,
     /// Trajectory CSV: t,lat,lon,h,vn,ve,vd,roll,pitch,yaw.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "motion_def")]
     pub trajectory: Option<PathBuf>,
+    /// Motion definition: a gnss-ins-sim motion-definition CSV (docs/motion-definitions.md).
+    #[arg(long, conflicts_with = "scene")]
+    pub motion_def: Option<PathBuf>,
 }
 
 impl ReferenceArgs {
     /// Whether any source was given.
     pub fn given(&self) -> bool {
-        self.scene_file.is_some() || self.scene.is_some() || self.trajectory.is_some()
+        self.scene_file.is_some()
+            || self.scene.is_some()
+            || self.trajectory.is_some()
+            || self.motion_def.is_some()
     }
 
     /// How messages name the reference.
     pub fn name(&self) -> String {
-        source_name(&self.scene_file, &self.scene, &self.trajectory)
+        source_name(
+            &self.scene_file,
+            &self.scene,
+            &self.trajectory,
+            &self.motion_def,
+        )
     }
 
     /// The builder of the reference (see [`SourceArgs::builder`]).
@@ -70,6 +90,7 @@ impl ReferenceArgs {
             self.scene_file.as_ref(),
             self.scene.as_ref(),
             self.trajectory.as_ref(),
+            self.motion_def.as_ref(),
         )
     }
 }
@@ -78,7 +99,11 @@ fn source_name(
     scene_file: &Option<PathBuf>,
     scene: &Option<String>,
     trajectory: &Option<PathBuf>,
+    motion_def: &Option<PathBuf>,
 ) -> String {
+    if let Some(m) = motion_def {
+        return format!("motion definition {}", m.display());
+    }
     match (trajectory, scene, scene_file) {
         (Some(t), _, _) => format!("trajectory file {}", t.display()),
         (None, Some(n), _) => format!("scene {n}"),
@@ -91,6 +116,7 @@ fn source_builder(
     scene_file: Option<&PathBuf>,
     scene: Option<&String>,
     trajectory: Option<&PathBuf>,
+    motion_def: Option<&PathBuf>,
 ) -> Result<SimulationBuilder> {
     let mut b = match scene_file {
         Some(p) => Simulation::from_scene_file(p)?,
@@ -101,6 +127,9 @@ fn source_builder(
     }
     if let Some(t) = trajectory {
         b = b.trajectory(t);
+    }
+    if let Some(m) = motion_def {
+        b = b.motion_def(m);
     }
     Ok(b)
 }

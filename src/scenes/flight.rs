@@ -10,7 +10,7 @@
 use super::path::{Jet, Planar, Poly};
 use crate::earth::{self, E2};
 use crate::kinematics::{NedState, Sensed, sense_ned};
-use crate::math::{Vec3, dcm_from_euler_sc, omega_from_euler_rates, quat_from_euler};
+use crate::math::{Mat3, Vec3, dcm_from_euler_sc, omega_from_euler_rates, quat_from_euler};
 use crate::motion::{Motion, Pose};
 
 /// One smooth piece: a planar path piece and a height polynomial, with their own time origins.
@@ -176,35 +176,56 @@ impl FlightScene {
         let (s, c) = self.sin_cos_lat(x[0] * self.inv_mh0);
         let (lat_d, lat_dd) = (x[1] * self.inv_mh0, x[2] * self.inv_mh0);
         let (lon_d, lon_dd) = (y[1] * self.inv_nh0c, y[2] * self.inv_nh0c);
-        let w = 1.0 - E2 * s * s;
-        let inv_w = 1.0 / w;
-        let inv_sqrt_w = inv_w.sqrt();
-        let re = earth::A * inv_sqrt_w;
-        let rn = re * (1.0 - E2) * inv_w;
-        let (rn_h, re_h) = (rn + h[0], re + h[0]);
-        let scw = s * c * inv_w * lat_d;
-        let drn = 3.0 * E2 * rn * scw;
-        let dre = E2 * re * scw;
-        let v_n = Vec3::new(rn_h * lat_d, re_h * c * lon_d, -h[1]);
-        let v_dot_n = Vec3::new(
+        let ([sr, cr, sp, cp, sy, cy], rates) = self.attitude(t, &x, &y, &h);
+        let state = ned_state_from(
+            (s, c),
+            [lat_d, lat_dd],
+            [lon_d, lon_dd],
+            &h,
+            dcm_from_euler_sc(sr, cr, sp, cp, sy, cy),
+            omega_from_euler_rates(sr, cr, sp, cp, rates),
+        );
+        (state, self.lon0 + y[0] * self.inv_nh0c)
+    }
+}
+
+/// The NED state of a vehicle whose geodetic position moves with rates `lat` = [φ̇, φ̈],
+/// `lon` = [λ̇, λ̈] and height jet `h`: v^n and v̇^n by the chain rule through the radii of
+/// curvature, R_N and R_E of WGS-84 and their latitude derivatives
+/// dR_N/dφ = 3e²R_N sinφ cosφ/(1 − e²sin²φ), dR_E/dφ = e²R_E sinφ cosφ/(1 − e²sin²φ).
+#[inline]
+pub(crate) fn ned_state_from(
+    (s, c): (f64, f64),
+    [lat_d, lat_dd]: [f64; 2],
+    [lon_d, lon_dd]: [f64; 2],
+    h: &Jet,
+    c_b_n: Mat3,
+    omega_nb_b: Vec3,
+) -> NedState {
+    let w = 1.0 - E2 * s * s;
+    let inv_w = 1.0 / w;
+    let inv_sqrt_w = inv_w.sqrt();
+    let re = earth::A * inv_sqrt_w;
+    let rn = re * (1.0 - E2) * inv_w;
+    let (rn_h, re_h) = (rn + h[0], re + h[0]);
+    let scw = s * c * inv_w * lat_d;
+    let drn = 3.0 * E2 * rn * scw;
+    let dre = E2 * re * scw;
+    NedState {
+        sin_lat: s,
+        cos_lat: c,
+        h: h[0],
+        r_n: rn,
+        r_e: re,
+        gravity: earth::normal_gravity_from(s * s, inv_sqrt_w, h[0]),
+        v_n: Vec3::new(rn_h * lat_d, re_h * c * lon_d, -h[1]),
+        v_dot_n: Vec3::new(
             (drn + h[1]) * lat_d + rn_h * lat_dd,
             ((dre + h[1]) * c - re_h * s * lat_d) * lon_d + re_h * c * lon_dd,
             -h[2],
-        );
-        let ([sr, cr, sp, cp, sy, cy], rates) = self.attitude(t, &x, &y, &h);
-        let state = NedState {
-            sin_lat: s,
-            cos_lat: c,
-            h: h[0],
-            r_n: rn,
-            r_e: re,
-            gravity: earth::normal_gravity_from(s * s, inv_sqrt_w, h[0]),
-            v_n,
-            v_dot_n,
-            c_b_n: dcm_from_euler_sc(sr, cr, sp, cp, sy, cy),
-            omega_nb_b: omega_from_euler_rates(sr, cr, sp, cp, rates),
-        };
-        (state, self.lon0 + y[0] * self.inv_nh0c)
+        ),
+        c_b_n,
+        omega_nb_b,
     }
 }
 

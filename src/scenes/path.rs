@@ -47,6 +47,31 @@ impl Poly {
         // Repeated synthetic division leaves f''/2! in p2 and f'''/3! in p3.
         [p0, p1, 2.0 * p2, 6.0 * p3]
     }
+    /// The degree-5 polynomial on τ ∈ [0, T] whose value and first two derivatives equal
+    /// `start` = [p, ṗ, p̈] at τ = 0 and `end` at τ = T. In s = τ/T the three top coefficients
+    /// solve [1 1 1; 3 4 5; 6 12 20]·c = d, whose inverse is [10 −4 ½; −15 7 −1; 6 −3 ½].
+    pub fn hermite5(start: [f64; 3], end: [f64; 3], duration: f64) -> Poly {
+        let t = duration;
+        let a = [start[0], start[1] * t, 0.5 * start[2] * t * t];
+        let d = [
+            end[0] - (a[0] + a[1] + a[2]),
+            end[1] * t - (a[1] + 2.0 * a[2]),
+            end[2] * t * t - 2.0 * a[2],
+        ];
+        let top = [
+            10.0 * d[0] - 4.0 * d[1] + 0.5 * d[2],
+            -15.0 * d[0] + 7.0 * d[1] - d[2],
+            6.0 * d[0] - 3.0 * d[1] + 0.5 * d[2],
+        ];
+        let mut c = [0.0; 8];
+        let mut scale = 1.0;
+        for k in 0..6 {
+            let coef = if k < 3 { a[k] } else { top[k - 3] };
+            c[k] = coef / scale;
+            scale *= t;
+        }
+        Poly::new(c)
+    }
     /// The degree-7 polynomial on τ ∈ [0, T] whose value and first three derivatives equal
     /// `start` at τ = 0 and `end` at τ = T (two-point Hermite interpolation).
     pub fn hermite7(start: Jet, end: Jet, duration: f64) -> Poly {
@@ -148,6 +173,28 @@ mod tests {
                 e[d]
             );
         }
+    }
+
+    #[test]
+    fn hermite5_matches_end_jets() {
+        let s = [1.0, 2.0, -0.5];
+        let e = [7.0, -1.0, 0.3];
+        let p = Poly::hermite5(s, e, 3.5);
+        let (j0, j1) = (p.jet(0.0), p.jet(3.5));
+        for d in 0..3 {
+            assert!((j0[d] - s[d]).abs() < 1e-13, "start d{d}");
+            assert!(
+                (j1[d] - e[d]).abs() < 1e-12,
+                "end d{d}: {} vs {}",
+                j1[d],
+                e[d]
+            );
+        }
+        // The rest-to-rest case is the minimum-jerk step 10s³ − 15s⁴ + 6s⁵.
+        let q = Poly::hermite5([0.0; 3], [1.0, 0.0, 0.0], 2.0);
+        let s = 0.3_f64;
+        let expect = 10.0 * s.powi(3) - 15.0 * s.powi(4) + 6.0 * s.powi(5);
+        assert!((q.jet(0.6)[0] - expect).abs() < 1e-15);
     }
 
     #[test]

@@ -35,6 +35,7 @@ pub struct SimulationBuilder {
     file_path: Option<PathBuf>,
     scene: Option<String>,
     trajectory: Option<PathBuf>,
+    motion_def: Option<PathBuf>,
     imu: Option<Imu>,
     rate: Option<f64>,
     start: Option<f64>,
@@ -65,6 +66,7 @@ impl Default for SimulationBuilder {
             file_path: None,
             scene: None,
             trajectory: None,
+            motion_def: None,
             imu: None,
             rate: None,
             start: None,
@@ -117,6 +119,7 @@ impl SimulationBuilder {
     pub fn scene(mut self, name: impl Into<String>) -> SimulationBuilder {
         self.scene = Some(name.into());
         self.trajectory = None;
+        self.motion_def = None;
         self
     }
 
@@ -124,6 +127,15 @@ impl SimulationBuilder {
     pub fn trajectory(mut self, path: impl Into<PathBuf>) -> SimulationBuilder {
         self.trajectory = Some(path.into());
         self.scene = None;
+        self.motion_def = None;
+        self
+    }
+
+    /// A motion-definition file (gnss-ins-sim's motion-definition CSV) instead of a scene.
+    pub fn motion_def(mut self, path: impl Into<PathBuf>) -> SimulationBuilder {
+        self.motion_def = Some(path.into());
+        self.scene = None;
+        self.trajectory = None;
         self
     }
 
@@ -290,6 +302,30 @@ impl SimulationBuilder {
         if let Some(path) = &self.trajectory {
             return Ok((SourceSpec::File(path.clone()), false, false));
         }
+        if let Some(path) = &self.motion_def {
+            return Ok((SourceSpec::MotionDef(path.clone()), false, false));
+        }
+        let embedded = self.file.motion.is_some() && self.scene.is_none();
+        if embedded {
+            if t.scene.is_some() || t.file.is_some() || t.motion_def.is_some() {
+                return Err(SimError::Invalid(
+                    "a `[motion]` table is the trajectory: remove `trajectory.scene`, \
+                     `trajectory.file` and `trajectory.motion_def`"
+                        .into(),
+                )
+                .at(Some(label.display().to_string())));
+            }
+            return Ok((SourceSpec::MotionDef(label.clone()), false, false));
+        }
+        if let (None, Some(m)) = (&self.scene, &t.motion_def) {
+            if t.scene.is_some() || t.file.is_some() {
+                return Err(SimError::Invalid(
+                    "give one of `scene`, `file` and `motion_def`".into(),
+                )
+                .at(Some(format!("{}: `trajectory`", label.display()))));
+            }
+            return Ok((SourceSpec::MotionDef(self.base().join(m)), false, false));
+        }
         if let Some(s) = &self.scene {
             let params = config::scene_params(s, t.params.as_ref()).map_err(|m| {
                 SimError::Invalid(m).at(Some(format!("{}: `trajectory.params`", label.display())))
@@ -430,7 +466,7 @@ impl SimulationBuilder {
         if let (Some(f), false) = (&self.file_path, keys.is_empty()) {
             place.push(format!("{}: {}", f.display(), keys.join(", ")));
         }
-        if let SourceSpec::File(path) = source {
+        if let SourceSpec::File(path) | SourceSpec::MotionDef(path) = source {
             place.push(path.display().to_string());
         }
         (!place.is_empty()).then(|| place.join(": "))

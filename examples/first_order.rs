@@ -1,0 +1,75 @@
+//! How far a first-order integration of a motion definition drifts from the exact one, on
+//! gnss-ins-sim's 90° turn demo (10 m/s, −15°/s for 6 s):
+//!
+//! * "gnss-ins-sim scheme": the commands stepped the way gnss-ins-sim's `pathgen.py` does
+//!   (a first-order low-pass of the commanded rates with coefficient 0.9 per step, then Euler
+//!   steps of attitude, body velocity and latitude/longitude), written here from its
+//!   description;
+//! * "Euler steps of the exact velocity": our own v^n(t) integrated by forward Euler, which
+//!   isolates the integration error from the different smoothing of the commands.
+//!
+//! Both are compared with imu-emu's exact end position. Run:
+//! `cargo run --release --example first_order -- tests/data/gnss-ins-sim/motion_def-90deg_turn.csv`
+
+use imu_emu::earth;
+use imu_emu::motion::Motion;
+
+fn main() {
+    let path = std::env::args()
+        .nth(1)
+        .unwrap_or_else(|| "tests/data/gnss-ins-sim/motion_def-90deg_turn.csv".into());
+    let exact = imu_emu::motiondef::open(std::path::Path::new(&path)).unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        std::process::exit(1)
+    });
+    let end = exact.pose(exact.end());
+    let start = exact.pose(0.0);
+    let (rn, re) = (
+        earth::radius_meridian(start.lat.sin()),
+        earth::radius_prime_vertical(start.lat.sin()),
+    );
+    // Metres north and east between two geodetic positions near the start.
+    let metres =
+        |lat: f64, lon: f64| ((lat - end.lat) * rn, (lon - end.lon) * re * start.lat.cos());
+    println!(
+        "| rate (Hz) | gnss-ins-sim scheme: end position − exact (m) | Euler steps of the exact velocity (m) |"
+    );
+    println!("| --- | --- | --- |");
+    for rate in [10.0f64, 100.0, 1000.0] {
+        let dt = 1.0 / rate;
+        // gnss-ins-sim's scheme for this file's type-1 commands (rate −15°/s for 6 s between
+        // 1 s and 3 s of zero rate), at 10 m/s along body x, heading 90°.
+        let commands = [(0.0, 1.0f64), (-15f64.to_radians(), 6.0), (0.0, 3.0)];
+        let (mut lat, mut lon, mut yaw, mut yaw_dot) =
+            (start.lat, start.lon, 90f64.to_radians(), 0.0);
+        for (cmd, duration) in commands {
+            for _ in 0..(duration * rate).round() as usize {
+                yaw_dot = 0.9 * yaw_dot + 0.1 * cmd;
+                let (vn, ve) = (10.0 * yaw.cos(), 10.0 * yaw.sin());
+                lat += vn / rn * dt;
+                lon += ve / (re * lat.cos()) * dt;
+                yaw += yaw_dot * dt;
+            }
+        }
+        let scheme = metres(lat, lon);
+        // Forward Euler on our own velocity.
+        let (mut lat, mut lon) = (start.lat, start.lon);
+        let n = (exact.end() * rate).round() as usize;
+        for k in 0..n {
+            let p = exact.pose(k as f64 * dt);
+            lat += p.v_n[0] / (earth::radius_meridian(p.lat.sin()) + p.h) * dt;
+            lon +=
+                p.v_n[1] / ((earth::radius_prime_vertical(p.lat.sin()) + p.h) * p.lat.cos()) * dt;
+        }
+        let euler = metres(lat, lon);
+        println!(
+            "| {rate} | north {:+.4}, east {:+.4} ({:.4}) | north {:+.4}, east {:+.4} ({:.4}) |",
+            scheme.0,
+            scheme.1,
+            scheme.0.hypot(scheme.1),
+            euler.0,
+            euler.1,
+            euler.0.hypot(euler.1)
+        );
+    }
+}

@@ -1,0 +1,486 @@
+//! Motion definitions (`imu_emu::motiondef`): gnss-ins-sim's demo files read as they are and
+//! navigated closed; each command type against its closed form; continuity of the sensed
+//! signal at every piece boundary; bad files refused with file, line and column.
+
+use std::path::{Path, PathBuf};
+
+use imu_emu::earth;
+use imu_emu::job;
+use imu_emu::motion::Motion;
+use imu_emu::motiondef::{self, DefinedMotion};
+use imu_emu::nav::{Settings, close};
+use imu_emu::source::AnyMotion;
+
+fn demo(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/gnss-ins-sim")
+        .join(name)
+}
+
+fn load(name: &str) -> DefinedMotion {
+    motiondef::open(&demo(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// Every demo file of gnss-ins-sim runs, and the reference navigator fed its error-free
+/// records at 100 Hz closes the whole trip within 1 mm (the issue's bound).
+#[test]
+fn every_gnss_ins_sim_demo_closes_within_a_millimetre() {
+    let mut names: Vec<String> = std::fs::read_dir(demo(""))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".csv"))
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 11, "{names:?}");
+    for name in names {
+        let m = AnyMotion::Defined(load(&name));
+        let grid = job::plan(&m, 100.0, None, None).unwrap();
+        let c = close(&m, &grid, Settings::default(), None, 100).unwrap();
+        println!(
+            "{name:>40}: {:>7.1} s, position {:.2e} m (max {:.2e}), velocity max {:.2e} m/s, attitude max {:.2e} rad",
+            grid.count as f64 / 100.0,
+            c.last.pos_ned.norm(),
+            c.max_pos,
+            c.max_vel,
+            c.max_att
+        );
+        assert!(c.max_pos <= 1e-3, "{name}: {:.3e} m", c.max_pos);
+    }
+}
+
+/// North distance (m) between two latitudes at height h: ∫R_N dφ by Simpson's rule on 64
+/// panels (exact to ~1e-16 relative over the few arc-seconds of these tests).
+fn meridian_arc(lat0: f64, lat1: f64, h: f64) -> f64 {
+    let n = 64;
+    let step = (lat1 - lat0) / n as f64;
+    let f = |k: usize| earth::radius_meridian((lat0 + k as f64 * step).sin()) + h;
+    let mut s = f(0) + f(n);
+    for k in 1..n {
+        s += if k % 2 == 1 { 4.0 } else { 2.0 } * f(k);
+    }
+    s * step / 3.0
+}
+
+/// Type 1, body acceleration: `0to100` holds 10 m/s² for 10 s; after the 0.5 s blend the speed
+/// is 2.5 + 10(t − 0.5) m/s (the blend gains half the new acceleration times its length), and
+/// the distance run between t = 1 s and 10 s is ∫(10t − 2.5)dt = 472.5 m.
+#[test]
+fn type_1_acceleration_against_its_closed_form() {
+    let m = load("motion_def-0to100.csv");
+    for t in [0.5, 1.0, 3.3, 7.77, 9.999] {
+        let p = m.pose(t);
+        let v = 10.0 * t - 2.5;
+        assert!((p.v_n[0] - v).abs() < 1e-11, "t {t}: {} vs {v}", p.v_n[0]);
+        assert!(p.v_n[1].abs() < 1e-12 && p.v_n[2].abs() < 1e-12);
+    }
+    let (a, b) = (m.pose(1.0), m.pose(10.0));
+    let d = meridian_arc(a.lat, b.lat, 0.0);
+    // A pose's latitude is an f64 near 0.56 rad, held to 1.1e-16 rad = 0.7 nm: the two ends
+    // bound the distance's resolution at ±1.4 nm (measured 1.7e-9 m, about 2 ulp).
+    assert!((d - 472.5).abs() < 3e-9, "{d}");
+}
+
+/// Type 1, Euler-angle rate: the 90° turn at 10 m/s. In the held part the yaw is linear,
+/// 90° − 3.75° − 15°/s·(t − 1.5 s) (half the blend lost), the speed stays 10 m/s and the
+/// velocity points along the yaw (no side-slip); the whole turn is −90° exactly.
+#[test]
+fn type_1_turn_against_its_closed_form() {
+    let m = load("motion_def-90deg_turn.csv");
+    let worst = (0..=400)
+        .map(|i| 1.5 + 5.5 * i as f64 / 400.0)
+        .map(|t| {
+            let p = m.pose(t);
+            let (_, _, yaw) = imu_emu::math::euler_from_quat(p.q_b_n);
+            let expect = (90.0 - 3.75 - 15.0 * (t - 1.5)).to_radians();
+            assert!((yaw - expect).abs() < 1e-13, "t {t}: yaw {yaw} vs {expect}");
+            let (s, c) = expect.sin_cos();
+            (p.v_n[0] - 10.0 * c).abs().max((p.v_n[1] - 10.0 * s).abs())
+        })
+        .fold(0.0, f64::max);
+    // The velocity is the knot quintic's: exact at knots, within its interpolation error
+    // v·ω⁵·Δt⁶/46080 ≈ 2e-10 m/s between them (ω = 0.26 rad/s, Δt = 0.25 s).
+    println!("turn: largest velocity departure {worst:.2e} m/s");
+    assert!(worst < 1e-9, "{worst:e}");
+    let end = m.pose(m.end());
+    let (_, _, yaw) = imu_emu::math::euler_from_quat(end.q_b_n);
+    assert!(yaw.abs() < 1e-14, "{yaw}");
+}
+
+/// Types 2–5: a target reached rest to rest follows the minimum-jerk step
+/// v = Δv(10s³ − 15s⁴ + 6s⁵), s = τ/T, with T = 1.875Δv/a_max (18.75 s for 10 m/s at
+/// 1 m/s²): the `3d` demo's first type-2 command, forward to 10 m/s, then its sideways one.
+#[test]
+fn type_2_target_against_its_closed_form() {
+    let m = load("motion_def-3d.csv");
+    let segs = m.segments();
+    assert_eq!(segs[1].span, (10.0, 28.75));
+    for s in [0.1f64, 0.5, 0.8, 1.0] {
+        let t = 10.0 + 18.75 * s;
+        let v = 10.0 * (10.0 * s * s * s - 15.0 * s.powi(4) + 6.0 * s.powi(5));
+        let p = m.pose(t.min(m.end()));
+        assert!((p.v_n[0] - v).abs() < 1e-10, "s {s}: {} vs {v}", p.v_n[0]);
+    }
+    // The fourth command moves along body y (east at yaw 0) with the attitude unchanged.
+    let (a, b) = segs[3].span;
+    let p = m.pose(0.5 * (a + b));
+    assert!(
+        (p.v_n[1] - 5.0).abs() < 1e-10 && p.v_n[0].abs() < 1e-10,
+        "{:?}",
+        p.v_n
+    );
+}
+
+/// Relative and absolute targets (types 3 and 5): `motion_def.csv` climbs at 45° (type 5,
+/// pitch +45° relative, 10 m/s absolute), then turns +90° and pitches −45° (type 3).
+#[test]
+fn types_3_and_5_reach_their_targets() {
+    let m = load("motion_def.csv");
+    let s = m.segments();
+    let after = |i: usize| {
+        let p = m.pose(s[i].span.1);
+        let (r, pt, y) = imu_emu::math::euler_from_quat(p.q_b_n);
+        (r.to_degrees(), pt.to_degrees(), y.to_degrees(), p.v_n)
+    };
+    let (_, pitch, _, v) = after(1);
+    assert!((pitch - 45.0).abs() < 1e-10, "{pitch}");
+    let h = std::f64::consts::FRAC_1_SQRT_2 * 10.0;
+    assert!((v[0] - h).abs() < 1e-9 && (v[2] + h).abs() < 1e-9, "{v:?}");
+    let (_, pitch, yaw, v) = after(3);
+    assert!(
+        pitch.abs() < 1e-10 && (yaw - 90.0).abs() < 1e-10,
+        "{pitch} {yaw}"
+    );
+    assert!((v[1] - 10.0).abs() < 1e-9, "{v:?}");
+}
+
+/// Angular rate and specific force have no jump at any piece boundary (knots, blends,
+/// command changes) of the two road demos: the left piece's value at the boundary against
+/// the right one's.
+#[test]
+fn sensed_signal_is_continuous_at_every_boundary() {
+    for name in ["motion_def-long_drive.csv", "motion_def-Holland_tunnel.csv"] {
+        let m = load(name);
+        let (mut dw, mut df, mut n) = (0.0f64, 0.0f64, 0);
+        let mut i = 0;
+        while m.piece_end(i).is_finite() {
+            let t = m.piece_end(i);
+            let (a, b) = (m.sense(i, t), m.sense(i + 1, t));
+            dw = dw.max((a.omega_ib_b - b.omega_ib_b).amax());
+            df = df.max((a.f_b - b.f_b).amax());
+            i += 1;
+            n += 1;
+        }
+        println!("{name}: {n} boundaries, largest jump ω {dw:.2e} rad/s, f {df:.2e} m/s²");
+        assert!(n > 1000);
+        assert!(dw < 1e-12 && df < 1e-9, "{name}: {dw:e} {df:e}");
+    }
+}
+
+/// GNSS visibility is kept per command: the Holland tunnel demo loses GNSS in the tunnel.
+#[test]
+fn gnss_visibility_is_kept_per_segment() {
+    let m = load("motion_def-Holland_tunnel.csv");
+    let s = m.segments();
+    assert_eq!(s.len(), 52);
+    assert!(s[0].gnss_visible && !s[31].gnss_visible && s[42].gnss_visible);
+    assert_eq!(s[31].line, 35);
+    let mid = 0.5 * (s[31].span.0 + s[31].span.1);
+    assert!(!m.gnss_visible(mid) && m.gnss_visible(1.0));
+}
+
+fn refused(text: &str) -> String {
+    let dir = std::env::temp_dir().join(format!("imu-emu-motiondef-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(format!("bad-{}.csv", text.len()));
+    std::fs::write(&p, text).unwrap();
+    let e = motiondef::open(&p).map(|_| ()).unwrap_err().to_string();
+    std::fs::remove_file(&p).unwrap();
+    e
+}
+
+const H1: &str = "ini lat (deg),ini lon (deg),ini alt (m),ini vx_body (m/s),ini vy_body (m/s),ini vz_body (m/s),ini yaw (deg),ini pitch (deg),ini roll (deg)";
+const H2: &str = "command type,yaw (deg),pitch (deg),roll (deg),vx_body (m/s),vy_body (m/s),vz_body (m/s),command duration (s),GPS visibility";
+
+#[test]
+fn bad_files_are_refused_with_line_and_column() {
+    let e = refused(&format!(
+        "{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n7,0,0,0,0,0,0,1,0\n"
+    ));
+    assert!(
+        e.contains(":4: column 1 (`command type`)") && e.contains("1 to 5"),
+        "{e}"
+    );
+    let e = refused(&format!(
+        "{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n1,0,x,0,0,0,0,1,0\n"
+    ));
+    assert!(e.contains(":4: column 3 (`pitch`)"), "{e}");
+    let e = refused(&format!(
+        "{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n1,0,0,0,0,0,0,-1,0\n"
+    ));
+    assert!(e.contains(":4: column 8 (`command duration`)"), "{e}");
+    let e = refused(&format!(
+        "{H1}\n95,120,0,0,0,0,0,0,0\n{H2}\n1,0,0,0,0,0,0,1,0\n"
+    ));
+    assert!(e.contains(":2: column 1 (`ini lat`)"), "{e}");
+    let e = refused("32,120,0,0,0,0,0,0,0\n");
+    assert!(e.contains(":1:") && e.contains("header"), "{e}");
+    let e = refused(&format!("{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n"));
+    assert!(e.contains("no command takes any time"), "{e}");
+    let e = refused(&format!(
+        "{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n1,0,0,0,0,0,0,1\n1,2\n"
+    ));
+    assert!(e.contains(":5:") && e.contains("2 columns"), "{e}");
+    let e = refused(&format!(
+        "{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n1,1e9,0,0,0,0,0,1,0\n"
+    ));
+    assert!(
+        e.contains(":4: column 2 (`yaw`)") && e.contains("limits"),
+        "{e}"
+    );
+}
+
+fn native(text: &str) -> Result<DefinedMotion, String> {
+    motiondef::native::parse(text, Path::new("m.toml")).map_err(|e| e.to_string())
+}
+
+fn mission() -> DefinedMotion {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/mission.toml");
+    motiondef::open(&p).unwrap()
+}
+
+/// The native example mission (take-off roll, climb, turns, figure-eight, a 360° roll,
+/// descent; 740 s) closes within 1 mm, and its sensed signal is continuous at every boundary.
+#[test]
+fn native_mission_closes_and_is_continuous() {
+    let m = mission();
+    let mut i = 0;
+    let (mut dw, mut df) = (0.0f64, 0.0f64);
+    while m.piece_end(i).is_finite() {
+        let t = m.piece_end(i);
+        let (a, b) = (m.sense(i, t), m.sense(i + 1, t));
+        dw = dw.max((a.omega_ib_b - b.omega_ib_b).amax());
+        df = df.max((a.f_b - b.f_b).amax());
+        i += 1;
+    }
+    println!("mission: {i} boundaries, largest jump ω {dw:.2e} rad/s, f {df:.2e} m/s²");
+    assert!(dw < 1e-12 && df < 1e-9, "{dw:e} {df:e}");
+    let m = AnyMotion::Defined(m);
+    let grid = job::plan(&m, 200.0, None, None).unwrap();
+    let c = close(&m, &grid, Settings::default(), None, 100).unwrap();
+    println!(
+        "mission: {} s, position {:.2e} m (max {:.2e}), velocity max {:.2e} m/s",
+        grid.count as f64 / 200.0,
+        c.last.pos_ned.norm(),
+        c.max_pos,
+        c.max_vel
+    );
+    assert!(c.max_pos <= 1e-3, "{:.3e} m", c.max_pos);
+}
+
+/// A coordinated turn at 3°/s and 50 m/s: bank atan(V·ψ̇/g), the yaw linear in the held part
+/// and the whole turn exactly 90°; a climb ends exactly at its height.
+#[test]
+fn native_turn_and_climb_against_their_closed_forms() {
+    let m = native(
+        "[motion]\nstart = { lat_deg = 45, h_m = 100, speed_m_s = 50 }\n\
+         segments = [{ turn_deg = 90, rate_deg_s = 3 }, { climb_to_m = 400, rate_m_s = 5 }]\n",
+    )
+    .unwrap();
+    let g = earth::normal_gravity(45f64.to_radians().sin(), 100.0);
+    let r = 3f64.to_radians();
+    let bank = (50.0 * r / g).atan();
+    let (t0, t1) = m.segments()[0].span;
+    // Roll-in time: the bank's minimum-jerk move within 60°/s and 60°/s², or 0.5 s.
+    let t_in = (1.875 * bank / 60f64.to_radians())
+        .max((5.7735 * bank / 60f64.to_radians()).sqrt())
+        .max(0.5);
+    for s in [0.1, 0.5, 0.9] {
+        let t = t0 + t_in + s * (t1 - t0 - 2.0 * t_in);
+        let (roll, _, yaw) = imu_emu::math::euler_from_quat(m.pose(t).q_b_n);
+        assert!((roll - bank).abs() < 1e-13, "{roll} {bank}");
+        assert!(
+            (yaw - r * (t - t0 - 0.5 * t_in)).abs() < 1e-12,
+            "t {t}: {yaw}"
+        );
+    }
+    let end = m.pose(t1);
+    let (roll, _, yaw) = imu_emu::math::euler_from_quat(end.q_b_n);
+    assert!((yaw - 90f64.to_radians()).abs() < 1e-13 && roll.abs() < 1e-15);
+    let h = m.pose(m.end()).h;
+    assert!((h - 400.0).abs() < 1e-8, "{h}");
+}
+
+/// Limits are refused naming the segment and its line; so are unknown keys and segments that
+/// give two kinds or none.
+#[test]
+fn native_limits_and_mistakes_are_refused() {
+    let start = "[motion]\nstart = { speed_m_s = 50 }\nlimits = { max_bank_deg = 30 }\n";
+    let e = native(&format!(
+        "{start}segments = [\n {{ hold_s = 1 }},\n {{ turn_deg = 90, bank_deg = 40 }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.starts_with("m.toml:6: `motion.segments[1]`: bank 40° is beyond max_bank_deg = 30°"),
+        "{e}"
+    );
+    let e = native(&format!(
+        "{start}segments = [{{ turn_deg = 90, rate_deg_s = 30 }}]\n"
+    ))
+    .unwrap_err();
+    assert!(e.contains("segments[0]") && e.contains("bank"), "{e}");
+    let e = native(&format!(
+        "{start}segments = [{{ turn_deg = 2, rate_deg_s = 3 }}]\n"
+    ))
+    .unwrap_err();
+    assert!(e.contains("shorter than its roll-in"), "{e}");
+    let e = native(&format!(
+        "{start}segments = [{{ roll_deg = 360, duration_s = 1 }}]\n"
+    ))
+    .unwrap_err();
+    assert!(e.contains("beyond max_rate_deg_s"), "{e}");
+    let e = native(&format!(
+        "{start}segments = [{{ climb_to_m = 10, rate_m_s = 60 }}]\n"
+    ))
+    .unwrap_err();
+    assert!(e.contains("rate_m_s"), "{e}");
+    let e = native(&format!(
+        "{start}segments = [{{ hold_s = 1, turn_deg = 3 }}]\n"
+    ))
+    .unwrap_err();
+    assert!(e.contains("exactly one"), "{e}");
+    let e = native(&format!("{start}segments = [\n{{ hold = 1 }}]\n")).unwrap_err();
+    assert!(e.starts_with("m.toml:5:") && e.contains("hold"), "{e}");
+    let e =
+        native("[motion]\nstart = { lat_deg = 91 }\nsegments = [{ hold_s = 1 }]\n").unwrap_err();
+    assert!(e.contains("motion.start.lat_deg"), "{e}");
+    let e = native("[imu]\nrate_hz = 1\n").unwrap_err();
+    assert!(e.contains("no `[motion]` table"), "{e}");
+}
+
+fn bin(args: &[&str], cwd: &Path) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .unwrap()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("imu-emu-md-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The command line: `trajectory` and `generate` take `--motion-def`; a scene file takes
+/// `trajectory.motion_def` (relative to itself) or an embedded `[motion]` table; a bad file
+/// fails with its line and leaves no output behind.
+#[test]
+fn command_line_and_scene_files() {
+    let dir = scratch("cli");
+    let turn = demo("motion_def-90deg_turn.csv");
+    let turn = turn.to_str().unwrap();
+    let out = bin(
+        &[
+            "trajectory",
+            "--motion-def",
+            turn,
+            "--rate",
+            "10",
+            "-o",
+            "t.csv",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.join("t.csv")).unwrap();
+    assert_eq!(
+        text.lines().filter(|l| !l.starts_with('#')).count(),
+        1 + 101
+    );
+    let out = bin(
+        &[
+            "generate",
+            "--motion-def",
+            turn,
+            "--rate",
+            "100",
+            "-o",
+            "g.csv",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::copy(turn, dir.join("turn.csv")).unwrap();
+    std::fs::create_dir_all(dir.join("sub")).unwrap();
+    std::fs::write(
+        dir.join("sub/scene.toml"),
+        "[trajectory]\nmotion_def = \"../turn.csv\"\n[output]\nduration_s = 2\n",
+    )
+    .unwrap();
+    let out = bin(
+        &["generate", "sub/scene.toml", "--rate", "10", "-o", "s.csv"],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::write(
+        dir.join("embedded.toml"),
+        "[imu]\nrate_hz = 50\n[motion]\nstart = { speed_m_s = 20 }\nsegments = [{ turn_deg = 45, rate_deg_s = 5 }]\n",
+    )
+    .unwrap();
+    let out = bin(&["generate", "embedded.toml", "-o", "e.csv"], &dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::write(
+        dir.join("bad.csv"),
+        format!("{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n1,0,0,0,0,0,0,1,0\n9,0,0,0,0,0,0,1,0\n"),
+    )
+    .unwrap();
+    let out = bin(
+        &["generate", "--motion-def", "bad.csv", "-o", "b.csv"],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("bad.csv:5: column 1"),
+        "{err}"
+    );
+    assert!(!dir.join("b.csv").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// After the example mission's 360° roll (roll = 2π), its next turn banks from wings level
+/// instead of rolling back a full turn: |roll| never exceeds the turn's bank.
+#[test]
+fn a_turn_after_a_full_roll_banks_from_wings_level() {
+    let m = mission();
+    let (a, b) = m.segments()[12].span;
+    let worst = (0..=400)
+        .map(|i| {
+            let (roll, _, _) =
+                imu_emu::math::euler_from_quat(m.pose(a + (b - a) * i as f64 / 400.0).q_b_n);
+            roll.abs()
+        })
+        .fold(0.0, f64::max);
+    // 3°/s at 60 m/s: bank atan(60·0.0524/9.80) ≈ 17.8°.
+    assert!(
+        worst < 18f64.to_radians() && worst > 17f64.to_radians(),
+        "{}",
+        worst.to_degrees()
+    );
+}
