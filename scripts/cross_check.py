@@ -47,8 +47,9 @@ def nmea(data):
         for name in msg.name_to_idx:
             d[name] = getattr(msg, name)
         for name in ("latitude", "longitude", "timestamp", "datestamp"):
-            if hasattr(msg, name):
-                d[name] = getattr(msg, name)
+            v = getattr(msg, name, None)
+            if v is not None:
+                d[name] = v.strftime("%H:%M:%S.%f") if name == "timestamp" else v
         yield {k: (v if isinstance(v, (int, float, str)) else str(v)) for k, v in d.items()}
 
 
