@@ -33,6 +33,9 @@ pub struct SceneFile {
     /// Faults injected into protocol frames.
     #[serde(default)]
     pub faults: FaultsSection,
+    /// The GNSS receiver next to the IMU (`[gnss]`; docs/aiding.md).
+    #[serde(default)]
+    pub gnss: Option<crate::aiding::GnssConfig>,
 }
 
 /// `[faults]`: faults injected into protocol frames (`[[faults.event]]` entries).

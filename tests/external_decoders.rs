@@ -1,6 +1,6 @@
 //! Our frames decoded by decoders written by others: pymavlink for MAVLink 2 HIL_SENSOR (and
 //! HIL_GPS), pynmea2 for NMEA 0183, pyubx2 for UBX NAV-PVT, and
-//! NovAtel's EDIE for RAWIMUSXB (both from PyPI), through `scripts/cross_check.py`. They need
+//! NovAtel's EDIE for RAWIMUSXB (all from PyPI), through `scripts/cross_check.py`. They need
 //! a Python with those packages, named by `IMU_EMU_PYTHON`; `.ci/run` builds one under
 //! `target/` and runs these tests with `--ignored`.
 

@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use super::{Output, SimError, Simulation};
+use crate::aiding::GnssConfig;
 use crate::config::{self, SceneFile};
 use crate::errors::ErrorChain;
 use crate::errors::temperature::TemperatureProfile;
@@ -48,6 +49,7 @@ pub struct SimulationBuilder {
     mounting_deg: Option<[f64; 3]>,
     lever_arm_m: Option<[f64; 3]>,
     vibration: Option<VibrationSpec>,
+    gnss: Option<GnssConfig>,
     default_imu: String,
     default_format: String,
     unbounded_duration: f64,
@@ -76,6 +78,7 @@ impl Default for SimulationBuilder {
             mounting_deg: None,
             lever_arm_m: None,
             vibration: None,
+            gnss: None,
             default_imu: "ideal".into(),
             default_format: "csv".into(),
             unbounded_duration: job::DEFAULT_UNBOUNDED_DURATION_S,
@@ -220,6 +223,26 @@ impl SimulationBuilder {
     pub fn vibration(mut self, spec: VibrationSpec) -> SimulationBuilder {
         self.vibration = Some(spec);
         self
+    }
+
+    /// A GNSS receiver on the same motion and clock (overrides the scene file's `[gnss]`).
+    pub fn gnss(mut self, cfg: GnssConfig) -> SimulationBuilder {
+        self.gnss = Some(cfg);
+        self
+    }
+
+    /// The GNSS receiver: the setter's, else the scene file's `[gnss]`, checked; errors name
+    /// the scene file's key.
+    fn resolve_gnss(&self) -> Result<Option<GnssConfig>, SimError> {
+        let Some(cfg) = self.gnss.clone().or(self.file.gnss.clone()) else {
+            return Ok(None);
+        };
+        cfg.validate().map_err(|e| {
+            let place = self.file_key(self.gnss.is_some(), true, &format!("gnss.{}", e.key));
+            SimError::Invalid(e.message)
+                .at(Some(place.unwrap_or_else(|| format!("`gnss.{}`", e.key))))
+        })?;
+        Ok(Some(cfg))
     }
 
     /// The IMU template and the output used when neither a setter nor the scene file names
@@ -628,6 +651,7 @@ impl SimulationBuilder {
                 .map_err(|e| SimError::Invalid(e).at(rate.place.clone()))?;
         }
         let faults = self.faults(&output, grid.rate_hz, seed)?;
+        let gnss = self.resolve_gnss()?;
         let mut warnings = Vec::new();
         let chain = self.chain(
             &imu,
@@ -647,6 +671,7 @@ impl SimulationBuilder {
             temperature,
             faults,
             gps_time: self.gps_time,
+            gnss,
             output_path: self.file.output.path.clone(),
             warnings,
         })
