@@ -26,7 +26,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .build()?;
     let (t0, t1) = sim.span();
     let mut rx = sim.gnss_receiver();
-    let (mut t, mut dp, mut dv) = (Vec::new(), [vec![], vec![], vec![]], [vec![], vec![], vec![]]);
+    let (mut t, mut dp, mut dv) = (
+        Vec::new(),
+        [vec![], vec![], vec![]],
+        [vec![], vec![], vec![]],
+    );
     while let Some(e) = rx.next_epoch(sim.motion(), t0, t1) {
         if !e.fix.is_valid() {
             continue;

@@ -2,6 +2,7 @@
 //! GNSS position, velocity and time ([`gnss`]) and their wire formats ([`nmea`], [`ubx`],
 //! [`mavlink`]), chosen by [`stream::GnssFormat`]. Pure models and encoders, no I/O.
 
+pub mod baro;
 pub mod gnss;
 pub mod mavlink;
 pub mod nmea;
