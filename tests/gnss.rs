@@ -1,5 +1,5 @@
-//! The GNSS receiver model: exact antenna lever arm against closed forms, the epoch grid, the
-//! statistics of the injected errors, outages, latency, fix fields and bad settings.
+//! The GNSS receiver model and the odometer: exact lever arms against closed forms, the epoch
+//! grid, the statistics of the injected errors, outages, latency, fix fields and bad settings.
 
 use imu_emu::aiding::gnss::{AntennaState, Fix, GnssConfig, Receiver, displace};
 use imu_emu::earth::{self, Geodetic};
@@ -411,4 +411,45 @@ fn bad_settings_name_their_key() {
         let err = Receiver::new(cfg, 1).unwrap_err().to_string();
         assert!(err.starts_with(&format!("{key}: ")), "{err}");
     }
+}
+
+/// A wheel 0.8 m left of the reference point (l = [0, −0.8, 1]) of a vehicle yawing at Ω at
+/// rest rolls forward at −Ω·l_y = 0.4 m/s (ω × l = [−Ω l_y, Ω l_x, 0]). With 97 ticks/m and a
+/// +1 % scale factor the count at t is ⌊0.4·t·1.01·97⌋; a slip of +0.5 from 2 s to 4 s adds
+/// half of the distance rolled in it. A wheel on the other side counts backwards.
+#[test]
+fn odometer_counts_the_rolled_distance() {
+    use imu_emu::aiding::odometer::{Odometer, OdometerConfig};
+    let cfg = OdometerConfig {
+        counts_per_m: 97.0,
+        scale_factor: 0.01,
+        lever_arm_m: [0.0, -0.8, 1.0],
+        slip: vec![[2.0, 4.0, 0.5]],
+    };
+    let mut odo = Odometer::new(cfg.clone());
+    let mut prev = 0;
+    for k in 1..=60 {
+        let t = k as f64 * 0.1;
+        let s = odo.sample(&SPIN, t - 0.1, t);
+        assert!(
+            (s.true_distance_m - 0.04).abs() < 1e-15,
+            "{}",
+            s.true_distance_m
+        );
+        let slipped = 0.5 * 0.4 * (t.min(4.0) - 2.0).max(0.0);
+        let expected = ((0.4 * t + slipped) * 1.01 * 97.0 + 1e-9).floor() as i64;
+        assert_eq!(s.ticks, expected, "t {t}");
+        assert_eq!(s.delta_ticks, s.ticks - prev);
+        assert!((s.speed_m_s - s.delta_ticks as f64 / 9.7).abs() < 1e-12);
+        prev = s.ticks;
+    }
+    let mut right = Odometer::new(OdometerConfig {
+        lever_arm_m: [0.0, 0.8, 1.0],
+        ..cfg
+    });
+    assert!((right.forward_speed(&SPIN, 1.0) + 0.4).abs() < 1e-15);
+    assert_eq!(
+        right.sample(&SPIN, 0.0, 1.0).ticks,
+        (-0.4f64 * 1.01 * 97.0).floor() as i64
+    );
 }

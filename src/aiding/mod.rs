@@ -6,6 +6,7 @@ pub mod baro;
 pub mod gnss;
 pub mod mavlink;
 pub mod nmea;
+pub mod odometer;
 pub mod stream;
 pub mod time;
 pub mod ubx;
