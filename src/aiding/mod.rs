@@ -4,6 +4,7 @@
 
 pub mod baro;
 pub mod gnss;
+pub mod magnetometer;
 pub mod mavlink;
 pub mod nmea;
 pub mod odometer;
