@@ -130,3 +130,27 @@ fn bad_gnss_settings_fail_clearly() {
         .collect();
     assert!(left.is_empty(), "left behind: {left:?}");
 }
+
+/// The commented `[gnss]` table of examples/survey.toml, uncommented, is the default receiver
+/// (plus the outage and seed it shows as examples).
+#[test]
+fn example_scene_file_documents_the_gnss_defaults() {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/survey.toml"))
+            .unwrap();
+    let table: String = text
+        .lines()
+        .skip_while(|l| *l != "# [gnss]")
+        .filter_map(|l| l.strip_prefix("# "))
+        .filter(|l| l.starts_with('[') || l.contains(" = "))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let file: toml::Table = toml::from_str(&table).unwrap();
+    let cfg: imu_emu::aiding::GnssConfig = file["gnss"].clone().try_into().unwrap();
+    let expected = imu_emu::aiding::GnssConfig {
+        outages_s: vec![[120.0, 180.0]],
+        seed: Some(20_261_124),
+        ..Default::default()
+    };
+    assert_eq!(cfg, expected);
+}
