@@ -453,3 +453,44 @@ fn odometer_counts_the_rolled_distance() {
         (-0.4f64 * 1.01 * 97.0).floor() as i64
     );
 }
+
+/// A simulation's GNSS stream runs on its motion and GPS time: with no lever arm the truth is
+/// the trajectory's pose at each epoch, the epochs cover the run's span, and the NMEA time is
+/// the run's GPS reference in UTC (week 2300, second 100 000 = 2024-02-05 03:46:22 UTC).
+#[test]
+fn simulation_gnss_follows_its_motion_and_clock() {
+    let sim = imu_emu::sim::Simulation::builder()
+        .scene("circle")
+        .duration(2.0)
+        .gps_time(2300, 100_000.0)
+        .gnss(GnssConfig {
+            rate_hz: 2.0,
+            ..GnssConfig::default()
+        })
+        .build()
+        .unwrap();
+    let epochs = sim.gnss_receiver().epochs(sim.motion(), 0.0, 2.0);
+    assert_eq!(epochs.len(), 5);
+    for e in &epochs {
+        let p = sim.motion().pose(e.t);
+        assert_eq!(
+            (e.truth.lat, e.truth.lon, e.truth.h, e.truth.v_n),
+            (p.lat, p.lon, p.h, p.v_n)
+        );
+    }
+    let (mut nmea, mut truth) = (Vec::new(), Vec::new());
+    let n = sim
+        .write_gnss(
+            &mut [(imu_emu::aiding::GnssFormat::Nmea, &mut nmea)],
+            Some(&mut truth),
+        )
+        .unwrap();
+    assert_eq!(n, 5);
+    let nmea = String::from_utf8(nmea).unwrap();
+    assert!(nmea.starts_with("$GPGGA,034622.00,"), "{nmea}");
+    assert!(
+        nmea.contains("$GPZDA,034624.00,05,02,2024,00,00*"),
+        "{nmea}"
+    );
+    assert_eq!(String::from_utf8(truth).unwrap().lines().count(), 1 + 5);
+}
