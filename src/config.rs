@@ -36,6 +36,9 @@ pub struct SceneFile {
     /// The GNSS receiver next to the IMU (`[gnss]`; docs/aiding.md).
     #[serde(default)]
     pub gnss: Option<crate::aiding::GnssConfig>,
+    /// The odometer (`[odometer]`; docs/aiding.md).
+    #[serde(default)]
+    pub odometer: Option<crate::aiding::odometer::OdometerConfig>,
 }
 
 /// `[faults]`: faults injected into protocol frames (`[[faults.event]]` entries).

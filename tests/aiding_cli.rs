@@ -154,3 +154,57 @@ fn example_scene_file_documents_the_gnss_defaults() {
     };
     assert_eq!(cfg, expected);
 }
+
+/// `--odometer FILE` on the straight scene (level, 100 m/s along body x): with 49.3 ticks/m at
+/// 7 Hz the count after sample k is ⌊100·(k/7)·49.3⌋; a bad `[odometer]` value names its key.
+#[test]
+fn generate_writes_the_odometer() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = "[trajectory]\nscene = \"straight\"\n[output]\nduration_s = 1.0\n\
+                 [odometer]\nrate_hz = 7\ncounts_per_m = 49.3\n";
+    std::fs::write(d.join("odo.toml"), scene).unwrap();
+    ok(imu_emu(
+        d,
+        &[
+            "generate",
+            "odo.toml",
+            "-o",
+            "imu.csv",
+            "--odometer",
+            "odo.csv",
+        ],
+    ));
+    let text = std::fs::read_to_string(d.join("odo.csv")).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("t,ticks,delta_ticks,speed_m_s,true_distance_m")
+    );
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 7);
+    for (k, r) in rows.iter().enumerate() {
+        let k = (k + 1) as f64;
+        assert_eq!(r[1], (100.0 * k / 7.0 * 49.3).floor(), "sample {k}");
+        assert!((r[4] - 100.0 / 7.0).abs() < 1e-9, "{}", r[4]);
+    }
+    std::fs::write(d.join("bad.toml"), scene.replace("49.3", "0")).unwrap();
+    let e = failed(imu_emu(
+        d,
+        &[
+            "generate",
+            "bad.toml",
+            "-o",
+            "imu.csv",
+            "--odometer",
+            "o.csv",
+        ],
+    ));
+    assert!(
+        e.contains("bad.toml: `odometer.counts_per_m`") && e.contains("0 must be > 0"),
+        "{e}"
+    );
+    assert!(!d.join("o.csv").exists() && !d.join("imu2.csv").exists());
+}

@@ -421,6 +421,7 @@ fn bad_settings_name_their_key() {
 fn odometer_counts_the_rolled_distance() {
     use imu_emu::aiding::odometer::{Odometer, OdometerConfig};
     let cfg = OdometerConfig {
+        rate_hz: 10.0,
         counts_per_m: 97.0,
         scale_factor: 0.01,
         lever_arm_m: [0.0, -0.8, 1.0],

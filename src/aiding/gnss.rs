@@ -67,11 +67,13 @@ impl Default for GnssConfig {
     }
 }
 
-/// A receiver setting outside what it can be.
+/// An aiding sensor's setting outside what it can be.
 #[derive(Debug, thiserror::Error, PartialEq)]
-#[error("gnss.{key}: {message}")]
-pub struct GnssConfigError {
-    /// The `[gnss]` key.
+#[error("{table}.{key}: {message}")]
+pub struct ConfigError {
+    /// The scene-file table (`gnss`, `odometer`).
+    pub table: &'static str,
+    /// The key in that table.
     pub key: &'static str,
     /// What is wrong and what is expected.
     pub message: String,
@@ -82,8 +84,14 @@ pub const RATE_RANGE_HZ: (f64, f64) = (1.0, 20.0);
 
 impl GnssConfig {
     /// Checks every value; the error names the key.
-    pub fn validate(&self) -> Result<(), GnssConfigError> {
-        let bad = |key, message: String| Err(GnssConfigError { key, message });
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let bad = |key, message: String| {
+            Err(ConfigError {
+                table: "gnss",
+                key,
+                message,
+            })
+        };
         let (lo, hi) = RATE_RANGE_HZ;
         if !(lo..=hi).contains(&self.rate_hz) {
             return bad(
@@ -306,7 +314,7 @@ const AXES: [&str; 3] = ["n", "e", "d"];
 impl Receiver {
     /// A receiver with settings `cfg` (checked) whose errors draw from master seed `seed`
     /// (unless `cfg.seed` gives one).
-    pub fn new(cfg: GnssConfig, seed: u64) -> Result<Receiver, GnssConfigError> {
+    pub fn new(cfg: GnssConfig, seed: u64) -> Result<Receiver, ConfigError> {
         cfg.validate()?;
         let seed = cfg.seed.unwrap_or(seed);
         let dt = 1.0 / cfg.rate_hz;

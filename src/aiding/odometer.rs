@@ -3,13 +3,18 @@
 //! factor error, slip windows, and quantization to whole ticks (the counter keeps the
 //! fraction, so no tick is ever lost).
 
+use serde::Deserialize;
+
 use crate::earth;
 use crate::math::Vec3;
 use crate::motion::Motion;
 
-/// Odometer settings.
-#[derive(Clone, Debug, PartialEq)]
+/// Odometer settings: the scene file's `[odometer]` table (every key optional).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
 pub struct OdometerConfig {
+    /// Samples per second, in (0, 1000].
+    pub rate_hz: f64,
     /// Encoder ticks per metre of nominal rolling distance.
     pub counts_per_m: f64,
     /// Scale factor error (fraction: 0.01 counts 1 % too many ticks).
@@ -19,6 +24,64 @@ pub struct OdometerConfig {
     /// Windows `[start, end, slip]` (s, s, fraction): the wheel turns (1 + slip) times the
     /// distance it travels (spin > 0, skid < 0).
     pub slip: Vec<[f64; 3]>,
+}
+
+impl Default for OdometerConfig {
+    /// 100 ticks per metre at 10 Hz at the reference point, no errors.
+    fn default() -> OdometerConfig {
+        OdometerConfig {
+            rate_hz: 10.0,
+            counts_per_m: 100.0,
+            scale_factor: 0.0,
+            lever_arm_m: [0.0; 3],
+            slip: Vec::new(),
+        }
+    }
+}
+
+impl OdometerConfig {
+    /// Checks every value; the error names the `[odometer]` key.
+    pub fn validate(&self) -> Result<(), super::gnss::ConfigError> {
+        let bad = |key, message: String| {
+            Err(super::gnss::ConfigError {
+                table: "odometer",
+                key,
+                message,
+            })
+        };
+        if !(self.rate_hz > 0.0 && self.rate_hz <= 1000.0) {
+            return bad(
+                "rate_hz",
+                format!("{} Hz is outside (0, 1000] Hz", self.rate_hz),
+            );
+        }
+        if !(self.counts_per_m.is_finite() && self.counts_per_m > 0.0) {
+            return bad("counts_per_m", format!("{} must be > 0", self.counts_per_m));
+        }
+        if !(self.scale_factor.is_finite() && self.scale_factor > -1.0) {
+            return bad(
+                "scale_factor",
+                format!("{} must be > −1", self.scale_factor),
+            );
+        }
+        if self.lever_arm_m.iter().any(|x| !x.is_finite()) {
+            return bad(
+                "lever_arm_m",
+                format!("{:?} has a non-finite value", self.lever_arm_m),
+            );
+        }
+        for (i, s) in self.slip.iter().enumerate() {
+            if !(s.iter().all(|x| x.is_finite()) && s[0] < s[1] && s[2] > -1.0) {
+                return bad(
+                    "slip",
+                    format!(
+                        "window {i} {s:?} must be [start, end, slip] with start < end and slip > −1"
+                    ),
+                );
+            }
+        }
+        Ok(())
+    }
 }
 
 /// One odometer sample at the end of an interval.

@@ -35,6 +35,9 @@ pub struct GenerateArgs {
     /// Also write the truth of each GNSS epoch here (CSV).
     #[arg(long)]
     pub gnss_truth: Option<PathBuf>,
+    /// Also write the odometer's samples here (CSV; scene file `[odometer]`, else the default).
+    #[arg(long)]
+    pub odometer: Option<PathBuf>,
 }
 
 /// `FORMAT:FILE` of `--gnss`.
@@ -89,6 +92,24 @@ fn write_gnss(
     Ok(files)
 }
 
+/// Writes the odometer file of `a`, if asked, uncommitted.
+fn write_odometer(
+    sim: &imu_emu::sim::Simulation,
+    a: &GenerateArgs,
+) -> Result<Option<(AtomicFile, PathBuf)>> {
+    let Some(path) = &a.odometer else {
+        return Ok(None);
+    };
+    let (mut f, p) = create(path)?;
+    {
+        let mut w = buffered(&mut f);
+        sim.write_odometer(&mut w)
+            .with_context(|| format!("writing {}", p.display()))?;
+        w.flush()?;
+    }
+    Ok(Some((f, p)))
+}
+
 fn buffered(f: &mut AtomicFile) -> std::io::BufWriter<&mut AtomicFile> {
     std::io::BufWriter::with_capacity(1 << 20, f)
 }
@@ -114,7 +135,8 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
         indicatif::ProgressBar::hidden()
     };
     let faults = sim.faults().cloned();
-    let gnss_files = write_gnss(&sim, &a)?;
+    let mut gnss_files = write_gnss(&sim, &a)?;
+    gnss_files.extend(write_odometer(&sim, &a)?);
     let caught = imu_emu::realtime::signal::watch()?;
     let started = Instant::now();
     let mut truth_file = a.truth.as_deref().map(create).transpose()?;

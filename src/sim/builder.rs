@@ -5,6 +5,8 @@ use std::path::{Path, PathBuf};
 
 use super::{Output, SimError, Simulation};
 use crate::aiding::GnssConfig;
+use crate::aiding::gnss::ConfigError as AidingConfigError;
+use crate::aiding::odometer::OdometerConfig;
 use crate::config::{self, SceneFile};
 use crate::errors::ErrorChain;
 use crate::errors::temperature::TemperatureProfile;
@@ -50,6 +52,7 @@ pub struct SimulationBuilder {
     lever_arm_m: Option<[f64; 3]>,
     vibration: Option<VibrationSpec>,
     gnss: Option<GnssConfig>,
+    odometer: Option<OdometerConfig>,
     default_imu: String,
     default_format: String,
     unbounded_duration: f64,
@@ -79,6 +82,7 @@ impl Default for SimulationBuilder {
             lever_arm_m: None,
             vibration: None,
             gnss: None,
+            odometer: None,
             default_imu: "ideal".into(),
             default_format: "csv".into(),
             unbounded_duration: job::DEFAULT_UNBOUNDED_DURATION_S,
@@ -231,16 +235,27 @@ impl SimulationBuilder {
         self
     }
 
-    /// The GNSS receiver: the setter's, else the scene file's `[gnss]`, checked; errors name
-    /// the scene file's key.
-    fn resolve_gnss(&self) -> Result<Option<GnssConfig>, SimError> {
-        let Some(cfg) = self.gnss.clone().or(self.file.gnss.clone()) else {
+    /// An odometer on the same motion and clock (overrides the scene file's `[odometer]`).
+    pub fn odometer(mut self, cfg: OdometerConfig) -> SimulationBuilder {
+        self.odometer = Some(cfg);
+        self
+    }
+
+    /// An aiding sensor's settings: the setter's, else the scene file's table, checked by
+    /// `validate`; errors name the scene file's key.
+    fn resolve_aiding<T: Clone>(
+        &self,
+        given: &Option<T>,
+        in_file: &Option<T>,
+        validate: impl Fn(&T) -> Result<(), AidingConfigError>,
+    ) -> Result<Option<T>, SimError> {
+        let Some(cfg) = given.clone().or(in_file.clone()) else {
             return Ok(None);
         };
-        cfg.validate().map_err(|e| {
-            let place = self.file_key(self.gnss.is_some(), true, &format!("gnss.{}", e.key));
-            SimError::Invalid(e.message)
-                .at(Some(place.unwrap_or_else(|| format!("`gnss.{}`", e.key))))
+        validate(&cfg).map_err(|e| {
+            let key = format!("{}.{}", e.table, e.key);
+            let place = self.file_key(given.is_some(), true, &key);
+            SimError::Invalid(e.message).at(Some(place.unwrap_or_else(|| format!("`{key}`"))))
         })?;
         Ok(Some(cfg))
     }
@@ -651,7 +666,12 @@ impl SimulationBuilder {
                 .map_err(|e| SimError::Invalid(e).at(rate.place.clone()))?;
         }
         let faults = self.faults(&output, grid.rate_hz, seed)?;
-        let gnss = self.resolve_gnss()?;
+        let gnss = self.resolve_aiding(&self.gnss, &self.file.gnss, GnssConfig::validate)?;
+        let odometer = self.resolve_aiding(
+            &self.odometer,
+            &self.file.odometer,
+            OdometerConfig::validate,
+        )?;
         let mut warnings = Vec::new();
         let chain = self.chain(
             &imu,
@@ -672,6 +692,7 @@ impl SimulationBuilder {
             faults,
             gps_time: self.gps_time,
             gnss,
+            odometer,
             output_path: self.file.output.path.clone(),
             warnings,
         })

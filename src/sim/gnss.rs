@@ -1,10 +1,13 @@
-//! The GNSS stream of a simulation: epochs of its receiver over the run's span, on the same
-//! motion and GPS time reference as the IMU records, written in a wire format with their truth.
+//! The aiding streams of a simulation: GNSS epochs of its receiver over the run's span, on the
+//! same motion and GPS time reference as the IMU records, written in a wire format with their
+//! truth; and the odometer's samples.
 
+use std::fmt::Write as _;
 use std::io::Write;
 
 use super::{SimError, Simulation};
 use crate::aiding::gnss::Receiver;
+use crate::aiding::odometer::Odometer;
 use crate::aiding::stream::{TRUTH_HEADER, truth_row};
 use crate::aiding::{GnssConfig, GnssEncoder, GnssFormat};
 
@@ -63,6 +66,36 @@ impl Simulation {
             n += 1;
         }
         Ok(n)
+    }
+}
+
+/// Header of the odometer CSV.
+pub const ODOMETER_HEADER: &str = "t,ticks,delta_ticks,speed_m_s,true_distance_m\n";
+
+impl Simulation {
+    /// Writes the odometer's samples over the run (CSV, one row per sample at the end of each
+    /// interval of 1/rate s from the start); the configured odometer, else the default.
+    /// Returns the number of samples.
+    pub fn write_odometer(&self, out: &mut dyn Write) -> Result<u64, SimError> {
+        let cfg = self.odometer.clone().unwrap_or_default();
+        let rate = cfg.rate_hz;
+        let mut odo = Odometer::new(cfg);
+        let (t0, t1) = self.span();
+        out.write_all(ODOMETER_HEADER.as_bytes()).map_err(io)?;
+        let count = ((t1 - t0) * rate + 1e-9).floor() as u64;
+        let mut row = String::new();
+        for k in 1..=count {
+            let (a, b) = (t0 + (k - 1) as f64 / rate, t0 + k as f64 / rate);
+            let s = odo.sample(&self.motion, a, b);
+            row.clear();
+            let _ = writeln!(
+                row,
+                "{},{},{},{},{}",
+                s.t, s.ticks, s.delta_ticks, s.speed_m_s, s.true_distance_m
+            );
+            out.write_all(row.as_bytes()).map_err(io)?;
+        }
+        Ok(count)
     }
 }
 

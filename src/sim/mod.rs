@@ -118,6 +118,7 @@ pub struct Simulation {
     faults: Option<FaultInjector>,
     gps_time: Option<(u32, f64)>,
     gnss: Option<GnssConfig>,
+    odometer: Option<crate::aiding::odometer::OdometerConfig>,
     output_path: Option<PathBuf>,
     warnings: Vec<String>,
 }
