@@ -2,6 +2,8 @@
 //! conversions (NIMA TR8350.2, *Department of Defense World Geodetic System 1984*, ch. 3–4).
 //! Pure math, no I/O.
 
+#[cfg(test)]
+use crate::math::QuatExt;
 use crate::math::{Mat3, Quat, Vec3};
 
 /// Semi-major axis a (m).
@@ -76,13 +78,13 @@ pub fn omega_en_n(sin_lat: f64, cos_lat: f64, h: f64, v_n: Vec3) -> Vec3 {
 #[inline]
 pub fn transport_rate(sin_lat: f64, cos_lat: f64, rn_h: f64, re_h: f64, v_n: Vec3) -> Vec3 {
     let inv_re_h = 1.0 / re_h;
-    let east = v_n.y() * inv_re_h;
-    let z = if v_n.y() == 0.0 {
+    let east = v_n.y * inv_re_h;
+    let z = if v_n.y == 0.0 {
         0.0
     } else {
         -east * sin_lat / cos_lat
     };
-    Vec3::new(east, -v_n.x() / rn_h, z)
+    Vec3::new(east, -v_n.x / rn_h, z)
 }
 
 /// A geodetic position held as the sines and cosines it is used through (pole-safe).
@@ -143,11 +145,13 @@ impl Geodetic {
     /// C_n^e, the NED-to-ECEF direction cosine matrix (columns: north, east, down in ECEF).
     pub fn c_n_e(&self) -> Mat3 {
         let (sp, cp, sl, cl) = (self.sin_lat, self.cos_lat, self.sin_lon, self.cos_lon);
-        Mat3([
-            [-sp * cl, -sl, -cp * cl],
-            [-sp * sl, cl, -cp * sl],
-            [cp, 0.0, -sp],
-        ])
+        #[rustfmt::skip]
+        let c = Mat3::new(
+            -sp * cl, -sl, -cp * cl,
+            -sp * sl, cl, -cp * sl,
+            cp, 0.0, -sp,
+        );
+        c
     }
     /// Quaternion of C_n^e.
     pub fn q_n_e(&self) -> Quat {
@@ -162,7 +166,7 @@ impl Geodetic {
             let (s, c) = (0.5 * (-lat - std::f64::consts::FRAC_PI_2)).sin_cos();
             Quat::new(c, 0.0, s, 0.0)
         };
-        qz.mul(qy)
+        qz * qy
     }
 }
 
@@ -173,7 +177,7 @@ impl Geodetic {
 /// Each step shrinks the error by ≈ e²; near the Earth one or two steps after Bowring reach
 /// the f64 floor, higher up a few more.
 pub fn ecef_to_geodetic(r: Vec3) -> Geodetic {
-    let [x, y, z] = r.0;
+    let (x, y, z) = (r.x, r.y, r.z);
     let rho = (x * x + y * y).sqrt();
     let (sin_lon, cos_lon) = if rho > 0.0 {
         (y / rho, x / rho)
@@ -257,7 +261,7 @@ mod tests {
         let q = g.q_n_e().to_mat();
         for i in 0..3 {
             for j in 0..3 {
-                assert!((m.0[i][j] - q.0[i][j]).abs() < 1e-15);
+                assert!((m[(i, j)] - q[(i, j)]).abs() < 1e-15);
             }
         }
     }

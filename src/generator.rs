@@ -3,7 +3,7 @@
 //! breakpoints, and their interval means. Raw integrals: no coning or sculling compensation.
 
 use crate::kinematics::Sensed;
-use crate::math::Vec3;
+use crate::math::{Mat3, Vec3};
 use crate::motion::Motion;
 use crate::quadrature::GaussLegendre;
 use crate::record::Record;
@@ -18,8 +18,8 @@ pub const DEFAULT_NODES: usize = 3;
 pub struct RotationTerms {
     /// ω_ib^b(t_k) − ω_ib^b(t_{k−1}) (rad/s).
     pub d_omega: Vec3,
-    /// Interval mean of ω ωᵀ (rad²/s²), row-major.
-    pub omega_outer: [[f64; 3]; 3],
+    /// Interval mean of ω ωᵀ (rad²/s²).
+    pub omega_outer: Mat3,
 }
 
 /// Generates error-free records k = 1, 2, … at t_k = t₀ + k/rate.
@@ -113,7 +113,7 @@ impl<M: Motion> IdealImu<M> {
             let k = k_first + i as u64;
             let (lo, hi) = (self.time_of(k - 1), self.time_of(k));
             let w_end = omega_at(self, hi);
-            let mut outer = [[0.0; 3]; 3];
+            let mut outer = Mat3::zeros();
             // Same splitting at breakpoints as the increments.
             let mut piece = self.motion.piece_at(lo, self.hint);
             let mut a = lo;
@@ -122,13 +122,9 @@ impl<M: Motion> IdealImu<M> {
                 let len = b - a;
                 if len > 0.0 {
                     for (x, wt) in self.rule.nodes.iter().zip(&self.rule.weights) {
-                        let w = self.motion.sense(piece, a + x * len).omega_ib_b.0;
+                        let w = self.motion.sense(piece, a + x * len).omega_ib_b;
                         let f = wt * len / (hi - lo);
-                        for (r, wr) in outer.iter_mut().zip(w) {
-                            for (c, wc) in r.iter_mut().zip(w) {
-                                *c += f * wr * wc;
-                            }
-                        }
+                        outer += Mat3::from_fn(|i, j| f * w[i] * w[j]);
                     }
                 }
                 if b >= hi {
@@ -157,7 +153,7 @@ impl<M: Motion> IdealImu<M> {
         if end >= hi {
             // The common case: one smooth piece; node times from the integer k.
             let base = (k - 1) as f64;
-            let (mut sg, mut sa) = (Vec3::ZERO, Vec3::ZERO);
+            let (mut sg, mut sa) = (Vec3::zeros(), Vec3::zeros());
             for (x, w) in self.rule.nodes.iter().zip(&self.rule.weights) {
                 let t = self.t0 + (base + x) / self.rate_hz;
                 let Sensed { omega_ib_b, f_b } = self.motion.sense(piece, t);
@@ -168,7 +164,7 @@ impl<M: Motion> IdealImu<M> {
         }
         // Split at every breakpoint inside the interval; weight each part by its length.
         let inv_width = 1.0 / (hi - lo);
-        let (mut sg, mut sa) = (Vec3::ZERO, Vec3::ZERO);
+        let (mut sg, mut sa) = (Vec3::zeros(), Vec3::zeros());
         let mut a = lo;
         loop {
             let b = end.min(hi);

@@ -11,7 +11,7 @@
 //! g is WGS-84 normal gravity (gravitation plus centrifugal), so both forms are exact.
 
 use crate::earth::{self, Geodetic};
-use crate::math::{Mat3, Quat, Vec3};
+use crate::math::{Mat3, Quat, QuatExt, Vec3};
 
 /// Error-free IMU output at one instant: angular rate ω_ib^b (rad/s), specific force f^b (m/s²).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -54,12 +54,12 @@ pub fn sense_ned(s: &NedState) -> Sensed {
     let w_en = earth::transport_rate(s.sin_lat, s.cos_lat, s.r_n + s.h, s.r_e + s.h, s.v_n);
     let g = s.gravity;
     let w_in = w_ie + w_en;
-    let omega_ib_b = s.omega_nb_b + s.c_b_n.tr_mul_vec(w_in);
-    let mut a = s.v_dot_n + (w_ie * 2.0 + w_en).cross(s.v_n);
-    a.0[2] -= g;
+    let omega_ib_b = s.omega_nb_b + s.c_b_n.tr_mul(&w_in);
+    let mut a = s.v_dot_n + (w_ie * 2.0 + w_en).cross(&s.v_n);
+    a[2] -= g;
     Sensed {
         omega_ib_b,
-        f_b: s.c_b_n.tr_mul_vec(a),
+        f_b: s.c_b_n.tr_mul(&a),
     }
 }
 
@@ -84,7 +84,7 @@ pub fn sense_ecef(s: &EcefState) -> Sensed {
     let w_ie_e = Vec3::new(0.0, 0.0, earth::OMEGA_IE);
     let g = earth::normal_gravity(s.pos.sin_lat, s.pos.h);
     // f^e = r̈ + 2 ω_ie × ṙ − g^e with g^e = −γ·up.
-    let f_e = s.a_e + (w_ie_e * 2.0).cross(s.v_e) + s.pos.up_e() * g;
+    let f_e = s.a_e + (w_ie_e * 2.0).cross(&s.v_e) + s.pos.up_e() * g;
     Sensed {
         omega_ib_b: s.omega_eb_b + s.q_b_e.rotate_inv(w_ie_e),
         f_b: s.q_b_e.rotate_inv(f_e),
@@ -107,16 +107,16 @@ mod tests {
             r_n: earth::radius_meridian(lat.sin()),
             r_e: earth::radius_prime_vertical(lat.sin()),
             gravity: earth::normal_gravity(lat.sin(), 0.0),
-            v_n: Vec3::ZERO,
-            v_dot_n: Vec3::ZERO,
-            c_b_n: Mat3::IDENTITY,
-            omega_nb_b: Vec3::ZERO,
+            v_n: Vec3::zeros(),
+            v_dot_n: Vec3::zeros(),
+            c_b_n: Mat3::identity(),
+            omega_nb_b: Vec3::zeros(),
         };
         let out = sense_ned(&s);
-        assert!((out.omega_ib_b.x() - 5.50343e-5).abs() < 5e-11);
-        assert_eq!(out.omega_ib_b.y(), 0.0);
-        assert!((out.omega_ib_b.z() + 4.78406e-5).abs() < 5e-11);
-        assert!((out.f_b.z() + 9.802590).abs() < 5e-7);
+        assert!((out.omega_ib_b.x - 5.50343e-5).abs() < 5e-11);
+        assert_eq!(out.omega_ib_b.y, 0.0);
+        assert!((out.omega_ib_b.z + 4.78406e-5).abs() < 5e-11);
+        assert!((out.f_b.z + 9.802590).abs() < 5e-7);
     }
 
     /// The NED and ECEF forms agree for a moving, rotating, tilted vehicle. Both take the
@@ -146,12 +146,12 @@ mod tests {
         let w_en = earth::omega_en_n(pos.sin_lat, pos.cos_lat, pos.h, v_n);
         let ecef = sense_ecef(&EcefState {
             pos,
-            v_e: c_n_e.mul_vec(v_n),
-            a_e: c_n_e.mul_vec(v_dot_n + w_en.cross(v_n)),
-            q_b_e: pos.q_n_e().mul(q_b_n),
+            v_e: c_n_e * v_n,
+            a_e: c_n_e * (v_dot_n + w_en.cross(&v_n)),
+            q_b_e: pos.q_n_e() * q_b_n,
             omega_eb_b: omega_nb_b + q_b_n.rotate_inv(w_en),
         });
-        assert!((ned.omega_ib_b - ecef.omega_ib_b).max_abs() < 1e-17);
-        assert!((ned.f_b - ecef.f_b).max_abs() < 1e-14);
+        assert!((ned.omega_ib_b - ecef.omega_ib_b).amax() < 1e-17);
+        assert!((ned.f_b - ecef.f_b).amax() < 1e-14);
     }
 }

@@ -183,7 +183,7 @@ pub fn encode_components(
         vals.push(r.t);
         for g in &c.0 {
             for v in g {
-                vals.extend_from_slice(&v.0);
+                vals.extend_from_slice(v.as_slice());
             }
         }
         match format {

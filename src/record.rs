@@ -51,7 +51,7 @@ impl Record {
     /// The 13 values in the order of [`COLUMNS`].
     #[inline]
     pub fn values(&self) -> [f64; 13] {
-        let (g, a, d, v) = (self.gyro.0, self.accel.0, self.dtheta.0, self.dv.0);
+        let (g, a, d, v) = (self.gyro, self.accel, self.dtheta, self.dv);
         [
             self.t, g[0], g[1], g[2], a[0], a[1], a[2], d[0], d[1], d[2], v[0], v[1], v[2],
         ]

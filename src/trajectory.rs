@@ -329,16 +329,7 @@ pub fn format_row(
     rpy_deg: (f64, f64, f64),
 ) {
     let vals = [
-        t,
-        lat_deg,
-        lon_deg,
-        h,
-        v_n.x(),
-        v_n.y(),
-        v_n.z(),
-        rpy_deg.0,
-        rpy_deg.1,
-        rpy_deg.2,
+        t, lat_deg, lon_deg, h, v_n.x, v_n.y, v_n.z, rpy_deg.0, rpy_deg.1, rpy_deg.2,
     ];
     let mut buf = ryu::Buffer::new();
     for (i, v) in vals.iter().enumerate() {

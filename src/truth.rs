@@ -9,7 +9,7 @@
 //! disagreement instead of cancelling out.
 
 use crate::generator::IdealImu;
-use crate::math::{Mat3, Vec3};
+use crate::math::{Mat3, QuatExt, Vec3};
 use crate::motion::Motion;
 use crate::record::Record;
 use crate::scenes::{self, SceneParams};
@@ -89,18 +89,14 @@ pub fn by_definition(m: &impl Motion, t: f64, d: f64) -> (Vec3, Vec3) {
     let w = [(1.0, 45.0 / 60.0), (2.0, -9.0 / 60.0), (3.0, 1.0 / 60.0)];
     let pose = m.pose(t);
     let c = pose.q_b_n.to_mat();
-    let mut cdot = [[0.0; 3]; 3];
-    let mut vdot = Vec3::ZERO;
+    let mut cdot = Mat3::zeros();
+    let mut vdot = Vec3::zeros();
     let (mut lat_dot, mut lon_dot) = (0.0, 0.0);
     let pi = std::f64::consts::PI;
     for (k, wk) in w {
         let (pp, pm) = (m.pose(t + k * d), m.pose(t - k * d));
         let (cp, cm) = (pp.q_b_n.to_mat(), pm.q_b_n.to_mat());
-        for (row, (rp, rm)) in cdot.iter_mut().zip(cp.0.iter().zip(cm.0.iter())) {
-            for (x, (a, b)) in row.iter_mut().zip(rp.iter().zip(rm.iter())) {
-                *x += wk * (a - b) / d;
-            }
-        }
+        cdot += (cp - cm).map(|x| wk * x / d);
         vdot += (pp.v_n - pm.v_n) * (wk / d);
         lat_dot += wk * (pp.lat - pm.lat) / d;
         // Longitude may wrap at ±180° between the two instants.
@@ -111,15 +107,15 @@ pub fn by_definition(m: &impl Motion, t: f64, d: f64) -> (Vec3, Vec3) {
     let w_ie = wgs84::earth_rate_ned(s, co);
     let w_en = Vec3::new(lon_dot * co, -lat_dot, -lon_dot * s);
     // Ω_nb^b = C_n^b Ċ_b^n; its skew part is ω_nb^b.
-    let om = c.transpose().mul_mat(&Mat3(cdot)).0;
+    let om = c.transpose() * cdot;
     let w_nb = Vec3::new(
-        0.5 * (om[2][1] - om[1][2]),
-        0.5 * (om[0][2] - om[2][0]),
-        0.5 * (om[1][0] - om[0][1]),
+        0.5 * (om[(2, 1)] - om[(1, 2)]),
+        0.5 * (om[(0, 2)] - om[(2, 0)]),
+        0.5 * (om[(1, 0)] - om[(0, 1)]),
     );
-    let mut a = vdot + (w_ie * 2.0 + w_en).cross(v);
-    a.0[2] -= wgs84::gamma(s, pose.h);
-    (w_nb + c.tr_mul_vec(w_ie + w_en), c.tr_mul_vec(a))
+    let mut a = vdot + (w_ie * 2.0 + w_en).cross(&v);
+    a[2] -= wgs84::gamma(s, pose.h);
+    (w_nb + c.tr_mul(&(w_ie + w_en)), c.tr_mul(&a))
 }
 
 /// Δθ over [t0, t1] of classic coning about body x (half-angle `beta` rad at `om` rad/s,
@@ -221,8 +217,8 @@ pub fn static_grid(rate_hz: f64) -> Vec<Check> {
             let rs = records(scene("static", &p), rate_hz, 10);
             let (mut eg, mut ea) = (0.0f64, 0.0f64);
             for r in &rs {
-                eg = eg.max((r.gyro - g).max_abs());
-                ea = ea.max((r.accel - a).max_abs());
+                eg = eg.max((r.gyro - g).amax());
+                ea = ea.max((r.accel - a).amax());
             }
             out.push(Check {
                 name: format!("static {lat_deg}° h {h} m"),
@@ -265,8 +261,8 @@ pub fn scene_checks() -> Vec<Check> {
             }
             let s = m.sense(m.piece_at(t, 0), t);
             let (g, a) = by_definition(&m, t, 1e-2);
-            eg = eg.max((s.omega_ib_b - g).max_abs());
-            ea = ea.max((s.f_b - a).max_abs());
+            eg = eg.max((s.omega_ib_b - g).amax());
+            ea = ea.max((s.f_b - a).amax());
             n += 1;
         }
         out.push(Check {
@@ -290,7 +286,7 @@ pub fn scene_checks() -> Vec<Check> {
     let mut eg = 0.0f64;
     for (i, r) in rs.iter().enumerate() {
         let want = coning_dtheta(beta, om, lat, i as f64 / rate, (i + 1) as f64 / rate);
-        eg = eg.max((r.dtheta - want).max_abs());
+        eg = eg.max((r.dtheta - want).amax());
     }
     out.push(Check {
         name: "coning (Δθ)".into(),
@@ -311,8 +307,8 @@ pub fn scene_checks() -> Vec<Check> {
     for t in instants {
         let s = m.sense(0, t);
         let (g, a) = polar_meridian(mu0 + c * t, c, p.h_m);
-        eg = eg.max((s.omega_ib_b - g).max_abs());
-        ea = ea.max((s.f_b - a).max_abs());
+        eg = eg.max((s.omega_ib_b - g).amax());
+        ea = ea.max((s.f_b - a).amax());
     }
     out.push(Check {
         name: "polar (through the pole)".into(),
@@ -355,10 +351,7 @@ mod tests {
                 "R_N {lat_deg}°"
             );
             let d = wgs84::earth_rate_ned(s, c) - earth::omega_ie_n(s, c);
-            assert!(
-                d.max_abs() <= f64::EPSILON * wgs84::OMEGA,
-                "ω_ie {lat_deg}°"
-            );
+            assert!(d.amax() <= f64::EPSILON * wgs84::OMEGA, "ω_ie {lat_deg}°");
         }
     }
 

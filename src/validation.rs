@@ -119,8 +119,8 @@ pub fn compare(reference: &[Record], candidate: &[Record]) -> Errors {
     let t_end = reference.last().map_or(0.0, |r| r.t);
     let mut e = Errors::default();
     for (a, b) in reference.iter().zip(candidate) {
-        let dg = (a.gyro - b.gyro).max_abs();
-        let da = (a.accel - b.accel).max_abs();
+        let dg = (a.gyro - b.gyro).amax();
+        let da = (a.accel - b.accel).amax();
         e.gyro = e.gyro.max(dg);
         e.accel = e.accel.max(da);
         if a.t > 1.0 && a.t < t_end - 1.0 {

@@ -11,7 +11,7 @@
 //! `-- --nocapture`), stated per test with the factor.
 
 use imu_emu::generator::IdealImu;
-use imu_emu::math::{Mat3, Quat, Vec3};
+use imu_emu::math::{Mat3, Quat, QuatExt, Vec3, all_finite};
 use imu_emu::motion::Motion;
 use imu_emu::motion::sampled::ModelSettings;
 use imu_emu::record::Record;
@@ -46,18 +46,16 @@ fn radii(lat: f64) -> (f64, f64) {
 /// Rx, Ry, Rz as plain matrices, so C_b^n = Rz(ψ)Ry(θ)Rx(φ) is built without the library.
 fn rot(axis: usize, a: f64) -> Mat3 {
     let (s, c) = a.sin_cos();
-    Mat3(match axis {
-        0 => [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]],
-        1 => [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]],
-        _ => [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]],
-    })
+    match axis {
+        0 => Mat3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c),
+        1 => Mat3::new(c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c),
+        _ => Mat3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0),
+    }
 }
 
 /// C_b^n from roll, pitch, yaw in degrees.
 fn c_b_n_deg(r: f64, p: f64, y: f64) -> Mat3 {
-    rot(2, y.to_radians())
-        .mul_mat(&rot(1, p.to_radians()))
-        .mul_mat(&rot(0, r.to_radians()))
+    rot(2, y.to_radians()) * rot(1, p.to_radians()) * rot(0, r.to_radians())
 }
 
 fn scene(name: &str, p: SceneParams) -> AnyMotion {
@@ -89,17 +87,17 @@ fn static_level_closed_form_across_the_planet() {
             let want_g = Vec3::new(OMEGA * lat.cos(), 0.0, -OMEGA * lat.sin());
             let want_a = Vec3::new(0.0, 0.0, -gamma(lat, h));
             assert!(
-                (r.gyro - want_g).max_abs() < 1e-19,
+                (r.gyro - want_g).amax() < 1e-19,
                 "lat {lat_deg} h {h}: {:?}",
                 r.gyro
             );
             assert!(
-                (r.accel - want_a).max_abs() < 4e-15,
+                (r.accel - want_a).amax() < 4e-15,
                 "lat {lat_deg} h {h}: {:?}",
                 r.accel
             );
-            assert!((r.dtheta - want_g * 0.01).max_abs() < 1e-21);
-            assert!((r.dv - want_a * 0.01).max_abs() < 4e-17);
+            assert!((r.dtheta - want_g * 0.01).amax() < 1e-21);
+            assert!((r.dv - want_a * 0.01).amax() < 4e-17);
         }
     }
 }
@@ -114,10 +112,10 @@ fn design_worked_check_at_41n() {
         1,
         3,
     )[0];
-    assert!((r.gyro.x() - 5.50343e-5).abs() < 5e-11);
-    assert_eq!(r.gyro.y(), 0.0);
-    assert!((r.gyro.z() + 4.78406e-5).abs() < 5e-11);
-    assert!((r.accel.z() + 9.802590).abs() < 5e-7);
+    assert!((r.gyro.x - 5.50343e-5).abs() < 5e-11);
+    assert_eq!(r.gyro.y, 0.0);
+    assert!((r.gyro.z + 4.78406e-5).abs() < 5e-11);
+    assert!((r.accel.z + 9.802590).abs() < 5e-7);
 }
 
 /// Tilted static attitudes, pitch ±90° included: ω = C_n^b ω_ie^n, f = C_n^b [0, 0, −γ].
@@ -140,10 +138,10 @@ fn static_tilted_and_vertical_attitudes() {
         let r = &records(scene("static", p), 200.0, 1, 1, 3)[0];
         let c = c_b_n_deg(roll, pitch, yaw);
         let lat = 41f64.to_radians();
-        let want_g = c.tr_mul_vec(Vec3::new(OMEGA * lat.cos(), 0.0, -OMEGA * lat.sin()));
-        let want_a = c.tr_mul_vec(Vec3::new(0.0, 0.0, -gamma(lat, 100.0)));
-        assert!((r.gyro - want_g).max_abs() < 1e-18, "{roll} {pitch} {yaw}");
-        assert!((r.accel - want_a).max_abs() < 2e-14, "{roll} {pitch} {yaw}");
+        let want_g = c.tr_mul(&Vec3::new(OMEGA * lat.cos(), 0.0, -OMEGA * lat.sin()));
+        let want_a = c.tr_mul(&Vec3::new(0.0, 0.0, -gamma(lat, 100.0)));
+        assert!((r.gyro - want_g).amax() < 1e-18, "{roll} {pitch} {yaw}");
+        assert!((r.accel - want_a).amax() < 2e-14, "{roll} {pitch} {yaw}");
     }
 }
 
@@ -167,21 +165,21 @@ fn constant_velocity_east() {
     let w_en = Vec3::new(ve / (re + h), 0.0, -ve * lat.tan() / (re + h));
     let v = Vec3::new(0.0, ve, 0.0);
     let c = c_b_n_deg(0.0, 0.0, 90.0);
-    let want_g = c.tr_mul_vec(w_ie + w_en);
-    let mut a = (w_ie * 2.0 + w_en).cross(v);
-    a.0[2] -= gamma(lat, h);
-    let want_a = c.tr_mul_vec(a);
+    let want_g = c.tr_mul(&(w_ie + w_en));
+    let mut a = (w_ie * 2.0 + w_en).cross(&v);
+    a[2] -= gamma(lat, h);
+    let want_a = c.tr_mul(&a);
     for r in &rs {
         // cos(90°) is 6e-17, not 0, in the scene's heading: a 6e-15 m/s north component.
         assert!(
-            (r.gyro - want_g).max_abs() < 1e-18,
+            (r.gyro - want_g).amax() < 1e-18,
             "t {}: {:?} vs {:?}",
             r.t,
             r.gyro,
             want_g
         );
         assert!(
-            (r.accel - want_a).max_abs() < 1e-14,
+            (r.accel - want_a).amax() < 1e-14,
             "t {}: {:?} vs {:?}",
             r.t,
             r.accel,
@@ -215,23 +213,23 @@ fn constant_velocity_north() {
         let vdot = Vec3::new(drn * lat_rate * lat_rate, 0.0, 0.0);
         let w_ie = Vec3::new(OMEGA * lat.cos(), 0.0, -OMEGA * lat.sin());
         let w_en = Vec3::new(0.0, -lat_rate, 0.0);
-        let mut a = vdot + (w_ie * 2.0 + w_en).cross(v);
-        a.0[2] -= gamma(lat, h);
+        let mut a = vdot + (w_ie * 2.0 + w_en).cross(&v);
+        a[2] -= gamma(lat, h);
         (w_ie + w_en, a)
     };
     let rate = 10.0;
     let rs = records(m, rate, 1, 600, 3);
     for r in &rs {
         let (g, a) = mean_over(r.t - 1.0 / rate, r.t, closed);
-        assert!((r.gyro - g).max_abs() < 1e-18, "t {}", r.t);
-        assert!((r.accel - a).max_abs() < 2e-14, "t {}", r.accel.x() - a.x());
+        assert!((r.gyro - g).amax() < 1e-18, "t {}", r.t);
+        assert!((r.accel - a).amax() < 2e-14, "t {}", r.accel.x - a.x);
     }
 }
 
 /// Interval mean of a closed form by 16-node Gauss–Legendre on 8 sub-intervals.
 fn mean_over(a: f64, b: f64, f: impl Fn(f64) -> (Vec3, Vec3)) -> (Vec3, Vec3) {
     let rule = imu_emu::quadrature::GaussLegendre::new(16).unwrap();
-    let (mut g, mut s) = (Vec3::ZERO, Vec3::ZERO);
+    let (mut g, mut s) = (Vec3::zeros(), Vec3::zeros());
     let parts = 8;
     for j in 0..parts {
         let lo = a + (b - a) * j as f64 / parts as f64;
@@ -304,17 +302,17 @@ fn turn_closed_form(p: &SceneParams) -> impl Fn(f64) -> (Vec3, Vec3) {
         let psi = sgn * om * t;
         let bank = sgn * (v * om / g0).atan() + amp * (w * t).sin();
         let bank_d = amp * w * (w * t).cos();
-        let c = rot(2, psi).mul_mat(&rot(0, bank));
+        let c = rot(2, psi) * rot(0, bank);
         let w_nb = Vec3::new(bank_d, sgn * om * bank.sin(), sgn * om * bank.cos());
         let w_ie = Vec3::new(OMEGA * lat.cos(), 0.0, -OMEGA * lat.sin());
         let w_en = Vec3::new(
-            vn.y() / (re + h),
-            -vn.x() / (rn + h),
-            -vn.y() * lat.tan() / (re + h),
+            vn.y / (re + h),
+            -vn.x / (rn + h),
+            -vn.y * lat.tan() / (re + h),
         );
-        let mut a = vdot + (w_ie * 2.0 + w_en).cross(vn);
-        a.0[2] -= gamma(lat, h);
-        (w_nb + c.tr_mul_vec(w_ie + w_en), c.tr_mul_vec(a))
+        let mut a = vdot + (w_ie * 2.0 + w_en).cross(&vn);
+        a[2] -= gamma(lat, h);
+        (w_nb + c.tr_mul(&(w_ie + w_en)), c.tr_mul(&a))
     }
 }
 
@@ -339,8 +337,8 @@ fn level_turns_closed_form() {
             let s = m.sense(0, t);
             let (g, a) = closed(t);
             let scale = (a.norm() / 10.0).max(1.0);
-            eg = eg.max((s.omega_ib_b - g).max_abs() / scale);
-            ea = ea.max((s.f_b - a).max_abs() / scale);
+            eg = eg.max((s.omega_ib_b - g).amax() / scale);
+            ea = ea.max((s.f_b - a).amax() / scale);
         }
         println!(
             "turn R {} m: gyro {eg:.2e} rad/s, accel {ea:.2e} m/s² (per 10 m/s² of |f|)",
@@ -368,18 +366,18 @@ fn roll_oscillation_closed_form() {
     );
     let w_ie = Vec3::new(OMEGA * lat.cos(), 0.0, -OMEGA * lat.sin());
     let w_en = Vec3::new(ve / (re + h), 0.0, -ve * lat.tan() / (re + h));
-    let mut a_n = (w_ie * 2.0 + w_en).cross(Vec3::new(0.0, ve, 0.0));
-    a_n.0[2] -= gamma(lat, h);
+    let mut a_n = (w_ie * 2.0 + w_en).cross(&Vec3::new(0.0, ve, 0.0));
+    a_n[2] -= gamma(lat, h);
     let (mut eg, mut ea) = (0.0f64, 0.0f64);
     for i in 0..500 {
         let t = 0.0071 * i as f64;
         let phi = amp * (w * t).sin();
-        let c = rot(2, std::f64::consts::FRAC_PI_2).mul_mat(&rot(0, phi));
-        let g = Vec3::new(amp * w * (w * t).cos(), 0.0, 0.0) + c.tr_mul_vec(w_ie + w_en);
-        let a = c.tr_mul_vec(a_n);
+        let c = rot(2, std::f64::consts::FRAC_PI_2) * rot(0, phi);
+        let g = Vec3::new(amp * w * (w * t).cos(), 0.0, 0.0) + c.tr_mul(&(w_ie + w_en));
+        let a = c.tr_mul(&a_n);
         let s = m.sense(0, t);
-        eg = eg.max((s.omega_ib_b - g).max_abs());
-        ea = ea.max((s.f_b - a).max_abs());
+        eg = eg.max((s.omega_ib_b - g).amax());
+        ea = ea.max((s.f_b - a).amax());
     }
     println!("roll oscillation: gyro {eg:.2e} rad/s, accel {ea:.2e} m/s²");
     assert!(eg < 1e-15, "gyro {eg:e} rad/s");
@@ -409,7 +407,7 @@ fn coning_increments_closed_form() {
         for (i, r) in rs.iter().enumerate() {
             let k = (i + 1) as f64;
             let want = coning_dtheta(beta, om, lat, (k - 1.0) / rate, k / rate);
-            worst = worst.max((r.dtheta - want).max_abs());
+            worst = worst.max((r.dtheta - want).amax());
         }
         // Both sides evaluate sin β·cos(Ωt): the phase Ωt carries one ulp of its size, so the
         // floor is a few sin β·ulp(Ω t_end); everything else is far smaller.
@@ -436,10 +434,10 @@ fn polar_flight_closed_form_through_the_pole() {
     for t in [0.0, 30.0, 59.999, 60.0, 60.0001, 90.0, 119.0] {
         let (want_g, want_a) = polar_meridian(mu0 + c * t, c, h);
         let s = m.sense(0, t);
-        assert!(s.omega_ib_b.is_finite() && s.f_b.is_finite());
-        assert!((s.omega_ib_b - want_g).max_abs() < 1e-18, "t {t}");
+        assert!(all_finite(&s.omega_ib_b) && all_finite(&s.f_b));
+        assert!((s.omega_ib_b - want_g).amax() < 1e-18, "t {t}");
         assert!(
-            (s.f_b - want_a).max_abs() < 1e-14,
+            (s.f_b - want_a).amax() < 1e-14,
             "t {t}: {:?} {:?}",
             s.f_b,
             want_a
@@ -520,11 +518,11 @@ fn circle_exact_at_the_end_of_24_hours() {
         let t = r.t - 0.0005;
         let late = m.sense(m.piece_at(t, 0), t);
         let early = m.sense(0, t - n * period);
-        assert!((late.omega_ib_b - early.omega_ib_b).max_abs() < 1e-13);
-        assert!((late.f_b - early.f_b).max_abs() < 3e-11);
+        assert!((late.omega_ib_b - early.omega_ib_b).amax() < 1e-13);
+        assert!((late.f_b - early.f_b).amax() < 3e-11);
         let (g, a) = mean_over(r.t - 1.0 / rate, r.t, &closed);
-        eg = eg.max((r.gyro - g).max_abs());
-        ea = ea.max((r.accel - a).max_abs());
+        eg = eg.max((r.gyro - g).amax());
+        ea = ea.max((r.accel - a).amax());
     }
     println!("circle, last 10 records of 24 h at 1 kHz: gyro {eg:.2e} rad/s, accel {ea:.2e} m/s²");
     assert!(eg < 3e-16, "gyro {eg:e} rad/s");
@@ -567,7 +565,7 @@ fn coning_exact_at_the_end_of_24_hours() {
     for r in &tail {
         let k = (r.t * rate).round();
         let want = coning_dtheta(beta, om, lat, (k - 1.0) / rate, k / rate);
-        worst = worst.max((r.dtheta - want).max_abs());
+        worst = worst.max((r.dtheta - want).amax());
     }
     let floor = 4.0 * beta.sin() * om * 86_400.0 * f64::EPSILON;
     println!("coning, last 10 records of 24 h at 10 Hz: Δθ {worst:.2e} rad (floor {floor:.2e})");
@@ -594,22 +592,20 @@ fn interval_means_for_dt_from_10us_to_1s() {
             });
             println!(
                 "rate {rate}: gyro {:.2e}, accel {:.2e}",
-                (r.gyro - g).max_abs(),
-                (r.accel - a).max_abs()
+                (r.gyro - g).amax(),
+                (r.accel - a).amax()
             );
             assert!(
-                (r.gyro - g).max_abs() < tol_g,
+                (r.gyro - g).amax() < tol_g,
                 "rate {rate}: {:e}",
-                (r.gyro - g).max_abs()
+                (r.gyro - g).amax()
             );
             assert!(
-                (r.accel - a).max_abs() < tol_a,
+                (r.accel - a).amax() < tol_a,
                 "rate {rate}: {:e}",
-                (r.accel - a).max_abs()
+                (r.accel - a).amax()
             );
-            assert!(
-                (r.dtheta - r.gyro * (1.0 / rate)).max_abs() <= 2.3e-16 * r.gyro.max_abs() / rate
-            );
+            assert!((r.dtheta - r.gyro * (1.0 / rate)).amax() <= 2.3e-16 * r.gyro.amax() / rate);
         }
     }
 }
@@ -700,10 +696,10 @@ fn sampled_trajectory_at_pitch_90() {
 fn euler_convention_is_zyx() {
     let q: Quat = imu_emu::math::quat_from_euler(0.1, -0.7, 2.2);
     let m = q.to_mat();
-    let c = rot(2, 2.2).mul_mat(&rot(1, -0.7)).mul_mat(&rot(0, 0.1));
+    let c = rot(2, 2.2) * rot(1, -0.7) * rot(0, 0.1);
     for i in 0..3 {
         for j in 0..3 {
-            assert!((m.0[i][j] - c.0[i][j]).abs() < 1e-15);
+            assert!((m[(i, j)] - c[(i, j)]).abs() < 1e-15);
         }
     }
 }
@@ -773,48 +769,42 @@ fn ned_and_ecef_forms_agree_with_an_independent_transport_rate() {
             c_b_n,
             omega_nb_b,
         });
-        let (lat_dot, lon_dot) = (v_n.x() / (rn + h), v_n.y() / ((re + h) * lat.cos()));
+        let (lat_dot, lon_dot) = (v_n.x / (rn + h), v_n.y / ((re + h) * lat.cos()));
         let w_en = Vec3::new(lon_dot * lat.cos(), -lat_dot, -lon_dot * lat.sin());
         // C_n^e = Rz(λ) Ry(−φ − π/2): columns north, east, down in ECEF.
-        let c_n_e = rot(2, lon).mul_mat(&rot(1, -lat - std::f64::consts::FRAC_PI_2));
+        let c_n_e = rot(2, lon) * rot(1, -lat - std::f64::consts::FRAC_PI_2);
         let (sl, cl, so, co) = (lat.sin(), lat.cos(), lon.sin(), lon.cos());
-        let by_hand = [
-            [-sl * co, -so, -cl * co],
-            [-sl * so, co, -cl * so],
-            [cl, 0.0, -sl],
-        ];
-        for (row, want) in c_n_e.0.iter().zip(by_hand) {
-            for (x, y) in row.iter().zip(want) {
-                assert!((x - y).abs() < 1e-15, "C_n^e {:e}", x - y);
-            }
+        #[rustfmt::skip]
+        let by_hand = Mat3::new(
+            -sl * co, -so, -cl * co,
+            -sl * so, co, -cl * so,
+            cl, 0.0, -sl,
+        );
+        for (x, y) in c_n_e.iter().zip(by_hand.iter()) {
+            assert!((x - y).abs() < 1e-15, "C_n^e {:e}", x - y);
         }
         // The same rotations as unit quaternions, for the engine's ECEF state.
-        let q_n_e = Quat::from_rotvec(Vec3::new(0.0, 0.0, lon)).mul(Quat::from_rotvec(Vec3::new(
-            0.0,
-            -lat - std::f64::consts::FRAC_PI_2,
-            0.0,
-        )));
+        let q_n_e = Quat::from_rotvec(Vec3::new(0.0, 0.0, lon))
+            * Quat::from_rotvec(Vec3::new(0.0, -lat - std::f64::consts::FRAC_PI_2, 0.0));
         let q_b_n = imu_emu::math::quat_from_euler(
             f64::to_radians(roll),
             f64::to_radians(pitch),
             f64::to_radians(yaw),
         );
-        let q_b_e = q_n_e.mul(q_b_n);
-        let c_b_e = c_n_e.mul_mat(&c_b_n);
-        for (row, want) in q_b_e.to_mat().0.iter().zip(c_b_e.0) {
-            for (x, y) in row.iter().zip(want) {
-                assert!((x - y).abs() < 4e-15, "C_b^e {:e}", x - y);
-            }
+        let q_b_e = q_n_e * q_b_n;
+        let c_b_e = c_n_e * c_b_n;
+        for (x, y) in q_b_e.to_mat().iter().zip(c_b_e.iter()) {
+            assert!((x - y).abs() < 4e-15, "C_b^e {:e}", x - y);
         }
         let ecef = sense_ecef(&EcefState {
             pos: Geodetic::from_radians(lat, lon, h),
-            v_e: c_n_e.mul_vec(v_n),
-            a_e: c_n_e.mul_vec(v_dot_n + w_en.cross(v_n)),
+            v_e: c_n_e * v_n,
+            a_e: c_n_e * (v_dot_n + w_en.cross(&v_n)),
             q_b_e,
-            omega_eb_b: omega_nb_b + c_b_n.tr_mul_vec(w_en),
+            omega_eb_b: omega_nb_b + c_b_n.tr_mul(&w_en),
         });
-        eg = eg.max((ned.omega_ib_b - ecef.omega_ib_b).max_abs());
-        ea = ea.max((ned.f_b - ecef.f_b).max_abs());
+        eg = eg.max((ned.omega_ib_b - ecef.omega_ib_b).amax());
+        ea = ea.max((ned.f_b - ecef.f_b).amax());
     }
     println!("NED vs ECEF form: gyro {eg:.2e} rad/s, accel {ea:.2e} m/s²");
     assert!(eg < 1e-17, "gyro {eg:e} rad/s");

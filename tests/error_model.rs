@@ -23,6 +23,7 @@ use imu_emu::analysis::allan::{self, AllanPoint};
 use imu_emu::errors::chain::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED};
 use imu_emu::errors::template::TriadModel;
 use imu_emu::errors::{ErrorChain, ImuModel, template};
+use imu_emu::math::Vec3;
 use imu_emu::record::Record;
 use imu_emu::units::{G0, Lsb};
 
@@ -565,8 +566,14 @@ misalignment_turn_on = ["0.2 mrad", "0.1 mrad", "0.3 mrad", "0.2 mrad", "0.1 mra
             .collect();
         ErrorChain::new(&m, rate, seed).apply(&mut r);
         for (angles, cols) in [
-            (&mut gyro, r.iter().map(|r| r.gyro.0).collect::<Vec<_>>()),
-            (&mut accel, r.iter().map(|r| r.accel.0).collect::<Vec<_>>()),
+            (
+                &mut gyro,
+                r.iter().map(|r| r.gyro.into()).collect::<Vec<[f64; 3]>>(),
+            ),
+            (
+                &mut accel,
+                r.iter().map(|r| r.accel.into()).collect::<Vec<[f64; 3]>>(),
+            ),
         ] {
             for (a, v) in angles.iter_mut().zip(angles_from_columns(&cols)) {
                 a.push(v);
@@ -631,8 +638,8 @@ scale_factor_asymmetry = ["15 ppm", "-35 ppm", "80 ppm"]
     .enumerate()
     {
         for a in 0..3 {
-            let pos = [r[0].gyro, r[0].accel][i].0[a] / x - 1.0;
-            let neg = [r[1].gyro, r[1].accel][i].0[a] / -x - 1.0;
+            let pos = [r[0].gyro, r[0].accel][i][a] / x - 1.0;
+            let neg = [r[1].gyro, r[1].accel][i][a] / -x - 1.0;
             let (s_hat, a_hat) = ((pos + neg) / 2.0, pos - neg);
             assert!(
                 (s_hat - sf[a]).abs() <= ROUND_OFF,
@@ -675,7 +682,7 @@ scale_factor_quadratic = ["10 ug/g^2", "-25 ug/g^2", "40 ug/g^2"]
         .collect();
     ErrorChain::new(&m, rate, 1).apply(&mut r);
     for a in 0..3 {
-        let (up, down) = (r[2 * a].accel.0[a], r[2 * a + 1].accel.0[a]);
+        let (up, down) = (r[2 * a].accel[a], r[2 * a + 1].accel[a]);
         let k2_hat = (up + down) / (2.0 * G0 * G0);
         let s_hat = (up - down) / (2.0 * G0) - 1.0;
         eprintln!("quadratic axis {a}: k̂₂/k₂ − 1 = {:e}", k2_hat / k2[a] - 1.0);
@@ -686,7 +693,7 @@ scale_factor_quadratic = ["10 ug/g^2", "-25 ug/g^2", "40 ug/g^2"]
         assert!((s_hat - 200e-6).abs() <= ROUND_OFF, "SF axis {a}");
         // Off-axis outputs stay exactly zero.
         for b in (0..3).filter(|b| *b != a) {
-            assert_eq!(r[2 * a].accel.0[b], 0.0);
+            assert_eq!(r[2 * a].accel[b], 0.0);
         }
     }
 }
@@ -716,11 +723,9 @@ misalignment = ["-1 mrad", "2 mrad", "-3 mrad", "4 mrad", "-5 mrad", "6 mrad"]
         })
         .collect();
     ErrorChain::new(&m, rate, 1).apply(&mut r);
-    let gyro_cols: Vec<[f64; 3]> = (0..3).map(|j| r[2 * j].gyro.0).collect();
+    let gyro_cols: Vec<[f64; 3]> = (0..3).map(|j| r[2 * j].gyro.into()).collect();
     let accel_cols: Vec<[f64; 3]> = (0..3)
-        .map(|j| {
-            std::array::from_fn(|i| (r[2 * j].accel.0[i] - r[2 * j + 1].accel.0[i]) / (2.0 * G0))
-        })
+        .map(|j| std::array::from_fn(|i| (r[2 * j].accel[i] - r[2 * j + 1].accel[i]) / (2.0 * G0)))
         .collect();
     for (name, cols, truth) in [
         ("gyro", gyro_cols, m.gyro.misalignment),
@@ -762,7 +767,7 @@ g_sensitivity = ["1 deg/h/g", "-2 deg/h/g", "3 deg/h/g", "0.5 deg/h/g", "4 deg/h
     ErrorChain::new(&m, rate, 1).apply(&mut r);
     for j in 0..3 {
         for i in 0..3 {
-            let g_hat = (r[2 * j].gyro.0[i] - r[2 * j + 1].gyro.0[i]) / (2.0 * G0);
+            let g_hat = (r[2 * j].gyro[i] - r[2 * j + 1].gyro[i]) / (2.0 * G0);
             let g = m.gyro.g_sensitivity[3 * i + j];
             assert!(
                 (g_hat - g).abs() <= ROUND_OFF * 1e-4 / G0,
@@ -804,7 +809,7 @@ misalignment = ["1 mrad", "2 mrad", "3 mrad", "4 mrad", "5 mrad", "6 mrad"]
         std::array::from_fn(|i| (1.0 + m.gyro.scale_factor[i]) * x[i] + m.gyro.bias[i]);
     for (i, row) in mm.iter().enumerate() {
         let y = row[0] * u[0] + row[1] * u[1] + row[2] * u[2];
-        assert!((r[0].gyro.0[i] - y).abs() <= ROUND_OFF, "axis {i}");
+        assert!((r[0].gyro[i] - y).abs() <= ROUND_OFF, "axis {i}");
     }
 }
 
@@ -834,18 +839,18 @@ quantization = "1e-4 m/s"
     ];
     ErrorChain::new(&m, rate, 1).apply(&mut r);
     assert_eq!(r[0].flags, 0);
-    assert_eq!(r[0].gyro.0, [0.5 * rg, -0.9 * rg, rg]);
+    assert_eq!(r[0].gyro, Vec3::new(0.5 * rg, -0.9 * rg, rg));
     assert_eq!(r[1].flags, FLAG_GYRO_SATURATED);
-    assert_eq!(r[1].gyro.0, [rg, -rg, 0.0]);
+    assert_eq!(r[1].gyro, Vec3::new(rg, -rg, 0.0));
     assert_eq!(r[2].flags, FLAG_ACCEL_SATURATED);
     assert_eq!(r[3].flags, FLAG_GYRO_SATURATED | FLAG_ACCEL_SATURATED);
-    assert_eq!(r[3].gyro.0[0], -rg);
+    assert_eq!(r[3].gyro[0], -rg);
     // Clamped accelerations are then quantized (carry): within one LSB of ±range.
     let q = 1e-4 / (1.0 / rate);
-    assert!((r[2].accel.0[0] - ra).abs() <= q && (r[2].accel.0[2] + ra).abs() <= q);
-    assert!((r[3].accel.0[1] - ra).abs() <= q);
+    assert!((r[2].accel[0] - ra).abs() <= q && (r[2].accel[2] + ra).abs() <= q);
+    assert!((r[3].accel[1] - ra).abs() <= q);
     for x in &r {
-        assert!(x.accel.0.iter().all(|a| a.abs() <= ra + q));
+        assert!(x.accel.iter().all(|a| a.abs() <= ra + q));
     }
 }
 
@@ -1034,15 +1039,15 @@ misalignment_turn_on = "0.2 mrad"
             "gyro changed by the accel noise at {k}"
         );
         for i in 0..3 {
-            let d = rb[k].gyro.0[i] - ra[k].gyro.0[i];
+            let d = rb[k].gyro[i] - ra[k].gyro[i];
             assert!(
-                (d - rc[k].gyro.0[i]).abs() <= tol_g,
+                (d - rc[k].gyro[i]).abs() <= tol_g,
                 "gyro GM difference at {k}"
             );
-            let d2 = ra2[k].accel.0[i] - ra[k].accel.0[i];
-            let comp = ra[k].accel.0[i] - ra0[k].accel.0[i];
+            let d2 = ra2[k].accel[i] - ra[k].accel[i];
+            let comp = ra[k].accel[i] - ra0[k].accel[i];
             assert!((d2 - comp).abs() <= tol_a, "accel noise difference at {k}");
-            resid[0] = resid[0].max((d - rc[k].gyro.0[i]).abs());
+            resid[0] = resid[0].max((d - rc[k].gyro[i]).abs());
             resid[1] = resid[1].max((d2 - comp).abs());
             moved[0] = moved[0].max(d.abs());
             moved[1] = moved[1].max(d2.abs());
@@ -1215,7 +1220,7 @@ fn correlated_noise_across_axes() {
     let mut chain = ErrorChain::new(&m, rate, 5);
     let mut recs: Vec<Record> = (0..n).map(|k| zero(k, rate)).collect();
     chain.apply(&mut recs);
-    let axis = |i: usize| -> Vec<f64> { recs.iter().map(|r| r.gyro.0[i]).collect() };
+    let axis = |i: usize| -> Vec<f64> { recs.iter().map(|r| r.gyro[i]).collect() };
     let (x, y, z) = (axis(0), axis(1), axis(2));
     let sigma = 0.1f64.to_radians() / 60.0 * rate.sqrt();
     for (v, name) in [(&x, "x"), (&y, "y"), (&z, "z")] {

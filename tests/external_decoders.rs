@@ -150,8 +150,8 @@ fn pymavlink_check(name: &str, kind: &str) {
         assert_eq!(m.i("seq"), k as i64 % 256);
         assert_eq!(m.i("time_usec"), (r.t * 1e6).round() as i64);
         for (i, a) in ["x", "y", "z"].iter().enumerate() {
-            assert_eq!(m.f(&format!("{a}acc")), r.accel.0[i] as f32 as f64);
-            assert_eq!(m.f(&format!("{a}gyro")), r.gyro.0[i] as f32 as f64);
+            assert_eq!(m.f(&format!("{a}acc")), r.accel[i] as f32 as f64);
+            assert_eq!(m.f(&format!("{a}gyro")), r.gyro[i] as f32 as f64);
         }
         assert_eq!(m.f("temperature"), 25.0);
         assert_eq!(m.i("fields_updated"), 0x103F);
@@ -195,8 +195,8 @@ fn novatel_edie_decodes_our_rawimusx_frames() {
             ("gyro_x", Source::Gyro(0), 1.0),
         ] {
             let v = match s {
-                Source::Accel(i) => r.accel.0[i],
-                Source::Gyro(i) => r.gyro.0[i],
+                Source::Accel(i) => r.accel[i],
+                Source::Gyro(i) => r.gyro[i],
                 _ => unreachable!(),
             };
             assert_eq!(m.i(key), counts(sign * v, s), "{key} of frame {k}");

@@ -11,7 +11,7 @@
 use imu_emu::earth;
 use imu_emu::generator::IdealImu;
 use imu_emu::job;
-use imu_emu::math::Vec3;
+use imu_emu::math::{QuatExt, Vec3};
 use imu_emu::motion::Motion;
 use imu_emu::nav::strapdown::rotation_vector;
 use imu_emu::nav::{NavState, Navigator, Settings, SettingsError, StateError, close};
@@ -106,10 +106,10 @@ fn two_sample_window_is_the_classic_coning_correction() {
     let diff = |eps: f64| {
         let a = Vec3::new(0.3, -0.8, 0.5) * eps;
         let b = Vec3::new(-0.6, 0.1, 0.9) * eps;
-        let classic = b + a.cross(b) * (1.0 / 12.0);
+        let classic = b + a.cross(&b) * (1.0 / 12.0);
         let got = rotation_vector(two, &[a, b]);
         // The correction itself is second order and must be there.
-        assert!((got - b).norm() > 0.5 * (a.cross(b) * (1.0 / 12.0)).norm());
+        assert!((got - b).norm() > 0.5 * (a.cross(&b) * (1.0 / 12.0)).norm());
         (got - classic).norm()
     };
     let (d1, d2) = (diff(1e-2), diff(5e-3));
@@ -198,9 +198,9 @@ fn accel_bias_gives_schuler_error() {
         let (cw, sw) = ((wf * t).cos(), (wf * t).sin() * oz / wf);
         let north = a * (1.0 - (c * cw + s * sw));
         let east = -a * (s * cw - c * sw);
-        dev_n = dev_n.max((e.pos_ned.x() - north).abs());
-        dev_e = dev_e.max((e.pos_ned.y() - east).abs());
-        peak = peak.max(e.pos_ned.x());
+        dev_n = dev_n.max((e.pos_ned.x - north).abs());
+        dev_e = dev_e.max((e.pos_ned.y - east).abs());
+        peak = peak.max(e.pos_ned.x);
     }
     println!(
         "Schuler period {period_min:.2} min, peak north error {peak:.2} m (2b/ω² = {:.2} m); deviation from the closed form: north {dev_n:.4} m, east {dev_e:.4} m",
@@ -286,26 +286,26 @@ fn gyro_bias_gives_schuler_bounded_tilt() {
         g.up_e() * -earth::normal_gravity(g.sin_lat, g.h)
     };
     let gg: [Vec3; 3] = std::array::from_fn(|j| {
-        let mut d = Vec3::ZERO;
-        d.0[j] = 1.0;
+        let mut d = Vec3::zeros();
+        d[j] = 1.0;
         (grav(s0.r_e + d) - grav(s0.r_e - d)) * 0.5
     });
-    let gradient = |dr: Vec3| gg[0] * dr.x() + gg[1] * dr.y() + gg[2] * dr.z();
+    let gradient = |dr: Vec3| gg[0] * dr.x + gg[1] * dr.y + gg[2] * dr.z;
     let w_ie = Vec3::new(0.0, 0.0, earth::OMEGA_IE);
     let f_e = grav(s0.r_e) * -1.0;
     let eps_e = s0.q_b_e.rotate(eps_b);
     let deriv = |x: &[Vec3; 3]| -> [Vec3; 3] {
         let [psi, dv, dr] = *x;
         [
-            -w_ie.cross(psi) - eps_e,
-            -psi.cross(f_e) - (w_ie * 2.0).cross(dv) + gradient(dr),
+            -w_ie.cross(&psi) - eps_e,
+            -psi.cross(&f_e) - (w_ie * 2.0).cross(&dv) + gradient(dr),
             dv,
         ]
     };
     let add = |x: &[Vec3; 3], k: &[Vec3; 3], h: f64| -> [Vec3; 3] {
         std::array::from_fn(|i| x[i] + k[i] * h)
     };
-    let mut x = [Vec3::ZERO; 3];
+    let mut x = [Vec3::zeros(); 3];
     let c_n_e = geo0.c_n_e();
     let (mut dev_pos, mut dev_psi, mut largest, mut tilt_max) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for r in &rec {
@@ -318,41 +318,41 @@ fn gyro_bias_gives_schuler_bounded_tilt() {
         for i in 0..3 {
             x[i] += (k1[i] + k2[i] * 2.0 + k3[i] * 2.0 + k4[i]) * (dt / 6.0);
         }
-        x[1] = x[1] - up * up.dot(x[1]);
-        x[2] = x[2] - up * up.dot(x[2]);
+        x[1] = x[1] - up * up.dot(&x[1]);
+        x[2] = x[2] - up * up.dot(&x[2]);
         let st = nav.state();
         let e = StateError::of(&st, &m.pose(st.t));
-        let model_pos = c_n_e.tr_mul_vec(x[2]);
+        let model_pos = c_n_e.tr_mul(&x[2]);
         dev_pos = dev_pos.max((e.pos_ned - model_pos).norm());
         largest = largest.max(e.pos_ned.norm());
         // ψ of the navigator: C_nav C_trueᵀ = I − [ψ×].
         let truth_q = NavState::from_pose(&m.pose(st.t)).q_b_e;
-        let psi = -st.q_b_e.mul(truth_q.conj()).to_rotvec();
+        let psi = -(st.q_b_e * truth_q.conjugate()).to_rotvec();
         dev_psi = dev_psi.max((psi - x[0]).norm());
         // The tilt a user sees (attitude against the navigator's own local level).
-        tilt_max = tilt_max.max(e.att_ned.x().hypot(e.att_ned.y()));
+        tilt_max = tilt_max.max(e.att_ned.x.hypot(e.att_ned.y));
     }
     let w_s =
         (earth::normal_gravity(geo0.sin_lat, 0.0) / earth::radius_meridian(geo0.sin_lat)).sqrt();
     let t_end = n as f64 * dt;
     let classic =
-        earth::radius_meridian(geo0.sin_lat) * eps_b.y() * (t_end - (w_s * t_end).sin() / w_s);
+        earth::radius_meridian(geo0.sin_lat) * eps_b.y * (t_end - (w_s * t_end).sin() / w_s);
     println!(
         "gyro bias 0.01 deg/h east, {t_end} s: largest position error {largest:.2} m (classic R·ε(t − sin ω_s t/ω_s) at the end: {classic:.2} m, Earth-rate coupling ignored); \
          deviation from the linear model: position {dev_pos:.3e} m, ψ {dev_psi:.3e} rad; largest tilt {tilt_max:.3e} rad (ε/ω_s = {:.3e}, ε·t = {:.3e})",
-        eps_b.y() / w_s,
-        eps_b.y() * t_end
+        eps_b.y / w_s,
+        eps_b.y * t_end
     );
     assert!(
         dev_pos <= 5e-4 * largest,
         "position deviation {dev_pos} m of {largest} m"
     );
     assert!(
-        dev_psi <= 5e-4 * eps_b.y() * t_end,
+        dev_psi <= 5e-4 * eps_b.y * t_end,
         "ψ deviation {dev_psi} rad"
     );
     // Schuler-bounded: the tilt stays at ε/ω_s.
-    let classic_tilt = eps_b.y() / w_s;
+    let classic_tilt = eps_b.y / w_s;
     assert!(
         (tilt_max - classic_tilt).abs() <= 0.06 * classic_tilt,
         "tilt {tilt_max} rad, classic {classic_tilt} rad"

@@ -26,7 +26,7 @@ fn plans() -> Vec<Plan> {
 }
 
 fn vec3(r: f64) -> impl Strategy<Value = Vec3> {
-    prop::array::uniform3(-r..r).prop_map(Vec3)
+    prop::array::uniform3(-r..r).prop_map(Vec3::from)
 }
 
 /// Records inside every protocol's range: rates ±3 rad/s, specific force ±15 m/s² (STIM300
@@ -82,10 +82,10 @@ proptest! {
                 };
                 for (s, v) in &d.values {
                     let want = match *s {
-                        Source::Gyro(i) => r.gyro.0[i],
-                        Source::Accel(i) => r.accel.0[i],
-                        Source::DTheta(i) => dtheta.0[i],
-                        Source::Dv(i) => dv.0[i],
+                        Source::Gyro(i) => r.gyro[i],
+                        Source::Accel(i) => r.accel[i],
+                        Source::DTheta(i) => dtheta[i],
+                        Source::Dv(i) => dv[i],
                         Source::Temperature => 25.0,
                         // No magnetometer is simulated (KVH Format C).
                         Source::Mag(_) => 0.0,

@@ -88,10 +88,10 @@ fn golden_vectors_decode_and_reencode() {
                     "{name} {k}: {got} vs {want}"
                 );
                 match s {
-                    Source::Gyro(i) => rec.gyro.0[i] = got,
-                    Source::Accel(i) => rec.accel.0[i] = got,
-                    Source::DTheta(i) => rec.dtheta.0[i] = got,
-                    Source::Dv(i) => rec.dv.0[i] = got,
+                    Source::Gyro(i) => rec.gyro[i] = got,
+                    Source::Accel(i) => rec.accel[i] = got,
+                    Source::DTheta(i) => rec.dtheta[i] = got,
+                    Source::Dv(i) => rec.dv[i] = got,
                     Source::Time => rec.t = got,
                     Source::Counter => counter = got as u64,
                     // Re-encoding without flags or faults gives the healthy value.
@@ -165,10 +165,10 @@ fn random_round_trips_and_corruption() {
             };
             for (s, v) in &d.values {
                 let want = match *s {
-                    Source::Gyro(i) => r.gyro.0[i],
-                    Source::Accel(i) => r.accel.0[i],
-                    Source::DTheta(i) => dtheta.0[i],
-                    Source::Dv(i) => dv.0[i],
+                    Source::Gyro(i) => r.gyro[i],
+                    Source::Accel(i) => r.accel[i],
+                    Source::DTheta(i) => dtheta[i],
+                    Source::Dv(i) => dv[i],
                     Source::Time => r.t,
                     // Counters are checked by the golden vectors and the stream tests.
                     Source::Counter | Source::Status => continue,

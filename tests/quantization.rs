@@ -53,7 +53,7 @@ fn quantity(r: &Record, lsb: Lsb) -> [f64; 6] {
         Lsb::Increment(_) => (r.dtheta, r.dv),
         Lsb::Rate(_) => (r.gyro, r.accel),
     };
-    [g.0, a.0].concat().try_into().expect("six values")
+    [g[0], g[1], g[2], a[0], a[1], a[2]]
 }
 
 /// The step of an LSB.
@@ -146,8 +146,8 @@ fn outputs_are_multiples_of_the_lsb() {
                     match kind {
                         Kind::Increment => {
                             for i in 0..3 {
-                                assert_eq!(o.gyro.0[i], o.dtheta.0[i] / dt);
-                                assert_eq!(o.accel.0[i], o.dv.0[i] / dt);
+                                assert_eq!(o.gyro[i], o.dtheta[i] / dt);
+                                assert_eq!(o.accel[i], o.dv[i] / dt);
                             }
                         }
                         Kind::Rate => {
@@ -193,10 +193,10 @@ fn rate_lsb_templates_output_on_the_grid() {
             for (k, o) in out.iter().enumerate() {
                 for i in 0..3 {
                     assert!(
-                        on_grid(o.gyro.0[i], q[0]) && on_grid(o.accel.0[i], q[1]),
+                        on_grid(o.gyro[i], q[0]) && on_grid(o.accel[i], q[1]),
                         "{name} {rate} Hz record {k} axis {i}: {:e} {:e}",
-                        o.gyro.0[i],
-                        o.accel.0[i]
+                        o.gyro[i],
+                        o.accel[i]
                     );
                 }
                 assert_eq!(o.dtheta, o.gyro * (1.0 / rate));
@@ -304,7 +304,7 @@ fn carry_adev() {
                     let inp = input(k0 + j, rate);
                     let d = [r.dtheta - inp.dtheta, r.dv - inp.dv];
                     for (i, v) in err.iter_mut().enumerate() {
-                        v.push(d[i / 3].0[i % 3] / dt);
+                        v.push(d[i / 3][i % 3] / dt);
                     }
                 }
             });

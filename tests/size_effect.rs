@@ -53,10 +53,10 @@ fn static_centripetal_closed_form() {
     let w = plain[0].gyro;
     for (a, b) in plain.iter().zip(&moved) {
         for (i, p) in pos.iter().enumerate() {
-            let r = Vec3(*p);
-            let want = (w * w.dot(r) - r * w.dot(w)).0[i];
-            let got = b.accel.0[i] - a.accel.0[i];
-            let ulp = 2.0 * f64::EPSILON * a.accel.0[i].abs().max(1.0);
+            let r = Vec3::from(*p);
+            let want = (w * w.dot(&r) - r * w.dot(&w))[i];
+            let got = b.accel[i] - a.accel[i];
+            let ulp = 2.0 * f64::EPSILON * a.accel[i].abs().max(1.0);
             assert!((got - want).abs() <= ulp, "axis {i}: {got:e} vs {want:e}");
         }
     }
@@ -87,14 +87,14 @@ fn fast_rotation_matches_the_definition() {
                     + (omega(t + h) - omega(t - h)) * (8.0 / (12.0 * h));
                 let w = omega(t);
                 for (i, p) in pos.iter().enumerate() {
-                    let r = Vec3(*p);
-                    let add = wdot.cross(r) + w.cross(w.cross(r));
-                    want[i] += add.0[i] * wt / 8.0;
+                    let r = Vec3::from(*p);
+                    let add = wdot.cross(&r) + w.cross(&w.cross(&r));
+                    want[i] += add[i] * wt / 8.0;
                 }
             }
         }
         for (i, want) in want.iter().enumerate() {
-            let got = b.accel.0[i] - a.accel.0[i];
+            let got = b.accel[i] - a.accel[i];
             assert!(
                 (got - want).abs() < 1e-8,
                 "t {} axis {i}: {got} vs {want}",

@@ -46,7 +46,7 @@ use std::time::Instant;
 
 use imu_emu::earth::{self, Geodetic, ecef_to_geodetic};
 use imu_emu::generator::IdealImu;
-use imu_emu::math::{Quat, Vec3};
+use imu_emu::math::{Quat, QuatExt, Vec3};
 use imu_emu::motion::{Motion, Pose};
 use imu_emu::record::Record;
 use imu_emu::scenes::{self, SceneParams};
@@ -218,21 +218,23 @@ fn interval_poly(
     let start = k.saturating_sub(half).min(inc.len() - WINDOW);
     let o = k - start;
     let win = &inc[start..start + WINDOW];
-    let mut c = [Vec3::ZERO; WINDOW];
+    let mut c = [Vec3::zeros(); WINDOW];
     for (m, cm) in c.iter_mut().enumerate().skip(1) {
         *cm = win
             .iter()
             .zip(&weights[o][m])
-            .fold(Vec3::ZERO, |acc, (d, w)| acc + *d * *w);
+            .fold(Vec3::zeros(), |acc, (d, w)| acc + *d * *w);
     }
-    let higher = (1..WINDOW).fold(Vec3::ZERO, |acc, m| acc + c[m] * (1.0 / (m + 1) as f64));
+    let higher = (1..WINDOW).fold(Vec3::zeros(), |acc, m| acc + c[m] * (1.0 / (m + 1) as f64));
     c[0] = inc[k] - higher;
     c
 }
 
 /// Horner evaluation of a vector polynomial in τ: the reconstructed signal (times Δt) at a stage.
 fn eval_poly(c: &[Vec3; WINDOW], tau: f64) -> Vec3 {
-    c.iter().rev().fold(Vec3::ZERO, |acc, cm| acc * tau + *cm)
+    c.iter()
+        .rev()
+        .fold(Vec3::zeros(), |acc, cm| acc * tau + *cm)
 }
 
 /// Quaternion of the state vector, so the rotation algebra can use the library's `Quat`.
@@ -249,22 +251,13 @@ fn deriv(r0: Vec3, y: &State, w_b: Vec3, f_b: Vec3) -> State {
     let geo = ecef_to_geodetic(r0 + Vec3::new(y[0], y[1], y[2]));
     let gamma = earth::normal_gravity(geo.sin_lat, geo.h);
     // Rotation by the direction of q (stage values are unit only to the method's order).
-    let f_e = q.rotate(f_b) * (1.0 / q.norm2());
-    let v_dot = f_e - (w_ie * 2.0).cross(v) - geo.up_e() * gamma;
-    let body = q.mul(Quat { w: 0.0, v: w_b });
-    let earth_rot = Quat { w: 0.0, v: w_ie }.mul(q);
-    let q_dot = body.add(earth_rot.scale(-1.0)).scale(0.5);
+    let f_e = q.rotate(f_b) * (1.0 / q.norm_squared());
+    let v_dot = f_e - (w_ie * 2.0).cross(&v) - geo.up_e() * gamma;
+    let body = q * Quat::from_parts(0.0, w_b);
+    let earth_rot = Quat::from_parts(0.0, w_ie) * q;
+    let q_dot = (body - earth_rot) * 0.5;
     [
-        v.x(),
-        v.y(),
-        v.z(),
-        v_dot.x(),
-        v_dot.y(),
-        v_dot.z(),
-        q_dot.w,
-        q_dot.v.x(),
-        q_dot.v.y(),
-        q_dot.v.z(),
+        v.x, v.y, v.z, v_dot.x, v_dot.y, v_dot.z, q_dot.w, q_dot.i, q_dot.j, q_dot.k,
     ]
 }
 
@@ -303,9 +296,9 @@ fn gauss_step(
     }
     let q = state_quat(&out).normalized();
     out[6] = q.w;
-    out[7] = q.v.x();
-    out[8] = q.v.y();
-    out[9] = q.v.z();
+    out[7] = q.i;
+    out[8] = q.j;
+    out[9] = q.k;
     out
 }
 
@@ -313,11 +306,7 @@ fn gauss_step(
 /// are needed in the form the mechanization integrates.
 fn pose_to_ecef(p: &Pose) -> (Vec3, Vec3, Quat) {
     let geo = Geodetic::from_radians(p.lat, p.lon, p.h);
-    (
-        geo.to_ecef(),
-        geo.c_n_e().mul_vec(p.v_n),
-        geo.q_n_e().mul(p.q_b_n),
-    )
+    (geo.to_ecef(), geo.c_n_e() * p.v_n, geo.q_n_e() * p.q_b_n)
 }
 
 /// Where the integrator takes ω_ib^b and f^b from.
@@ -369,18 +358,7 @@ fn run(scene: &str, seconds: f64, source: Signals) -> Errors {
     let tab = gauss_tableau();
     let weights = reconstruction_weights();
     let (r0, v0, q0) = pose_to_ecef(&motion.pose(0.0));
-    let mut y: State = [
-        0.0,
-        0.0,
-        0.0,
-        v0.x(),
-        v0.y(),
-        v0.z(),
-        q0.w,
-        q0.v.x(),
-        q0.v.y(),
-        q0.v.z(),
-    ];
+    let mut y: State = [0.0, 0.0, 0.0, v0.x, v0.y, v0.z, q0.w, q0.i, q0.j, q0.k];
     let mut piece = 0;
     for k in 0..n {
         match source {
@@ -428,14 +406,14 @@ fn run(scene: &str, seconds: f64, source: Signals) -> Errors {
     let pi = std::f64::consts::PI;
     let dlon = (geo.lon() - truth.lon + pi).rem_euclid(2.0 * pi) - pi;
     Errors {
-        pos_ned: c_n_e.tr_mul_vec(r - r_t),
+        pos_ned: c_n_e.tr_mul(&(r - r_t)),
         pos_geo: Vec3::new(
             (geo.lat() - truth.lat) * (earth::radius_meridian(s) + truth.h),
             dlon * (earth::radius_prime_vertical(s) + truth.h) * geo_t.cos_lat,
             -(geo.h - truth.h),
         ),
-        vel_ned: c_n_e.tr_mul_vec(Vec3::new(y[3], y[4], y[5]) - v_t),
-        att: q_t.conj().mul(state_quat(&y)).to_rotvec(),
+        vel_ned: c_n_e.tr_mul(&(Vec3::new(y[3], y[4], y[5]) - v_t)),
+        att: (q_t.conjugate() * state_quat(&y)).to_rotvec(),
     }
 }
 
@@ -449,17 +427,17 @@ fn check(scene: &str, seconds: f64, source: Signals, bound: Bounds) {
         "{scene:>6} {seconds:>4} s, {source:?}: position error NED [{:+.2e}, {:+.2e}, {:+.2e}] m, \
          |{:.3e}| m (geodetic [{:+.2e}, {:+.2e}, {:+.2e}], forms differ by {:.2e} m); velocity \
          error NED [{:+.2e}, {:+.2e}, {:+.2e}] m/s, |{:.3e}|; attitude error {:.3e} rad; {:.2} s",
-        p.x(),
-        p.y(),
-        p.z(),
+        p.x,
+        p.y,
+        p.z,
         p.norm(),
-        g.x(),
-        g.y(),
-        g.z(),
+        g.x,
+        g.y,
+        g.z,
         (g - p).norm(),
-        v.x(),
-        v.y(),
-        v.z(),
+        v.x,
+        v.y,
+        v.z,
         v.norm(),
         e.att.norm(),
         started.elapsed().as_secs_f64(),
@@ -605,15 +583,15 @@ fn reconstruction_is_exact_for_polynomials() {
             // Measured 1.45e-13 of the signal's scale (the moment matrix's conditioning);
             // bound ×3.4.
             let tol = 5e-13 * scale(t0 + k as f64 + tau);
-            let rel = [got.x() - want, got.y() + want, (got.z() - 2.0 * want) / 2.0]
+            let rel = [got.x - want, got.y + want, (got.z - 2.0 * want) / 2.0]
                 .iter()
                 .fold(0.0f64, |m, d| m.max(d.abs()))
                 / scale(t0 + k as f64 + tau);
             worst = worst.max(rel);
-            assert!((got.x() - want).abs() <= tol, "k = {k}, τ = {tau}");
-            assert!((got.y() + want).abs() <= tol, "k = {k}, τ = {tau}");
+            assert!((got.x - want).abs() <= tol, "k = {k}, τ = {tau}");
+            assert!((got.y + want).abs() <= tol, "k = {k}, τ = {tau}");
             assert!(
-                (got.z() - 2.0 * want).abs() <= 2.0 * tol,
+                (got.z - 2.0 * want).abs() <= 2.0 * tol,
                 "k = {k}, τ = {tau}"
             );
         }

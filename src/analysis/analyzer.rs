@@ -93,7 +93,7 @@ impl Analyzer {
 
     /// Adds one output record (its interval-mean rates).
     pub fn push_record(&mut self, r: &Record) {
-        let (g, a) = (r.gyro.0, r.accel.0);
+        let (g, a) = (r.gyro, r.accel);
         self.push(r.t, &[g[0], g[1], g[2], a[0], a[1], a[2]]);
     }
 

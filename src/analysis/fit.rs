@@ -26,6 +26,7 @@
 
 use super::confidence::{NoiseType, edf};
 use super::octave_adev::AdevPoint;
+use nalgebra::{DMatrix, DVector};
 
 /// The five IEEE 952 terms.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -269,55 +270,25 @@ fn weighted_ls(
     floor: &dyn Fn(f64) -> f64,
 ) -> Option<Vec<f64>> {
     let k = cols.len();
-    let mut a: Vec<Vec<f64>> = (0..k)
-        .map(|c| {
-            pts.iter()
-                .zip(w)
-                .map(|(p, w)| w.sqrt() * basis(TERMS[cols[c]], p.tau, floor))
-                .collect()
-        })
-        .collect();
-    let norms: Vec<f64> = a
-        .iter()
-        .map(|col| col.iter().map(|v| v * v).sum::<f64>().sqrt())
-        .collect();
+    let mut a = DMatrix::from_fn(pts.len(), k, |i, c| {
+        w[i].sqrt() * basis(TERMS[cols[c]], pts[i].tau, floor)
+    });
+    let norms: Vec<f64> = a.column_iter().map(|col| col.norm()).collect();
     if norms.iter().any(|n| *n == 0.0 || !n.is_finite()) {
         return None;
     }
-    for (col, n) in a.iter_mut().zip(&norms) {
-        col.iter_mut().for_each(|v| *v /= n);
+    for (mut col, n) in a.column_iter_mut().zip(&norms) {
+        col /= *n;
     }
-    let mut b: Vec<f64> = y.iter().zip(w).map(|(y, w)| w.sqrt() * y).collect();
-    for j in 0..k {
-        // Householder reflection zeroing column j below the diagonal.
-        let alpha = {
-            let s: f64 = a[j][j..].iter().map(|v| v * v).sum::<f64>().sqrt();
-            if a[j][j] > 0.0 { -s } else { s }
-        };
-        if alpha == 0.0 {
-            return None;
-        }
-        let mut v: Vec<f64> = a[j][j..].to_vec();
-        v[0] -= alpha;
-        let vv: f64 = v.iter().map(|x| x * x).sum();
-        if vv == 0.0 {
-            continue;
-        }
-        for col in a.iter_mut().skip(j) {
-            let f = 2.0 * v.iter().zip(&col[j..]).map(|(a, b)| a * b).sum::<f64>() / vv;
-            col[j..].iter_mut().zip(&v).for_each(|(c, v)| *c -= f * v);
-        }
-        let f = 2.0 * v.iter().zip(&b[j..]).map(|(a, b)| a * b).sum::<f64>() / vv;
-        b[j..].iter_mut().zip(&v).for_each(|(c, v)| *c -= f * v);
+    let mut b = DVector::from_fn(pts.len(), |i, _| w[i].sqrt() * y[i]);
+    let qr = a.qr();
+    qr.q_tr_mul(&mut b);
+    let r = qr.r();
+    // Columns are unit-norm, so a tiny diagonal of R means the chosen terms are collinear.
+    if r.diagonal().iter().any(|d| d.abs() < 1e-12) {
+        return None;
     }
-    let mut x = vec![0.0; k];
-    for j in (0..k).rev() {
-        let s: f64 = (j + 1..k).map(|i| a[i][j] * x[i]).sum();
-        if a[j][j].abs() < 1e-12 {
-            return None;
-        }
-        x[j] = (b[j] - s) / a[j][j];
-    }
+    let x = r.solve_upper_triangular(&b.rows(0, k))?;
     Some(x.iter().zip(&norms).map(|(x, n)| x / n).collect())
 }
 

@@ -158,7 +158,7 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
     let mut err_row = |text: &mut String, t: f64, e: &StateError| {
         text.push_str(fmt.format(t));
         for v in [e.pos_ned, e.vel_ned, e.att_ned] {
-            for x in v.0 {
+            for &x in v.iter() {
                 text.push(',');
                 text.push_str(fmt.format(x));
             }
@@ -229,14 +229,14 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
         k as f64 / rate,
         settings.samples,
         settings.stages,
-        last.pos_ned.x(),
-        last.pos_ned.y(),
-        last.pos_ned.z(),
+        last.pos_ned.x,
+        last.pos_ned.y,
+        last.pos_ned.z,
         last.pos_ned.norm(),
         last.vel_ned.norm(),
-        last.att_ned.x(),
-        last.att_ned.y(),
-        last.att_ned.z(),
+        last.att_ned.x,
+        last.att_ned.y,
+        last.att_ned.z,
         max_pos,
         max_vel,
         max_att,

@@ -16,7 +16,7 @@ use super::stages::{
 use super::temperature::TemperatureProfile;
 use super::vibration::Vibration;
 use crate::generator::RotationTerms;
-use crate::math::{Mat3, Vec3};
+use crate::math::{Mat3, QuatExt, Vec3};
 use crate::record::Record;
 
 pub use super::stages::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED};
@@ -163,7 +163,7 @@ impl ErrorChain {
     /// ω^c = C_b^c ω^b and f^c = C_b^c f^b before any stage (lever arm not included).
     pub fn with_mounting(mut self, q_b_c: crate::math::Quat) -> ErrorChain {
         let m = q_b_c.to_mat();
-        if m != Mat3::IDENTITY {
+        if m != Mat3::identity() {
             self.mounting = Some(m);
         }
         self
@@ -172,7 +172,7 @@ impl ErrorChain {
     /// Adds a lever arm (case frame, m) from the trajectory's reference point to the IMU's, to
     /// every accelerometer's position.
     pub fn with_lever_arm(mut self, r: Vec3) -> ErrorChain {
-        if r != Vec3::ZERO {
+        if r != Vec3::zeros() {
             match self.stage_mut::<SizeEffect>() {
                 Some(s) => s.add_lever_arm(r),
                 None => {
@@ -250,8 +250,8 @@ impl ErrorChain {
         }
         if let Some(m) = &self.mounting {
             for r in records.iter_mut() {
-                r.gyro = m.mul_vec(r.gyro);
-                r.accel = m.mul_vec(r.accel);
+                r.gyro = m * r.gyro;
+                r.accel = m * r.accel;
             }
         }
         let on_true = self
@@ -414,7 +414,7 @@ scale_factor_temperature = [\"1 ppm/degC\"]
         let empty = Vibration::new(&VibrationSpec::default(), 0.01, 1).unwrap();
         let chain = ErrorChain::new(&zeros, 100.0, 1)
             .with_temperature(TemperatureProfile::Constant(80.0), &zeros)
-            .with_lever_arm(Vec3::ZERO)
+            .with_lever_arm(Vec3::zeros())
             .with_vibration(empty);
         assert!(chain.stage_kinds().is_empty());
         assert!(chain.is_empty() && !chain.needs_rotation_terms());
@@ -486,7 +486,7 @@ scale_factor_temperature = [\"1 ppm/degC\"]
         for (k, (r, c)) in recs.iter().zip(chain.components()).enumerate() {
             let sum =
                 c.0.iter()
-                    .fold([Vec3::ZERO; 2], |s, g| [s[0] + g[0], s[1] + g[1]]);
+                    .fold([Vec3::zeros(); 2], |s, g| [s[0] + g[0], s[1] + g[1]]);
             let d = [r.gyro - input(k).gyro, r.accel - input(k).accel];
             for s in 0..2 {
                 // A few roundings of values of order 10: 1e-12 is thousands of ulps.
@@ -502,7 +502,7 @@ scale_factor_temperature = [\"1 ppm/degC\"]
             for k in StageKind::ALL {
                 let g = c.0[k as usize][0].norm();
                 assert_eq!(g > 0.0, k == StageKind::Bias, "{k:?}");
-                assert_eq!(c.0[k as usize][1], Vec3::ZERO);
+                assert_eq!(c.0[k as usize][1], Vec3::zeros());
             }
         }
     }

@@ -56,7 +56,7 @@ pub fn check_sample(s: &Sample) -> Result<(), Violation> {
             ),
         );
     }
-    let v = s.v_n.0;
+    let v = s.v_n;
     let k = (0..3).fold(0, |m, k| if v[k].abs() > v[m].abs() { k } else { m });
     // The largest component first: the norm of a huge velocity would overflow to infinity.
     let speed = if v[k].abs() > MAX_SPEED_M_S {
@@ -102,8 +102,8 @@ pub fn check_step(prev: &Sample, s: &Sample) -> Result<(), Violation> {
             ),
         );
     }
-    let dq = prev.q_b_n.conj().mul(s.q_b_n);
-    let angle = 2.0 * dq.v.norm().atan2(dq.w.abs());
+    let dq = prev.q_b_n.conjugate() * s.q_b_n;
+    let angle = 2.0 * dq.imag().norm().atan2(dq.w.abs());
     let rate = angle / dt;
     if rate > MAX_RATE_RAD_S {
         return violation(

@@ -23,7 +23,7 @@ use super::stream::{Index, IndexBuilder, Mark, MemorySamples, SampleSource, Wind
 use super::{Motion, Pose};
 use crate::earth::{Geodetic, ecef_to_geodetic};
 use crate::kinematics::{EcefState, Sensed, sense_ecef};
-use crate::math::{Quat, Vec3};
+use crate::math::{Quat, QuatExt, Vec3};
 
 /// One trajectory sample, in SI units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -93,7 +93,7 @@ impl Knot {
     /// A knot whose every value is NaN: what a model that lost its input evaluates to.
     pub(super) const NAN: Knot = {
         let v = Vec3::new(f64::NAN, f64::NAN, f64::NAN);
-        let q = Quat { w: f64::NAN, v };
+        let q = Quat::new(f64::NAN, f64::NAN, f64::NAN, f64::NAN);
         Knot {
             t: f64::NAN,
             r: v,
@@ -124,7 +124,7 @@ impl Conv {
             t: f64::NAN,
             r: v,
             v,
-            q: Quat { w: f64::NAN, v },
+            q: Quat::new(f64::NAN, f64::NAN, f64::NAN, f64::NAN),
         }
     };
 }
@@ -133,16 +133,16 @@ impl Conv {
 /// that the R⁴ curve is continuous.
 pub(super) fn convert(s: &Sample, prev_q: Option<Quat>) -> Conv {
     let g = Geodetic::from_radians(s.lat, s.lon, s.h);
-    let mut q = g.q_n_e().mul(s.q_b_n);
+    let mut q = g.q_n_e() * s.q_b_n;
     if let Some(prev) = prev_q
-        && prev.dot4(q) < 0.0
+        && prev.dot(&q) < 0.0
     {
-        q = q.scale(-1.0);
+        q = -q;
     }
     Conv {
         t: s.t,
         r: g.to_ecef(),
-        v: g.c_n_e().mul_vec(s.v_n),
+        v: g.c_n_e() * s.v_n,
         q,
     }
 }
@@ -152,13 +152,13 @@ pub(super) fn make_knot<'a>(i: usize, st: Range<usize>, at: impl Fn(usize) -> &'
     let t: Vec<f64> = st.clone().map(|k| at(k).t).collect();
     let c = at(i);
     let w = fornberg(c.t, &t, 2);
-    let mut a = Vec3::ZERO;
-    let mut j = Vec3::ZERO;
-    let mut omega = Vec3::ZERO;
-    let mut omega_dot = Vec3::ZERO;
+    let mut a = Vec3::zeros();
+    let mut j = Vec3::zeros();
+    let mut omega = Vec3::zeros();
+    let mut omega_dot = Vec3::zeros();
     let phi: Vec<Vec3> = st
         .clone()
-        .map(|k| c.q.conj().mul(at(k).q).to_rotvec())
+        .map(|k| (c.q.conjugate() * at(k).q).to_rotvec())
         .collect();
     for (m, k) in st.enumerate() {
         // Velocity differences relative to the centre keep the sums well scaled.
@@ -171,14 +171,8 @@ pub(super) fn make_knot<'a>(i: usize, st: Range<usize>, at: impl Fn(usize) -> &'
         omega_dot += *p * w[2][m];
     }
     // q̇ = ½ q ⊗ ω and q̈ = q ⊗ (−|ω|²/4, ω̇/2): consistent with |q| = 1 to second order.
-    let qd = c.q.mul(Quat {
-        w: 0.0,
-        v: omega * 0.5,
-    });
-    let qdd = c.q.mul(Quat {
-        w: -0.25 * omega.dot(omega),
-        v: omega_dot * 0.5,
-    });
+    let qd = c.q * Quat::from_parts(0.0, omega * 0.5);
+    let qdd = c.q * Quat::from_parts(-0.25 * omega.dot(&omega), omega_dot * 0.5);
     Knot {
         t: c.t,
         r: c.r,
@@ -315,19 +309,18 @@ impl SampledMotion {
             + (k0.a * b.g0 + k1.a * b.g1) * h
             + (k0.j * b.k0 + k1.j * b.k1) * (h * h);
         let a = dv * (b.dh1 / h) + k0.a * b.dg0 + k1.a * b.dg1 + (k0.j * b.dk0 + k1.j * b.dk1) * h;
-        let dq = k1.q.add(k0.q.scale(-1.0));
-        let p =
-            k0.q.add(dq.scale(b.h1))
-                .add(k0.qd.scale(b.g0 * h).add(k1.qd.scale(b.g1 * h)))
-                .add(k0.qdd.scale(b.k0 * h * h).add(k1.qdd.scale(b.k1 * h * h)));
-        let pd = dq
-            .scale(b.dh1 / h)
-            .add(k0.qd.scale(b.dg0).add(k1.qd.scale(b.dg1)))
-            .add(k0.qdd.scale(b.dk0 * h).add(k1.qdd.scale(b.dk1 * h)));
-        let n2 = p.norm2();
+        let dq = k1.q - k0.q;
+        let p = k0.q
+            + dq * b.h1
+            + (k0.qd * (b.g0 * h) + k1.qd * (b.g1 * h))
+            + (k0.qdd * (b.k0 * h * h) + k1.qdd * (b.k1 * h * h));
+        let pd = dq * (b.dh1 / h)
+            + (k0.qd * b.dg0 + k1.qd * b.dg1)
+            + (k0.qdd * (b.dk0 * h) + k1.qdd * (b.dk1 * h));
+        let n2 = p.norm_squared();
         // For q = p/|p|: ω = 2 vec(q* ⊗ q̇) = 2 vec(p* ⊗ ṗ)/|p|².
-        let omega_eb_b = p.conj().mul(pd).v * (2.0 / n2);
-        let q_b_e = p.scale(1.0 / n2.sqrt());
+        let omega_eb_b = (p.conjugate() * pd).imag() * (2.0 / n2);
+        let q_b_e = p * (1.0 / n2.sqrt());
         let r = k0.r + r_rel;
         let pos = ecef_to_geodetic(r);
         (
@@ -429,8 +422,8 @@ impl Motion for SampledMotion {
             lat: s.pos.lat(),
             lon: s.pos.lon(),
             h: s.pos.h,
-            v_n: s.pos.c_n_e().tr_mul_vec(s.v_e),
-            q_b_n: q_n_e.conj().mul(s.q_b_e),
+            v_n: s.pos.c_n_e().tr_mul(&s.v_e),
+            q_b_n: q_n_e.conjugate() * s.q_b_e,
         }
     }
 }

@@ -460,9 +460,9 @@ mod tests {
             ModelSettings::default(),
         );
         let p = m.piece_at(s[100].t, 0);
-        assert!(m.sense(p, s[100].t).f_b.x().is_finite());
+        assert!(m.sense(p, s[100].t).f_b.x.is_finite());
         let p = m.piece_at(s[2500].t, p);
-        assert!(m.sense(p, s[2500].t).f_b.x().is_nan());
+        assert!(m.sense(p, s[2500].t).f_b.x.is_nan());
         assert_eq!(m.failure().unwrap(), "ended after 2000 samples");
     }
 

@@ -11,41 +11,24 @@
 
 use crate::math::Vec3;
 use crate::quadrature::GaussLegendre;
+use nalgebra::{DMatrix, DVector};
 
 /// Largest reconstruction window (intervals).
 pub const MAX_SAMPLES: usize = 8;
 
-/// Inverts a small matrix by Gauss–Jordan elimination with partial pivoting.
+/// The inverse of a small square matrix (LU with partial pivoting), row by row.
 ///
 /// The matrices here (moment and Vandermonde matrices of at most 8×8 on O(1) nodes) are
-/// well conditioned; the caller passes only such matrices.
-pub(crate) fn invert(mut m: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
-    let k = m.len();
-    let mut inv: Vec<Vec<f64>> = (0..k)
-        .map(|i| (0..k).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
-        .collect();
-    for col in 0..k {
-        let piv = (col..k)
-            .max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))
-            .unwrap_or(col);
-        m.swap(col, piv);
-        inv.swap(col, piv);
-        let d = m[col][col];
-        for c in 0..k {
-            m[col][c] /= d;
-            inv[col][c] /= d;
-        }
-        for row in 0..k {
-            if row != col {
-                let f = m[row][col];
-                for c in 0..k {
-                    m[row][c] -= f * m[col][c];
-                    inv[row][c] -= f * inv[col][c];
-                }
-            }
-        }
-    }
-    inv
+/// well conditioned and never singular; rows are returned as vectors so the per-record
+/// reconstruction reads contiguous memory.
+fn inverse_rows(m: DMatrix<f64>) -> Vec<Vec<f64>> {
+    let inv = m
+        .lu()
+        .try_inverse()
+        .expect("moment matrices of distinct unit intervals are invertible");
+    inv.row_iter()
+        .map(|r| r.iter().copied().collect())
+        .collect()
 }
 
 /// Reconstruction weights for every window length 1..=n and every position of the target
@@ -65,18 +48,11 @@ impl Reconstruction {
                     .map(|o| {
                         // Interval i of the window spans [i − o, i − o + 1] in units of Δt,
                         // so the target interval is [0, 1].
-                        let moments: Vec<Vec<f64>> = (0..len)
-                            .map(|i| {
-                                let lo = i as f64 - o as f64;
-                                (0..len)
-                                    .map(|m| {
-                                        let p = m as i32 + 1;
-                                        ((lo + 1.0).powi(p) - lo.powi(p)) / p as f64
-                                    })
-                                    .collect()
-                            })
-                            .collect();
-                        invert(moments)
+                        inverse_rows(DMatrix::from_fn(len, len, |i, m| {
+                            let lo = i as f64 - o as f64;
+                            let p = m as i32 + 1;
+                            ((lo + 1.0).powi(p) - lo.powi(p)) / p as f64
+                        }))
                     })
                     .collect()
             })
@@ -91,13 +67,13 @@ impl Reconstruction {
     pub fn coefficients(&self, window: &[Vec3], target: usize, out: &mut [Vec3; MAX_SAMPLES]) {
         let len = window.len();
         let w = &self.weights[len - 1][target];
-        *out = [Vec3::ZERO; MAX_SAMPLES];
-        let mut higher = Vec3::ZERO;
+        *out = [Vec3::zeros(); MAX_SAMPLES];
+        let mut higher = Vec3::zeros();
         for m in 1..len {
             let c = window
                 .iter()
                 .zip(&w[m])
-                .fold(Vec3::ZERO, |acc, (d, wi)| acc + *d * *wi);
+                .fold(Vec3::zeros(), |acc, (d, wi)| acc + *d * *wi);
             out[m] = c;
             higher += c * (1.0 / (m + 1) as f64);
         }
@@ -111,7 +87,7 @@ pub fn eval(c: &[Vec3; MAX_SAMPLES], len: usize, tau: f64) -> Vec3 {
     c[..len]
         .iter()
         .rev()
-        .fold(Vec3::ZERO, |acc, cm| acc * tau + *cm)
+        .fold(Vec3::zeros(), |acc, cm| acc * tau + *cm)
 }
 
 /// Butcher tableau of the s-stage Gauss–Legendre collocation method on [0, 1] (order 2s).
@@ -131,20 +107,14 @@ impl Tableau {
     pub fn gauss(s: usize) -> Option<Tableau> {
         let rule = GaussLegendre::new(s)?;
         let c = rule.nodes.clone();
-        // V[m][j] = c_j^m; a_i = V⁻¹ rhs_i.
-        let v: Vec<Vec<f64>> = (0..s)
-            .map(|m| c.iter().map(|cj| cj.powi(m as i32)).collect())
-            .collect();
-        let vi = invert(v);
+        // V a_i = rhs_i with V[m][j] = c_j^m, solved by LU (distinct nodes: V is invertible).
+        let lu = DMatrix::from_fn(s, s, |m, j| c[j].powi(m as i32)).lu();
         let a = c
             .iter()
             .map(|ci| {
-                let rhs: Vec<f64> = (0..s)
-                    .map(|m| ci.powi(m as i32 + 1) / (m + 1) as f64)
-                    .collect();
-                (0..s)
-                    .map(|j| (0..s).map(|m| vi[j][m] * rhs[m]).sum())
-                    .collect()
+                let rhs = DVector::from_fn(s, |m, _| ci.powi(m as i32 + 1) / (m + 1) as f64);
+                let a_i = lu.solve(&rhs).expect("Gauss nodes are distinct");
+                a_i.iter().copied().collect()
             })
             .collect();
         Some(Tableau {
@@ -181,7 +151,7 @@ mod tests {
                 })
                 .collect();
             for o in 0..n {
-                let mut c = [Vec3::ZERO; MAX_SAMPLES];
+                let mut c = [Vec3::zeros(); MAX_SAMPLES];
                 r.coefficients(&window, o, &mut c);
                 for tau in [0.0, 0.3, 0.77, 1.0] {
                     let t = start + o as f64 + tau;
@@ -192,7 +162,7 @@ mod tests {
                         .sum();
                     let got = eval(&c, n, tau);
                     let tol = 1e-13 * scale;
-                    let (ex, ey) = ((got.x() - want).abs(), (got.y() + 2.0 * want).abs());
+                    let (ex, ey) = ((got.x - want).abs(), (got.y + 2.0 * want).abs());
                     assert!(ex < tol && ey < 2.0 * tol, "n {n}, o {o}, τ {tau}: {ex:e}");
                 }
             }

@@ -29,7 +29,7 @@
 
 use super::poly::{MAX_SAMPLES, Reconstruction, Tableau, eval};
 use crate::earth::{self, Geodetic, ecef_to_geodetic};
-use crate::math::{Mat3, Quat, Vec3, euler_from_quat};
+use crate::math::{Mat3, Quat, QuatExt, Vec3, all_finite, euler_from_quat};
 use crate::motion::Pose;
 
 /// Largest number of collocation stages.
@@ -95,8 +95,8 @@ impl NavState {
         NavState {
             t: p.t,
             r_e: geo.to_ecef(),
-            v_e: geo.c_n_e().mul_vec(p.v_n),
-            q_b_e: geo.q_n_e().mul(p.q_b_n),
+            v_e: geo.c_n_e() * p.v_n,
+            q_b_e: geo.q_n_e() * p.q_b_n,
         }
     }
 
@@ -108,8 +108,8 @@ impl NavState {
             lat: geo.lat(),
             lon: geo.lon(),
             h: geo.h,
-            v_n: geo.c_n_e().tr_mul_vec(self.v_e),
-            q_b_n: geo.q_n_e().conj().mul(self.q_b_e).normalized(),
+            v_n: geo.c_n_e().tr_mul(&self.v_e),
+            q_b_n: (geo.q_n_e().conjugate() * self.q_b_e).normalized(),
         }
     }
 
@@ -141,15 +141,15 @@ impl StateError {
         let c_n_e = geo_t.c_n_e();
         let q_nav_b_n = nav.pose().q_b_n;
         StateError {
-            pos_ned: c_n_e.tr_mul_vec(nav.r_e - truth.r_e),
-            vel_ned: c_n_e.tr_mul_vec(nav.v_e - truth.v_e),
-            att_ned: q_nav_b_n.mul(reference.q_b_n.conj()).to_rotvec(),
+            pos_ned: c_n_e.tr_mul(&(nav.r_e - truth.r_e)),
+            vel_ned: c_n_e.tr_mul(&(nav.v_e - truth.v_e)),
+            att_ned: (q_nav_b_n * reference.q_b_n.conjugate()).to_rotvec(),
         }
     }
 
     /// Horizontal position error (m).
     pub fn horizontal(&self) -> f64 {
-        self.pos_ned.x().hypot(self.pos_ned.y())
+        self.pos_ned.x.hypot(self.pos_ned.y)
     }
 }
 
@@ -215,22 +215,21 @@ impl Navigator {
         }
         let q = initial.q_b_e;
         if !(initial.t.is_finite()
-            && initial.r_e.is_finite()
-            && initial.v_e.is_finite()
-            && q.w.is_finite()
-            && q.v.is_finite())
+            && all_finite(&initial.r_e)
+            && all_finite(&initial.v_e)
+            && q.coords.iter().all(|x| x.is_finite()))
         {
             return Err(SettingsError::State);
         }
         let dt = 1.0 / rate_hz;
         let tab = Tableau::gauss(settings.stages).expect("stages checked");
-        let mut earth_stage = [Mat3::IDENTITY; MAX_STAGES];
+        let mut earth_stage = [Mat3::identity(); MAX_STAGES];
         for (m, c) in earth_stage.iter_mut().zip(&tab.c) {
             *m = Quat::from_rotvec(W_IE * (-c * dt)).to_mat();
         }
         Ok(Navigator {
             origin: initial.r_e,
-            dr: Compensated::new(Vec3::ZERO),
+            dr: Compensated::new(Vec3::zeros()),
             v: Compensated::new(initial.v_e),
             q_bi: QuatSum::new(initial.q_b_e.normalized()),
             k_ref: 0,
@@ -271,9 +270,7 @@ impl Navigator {
     /// C_b^e now: the Earth's rotation since `k_ref`, in closed form, times C_b^{e(k_ref)}.
     fn q_b_e(&self) -> Quat {
         let turned = (self.k - self.k_ref) as f64 * self.dt;
-        Quat::from_rotvec(W_IE * -turned)
-            .mul(self.q_bi.value())
-            .normalized()
+        (Quat::from_rotvec(W_IE * -turned) * self.q_bi.value()).normalized()
     }
 
     /// Replaces position, velocity and attitude (e.g. at a GNSS fix) and keeps the IMU
@@ -292,16 +289,16 @@ impl Navigator {
     pub fn aid_vertical(&mut self, reference: &NavState) {
         let up = ecef_to_geodetic(reference.r_e).up_e();
         let r = self.origin + self.dr.value();
-        let dh = up.dot(r - reference.r_e);
+        let dh = up.dot(&(r - reference.r_e));
         self.dr.add(up * -dh);
-        let dvu = up.dot(self.v.value() - reference.v_e);
+        let dvu = up.dot(&(self.v.value() - reference.v_e));
         self.v.add(up * -dvu);
     }
 
     /// Sets position, velocity and attitude; the Earth frame is frozen anew at record k.
     fn restore(&mut self, s: &NavState) {
         self.origin = s.r_e;
-        self.dr = Compensated::new(Vec3::ZERO);
+        self.dr = Compensated::new(Vec3::zeros());
         self.v = Compensated::new(s.v_e);
         self.q_bi = QuatSum::new(s.q_b_e.normalized());
         self.k_ref = self.k;
@@ -340,14 +337,14 @@ impl Navigator {
     /// Integrates interval `target` of the history window.
     fn advance(&mut self, target: usize) {
         let len = self.hist_theta.len();
-        let (mut cw, mut cf) = ([Vec3::ZERO; MAX_SAMPLES], [Vec3::ZERO; MAX_SAMPLES]);
+        let (mut cw, mut cf) = ([Vec3::zeros(); MAX_SAMPLES], [Vec3::zeros(); MAX_SAMPLES]);
         self.recon.coefficients(&self.hist_theta, target, &mut cw);
         self.recon.coefficients(&self.hist_v, target, &mut cf);
         let s = self.settings.stages;
         let tab = &self.tab;
         // Stage signals in increment units (ω·Δt, f·Δt), i.e. per unit of τ = (t − t_{k−1})/Δt.
-        let mut w = [Vec3::ZERO; MAX_STAGES];
-        let mut f = [Vec3::ZERO; MAX_STAGES];
+        let mut w = [Vec3::zeros(); MAX_STAGES];
+        let mut f = [Vec3::zeros(); MAX_STAGES];
         for j in 0..s {
             w[j] = eval(&cw, len, tab.c[j]);
             f[j] = eval(&cf, len, tab.c[j]);
@@ -358,26 +355,26 @@ impl Navigator {
         // Specific force in ECEF at the stage times (m/s²).
         let c0 = self.q_b_e().to_mat();
         let inv_dt = self.rate_hz;
-        let mut a_sf = [Vec3::ZERO; MAX_STAGES];
+        let mut a_sf = [Vec3::zeros(); MAX_STAGES];
         for j in 0..s {
             // Rotation by the direction of the stage quaternion (unit only to the method's
             // order inside the step).
-            let fb = y[j].rotate(f[j]) * (1.0 / y[j].norm2());
-            a_sf[j] = self.earth_stage[j].mul_vec(c0.mul_vec(fb)) * inv_dt;
+            let fb = y[j].rotate(f[j]) * (1.0 / y[j].norm_squared());
+            a_sf[j] = self.earth_stage[j] * (c0 * fb) * inv_dt;
         }
 
         // (r, v) collocation: K_v = a_sf + g(R) − 2 ω_ie × V, K_r = V.
         let dt = self.dt;
         let (v0, dr0) = (self.v.value(), self.dr.value());
-        let mut grav_at = [Vec3::ZERO; MAX_STAGES];
-        let mut grav = [Vec3::ZERO; MAX_STAGES];
+        let mut grav_at = [Vec3::zeros(); MAX_STAGES];
+        let mut grav = [Vec3::zeros(); MAX_STAGES];
         for j in 0..s {
             grav_at[j] = dr0 + v0 * (tab.c[j] * dt);
             grav[j] = gravity(self.origin + grav_at[j]);
         }
-        let mut kv = [Vec3::ZERO; MAX_STAGES];
+        let mut kv = [Vec3::zeros(); MAX_STAGES];
         for j in 0..s {
-            kv[j] = a_sf[j] + grav[j] - (W_IE * 2.0).cross(v0);
+            kv[j] = a_sf[j] + grav[j] - (W_IE * 2.0).cross(&v0);
         }
         let mut vst = [v0; MAX_STAGES];
         for _ in 0..100 {
@@ -387,19 +384,19 @@ impl Navigator {
             let mut change: f64 = 0.0;
             for i in 0..s {
                 let ri = combine(dr0, &vst[..s], &tab.a[i], dt);
-                if (ri - grav_at[i]).max_abs() > GRAVITY_REUSE_M {
+                if (ri - grav_at[i]).amax() > GRAVITY_REUSE_M {
                     grav_at[i] = ri;
                     grav[i] = gravity(self.origin + ri);
                 }
-                let new = a_sf[i] + grav[i] - (W_IE * 2.0).cross(vst[i]);
-                change = change.max((new - kv[i]).max_abs() * dt);
+                let new = a_sf[i] + grav[i] - (W_IE * 2.0).cross(&vst[i]);
+                change = change.max((new - kv[i]).amax() * dt);
                 kv[i] = new;
             }
-            if change <= 1e-16 * v0.max_abs().max(1.0) {
+            if change <= 1e-16 * v0.amax().max(1.0) {
                 break;
             }
         }
-        let (mut dv_step, mut dr_step) = (Vec3::ZERO, Vec3::ZERO);
+        let (mut dv_step, mut dr_step) = (Vec3::zeros(), Vec3::zeros());
         for j in 0..s {
             dv_step += kv[j] * (dt * tab.b[j]);
             dr_step += vst[j] * (dt * tab.b[j]);
@@ -419,9 +416,9 @@ impl Navigator {
 /// identity is kept apart so the caller can add it without rounding at 1.
 fn body_collocation(tab: &Tableau, w: &[Vec3]) -> ([Quat; MAX_STAGES], Quat) {
     let s = w.len();
-    let one = Quat::IDENTITY;
+    let one = Quat::identity();
     let mut y = [one; MAX_STAGES];
-    let half_rate = |yq: Quat, wj: Vec3| yq.mul(Quat { w: 0.0, v: wj }).scale(0.5);
+    let half_rate = |yq: Quat, wj: Vec3| yq * Quat::from_parts(0.0, wj) * 0.5;
     // Fixed-point iteration; contracts by about |Δθ| per pass.
     for _ in 0..100 {
         let k: [Quat; MAX_STAGES] =
@@ -431,8 +428,8 @@ fn body_collocation(tab: &Tableau, w: &[Vec3]) -> ([Quat; MAX_STAGES], Quat) {
             let new = k[..s]
                 .iter()
                 .zip(ai)
-                .fold(one, |acc, (kj, aij)| acc.add(kj.scale(*aij)));
-            change = change.max(new.add(yi.scale(-1.0)).norm2());
+                .fold(one, |acc, (kj, aij)| acc + kj * *aij);
+            change = change.max((new - *yi).norm_squared());
             *yi = new;
         }
         // Squared change below (1e-17)²: the stages are at round-off.
@@ -442,7 +439,7 @@ fn body_collocation(tab: &Tableau, w: &[Vec3]) -> ([Quat; MAX_STAGES], Quat) {
     }
     let mut delta = Quat::new(0.0, 0.0, 0.0, 0.0);
     for j in 0..s {
-        delta = delta.add(half_rate(y[j], w[j]).scale(tab.b[j]));
+        delta += half_rate(y[j], w[j]) * tab.b[j];
     }
     (y, delta)
 }
@@ -454,11 +451,10 @@ fn body_collocation(tab: &Tableau, w: &[Vec3]) -> ([Quat; MAX_STAGES], Quat) {
 pub fn rotation_vector(settings: Settings, window: &[Vec3]) -> Vec3 {
     let recon = Reconstruction::new(window.len().clamp(1, MAX_SAMPLES));
     let tab = Tableau::gauss(settings.stages.clamp(1, MAX_STAGES)).expect("stages clamped");
-    let mut c = [Vec3::ZERO; MAX_SAMPLES];
+    let mut c = [Vec3::zeros(); MAX_SAMPLES];
     recon.coefficients(window, window.len() - 1, &mut c);
     let w: Vec<Vec3> = tab.c.iter().map(|&ci| eval(&c, window.len(), ci)).collect();
-    Quat::IDENTITY
-        .add(body_collocation(&tab, &w).1)
+    (Quat::identity() + body_collocation(&tab, &w).1)
         .normalized()
         .to_rotvec()
 }
@@ -493,16 +489,16 @@ impl Compensated {
     fn new(v: Vec3) -> Compensated {
         Compensated {
             hi: v,
-            lo: Vec3::ZERO,
+            lo: Vec3::zeros(),
         }
     }
     #[inline]
     fn add(&mut self, d: Vec3) {
         for i in 0..3 {
-            let (s, e) = two_sum(self.hi.0[i], d.0[i]);
-            let (s2, e2) = two_sum(s, e + self.lo.0[i]);
-            self.hi.0[i] = s2;
-            self.lo.0[i] = e2;
+            let (s, e) = two_sum(self.hi[i], d[i]);
+            let (s2, e2) = two_sum(s, e + self.lo[i]);
+            self.hi[i] = s2;
+            self.lo[i] = e2;
         }
     }
     #[inline]
@@ -523,18 +519,18 @@ struct QuatSum {
 impl QuatSum {
     fn new(q: Quat) -> QuatSum {
         QuatSum {
-            hi: [q.w, q.v.x(), q.v.y(), q.v.z()],
+            hi: [q.w, q.i, q.j, q.k],
             lo: [0.0; 4],
         }
     }
     fn value(&self) -> Quat {
         let q = |a: &[f64; 4]| Quat::new(a[0], a[1], a[2], a[3]);
-        q(&self.hi).add(q(&self.lo))
+        q(&self.hi) + q(&self.lo)
     }
     /// q ← q ⊗ (1 + δ), then a renormalization that leaves the direction unchanged.
     fn rotate_by(&mut self, delta: Quat) {
-        let d = self.value().mul(delta);
-        let d = [d.w, d.v.x(), d.v.y(), d.v.z()];
+        let d = self.value() * delta;
+        let d = [d.w, d.i, d.j, d.k];
         for (i, di) in d.iter().enumerate() {
             let (s, e) = two_sum(self.hi[i], *di);
             let (s2, e2) = two_sum(s, e + self.lo[i]);
@@ -565,9 +561,9 @@ impl QuatSum {
 /// δ of the unit quaternion (1 + d)/|1 + d|, i.e. its difference from the identity, computed
 /// without forming 1 + d: |1 + d| − 1 = x/(√(1 + x) + 1) with x = 2 d_w + |d|².
 fn unit_delta(d: Quat) -> Quat {
-    let x = 2.0 * d.w + d.norm2();
+    let x = 2.0 * d.w + d.norm_squared();
     let n = (1.0 + x).sqrt();
     let n_minus_1 = x / (n + 1.0);
     // (1 + d)/n − 1 = (d − (n − 1))/n.
-    Quat::new((d.w - n_minus_1) / n, d.v.x() / n, d.v.y() / n, d.v.z() / n)
+    Quat::new((d.w - n_minus_1) / n, d.i / n, d.j / n, d.k / n)
 }

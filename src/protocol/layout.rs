@@ -380,10 +380,10 @@ fn quantity(r: &Record, temperature: f64, st: &EncoderState, s: Source) -> f64 {
             ((sow - sow.floor()) * 1e6).round().min(999_999.0)
         }
         Source::GpsMillis => (gps().1 * 1e3).round(),
-        Source::Gyro(i) => r.gyro.0[i],
-        Source::Accel(i) => r.accel.0[i],
-        Source::DTheta(i) => r.dtheta.0[i],
-        Source::Dv(i) => r.dv.0[i],
+        Source::Gyro(i) => r.gyro[i],
+        Source::Accel(i) => r.accel[i],
+        Source::DTheta(i) => r.dtheta[i],
+        Source::Dv(i) => r.dv[i],
         Source::Time => r.t,
         Source::Temperature => temperature,
         // The magnetometer is not simulated.

@@ -3,7 +3,7 @@
 
 use crate::earth::{self, E2};
 use crate::kinematics::{NedState, Sensed, sense_ned};
-use crate::math::{Mat3, Quat, Vec3};
+use crate::math::{Mat3, Quat, QuatExt, Vec3};
 use crate::motion::{Motion, Pose};
 
 /// A vehicle at rest at one place, optionally in classic coning motion.
@@ -43,11 +43,11 @@ impl FixedScene {
     #[inline]
     fn attitude(&self, t: f64) -> (Quat, Mat3, Vec3) {
         match self.coning {
-            None => (self.q_ref, self.c_ref, Vec3::ZERO),
+            None => (self.q_ref, self.c_ref, Vec3::zeros()),
             Some((beta, w)) => {
                 let (s, c) = (w * t).sin_cos();
                 let (sh, ch) = (0.5 * beta).sin_cos();
-                let q = self.q_ref.mul(Quat::new(ch, 0.0, sh * c, sh * s));
+                let q = self.q_ref * Quat::new(ch, 0.0, sh * c, sh * s);
                 let sb = beta.sin();
                 let omega = Vec3::new(-2.0 * w * sh * sh, -w * sb * s, w * sb * c);
                 (q, q.to_mat(), omega)
@@ -56,19 +56,26 @@ impl FixedScene {
     }
 }
 
+/// The span methods of a scene that starts at 0, never ends and is one smooth piece.
+macro_rules! one_endless_piece {
+    () => {
+        fn start(&self) -> f64 {
+            0.0
+        }
+        fn end(&self) -> f64 {
+            f64::INFINITY
+        }
+        fn piece_at(&self, _t: f64, _hint: usize) -> usize {
+            0
+        }
+        fn piece_end(&self, _piece: usize) -> f64 {
+            f64::INFINITY
+        }
+    };
+}
+
 impl Motion for FixedScene {
-    fn start(&self) -> f64 {
-        0.0
-    }
-    fn end(&self) -> f64 {
-        f64::INFINITY
-    }
-    fn piece_at(&self, _t: f64, _hint: usize) -> usize {
-        0
-    }
-    fn piece_end(&self, _piece: usize) -> f64 {
-        f64::INFINITY
-    }
+    one_endless_piece!();
     #[inline]
     fn sense(&self, _piece: usize, t: f64) -> Sensed {
         let (_, c_b_n, omega_nb_b) = self.attitude(t);
@@ -79,8 +86,8 @@ impl Motion for FixedScene {
             r_n: earth::radius_meridian(self.sin_lat),
             r_e: earth::radius_prime_vertical(self.sin_lat),
             gravity: self.gravity,
-            v_n: Vec3::ZERO,
-            v_dot_n: Vec3::ZERO,
+            v_n: Vec3::zeros(),
+            v_dot_n: Vec3::zeros(),
             c_b_n,
             omega_nb_b,
         })
@@ -91,7 +98,7 @@ impl Motion for FixedScene {
             lat: self.lat,
             lon: self.lon,
             h: self.h,
-            v_n: Vec3::ZERO,
+            v_n: Vec3::zeros(),
             q_b_n: self.attitude(t).0,
         }
     }
@@ -141,25 +148,14 @@ impl PolarScene {
             gravity: earth::normal_gravity(s, self.h),
             v_n: Vec3::new((rn + self.h) * self.mu_rate, 0.0, 0.0),
             v_dot_n: Vec3::new(drn * self.mu_rate * self.mu_rate, 0.0, 0.0),
-            c_b_n: Mat3::IDENTITY,
-            omega_nb_b: Vec3::ZERO,
+            c_b_n: Mat3::identity(),
+            omega_nb_b: Vec3::zeros(),
         }
     }
 }
 
 impl Motion for PolarScene {
-    fn start(&self) -> f64 {
-        0.0
-    }
-    fn end(&self) -> f64 {
-        f64::INFINITY
-    }
-    fn piece_at(&self, _t: f64, _hint: usize) -> usize {
-        0
-    }
-    fn piece_end(&self, _piece: usize) -> f64 {
-        f64::INFINITY
-    }
+    one_endless_piece!();
     #[inline]
     fn sense(&self, _piece: usize, t: f64) -> Sensed {
         sense_ned(&self.state(t))
@@ -183,7 +179,7 @@ impl Motion for PolarScene {
             lat,
             lon,
             h: s.h,
-            v_n: Vec3::new(s.v_n.x() * sign, 0.0, 0.0),
+            v_n: Vec3::new(s.v_n.x * sign, 0.0, 0.0),
             q_b_n: crate::math::quat_from_euler(0.0, 0.0, yaw),
         }
     }

@@ -1,6 +1,8 @@
 //! Analytic path pieces in a local "map" plane (x north, y east, metres) and height profiles:
 //! polynomials in time and circular arcs, each with exact derivatives up to third order.
 
+use nalgebra::{Matrix4, Vector4};
+
 /// Value and first three time derivatives of a scalar.
 pub type Jet = [f64; 4];
 
@@ -59,14 +61,12 @@ impl Poly {
         let e = [end[0], end[1] * t, end[2] * t * t, end[3] * t * t * t];
         // Conditions at s = 1 for q(s) = Σ_{k<4} a_k s^k + Σ_{k=4..7} b_k s^k.
         let known = |d: usize| -> f64 { (0..4).map(|k| a[k] * falling(k, d)).sum::<f64>() };
-        let mut m = [[0.0; 5]; 4];
-        for (d, row) in m.iter_mut().enumerate() {
-            for k in 4..8 {
-                row[k - 4] = falling(k, d);
-            }
-            row[4] = e[d] - known(d);
-        }
-        let b = solve4(m);
+        let m = Matrix4::from_fn(|d, k| falling(k + 4, d));
+        let rhs = Vector4::from_fn(|d, _| e[d] - known(d));
+        let b = m
+            .lu()
+            .solve(&rhs)
+            .expect("the Hermite conditions at s = 1 are independent");
         let mut c = [0.0; 8];
         for k in 0..8 {
             let coef = if k < 4 { a[k] } else { b[k - 4] };
@@ -82,29 +82,6 @@ fn falling(k: usize, d: usize) -> f64 {
         return 0.0;
     }
     ((k - d + 1)..=k).map(|v| v as f64).product()
-}
-
-/// Gaussian elimination with partial pivoting on a 4×5 augmented matrix.
-fn solve4(mut m: [[f64; 5]; 4]) -> [f64; 4] {
-    for col in 0..4 {
-        let piv = (col..4)
-            .max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))
-            .unwrap_or(col);
-        m.swap(col, piv);
-        let pivot_row = m[col];
-        for row in m.iter_mut().skip(col + 1) {
-            let f = row[col] / pivot_row[col];
-            for (x, p) in row.iter_mut().zip(pivot_row.iter()).skip(col) {
-                *x -= f * p;
-            }
-        }
-    }
-    let mut x = [0.0; 4];
-    for row in (0..4).rev() {
-        let s: f64 = ((row + 1)..4).map(|k| m[row][k] * x[k]).sum();
-        x[row] = (m[row][4] - s) / m[row][row];
-    }
-    x
 }
 
 /// A horizontal path piece in the map plane.

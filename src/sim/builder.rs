@@ -548,10 +548,10 @@ impl SimulationBuilder {
                 pitch.to_radians(),
                 yaw.to_radians(),
             );
-            chain = chain.with_mounting(q_c_b.conj());
+            chain = chain.with_mounting(q_c_b.conjugate());
         }
         if let Some(r) = lever_arm {
-            chain = chain.with_lever_arm(crate::math::Vec3(r));
+            chain = chain.with_lever_arm(crate::math::Vec3::from(r));
         }
         let vibration = match &self.vibration {
             Some(v) => v.clone(),

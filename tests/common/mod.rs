@@ -22,10 +22,10 @@ pub fn record(k: usize, rate: f64, gyro: [f64; 3], accel: [f64; 3]) -> Record {
     let dt = 1.0 / rate;
     Record {
         t: (k + 1) as f64 / rate,
-        gyro: Vec3(gyro),
-        accel: Vec3(accel),
-        dtheta: Vec3(gyro) * dt,
-        dv: Vec3(accel) * dt,
+        gyro: Vec3::from(gyro),
+        accel: Vec3::from(accel),
+        dtheta: Vec3::from(gyro) * dt,
+        dv: Vec3::from(accel) * dt,
         flags: 0,
     }
 }
@@ -59,5 +59,5 @@ pub fn stream(
 /// The six error axes (gyro x y z, accel x y z) of a record against its input.
 pub fn errors6(out: &Record, inp: &Record) -> [f64; 6] {
     let (g, a) = (out.gyro - inp.gyro, out.accel - inp.accel);
-    [g.0[0], g.0[1], g.0[2], a.0[0], a.0[1], a.0[2]]
+    [g[0], g[1], g[2], a[0], a[1], a[2]]
 }

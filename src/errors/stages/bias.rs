@@ -5,7 +5,7 @@
 use super::{AXES, Block, Stage, any, stream, turn_on};
 use crate::errors::model::{Sensor, StageKind, TriadModel};
 use crate::errors::process::{Flicker, GaussMarkov, RandomWalk};
-use crate::math::Vec3;
+use crate::math::Mat3;
 
 /// Bias of one axis.
 #[derive(Clone, Debug)]
@@ -22,7 +22,7 @@ pub(crate) struct Bias {
     sensor: Sensor,
     axes: Option<[Axis; 3]>,
     /// Gyro g-sensitivity, (rad/s)/(m/s²), row-major.
-    g_sens: Option<[[f64; 3]; 3]>,
+    g_sens: Option<Mat3>,
 }
 
 impl Bias {
@@ -55,11 +55,7 @@ impl Bias {
             }),
         };
         let s = &m.g_sensitivity;
-        let g_sens = (sensor == Sensor::Gyro && any(s)).then_some([
-            [s[0], s[1], s[2]],
-            [s[3], s[4], s[5]],
-            [s[6], s[7], s[8]],
-        ]);
+        let g_sens = (sensor == Sensor::Gyro && any(s)).then_some(Mat3::from_row_slice(s));
         let axes = needed.then(|| std::array::from_fn(axis));
         (axes.is_some() || g_sens.is_some()).then_some(Bias {
             sensor,
@@ -80,7 +76,7 @@ impl Stage for Bias {
         let s = self.sensor;
         for (i, a) in self.axes.iter_mut().flatten().enumerate() {
             for r in b.records.iter_mut() {
-                let v = &mut s.rate(r).0[i];
+                let v = &mut s.rate(r)[i];
                 *v += a.fixed;
                 if let Some(gm) = a.gm.as_mut() {
                     *v += gm.step();
@@ -95,8 +91,7 @@ impl Stage for Bias {
         }
         if let Some(m) = &self.g_sens {
             for (r, f) in b.records.iter_mut().zip(b.f_true) {
-                *s.rate(r) +=
-                    Vec3(m.map(|row| row[0] * f.0[0] + row[1] * f.0[1] + row[2] * f.0[2]));
+                *s.rate(r) += m * f;
             }
         }
     }

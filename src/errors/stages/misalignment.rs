@@ -2,6 +2,7 @@
 
 use super::{Block, Stage, any, turn_on};
 use crate::errors::model::{Sensor, StageKind, TriadModel};
+use crate::math::Mat3;
 
 /// Angle names in stream names, in the template's order.
 const PAIRS: [&str; 6] = ["xy", "xz", "yx", "yz", "zx", "zy"];
@@ -10,7 +11,7 @@ const PAIRS: [&str; 6] = ["xy", "xz", "yx", "yz", "zx", "zy"];
 #[derive(Clone, Debug)]
 pub(crate) struct Misalignment {
     sensor: Sensor,
-    m: [[f64; 3]; 3],
+    m: Mat3,
 }
 
 impl Misalignment {
@@ -29,7 +30,7 @@ impl Misalignment {
         let [xy, xz, yx, yz, zx, zy] = ang;
         Some(Misalignment {
             sensor,
-            m: [[1.0, -yz, zy], [xz, 1.0, -zx], [-xy, yx, 1.0]],
+            m: Mat3::new(1.0, -yz, zy, xz, 1.0, -zx, -xy, yx, 1.0),
         })
     }
 }
@@ -42,8 +43,7 @@ impl Stage for Misalignment {
         let (m, s) = (&self.m, self.sensor);
         for r in b.records.iter_mut() {
             let x = *s.rate(r);
-            *s.rate(r) =
-                crate::math::Vec3(m.map(|row| row[0] * x.0[0] + row[1] * x.0[1] + row[2] * x.0[2]));
+            *s.rate(r) = m * x;
         }
     }
 }

@@ -2,7 +2,9 @@
 
 use super::{AXES, Block, Stage, any, stream};
 use crate::errors::model::{Sensor, StageKind, TriadModel};
+use crate::math::{Mat3, Vec3};
 use crate::rng::NormalStream;
+use nalgebra::Cholesky;
 
 /// The white noise of one triad.
 #[derive(Clone, Debug)]
@@ -11,7 +13,7 @@ pub(crate) struct Noise {
     sigma: [f64; 3],
     rng: [NormalStream; 3],
     /// Lower Cholesky factor of the noise correlation across axes, when not the identity.
-    chol: Option<[[f64; 3]; 3]>,
+    chol: Option<Mat3>,
 }
 
 impl Noise {
@@ -21,7 +23,11 @@ impl Noise {
             sensor,
             sigma: std::array::from_fn(|i| m.noise[i] / dt.sqrt()),
             rng: std::array::from_fn(|i| stream(seed, sensor, AXES[i], "noise")),
-            chol: m.noise_correlation.map(cholesky3),
+            // The template loader refuses matrices that are not positive definite
+            // (errors::template); from code, one that is not yields NaN factors.
+            chol: m
+                .noise_correlation
+                .map(|c| Cholesky::new_unchecked(Mat3::from_fn(|i, j| c[i][j])).l()),
         })
     }
 }
@@ -35,34 +41,19 @@ impl Stage for Noise {
         if let Some(l) = &self.chol {
             // Correlated across axes: n = diag(σ)·L·z with z the three axes' own draws.
             for r in b.records.iter_mut() {
-                let z = [rng[0].draw(), rng[1].draw(), rng[2].draw()];
+                let z = Vec3::new(rng[0].draw(), rng[1].draw(), rng[2].draw());
+                let lz = l * z;
                 let v = s.rate(r);
                 for i in 0..3 {
-                    v.0[i] += sigma[i] * (l[i][0] * z[0] + l[i][1] * z[1] + l[i][2] * z[2]);
+                    v[i] += sigma[i] * lz[i];
                 }
             }
             return;
         }
         for (i, (sg, g)) in sigma.iter().zip(rng.iter_mut()).enumerate() {
             for r in b.records.iter_mut() {
-                s.rate(r).0[i] += sg * g.draw();
+                s.rate(r)[i] += sg * g.draw();
             }
         }
     }
-}
-
-/// Lower Cholesky factor of a symmetric positive-definite 3×3 matrix (validated on load).
-fn cholesky3(c: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut l = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..=i {
-            let s: f64 = (0..j).map(|k| l[i][k] * l[j][k]).sum();
-            l[i][j] = if i == j {
-                (c[i][i] - s).max(0.0).sqrt()
-            } else {
-                (c[i][j] - s) / l[j][j]
-            };
-        }
-    }
-    l
 }

@@ -47,7 +47,7 @@ impl Stage for Quantization {
             };
             for r in b.records.iter_mut() {
                 let mut hit = false;
-                for v in s.rate(r).0.iter_mut() {
+                for v in s.rate(r).iter_mut() {
                     if v.abs() > lim {
                         *v = v.clamp(-lim, lim);
                         hit = true;
@@ -66,9 +66,9 @@ impl Stage for Quantization {
             Lsb::Increment(_) => {
                 for (i, q) in q.iter_mut().enumerate() {
                     for r in b.records.iter_mut() {
-                        let d = q.apply(s.rate(r).0[i] * dt);
-                        s.increment(r).0[i] = d;
-                        s.rate(r).0[i] = d / dt;
+                        let d = q.apply(s.rate(r)[i] * dt);
+                        s.increment(r)[i] = d;
+                        s.rate(r)[i] = d / dt;
                     }
                 }
                 b.exact[s as usize] = true;
@@ -76,7 +76,7 @@ impl Stage for Quantization {
             Lsb::Rate(_) => {
                 for (i, q) in q.iter_mut().enumerate() {
                     for r in b.records.iter_mut() {
-                        let v = &mut s.rate(r).0[i];
+                        let v = &mut s.rate(r)[i];
                         *v = q.apply(*v);
                     }
                 }

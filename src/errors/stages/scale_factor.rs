@@ -76,7 +76,7 @@ impl Stage for ScaleFactor {
         let s = self.sensor;
         for (i, a) in self.axes.iter_mut().enumerate() {
             for r in b.records.iter_mut() {
-                let v = &mut s.rate(r).0[i];
+                let v = &mut s.rate(r)[i];
                 let mut k = a.fixed + if *v >= 0.0 { a.asym_half } else { -a.asym_half };
                 if let Some(gm) = a.gm.as_mut() {
                     k += gm.step();

@@ -5,7 +5,7 @@
 
 use super::{Block, Stage, any};
 use crate::errors::model::StageKind;
-use crate::math::{Mat3, Vec3};
+use crate::math::Vec3;
 
 /// The accelerometers' positions (row i: accelerometer i) in the case frame (m).
 #[derive(Clone, Debug)]
@@ -30,7 +30,7 @@ impl SizeEffect {
     /// Moves every accelerometer by the lever arm `r` (case frame, m).
     pub(crate) fn add_lever_arm(&mut self, r: Vec3) {
         for row in self.positions.iter_mut() {
-            for (c, v) in row.iter_mut().zip(r.0) {
+            for (c, v) in row.iter_mut().zip(r.iter()) {
                 *c += v;
             }
         }
@@ -45,16 +45,16 @@ impl Stage for SizeEffect {
         let Some(rot) = b.rotation else { return };
         let inv_dt = 1.0 / b.dt;
         for (r, t) in b.records.iter_mut().zip(rot) {
-            let (mut dw, mut w) = (t.d_omega, Mat3(t.omega_outer));
+            let (mut dw, mut w) = (t.d_omega, t.omega_outer);
             if let Some(m) = b.mounting {
-                dw = m.mul_vec(dw);
-                w = m.mul_mat(&w).mul_mat(&m.transpose());
+                dw = m * dw;
+                w = m * w * m.transpose();
             }
-            let tr = w.0[0][0] + w.0[1][1] + w.0[2][2];
+            let tr = w[(0, 0)] + w[(1, 1)] + w[(2, 2)];
             for (i, p) in self.positions.iter().enumerate() {
-                let p = Vec3(*p);
-                let add = (dw * inv_dt).cross(p) + w.mul_vec(p) - p * tr;
-                r.accel.0[i] += add.0[i];
+                let p = Vec3::from(*p);
+                let add = (dw * inv_dt).cross(&p) + w * p - p * tr;
+                r.accel[i] += add[i];
             }
         }
     }

@@ -408,7 +408,7 @@ impl Vibration {
         for r in &mut self.randoms {
             v[r.slot] += r.sample();
         }
-        (Vec3([v[0], v[1], v[2]]), Vec3([v[3], v[4], v[5]]))
+        (Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]))
     }
 
     /// What was built for each random vibration, in spec order.

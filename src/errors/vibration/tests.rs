@@ -30,7 +30,7 @@ fn run(v: &mut Vibration, slot: usize, n: usize) -> Vec<f64> {
     (0..n)
         .map(|_| {
             let (g, a) = v.next();
-            if slot < 3 { g.0[slot] } else { a.0[slot - 3] }
+            if slot < 3 { g[slot] } else { a[slot - 3] }
         })
         .collect()
 }
@@ -157,10 +157,10 @@ fn sine_interval_mean_is_exact() {
     let w = TAU * f;
     for k in 1..=2000u64 {
         let (g, acc) = v.next();
-        assert_eq!((g.0[0], g.0[2], acc), (0.0, 0.0, Vec3::ZERO));
+        assert_eq!((g[0], g[2], acc), (0.0, 0.0, Vec3::zeros()));
         let (t0, t1) = ((k - 1) as f64 * dt, k as f64 * dt);
         let closed = a / (w * dt) * ((w * t0 + phi).cos() - (w * t1 + phi).cos());
-        assert!((g.0[1] - closed).abs() < 1e-12 * a, "k {k}");
+        assert!((g[1] - closed).abs() < 1e-12 * a, "k {k}");
         if k % 97 == 0 {
             let n = 200;
             let h = dt / n as f64;
@@ -169,7 +169,7 @@ fn sine_interval_mean_is_exact() {
                 .map(|i| y(i) * if i % 2 == 1 { 4.0 } else { 2.0 })
                 .sum();
             let simpson = (y(0) + y(n) + inner) * h / 3.0 / dt;
-            assert!((g.0[1] - simpson).abs() < 1e-12 * a, "k {k}");
+            assert!((g[1] - simpson).abs() < 1e-12 * a, "k {k}");
         }
     }
 }
@@ -486,8 +486,8 @@ fn streams_are_independent_and_deterministic() {
     let n = 1 << 18;
     let mut v = Vibration::new(&both, dt, 11).unwrap();
     let recs: Vec<(Vec3, Vec3)> = (0..n).map(|_| v.next()).collect();
-    let x: Vec<f64> = recs.iter().map(|r| r.1.0[2]).collect();
-    let y: Vec<f64> = recs.iter().map(|r| r.0.0[1]).collect();
+    let x: Vec<f64> = recs.iter().map(|r| r.1[2]).collect();
+    let y: Vec<f64> = recs.iter().map(|r| r.0[1]).collect();
     let sd = (sum_rho2(&design(&az, dt).h) * sum_rho2(&design(&gy, dt).h))
         .sqrt()
         .sqrt()
