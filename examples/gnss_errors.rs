@@ -37,8 +37,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         t.push(e.t);
         for i in 0..3 {
-            dp[i].push(e.pos_err_n.0[i]);
-            dv[i].push(e.vel_err_n.0[i]);
+            dp[i].push(e.pos_err_n[i]);
+            dv[i].push(e.vel_err_n[i]);
         }
     }
     let panel = |title: &str, unit: &str, ys: [Vec<f64>; 3]| Panel {

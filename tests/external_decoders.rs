@@ -277,8 +277,8 @@ fn pynmea2_reads_our_nmea() {
         }
         near(gga, "altitude", x.h, 0.0005);
         near(gga, "horizontal_dil", e.hdop, 0.005);
-        let speed = x.v_n.x().hypot(x.v_n.y());
-        let course = x.v_n.y().atan2(x.v_n.x()).to_degrees().rem_euclid(360.0);
+        let speed = x.v_n.x.hypot(x.v_n.y);
+        let course = x.v_n.y.atan2(x.v_n.x).to_degrees().rem_euclid(360.0);
         near(
             rmc,
             "spd_over_grnd",
@@ -288,9 +288,9 @@ fn pynmea2_reads_our_nmea() {
         near(rmc, "true_course", course, 0.005 + 1e-12);
         near(vtg, "spd_over_grnd_kmph", speed * 3.6, 0.0005 + 1e-12);
         near(vtg, "true_track", course, 0.005 + 1e-12);
-        near(gst, "std_dev_latitude", e.sigma_pos.x(), 0.0005);
-        near(gst, "std_dev_longitude", e.sigma_pos.y(), 0.0005);
-        near(gst, "std_dev_altitude", e.sigma_pos.z(), 0.0005);
+        near(gst, "std_dev_latitude", e.sigma_pos.x, 0.0005);
+        near(gst, "std_dev_longitude", e.sigma_pos.y, 0.0005);
+        near(gst, "std_dev_altitude", e.sigma_pos.z, 0.0005);
         near(gst, "rms", e.uere, 0.0005);
     }
     assert_eq!(outages, 10);
@@ -332,18 +332,13 @@ fn pyubx2_reads_our_nav_pvt() {
         near(m, "lon", x.lon.to_degrees(), 0.5e-7 + 1e-12);
         near(m, "height", x.h * 1000.0, 0.5);
         for (i, k) in ["velN", "velE", "velD"].iter().enumerate() {
-            near(m, k, x.v_n.0[i] * 1000.0, 0.5);
+            near(m, k, x.v_n[i] * 1000.0, 0.5);
         }
-        near(m, "gSpeed", x.v_n.x().hypot(x.v_n.y()) * 1000.0, 0.5);
-        let course = x.v_n.y().atan2(x.v_n.x()).to_degrees().rem_euclid(360.0);
+        near(m, "gSpeed", x.v_n.x.hypot(x.v_n.y) * 1000.0, 0.5);
+        let course = x.v_n.y.atan2(x.v_n.x).to_degrees().rem_euclid(360.0);
         near(m, "headMot", course, 0.5e-5 + 1e-9);
-        near(
-            m,
-            "hAcc",
-            e.sigma_pos.x().hypot(e.sigma_pos.y()) * 1000.0,
-            0.5,
-        );
-        near(m, "vAcc", e.sigma_pos.z() * 1000.0, 0.5);
+        near(m, "hAcc", e.sigma_pos.x.hypot(e.sigma_pos.y) * 1000.0, 0.5);
+        near(m, "vAcc", e.sigma_pos.z * 1000.0, 0.5);
         near(m, "pDOP", e.pdop(), 0.005 + 1e-12);
     }
 }
@@ -379,11 +374,11 @@ fn pymavlink_reads_our_hil_gps() {
         near(m, "lon", x.lon.to_degrees() * 1e7, 0.5);
         near(m, "alt", x.h * 1000.0, 0.5);
         for (i, key) in ["vn", "ve", "vd"].iter().enumerate() {
-            near(m, key, x.v_n.0[i] * 100.0, 0.5);
+            near(m, key, x.v_n[i] * 100.0, 0.5);
         }
         near(m, "eph", e.hdop * 100.0, 0.5);
         near(m, "epv", e.vdop * 100.0, 0.5);
-        let course = x.v_n.y().atan2(x.v_n.x()).to_degrees().rem_euclid(360.0);
+        let course = x.v_n.y.atan2(x.v_n.x).to_degrees().rem_euclid(360.0);
         near(m, "cog", course * 100.0, 0.5 + 1e-6);
     }
 }

@@ -4,7 +4,7 @@
 use imu_emu::aiding::gnss::{AntennaState, Fix, GnssConfig, Receiver, displace};
 use imu_emu::earth::{self, Geodetic};
 use imu_emu::kinematics::Sensed;
-use imu_emu::math::{Vec3, quat_from_euler};
+use imu_emu::math::{QuatExt, Vec3, quat_from_euler};
 use imu_emu::motion::{Motion, Pose};
 
 /// At rest at a fixed place, level, turning about the local vertical at `rate` rad/s
@@ -35,7 +35,7 @@ impl Motion for Spin {
         let (s, c) = self.lat.sin_cos();
         Sensed {
             omega_ib_b: q.rotate_inv(earth::omega_ie_n(s, c)) + Vec3::new(0.0, 0.0, self.rate),
-            f_b: Vec3::ZERO,
+            f_b: Vec3::zeros(),
         }
     }
     fn pose(&self, t: f64) -> Pose {
@@ -44,7 +44,7 @@ impl Motion for Spin {
             lat: self.lat,
             lon: self.lon,
             h: self.h,
-            v_n: Vec3::ZERO,
+            v_n: Vec3::zeros(),
             q_b_n: quat_from_euler(0.0, 0.0, self.rate * t),
         }
     }
@@ -88,17 +88,18 @@ fn lever_arm_on_a_turning_vehicle_matches_the_circle() {
     let c_ne = veh.c_n_e();
     for e in &epochs {
         let psi = SPIN.rate * e.t;
-        let offset = c_ne.mul_vec(Vec3::new(2.0 * psi.cos(), 2.0 * psi.sin(), 0.0));
+        let offset = c_ne * Vec3::new(2.0 * psi.cos(), 2.0 * psi.sin(), 0.0);
         let dr = ecef(&e.truth) - veh.to_ecef() - offset;
-        assert!(dr.max_abs() < 1e-8, "t {} position off by {dr:?} m", e.t);
-        let v_expected = c_ne.mul_vec(Vec3::new(
-            -2.0 * SPIN.rate * psi.sin(),
-            2.0 * SPIN.rate * psi.cos(),
-            0.0,
-        ));
+        assert!(dr.amax() < 1e-8, "t {} position off by {dr:?} m", e.t);
+        let v_expected = c_ne
+            * (Vec3::new(
+                -2.0 * SPIN.rate * psi.sin(),
+                2.0 * SPIN.rate * psi.cos(),
+                0.0,
+            ));
         let ant = Geodetic::from_radians(e.truth.lat, e.truth.lon, e.truth.h);
-        let dv = ant.c_n_e().mul_vec(e.truth.v_n) - v_expected;
-        assert!(dv.max_abs() < 1e-14, "t {} velocity off by {dv:?} m/s", e.t);
+        let dv = ant.c_n_e() * e.truth.v_n - v_expected;
+        assert!(dv.amax() < 1e-14, "t {} velocity off by {dv:?} m/s", e.t);
         assert_eq!(e.measured, e.truth, "no errors configured");
     }
 }
@@ -115,7 +116,7 @@ fn vertical_lever_arm_adds_height_only() {
         assert!((e.truth.h - (SPIN.h + 3.0)).abs() < 1e-8, "{}", e.truth.h);
         assert!((e.truth.lat - SPIN.lat).abs() < 1e-15);
         assert!((e.truth.lon - SPIN.lon).abs() < 1e-15);
-        assert!(e.truth.v_n.max_abs() < 1e-15, "{:?}", e.truth.v_n);
+        assert!(e.truth.v_n.amax() < 1e-15, "{:?}", e.truth.v_n);
     }
 }
 
@@ -196,11 +197,11 @@ fn white_errors_have_their_sigma_and_no_memory() {
         for (sigma, x) in [
             (
                 cfg.pos_white_m[i],
-                e.iter().map(|e| e.pos_err_n.0[i]).collect::<Vec<_>>(),
+                e.iter().map(|e| e.pos_err_n[i]).collect::<Vec<_>>(),
             ),
             (
                 cfg.vel_white_m_s[i],
-                e.iter().map(|e| e.vel_err_n.0[i]).collect(),
+                e.iter().map(|e| e.vel_err_n[i]).collect(),
             ),
         ] {
             let (v, r1) = var_r1(&x);
@@ -219,7 +220,7 @@ fn white_errors_have_their_sigma_and_no_memory() {
         assert_eq!(d, e.measured);
     }
     // The streams are named per axis: the north and east errors are not the same draws.
-    assert_ne!(e[5].pos_err_n.x() / 1.0, e[5].pos_err_n.y() / 2.0);
+    assert_ne!(e[5].pos_err_n.x / 1.0, e[5].pos_err_n.y / 2.0);
 }
 
 /// First-order Gauss–Markov errors: stationary variance σ² and lag-1 autocorrelation
@@ -246,11 +247,11 @@ fn gauss_markov_errors_have_their_sigma_and_correlation() {
         for (sigma, x) in [
             (
                 cfg.pos_gm_m[i],
-                e.iter().map(|e| e.pos_err_n.0[i]).collect::<Vec<_>>(),
+                e.iter().map(|e| e.pos_err_n[i]).collect::<Vec<_>>(),
             ),
             (
                 cfg.vel_gm_m_s[i],
-                e.iter().map(|e| e.vel_err_n.0[i]).collect(),
+                e.iter().map(|e| e.vel_err_n[i]).collect(),
             ),
         ] {
             let (v, r1) = var_r1(&x);

@@ -7,7 +7,7 @@ use serde::Deserialize;
 
 use crate::earth::{self, Geodetic};
 use crate::errors::process::GaussMarkov;
-use crate::math::Vec3;
+use crate::math::{QuatExt, Vec3};
 use crate::motion::Motion;
 use crate::rng::NormalStream;
 
@@ -163,7 +163,7 @@ impl GnssConfig {
     /// The kind of fix the configured horizontal error stands for.
     pub fn fix_kind(&self) -> Fix {
         let s = self.sigma_pos();
-        Fix::for_horizontal_sigma(s.x().hypot(s.y()))
+        Fix::for_horizontal_sigma(s.x.hypot(s.y))
     }
 }
 
@@ -341,7 +341,7 @@ impl Receiver {
             )
         });
         Ok(Receiver {
-            lever: Vec3(cfg.lever_arm_m),
+            lever: Vec3::from(cfg.lever_arm_m),
             pos,
             vel,
             fix: cfg.fix_kind(),
@@ -378,8 +378,8 @@ impl Receiver {
             return None;
         }
         self.next_k = Some(k + 1);
-        let pos_err_n = Vec3(std::array::from_fn(|i| self.pos[i].next(first)));
-        let vel_err_n = Vec3(std::array::from_fn(|i| self.vel[i].next(first)));
+        let pos_err_n = Vec3::from(std::array::from_fn(|i| self.pos[i].next(first)));
+        let vel_err_n = Vec3::from(std::array::from_fn(|i| self.vel[i].next(first)));
         self.hint = motion.piece_at(t, self.hint);
         let truth = antenna_state(motion, self.hint, t, self.lever);
         let outage = self.cfg.outages_s.iter().any(|w| (w[0]..w[1]).contains(&t));
@@ -402,8 +402,8 @@ impl Receiver {
             vel_err_n,
             sigma_pos: self.sigma_pos,
             sigma_vel: self.sigma_vel,
-            hdop: self.sigma_pos.x().hypot(self.sigma_pos.y()) / uere,
-            vdop: self.sigma_pos.z() / uere,
+            hdop: self.sigma_pos.x.hypot(self.sigma_pos.y) / uere,
+            vdop: self.sigma_pos.z / uere,
             uere,
         })
     }
@@ -419,7 +419,7 @@ impl Receiver {
 /// (the derivative of C_b^e l in the Earth frame), expressed in the antenna's own NED axes.
 pub fn antenna_state(motion: &impl Motion, piece: usize, t: f64, l: Vec3) -> AntennaState {
     let p = motion.pose(t);
-    if l == Vec3::ZERO {
+    if l == Vec3::zeros() {
         return AntennaState {
             lat: p.lat,
             lon: p.lon,
@@ -431,14 +431,14 @@ pub fn antenna_state(motion: &impl Motion, piece: usize, t: f64, l: Vec3) -> Ant
     let c_n_e = g.c_n_e();
     let w_ie_b = p.q_b_n.rotate_inv(earth::omega_ie_n(g.sin_lat, g.cos_lat));
     let w_eb_b = motion.sense(piece, t).omega_ib_b - w_ie_b;
-    let r_a = g.to_ecef() + c_n_e.mul_vec(p.q_b_n.rotate(l));
-    let v_a_e = c_n_e.mul_vec(p.v_n + p.q_b_n.rotate(w_eb_b.cross(l)));
+    let r_a = g.to_ecef() + c_n_e * p.q_b_n.rotate(l);
+    let v_a_e = c_n_e * (p.v_n + p.q_b_n.rotate(w_eb_b.cross(&l)));
     let ga = earth::ecef_to_geodetic(r_a);
     AntennaState {
         lat: ga.lat(),
         lon: ga.lon(),
         h: ga.h,
-        v_n: ga.c_n_e().tr_mul_vec(v_a_e),
+        v_n: ga.c_n_e().tr_mul(&(v_a_e)),
     }
 }
 
@@ -449,9 +449,9 @@ pub fn displace(s: AntennaState, dp: Vec3, dv: Vec3) -> AntennaState {
     let rn = earth::radius_meridian(sin_lat) + s.h;
     let re = earth::radius_prime_vertical(sin_lat) + s.h;
     AntennaState {
-        lat: s.lat + dp.x() / rn,
-        lon: s.lon + dp.y() / (re * s.lat.cos()),
-        h: s.h - dp.z(),
+        lat: s.lat + dp.x / rn,
+        lon: s.lon + dp.y / (re * s.lat.cos()),
+        h: s.h - dp.z,
         v_n: s.v_n + dv,
     }
 }

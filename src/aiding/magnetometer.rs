@@ -8,7 +8,7 @@
 //! The measurement is m = S B^b + b_hard + n.
 
 use crate::earth::Geodetic;
-use crate::math::{Mat3, Quat, Vec3};
+use crate::math::{Mat3, Quat, QuatExt, Vec3};
 use crate::rng::NormalStream;
 
 /// IGRF reference radius a (m).
@@ -36,7 +36,7 @@ impl Default for MagConfig {
         MagConfig {
             dipole_nt: IGRF13_2020_DIPOLE_NT,
             hard_iron_t: [0.0; 3],
-            soft_iron: Mat3::IDENTITY.0,
+            soft_iron: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
             noise_t: 0.0,
         }
     }
@@ -49,13 +49,13 @@ pub fn dipole_field_e(dipole_nt: [f64; 3], r: Vec3) -> Vec3 {
     let rn = r.norm();
     let u = r * (1.0 / rn);
     let k = (IGRF_RADIUS_M / rn).powi(3);
-    (u * (3.0 * g.dot(u)) - g) * k
+    (u * (3.0 * g.dot(&u)) - g) * k
 }
 
 /// The dipole field (T) in local NED at `pos`.
 pub fn dipole_field_n(dipole_nt: [f64; 3], pos: &Geodetic) -> Vec3 {
     pos.c_n_e()
-        .tr_mul_vec(dipole_field_e(dipole_nt, pos.to_ecef()))
+        .tr_mul(&(dipole_field_e(dipole_nt, pos.to_ecef())))
 }
 
 /// A magnetometer with its own noise streams.
@@ -83,16 +83,17 @@ impl Magnetometer {
 
     /// The next measurement (T): S B^b + b_hard + noise.
     pub fn sample(&mut self, pos: &Geodetic, q_b_n: Quat) -> Vec3 {
-        let b = Mat3(self.cfg.soft_iron).mul_vec(self.true_field_b(pos, q_b_n));
+        let b =
+            Mat3::from_row_slice(self.cfg.soft_iron.as_flattened()) * self.true_field_b(pos, q_b_n);
         let s = self.cfg.noise_t;
-        let n = Vec3(std::array::from_fn(|i| {
+        let n = Vec3::from(std::array::from_fn(|i| {
             if s > 0.0 {
                 s * self.noise[i].draw()
             } else {
                 0.0
             }
         }));
-        b + Vec3(self.cfg.hard_iron_t) + n
+        b + Vec3::from(self.cfg.hard_iron_t) + n
     }
 }
 
@@ -111,20 +112,17 @@ mod tests {
         let eq = Geodetic::from_radians(0.0, 0.7, 0.0);
         let k = (IGRF_RADIUS_M / earth::A).powi(3) * 30_000e-9;
         let b = dipole_field_n(AXIAL, &eq);
-        assert!((b - Vec3::new(k, 0.0, 0.0)).max_abs() < 1e-20, "{b:?}");
+        assert!((b - Vec3::new(k, 0.0, 0.0)).amax() < 1e-20, "{b:?}");
         let pole = Geodetic::from_radians(std::f64::consts::FRAC_PI_2, 0.0, 0.0);
         let k = (IGRF_RADIUS_M / earth::B).powi(3) * 30_000e-9;
         let b = dipole_field_n(AXIAL, &pole);
-        assert!(
-            (b - Vec3::new(0.0, 0.0, 2.0 * k)).max_abs() < 1e-19,
-            "{b:?}"
-        );
+        assert!((b - Vec3::new(0.0, 0.0, 2.0 * k)).amax() < 1e-19, "{b:?}");
         // Geocentric latitude 45°: in the geocentric (radial) frame tan I = 2.
         let r = Vec3::new(1.0, 0.0, 1.0) * (7.0e6 / 2f64.sqrt());
         let be = dipole_field_e(AXIAL, r);
         let up = r * (1.0 / r.norm());
         let north = Vec3::new(-1.0, 0.0, 1.0) * (1.0 / 2f64.sqrt());
-        let ratio = -be.dot(up) / be.dot(north);
+        let ratio = -be.dot(&up) / be.dot(&north);
         assert!((ratio - 2.0).abs() < 1e-14, "{ratio}");
     }
 
@@ -143,17 +141,14 @@ mod tests {
         let mut m = Magnetometer::new(cfg, 1);
         let q = quat_from_euler(0.0, 0.0, std::f64::consts::FRAC_PI_2);
         let bb = m.true_field_b(&pos, q);
-        assert!(
-            (bb - Vec3::new(0.0, -bn.x(), bn.z())).max_abs() < 1e-20,
-            "{bb:?}"
-        );
+        assert!((bb - Vec3::new(0.0, -bn.x, bn.z)).amax() < 1e-20, "{bb:?}");
         let s = m.sample(&pos, q);
         let expected = Vec3::new(
-            1.1 * bb.x() + 0.02 * bb.y() + 1e-6,
-            0.02 * bb.x() + 0.9 * bb.y() - 2e-6,
-            bb.z() + 3e-6,
+            1.1 * bb.x + 0.02 * bb.y + 1e-6,
+            0.02 * bb.x + 0.9 * bb.y - 2e-6,
+            bb.z + 3e-6,
         );
-        assert!((s - expected).max_abs() < 1e-20, "{s:?}");
+        assert!((s - expected).amax() < 1e-20, "{s:?}");
     }
 
     /// The IGRF-13 2020 dipole at 41° N 2° E is about 45 µT, dipping down by 50–60°.
@@ -163,7 +158,7 @@ mod tests {
             IGRF13_2020_DIPOLE_NT,
             &Geodetic::from_radians(41f64.to_radians(), 2f64.to_radians(), 0.0),
         );
-        let dip = b.z().atan2(b.x().hypot(b.y())).to_degrees();
+        let dip = b.z.atan2(b.x.hypot(b.y)).to_degrees();
         assert!(
             (35e-6..55e-6).contains(&b.norm()) && (50.0..65.0).contains(&dip),
             "{b:?} {dip}"

@@ -27,7 +27,7 @@ pub fn encode(e: &GnssEpoch, seq: u8, out: &mut Vec<u8>) {
     let mut p = [0u8; PAYLOAD_LEN];
     let m = &e.measured;
     let fix = e.fix.is_valid();
-    let (speed, cog) = course(m.v_n.x(), m.v_n.y());
+    let (speed, cog) = course(m.v_n.x, m.v_n.y);
     let cm_s = |v: f64| (v * 100.0).round().clamp(i16::MIN as f64, i16::MAX as f64) as i16;
     p[0..8].copy_from_slice(&((e.t * 1e6).round() as u64).to_le_bytes());
     if fix {
@@ -52,7 +52,7 @@ pub fn encode(e: &GnssEpoch, seq: u8, out: &mut Vec<u8>) {
     };
     p[24..26].copy_from_slice(&vel.to_le_bytes());
     if fix {
-        for (i, v) in m.v_n.0.iter().enumerate() {
+        for (i, v) in m.v_n.iter().enumerate() {
             p[26 + 2 * i..28 + 2 * i].copy_from_slice(&cm_s(*v).to_le_bytes());
         }
     }

@@ -29,7 +29,7 @@ pub fn encode(e: &GnssEpoch, time: GpsTime, leap: i64, out: &mut Vec<u8>) {
     } else {
         (",".to_string(), ",".to_string())
     };
-    let (sog, cog) = course(m.v_n.x(), m.v_n.y());
+    let (sog, cog) = course(m.v_n.x, m.v_n.y);
     let blank = |s: String| if fix { s } else { String::new() };
 
     sentence(
@@ -71,10 +71,10 @@ pub fn encode(e: &GnssEpoch, time: GpsTime, leap: i64, out: &mut Vec<u8>) {
         ),
     );
     let s = e.sigma_pos;
-    let (major, minor, orient) = if s.x() >= s.y() {
-        (s.x(), s.y(), 0.0)
+    let (major, minor, orient) = if s.x >= s.y {
+        (s.x, s.y, 0.0)
     } else {
-        (s.y(), s.x(), 90.0)
+        (s.y, s.x, 90.0)
     };
     sentence(
         out,
@@ -84,9 +84,9 @@ pub fn encode(e: &GnssEpoch, time: GpsTime, leap: i64, out: &mut Vec<u8>) {
             blank(format!("{major:.3}")),
             blank(format!("{minor:.3}")),
             blank(format!("{orient:.1}")),
-            blank(format!("{:.3}", s.x())),
-            blank(format!("{:.3}", s.y())),
-            blank(format!("{:.3}", s.z())),
+            blank(format!("{:.3}", s.x)),
+            blank(format!("{:.3}", s.y)),
+            blank(format!("{:.3}", s.z)),
         ),
     );
 }

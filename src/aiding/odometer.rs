@@ -6,7 +6,7 @@
 use serde::Deserialize;
 
 use crate::earth;
-use crate::math::Vec3;
+use crate::math::{QuatExt, Vec3};
 use crate::motion::Motion;
 
 /// Odometer settings: the scene file's `[odometer]` table (every key optional).
@@ -120,7 +120,7 @@ impl Odometer {
     /// An odometer with `cfg`, its counter at zero.
     pub fn new(cfg: OdometerConfig) -> Odometer {
         Odometer {
-            lever: Vec3(cfg.lever_arm_m),
+            lever: Vec3::from(cfg.lever_arm_m),
             counted_m: 0.0,
             ticks: 0,
             hint: 0,
@@ -136,7 +136,7 @@ impl Odometer {
         let (s, c) = p.lat.sin_cos();
         let w_eb =
             motion.sense(self.hint, t).omega_ib_b - p.q_b_n.rotate_inv(earth::omega_ie_n(s, c));
-        (p.q_b_n.rotate_inv(p.v_n) + w_eb.cross(self.lever)).x()
+        (p.q_b_n.rotate_inv(p.v_n) + w_eb.cross(&self.lever)).x
     }
 
     /// The sample at the end of `(t_prev, t]`: the distance rolled is integrated by

@@ -99,11 +99,11 @@ pub fn truth_row(e: &GnssEpoch, out: &mut String) {
             s.lon.to_degrees(),
             s.h
         );
-        for v in s.v_n.0 {
+        for v in s.v_n.iter().copied() {
             let _ = write!(out, ",{v}");
         }
     }
-    for v in e.pos_err_n.0.iter().chain(e.vel_err_n.0.iter()) {
+    for v in e.pos_err_n.iter().chain(e.vel_err_n.iter()) {
         let _ = write!(out, ",{v}");
     }
     out.push('\n');

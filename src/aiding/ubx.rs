@@ -41,14 +41,14 @@ pub fn encode(e: &GnssEpoch, time: GpsTime, leap: i64, out: &mut Vec<u8>) {
     if fix {
         let s = e.sigma_pos;
         let sv = e.sigma_vel;
-        let (speed, cog) = course(m.v_n.x(), m.v_n.y());
+        let (speed, cog) = course(m.v_n.x, m.v_n.y);
         put(&mut p, 24, &deg_e7(m.lon).to_le_bytes());
         put(&mut p, 28, &deg_e7(m.lat).to_le_bytes());
         put(&mut p, 32, &mm(m.h).to_le_bytes());
         put(&mut p, 36, &mm(m.h).to_le_bytes());
-        put(&mut p, 40, &(mm(s.x().hypot(s.y())) as u32).to_le_bytes());
-        put(&mut p, 44, &(mm(s.z()) as u32).to_le_bytes());
-        for (i, v) in m.v_n.0.iter().enumerate() {
+        put(&mut p, 40, &(mm(s.x.hypot(s.y)) as u32).to_le_bytes());
+        put(&mut p, 44, &(mm(s.z) as u32).to_le_bytes());
+        for (i, v) in m.v_n.iter().enumerate() {
             put(&mut p, 48 + 4 * i, &mm(*v).to_le_bytes());
         }
         put(&mut p, 60, &mm(speed).to_le_bytes());
@@ -56,7 +56,7 @@ pub fn encode(e: &GnssEpoch, time: GpsTime, leap: i64, out: &mut Vec<u8>) {
         put(&mut p, 68, &(mm(sv.norm()) as u32).to_le_bytes());
         // Course σ ≈ horizontal speed σ / speed, at most 180°.
         let head_acc = if speed > 0.0 {
-            (sv.x().hypot(sv.y()) / speed).to_degrees().min(180.0)
+            (sv.x.hypot(sv.y) / speed).to_degrees().min(180.0)
         } else {
             180.0
         };
