@@ -99,7 +99,7 @@ pub fn truth_row(e: &GnssEpoch, out: &mut String) {
             s.lon.to_degrees(),
             s.h
         );
-        for v in s.v_n.iter().copied() {
+        for v in &s.v_n {
             let _ = write!(out, ",{v}");
         }
     }
