@@ -41,6 +41,12 @@ pub struct SceneFile {
     pub timing: Option<toml::Table>,
     /// A native motion definition (`imu_emu::motiondef::native`), checked when it is read.
     pub motion: Option<toml::Table>,
+    /// The GNSS receiver next to the IMU (`[gnss]`; docs/aiding.md).
+    #[serde(default)]
+    pub gnss: Option<crate::aiding::GnssConfig>,
+    /// The odometer (`[odometer]`; docs/aiding.md).
+    #[serde(default)]
+    pub odometer: Option<crate::aiding::odometer::OdometerConfig>,
 }
 
 /// `[faults]`: faults injected into protocol frames (`[[faults.event]]` entries).

@@ -13,6 +13,7 @@
 //! Conventions: NED local level, body x forward / y right / z down, C_b^n = Rz(ψ)Ry(θ)Rx(φ),
 //! SI units inside; see docs/signals.md.
 
+pub mod aiding;
 pub mod analysis;
 pub mod config;
 pub mod csvio;

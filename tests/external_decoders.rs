@@ -1,8 +1,10 @@
-//! Our frames decoded by decoders written by others: pymavlink for MAVLink 2 HIL_SENSOR and
-//! NovAtel's EDIE for RAWIMUSXB (both from PyPI), through `scripts/cross_check.py`. They need
+//! Our frames decoded by decoders written by others: pymavlink for MAVLink 2 HIL_SENSOR (and
+//! HIL_GPS), pynmea2 for NMEA 0183, pyubx2 for UBX NAV-PVT, and
+//! NovAtel's EDIE for RAWIMUSXB (all from PyPI), through `scripts/cross_check.py`. They need
 //! a Python with those packages, named by `IMU_EMU_PYTHON`; `.ci/run` builds one under
 //! `target/` and runs these tests with `--ignored`.
 
+use imu_emu::aiding::{GnssConfig, GnssEncoder, GnssEpoch, GnssFormat, Receiver};
 use imu_emu::math::Vec3;
 use imu_emu::protocol::faults::When;
 use imu_emu::protocol::spec::Source;
@@ -65,7 +67,6 @@ fn cross_check(
     bad: &[usize],
     st: EncoderState,
 ) -> Vec<Msg> {
-    let python = std::env::var("IMU_EMU_PYTHON").expect(NEEDS);
     let (_, plan) = protocol::load(name).unwrap();
     let rate = plan.rate_hz.unwrap();
     let inj = FaultInjector::new(
@@ -85,8 +86,15 @@ fn cross_check(
     for r in recs {
         plan.encode(r, 25.0, &mut st, &mut bytes);
     }
-    let path = std::env::temp_dir().join(format!("imu-emu-xcheck-{name}-{}", std::process::id()));
-    std::fs::write(&path, &bytes).unwrap();
+    run_decoder(name, kind, &bytes)
+}
+
+/// Runs the external decoder `kind` of `scripts/cross_check.py` on `bytes` (written to a
+/// temporary file tagged `tag`); returns its JSON objects.
+fn run_decoder(tag: &str, kind: &str, bytes: &[u8]) -> Vec<Msg> {
+    let python = std::env::var("IMU_EMU_PYTHON").expect(NEEDS);
+    let path = std::env::temp_dir().join(format!("imu-emu-xcheck-{tag}-{}", std::process::id()));
+    std::fs::write(&path, bytes).unwrap();
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/cross_check.py");
     let out = std::process::Command::new(&python)
         .args([script, kind])
@@ -193,5 +201,184 @@ fn novatel_edie_decodes_our_rawimusx_frames() {
             };
             assert_eq!(m.i(key), counts(sign * v, s), "{key} of frame {k}");
         }
+    }
+}
+
+/// GNSS epochs of a 20 s circle at 5 Hz with the default receiver errors and an outage from
+/// 8 s to 10 s, for GPS week 2300, second 100 000 at record time 0 (2024-02-05 03:46:22 UTC
+/// with 18 leap seconds).
+fn gnss_epochs() -> Vec<GnssEpoch> {
+    let sim = imu_emu::sim::Simulation::builder()
+        .scene("circle")
+        .duration(20.0)
+        .build()
+        .unwrap();
+    let cfg = GnssConfig {
+        outages_s: vec![[8.0, 10.0]],
+        lever_arm_m: [0.5, -0.2, -1.0],
+        ..GnssConfig::default()
+    };
+    Receiver::new(cfg, 5)
+        .unwrap()
+        .epochs(sim.motion(), 0.0, 20.0)
+}
+
+const GNSS_WEEK: u32 = 2300;
+const GNSS_SOW: f64 = 100_000.0;
+
+fn gnss_bytes(format: GnssFormat, epochs: &[GnssEpoch]) -> Vec<u8> {
+    let mut enc = GnssEncoder::new(format, GNSS_WEEK, GNSS_SOW, 18);
+    let mut out = Vec::new();
+    for e in epochs {
+        enc.encode(e, &mut out);
+    }
+    out
+}
+
+/// UTC "HH:MM:SS.ffffff" of record time `t` (s after 03:46:22 UTC, t < 13 min).
+fn utc_of(t: f64) -> String {
+    let s = 22.0 + t;
+    format!("03:{:02}:{:09.6}", 46 + (s / 60.0) as u32, s % 60.0)
+}
+
+/// pynmea2 reads every GGA, RMC, VTG, ZDA and GST sentence (checking their checksums) and
+/// gets our values within the printed resolution: positions to 10⁻⁷ minute, heights and
+/// σ's to 1 mm, speeds to 0.001 kn or km/h, courses to 0.01°, time to 0.01 s; in the outage
+/// the fix quality is 0, the RMC status V and the position empty.
+#[test]
+#[ignore = "needs IMU_EMU_PYTHON: a Python with pynmea2 (.ci/run)"]
+fn pynmea2_reads_our_nmea() {
+    let epochs = gnss_epochs();
+    let msgs = run_decoder("nmea", "nmea", &gnss_bytes(GnssFormat::Nmea, &epochs));
+    assert_eq!(msgs.len(), 5 * epochs.len());
+    let near = |m: &Msg, k: &str, v: f64, tol: f64| {
+        assert!((m.f(k) - v).abs() <= tol, "{k} = {} for {v}", m.s(k));
+    };
+    let mut outages = 0;
+    for (e, m) in epochs.iter().zip(msgs.chunks(5)) {
+        let types: Vec<&str> = m.iter().map(|m| m.s("type")).collect();
+        assert_eq!(types, ["GGA", "RMC", "VTG", "ZDA", "GST"]);
+        let (gga, rmc, vtg, zda, gst) = (&m[0], &m[1], &m[2], &m[3], &m[4]);
+        assert_eq!(gga.s("timestamp"), utc_of(e.t));
+        assert_eq!((zda.i("day"), zda.i("month"), zda.i("year")), (5, 2, 2024));
+        assert_eq!(rmc.s("datestamp"), "2024-02-05");
+        if !e.fix.is_valid() {
+            outages += 1;
+            assert_eq!((gga.i("gps_qual"), gga.s("num_sats")), (0, "00"));
+            assert_eq!((rmc.s("status"), rmc.s("lat")), ("V", ""));
+            continue;
+        }
+        let x = &e.measured;
+        assert_eq!((gga.i("gps_qual"), gga.i("num_sats")), (1, 12));
+        let deg = 0.5e-7 / 60.0 + 1e-13;
+        for msg in [gga, rmc] {
+            near(msg, "latitude", x.lat.to_degrees(), deg);
+            near(msg, "longitude", x.lon.to_degrees(), deg);
+        }
+        near(gga, "altitude", x.h, 0.0005);
+        near(gga, "horizontal_dil", e.hdop, 0.005);
+        let speed = x.v_n.x.hypot(x.v_n.y);
+        let course = x.v_n.y.atan2(x.v_n.x).to_degrees().rem_euclid(360.0);
+        near(
+            rmc,
+            "spd_over_grnd",
+            speed / (1852.0 / 3600.0),
+            0.0005 + 1e-12,
+        );
+        near(rmc, "true_course", course, 0.005 + 1e-12);
+        near(vtg, "spd_over_grnd_kmph", speed * 3.6, 0.0005 + 1e-12);
+        near(vtg, "true_track", course, 0.005 + 1e-12);
+        near(gst, "std_dev_latitude", e.sigma_pos.x, 0.0005);
+        near(gst, "std_dev_longitude", e.sigma_pos.y, 0.0005);
+        near(gst, "std_dev_altitude", e.sigma_pos.z, 0.0005);
+        near(gst, "rms", e.uere, 0.0005);
+    }
+    assert_eq!(outages, 10);
+}
+
+/// pyubx2 reads every NAV-PVT frame (checking the checksum) and gets our values at their
+/// LSBs: 10⁻⁷ deg, mm, mm/s, 10⁻⁵ deg, 0.01 PDOP; GPS time of week in ms and the UTC date
+/// and time; fix type 0 and invalidLlh in the outage.
+#[test]
+#[ignore = "needs IMU_EMU_PYTHON: a Python with pyubx2 (.ci/run)"]
+fn pyubx2_reads_our_nav_pvt() {
+    let epochs = gnss_epochs();
+    let msgs = run_decoder("ubx", "ubx", &gnss_bytes(GnssFormat::Ubx, &epochs));
+    assert_eq!(msgs.len(), epochs.len());
+    let near = |m: &Msg, k: &str, v: f64, tol: f64| {
+        assert!((m.f(k) - v).abs() <= tol, "{k} = {} for {v}", m.s(k));
+    };
+    for (e, m) in epochs.iter().zip(&msgs) {
+        assert_eq!(m.s("identity"), "NAV-PVT");
+        assert_eq!(m.i("iTOW"), ((GNSS_SOW + e.t) * 1000.0).round() as i64);
+        assert_eq!((m.i("year"), m.i("month"), m.i("day")), (2024, 2, 5));
+        let utc = 3.0 * 3600.0 + 46.0 * 60.0 + 22.0 + e.t;
+        let sec = m.i("hour") * 3600 + m.i("min") * 60 + m.i("second");
+        near(m, "nano", (utc - sec as f64) * 1e9, 1e-3 * 1e9 * 1e-6 + 1.0);
+        assert_eq!(m.i("numSV"), e.satellites as i64);
+        if !e.fix.is_valid() {
+            assert_eq!(
+                (m.i("fixType"), m.i("gnssFixOk"), m.i("invalidLlh")),
+                (0, 0, 1)
+            );
+            continue;
+        }
+        assert_eq!(
+            (m.i("fixType"), m.i("gnssFixOk"), m.i("invalidLlh")),
+            (3, 1, 0)
+        );
+        let x = &e.measured;
+        near(m, "lat", x.lat.to_degrees(), 0.5e-7 + 1e-12);
+        near(m, "lon", x.lon.to_degrees(), 0.5e-7 + 1e-12);
+        near(m, "height", x.h * 1000.0, 0.5);
+        for (i, k) in ["velN", "velE", "velD"].iter().enumerate() {
+            near(m, k, x.v_n[i] * 1000.0, 0.5);
+        }
+        near(m, "gSpeed", x.v_n.x.hypot(x.v_n.y) * 1000.0, 0.5);
+        let course = x.v_n.y.atan2(x.v_n.x).to_degrees().rem_euclid(360.0);
+        near(m, "headMot", course, 0.5e-5 + 1e-9);
+        near(m, "hAcc", e.sigma_pos.x.hypot(e.sigma_pos.y) * 1000.0, 0.5);
+        near(m, "vAcc", e.sigma_pos.z * 1000.0, 0.5);
+        near(m, "pDOP", e.pdop(), 0.005 + 1e-12);
+    }
+}
+
+/// pymavlink reads every HIL_GPS packet (CRC with CRC_EXTRA 124, trailing-zero truncation)
+/// and gets our values at their LSBs (10⁻⁷ deg, mm, cm/s, cdeg), the sequence numbers and
+/// the time of validity in µs; fix type 1 in the outage.
+#[test]
+#[ignore = "needs IMU_EMU_PYTHON: a Python with pymavlink (.ci/run)"]
+fn pymavlink_reads_our_hil_gps() {
+    let epochs = gnss_epochs();
+    let msgs = run_decoder(
+        "hil-gps",
+        "mavlink",
+        &gnss_bytes(GnssFormat::Mavlink, &epochs),
+    );
+    assert_eq!(msgs.len(), epochs.len());
+    let near = |m: &Msg, k: &str, v: f64, tol: f64| {
+        assert!((m.f(k) - v).abs() <= tol, "{k} = {} for {v}", m.s(k));
+    };
+    for (k, (e, m)) in epochs.iter().zip(&msgs).enumerate() {
+        assert_eq!(m.s("mavpackettype"), "HIL_GPS");
+        assert_eq!(m.i("seq"), k as i64 % 256);
+        assert_eq!(m.i("time_usec"), (e.t * 1e6).round() as i64);
+        assert_eq!(m.i("satellites_visible"), e.satellites as i64);
+        if !e.fix.is_valid() {
+            assert_eq!((m.i("fix_type"), m.i("eph")), (1, 65535));
+            continue;
+        }
+        let x = &e.measured;
+        assert_eq!(m.i("fix_type"), 3);
+        near(m, "lat", x.lat.to_degrees() * 1e7, 0.5);
+        near(m, "lon", x.lon.to_degrees() * 1e7, 0.5);
+        near(m, "alt", x.h * 1000.0, 0.5);
+        for (i, key) in ["vn", "ve", "vd"].iter().enumerate() {
+            near(m, key, x.v_n[i] * 100.0, 0.5);
+        }
+        near(m, "eph", e.hdop * 100.0, 0.5);
+        near(m, "epv", e.vdop * 100.0, 0.5);
+        let course = x.v_n.y.atan2(x.v_n.x).to_degrees().rem_euclid(360.0);
+        near(m, "cog", course * 100.0, 0.5 + 1e-6);
     }
 }

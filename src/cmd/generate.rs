@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 
+use imu_emu::aiding::GnssFormat;
 use imu_emu::output::AtomicFile;
 use imu_emu::sim::SideOutputs;
 
@@ -29,6 +30,86 @@ pub struct GenerateArgs {
     /// Also write the error each stage injected into each record here (same format).
     #[arg(long)]
     pub truth_errors: Option<PathBuf>,
+    /// Also write the GNSS receiver's epochs (scene file `[gnss]`, else the default receiver)
+    /// as FORMAT:FILE, FORMAT one of nmea, ubx, mavlink. Repeatable (docs/aiding.md).
+    #[arg(long = "gnss", value_parser = parse_gnss_output)]
+    pub gnss: Vec<(GnssFormat, PathBuf)>,
+    /// Also write the truth of each GNSS epoch here (CSV).
+    #[arg(long)]
+    pub gnss_truth: Option<PathBuf>,
+    /// Also write the odometer's samples here (CSV; scene file `[odometer]`, else the default).
+    #[arg(long)]
+    pub odometer: Option<PathBuf>,
+}
+
+/// `FORMAT:FILE` of `--gnss`.
+fn parse_gnss_output(s: &str) -> Result<(GnssFormat, PathBuf), String> {
+    let (name, path) = s
+        .split_once(':')
+        .ok_or_else(|| format!("`{s}`: expected FORMAT:FILE, e.g. nmea:run.nmea"))?;
+    let f = GnssFormat::from_name(name).ok_or_else(|| {
+        format!(
+            "GNSS format `{name}`: expected one of {}",
+            GnssFormat::NAMES.join(", ")
+        )
+    })?;
+    if path.is_empty() {
+        return Err(format!("`{s}`: no file after the format"));
+    }
+    Ok((f, PathBuf::from(path)))
+}
+
+/// Writes the GNSS files of `a` into uncommitted files (committed with the others).
+fn write_gnss(
+    sim: &imu_emu::sim::Simulation,
+    a: &GenerateArgs,
+) -> Result<Vec<(AtomicFile, PathBuf)>> {
+    let mut files = Vec::new();
+    if a.gnss.is_empty() && a.gnss_truth.is_none() {
+        return Ok(files);
+    }
+    for (_, p) in &a.gnss {
+        files.push(create(p)?);
+    }
+    let mut truth = a.gnss_truth.as_deref().map(create).transpose()?;
+    {
+        let mut outs: Vec<_> = files.iter_mut().map(|(f, _)| buffered(f)).collect();
+        let mut streams: Vec<(GnssFormat, &mut dyn Write)> = a
+            .gnss
+            .iter()
+            .zip(outs.iter_mut())
+            .map(|((fmt, _), w)| (*fmt, w as &mut dyn Write))
+            .collect();
+        let mut truth_out = truth.as_mut().map(|(f, _)| buffered(f));
+        sim.write_gnss(
+            &mut streams,
+            truth_out.as_mut().map(|w| w as &mut dyn Write),
+        )
+        .context("writing the GNSS streams")?;
+        for w in outs.iter_mut().chain(truth_out.as_mut()) {
+            w.flush()?;
+        }
+    }
+    files.extend(truth);
+    Ok(files)
+}
+
+/// Writes the odometer file of `a`, if asked, uncommitted.
+fn write_odometer(
+    sim: &imu_emu::sim::Simulation,
+    a: &GenerateArgs,
+) -> Result<Option<(AtomicFile, PathBuf)>> {
+    let Some(path) = &a.odometer else {
+        return Ok(None);
+    };
+    let (mut f, p) = create(path)?;
+    {
+        let mut w = buffered(&mut f);
+        sim.write_odometer(&mut w)
+            .with_context(|| format!("writing {}", p.display()))?;
+        w.flush()?;
+    }
+    Ok(Some((f, p)))
 }
 
 fn buffered(f: &mut AtomicFile) -> std::io::BufWriter<&mut AtomicFile> {
@@ -48,7 +129,10 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
     let sim = a.sim.builder("ideal", "csv")?.build()?;
     announce(&sim);
     let grid = sim.grid();
-    let output = a.output.or(sim.output_path().map(Path::to_path_buf));
+    let output = a
+        .output
+        .clone()
+        .or(sim.output_path().map(Path::to_path_buf));
     let show = std::io::stderr().is_terminal() && grid.count >= 500_000;
     let bar = if show {
         indicatif::ProgressBar::new(grid.count)
@@ -56,6 +140,8 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
         indicatif::ProgressBar::hidden()
     };
     let faults = sim.faults().cloned();
+    let mut gnss_files = write_gnss(&sim, &a)?;
+    gnss_files.extend(write_odometer(&sim, &a)?);
     let caught = imu_emu::realtime::signal::watch()?;
     let started = Instant::now();
     let mut truth_file = a.truth.as_deref().map(create).transpose()?;
@@ -106,7 +192,8 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
             w.flush()?;
         }
     }
-    for (f, p) in [file, truth_file, errors_file].into_iter().flatten() {
+    let files = [file, truth_file, errors_file].into_iter().flatten();
+    for (f, p) in files.chain(gnss_files) {
         f.commit()
             .with_context(|| format!("finishing {}", p.display()))?;
     }

@@ -6,6 +6,9 @@ mod rig;
 use std::path::{Path, PathBuf};
 
 use super::{Output, SimError, Simulation};
+use crate::aiding::GnssConfig;
+use crate::aiding::gnss::ConfigError as AidingConfigError;
+use crate::aiding::odometer::OdometerConfig;
 use crate::config::{self, SceneFile};
 use crate::errors::ErrorChain;
 use crate::errors::temperature::TemperatureProfile;
@@ -53,6 +56,8 @@ pub struct SimulationBuilder {
     lever_arm_m: Option<[f64; 3]>,
     vibration: Option<VibrationSpec>,
     units: Vec<crate::rig::config::UnitSpec>,
+    gnss: Option<GnssConfig>,
+    odometer: Option<OdometerConfig>,
     default_imu: String,
     default_format: String,
     unbounded_duration: f64,
@@ -84,6 +89,8 @@ impl Default for SimulationBuilder {
             lever_arm_m: None,
             vibration: None,
             units: Vec::new(),
+            gnss: None,
+            odometer: None,
             default_imu: "ideal".into(),
             default_format: "csv".into(),
             unbounded_duration: job::DEFAULT_UNBOUNDED_DURATION_S,
@@ -246,6 +253,37 @@ impl SimulationBuilder {
     pub fn vibration(mut self, spec: VibrationSpec) -> SimulationBuilder {
         self.vibration = Some(spec);
         self
+    }
+
+    /// A GNSS receiver on the same motion and clock (overrides the scene file's `[gnss]`).
+    pub fn gnss(mut self, cfg: GnssConfig) -> SimulationBuilder {
+        self.gnss = Some(cfg);
+        self
+    }
+
+    /// An odometer on the same motion and clock (overrides the scene file's `[odometer]`).
+    pub fn odometer(mut self, cfg: OdometerConfig) -> SimulationBuilder {
+        self.odometer = Some(cfg);
+        self
+    }
+
+    /// An aiding sensor's settings: the setter's, else the scene file's table, checked by
+    /// `validate`; errors name the scene file's key.
+    fn resolve_aiding<T: Clone>(
+        &self,
+        given: &Option<T>,
+        in_file: &Option<T>,
+        validate: impl Fn(&T) -> Result<(), AidingConfigError>,
+    ) -> Result<Option<T>, SimError> {
+        let Some(cfg) = given.clone().or(in_file.clone()) else {
+            return Ok(None);
+        };
+        validate(&cfg).map_err(|e| {
+            let key = format!("{}.{}", e.table, e.key);
+            let place = self.file_key(given.is_some(), true, &key);
+            SimError::Invalid(e.message).at(Some(place.unwrap_or_else(|| format!("`{key}`"))))
+        })?;
+        Ok(Some(cfg))
     }
 
     /// The IMU template and the output used when neither a setter nor the scene file names
@@ -710,6 +748,12 @@ impl SimulationBuilder {
                 .map_err(|e| SimError::Invalid(e).at(rate.place.clone()))?;
         }
         let faults = self.faults(&output, grid.rate_hz, seed)?;
+        let gnss = self.resolve_aiding(&self.gnss, &self.file.gnss, GnssConfig::validate)?;
+        let odometer = self.resolve_aiding(
+            &self.odometer,
+            &self.file.odometer,
+            OdometerConfig::validate,
+        )?;
         let mut warnings = Vec::new();
         let chain = self.chain(
             &imu,
@@ -729,6 +773,8 @@ impl SimulationBuilder {
             temperature,
             faults,
             gps_time: self.gps_time,
+            gnss,
+            odometer,
             output_path: self.file.output.path.clone(),
             warnings,
             timing,

@@ -17,6 +17,7 @@
 //! ```
 
 mod builder;
+mod gnss;
 
 use std::io::Write;
 use std::ops::ControlFlow;
@@ -24,6 +25,7 @@ use std::path::{Path, PathBuf};
 
 pub use builder::SimulationBuilder;
 
+use crate::aiding::GnssConfig;
 use crate::config::ConfigError;
 use crate::errors::temperature::TemperatureProfile;
 use crate::errors::template::{ImuModel, TemplateError};
@@ -115,6 +117,8 @@ pub struct Simulation {
     temperature: Option<TemperatureProfile>,
     faults: Option<FaultInjector>,
     gps_time: Option<(u32, f64)>,
+    gnss: Option<GnssConfig>,
+    odometer: Option<crate::aiding::odometer::OdometerConfig>,
     output_path: Option<PathBuf>,
     warnings: Vec<String>,
     timing: Option<crate::timing::TimedRun>,

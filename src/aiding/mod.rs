@@ -1,0 +1,16 @@
+//! Aiding streams a navigator reads next to the IMU, computed from the same motion and clock:
+//! GNSS position, velocity and time ([`gnss`]) and their wire formats ([`nmea`], [`ubx`],
+//! [`mavlink`]), chosen by [`stream::GnssFormat`]. Pure models and encoders, no I/O.
+
+pub mod baro;
+pub mod gnss;
+pub mod magnetometer;
+pub mod mavlink;
+pub mod nmea;
+pub mod odometer;
+pub mod stream;
+pub mod time;
+pub mod ubx;
+
+pub use gnss::{Fix, GnssConfig, GnssEpoch, Receiver};
+pub use stream::{GnssEncoder, GnssFormat};
