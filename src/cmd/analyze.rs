@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 
 use imu_emu::analysis::analyzer::DEFAULT_SEGMENT;
 use imu_emu::analysis::conformance::{channel_theory, term_rows};
@@ -32,14 +32,7 @@ pub struct AnalyzeArgs {
 
 /// `imu-emu analyze`.
 pub fn analyze(a: AnalyzeArgs) -> Result<()> {
-    if let Some(p) = &a.plot
-        && !p
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("svg"))
-    {
-        bail!("--plot {}: plot file must end in .png or .svg", p.display());
-    }
+    super::input::check_plot_path(a.plot.as_deref())?;
     let model = a
         .imu
         .as_deref()

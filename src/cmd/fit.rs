@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 
 use imu_emu::analysis::analyzer::DEFAULT_SEGMENT;
 use imu_emu::fit::closure::{self, ClosurePoint};
@@ -43,14 +43,7 @@ pub struct FitArgs {
 
 /// `imu-emu fit`.
 pub fn fit(a: FitArgs) -> Result<()> {
-    if let Some(p) = &a.plot
-        && !p
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("svg"))
-    {
-        bail!("--plot {}: plot file must end in .png or .svg", p.display());
-    }
+    super::input::check_plot_path(a.plot.as_deref())?;
     let (rec, _) = a.input.analyze(a.segment, "fit")?;
     let samples = rec.samples as usize;
     let triad = |base: usize| {

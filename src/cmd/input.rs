@@ -107,3 +107,16 @@ impl InputArgs {
         Ok((res, summary))
     }
 }
+
+/// Refuses a `--plot` path that does not end in `.png` or `.svg`, before any work is done.
+pub fn check_plot_path(plot: Option<&std::path::Path>) -> Result<()> {
+    if let Some(p) = plot
+        && !p
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("svg"))
+    {
+        bail!("--plot {}: plot file must end in .png or .svg", p.display());
+    }
+    Ok(())
+}

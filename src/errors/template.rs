@@ -669,7 +669,8 @@ fn list(v: &toml::Value, kind: Kind, n: usize) -> Result<Vec<f64>, String> {
     a.iter().map(|x| one(x, kind)).collect()
 }
 
-fn one(v: &toml::Value, kind: Kind) -> Result<f64, String> {
+/// One `"number unit"` value of `kind` in SI, within the template bounds.
+pub(crate) fn one(v: &toml::Value, kind: Kind) -> Result<f64, String> {
     let s = v.as_str().ok_or_else(|| {
         format!(
             "expected a string \"value unit\" (units: {})",

@@ -19,7 +19,7 @@ use std::sync::{Arc, Mutex};
 
 use super::fd::fornberg;
 use super::limits::{Violation, check_sample, check_step};
-use super::sampled::{Conv, Degree, Knot, ModelSettings, Sample, convert, hermite};
+use super::sampled::{Conv, Degree, Knot, ModelSettings, Sample, convert, hermite, knot_at};
 use super::{Motion, Pose};
 use crate::earth::{Geodetic, OMEGA_IE, omega_en_n};
 use crate::kinematics::{Sensed, sense_ecef};
@@ -237,19 +237,7 @@ fn causal_knot(st: &[Entry]) -> Knot {
             (given.unwrap_or(om), sum(st, &w[2], phi))
         }
     };
-    // q̇ = ½ q ⊗ ω and q̈ = q ⊗ (−|ω|²/4, ω̇/2): consistent with |q| = 1 to second order.
-    let qd = c.q * Quat::from_parts(0.0, omega * 0.5);
-    let qdd = c.q * Quat::from_parts(-0.25 * omega.dot(&omega), omega_dot * 0.5);
-    Knot {
-        t: c.t,
-        r: c.r,
-        v: c.v,
-        a,
-        j,
-        q: c.q,
-        qd,
-        qdd,
-    }
+    knot_at(&c, a, j, omega, omega_dot)
 }
 
 /// Σ_m w[m]·f(entry m).

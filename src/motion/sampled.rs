@@ -170,6 +170,12 @@ pub(super) fn make_knot<'a>(i: usize, st: Range<usize>, at: impl Fn(usize) -> &'
         omega += *p * w[1][m];
         omega_dot += *p * w[2][m];
     }
+    knot_at(c, a, j, omega, omega_dot)
+}
+
+/// The knot at converted sample `c` with acceleration `a`, jerk `j`, body rate `omega` and
+/// its derivative `omega_dot` (all in the rotation-vector chart centred on `c`).
+pub(super) fn knot_at(c: &Conv, a: Vec3, j: Vec3, omega: Vec3, omega_dot: Vec3) -> Knot {
     // q̇ = ½ q ⊗ ω and q̈ = q ⊗ (−|ω|²/4, ω̇/2): consistent with |q| = 1 to second order.
     let qd = c.q * Quat::from_parts(0.0, omega * 0.5);
     let qdd = c.q * Quat::from_parts(-0.25 * omega.dot(&omega), omega_dot * 0.5);

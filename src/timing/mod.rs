@@ -14,8 +14,8 @@ mod sensor;
 pub use run::{TimedRun, Times};
 pub use sensor::{SensorTiming, TimedBlock};
 
-use crate::errors::bounds;
-use crate::units::{self, Kind};
+use crate::errors::template::one as quantity;
+use crate::units::Kind;
 
 /// The timing figures of an IMU, in SI. All zero (the default): samples on the nominal grid,
 /// each frame sent at the end of its interval.
@@ -175,19 +175,6 @@ impl TimingModel {
             + 6.0 * self.jitter
             + self.skew.abs()
     }
-}
-
-/// One `"number unit"` value of `kind` in SI, within the template bounds.
-fn quantity(v: &toml::Value, kind: Kind) -> Result<f64, String> {
-    let s = v.as_str().ok_or_else(|| {
-        format!(
-            "expected a string \"value unit\" (units: {})",
-            kind.unit_names()
-        )
-    })?;
-    let x = units::parse(s, kind).map_err(|e| e.to_string())?.0;
-    bounds::check(s, kind, x, false)?;
-    Ok(x)
 }
 
 #[cfg(test)]
