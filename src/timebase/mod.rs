@@ -241,7 +241,7 @@ mod tests {
         assert_eq!(t.gps_minus_utc(jan2017), 18);
         assert_eq!(t.gps_minus_utc(jan2017 - 1), 17);
         assert_eq!(t.gps_minus_utc(GPS_EPOCH_UNIX_S), 0);
-        assert_eq!(t.valid_until, 1_782_604_800);
+        assert_eq!(t.valid_until, 1_798_416_000); // 2026-12-28 00:00 UTC
         let e =
             LeapTable::parse("2017-01-01 37\n2016-01-01 36\nvalid-until 2026-01-01\n").unwrap_err();
         assert!(e.contains("line 2") && e.contains("increase"), "{e}");
