@@ -84,14 +84,17 @@ impl Stage for Bias {
     fn apply(&mut self, b: &mut Block<'_>) {
         let s = self.sensor;
         for (i, a) in self.axes.iter_mut().flatten().enumerate() {
-            for (j, r) in b.records.iter_mut().enumerate() {
+            if a.ramp != 0.0 {
+                // Record k covers ((k−1)Δt, kΔt] from the start: the ramp's exact mean there
+                // is R·(k − ½)Δt. A loop of its own, so a template without a ramp pays nothing
+                // per record.
+                for (j, r) in b.records.iter_mut().enumerate() {
+                    s.rate(r)[i] += a.ramp * ((self.done + j as u64) as f64 + 0.5) * self.dt;
+                }
+            }
+            for r in b.records.iter_mut() {
                 let v = &mut s.rate(r)[i];
                 *v += a.fixed;
-                if a.ramp != 0.0 {
-                    // Record k covers ((k−1)Δt, kΔt] from the start: the ramp's exact mean
-                    // there is R·(k − ½)Δt.
-                    *v += a.ramp * ((self.done + j as u64) as f64 + 0.5) * self.dt;
-                }
                 if let Some(gm) = a.gm.as_mut() {
                     *v += gm.step();
                 }
