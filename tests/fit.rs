@@ -306,15 +306,15 @@ fn a_ramp_is_fitted_and_written_as_a_key() {
     let samples = 1 << 17;
     let rec = closure::simulate(truth.clone(), DT, samples, 12, 1 << 12).unwrap();
     let c = &rec.channels;
-    let fits = fit_triad(
-        [&c[0].adev, &c[1].adev, &c[2].adev],
-        samples as usize,
-        DT,
-    );
+    let fits = fit_triad([&c[0].adev, &c[1].adev, &c[2].adev], samples as usize, DT);
     let r = truth.gyro.ramp[0];
     let mut fitted = Vec::new();
     for (axis, f) in fits.iter().enumerate() {
-        let e = f.as_ref().unwrap().ramp_alternative.expect("a ramp fits better");
+        let e = f
+            .as_ref()
+            .unwrap()
+            .ramp_alternative
+            .expect("a ramp fits better");
         assert!(e.lo <= r && r <= e.hi, "axis {axis}: R {r:e} vs {e:?}");
         fitted.push(e.value);
     }
@@ -335,6 +335,9 @@ fn a_ramp_is_fitted_and_written_as_a_key() {
     let m = template::parse(&uncommented, Path::new("fitted.toml")).unwrap();
     for (axis, want) in fitted.iter().enumerate() {
         let got = m.gyro.ramp[axis];
-        assert!((got - want).abs() <= 1e-3 * want, "axis {axis}: {got:e} vs {want:e}");
+        assert!(
+            (got - want).abs() <= 1e-3 * want,
+            "axis {axis}: {got:e} vs {want:e}"
+        );
     }
 }
