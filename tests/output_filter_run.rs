@@ -414,3 +414,44 @@ fn generate_aliases_or_removes_a_tone_above_nyquist() {
         }
     }
 }
+
+/// The records producer of `validate` and `compare` (`Producer::for_model`) gives a noisy
+/// filtered template the same records as `generate`'s `Simulation`, bit for bit (same motion,
+/// internal rate, chain seed and filter), and refuses an output rate that does not divide
+/// the internal rate.
+#[test]
+fn validate_and_compare_produce_what_generate_does() {
+    let m = model(&format!(
+        "[gyro]\nnoise = \"0.5 deg/sqrt(h)\"\nbias_instability = \"3 deg/h\"\n[accel]\nnoise = \"0.1 m/s/sqrt(h)\"\n\
+         [output_filter]\ninternal_rate_hz = 1600\n{}",
+        FILTERS[3]
+    ));
+    let sim = Simulation::builder()
+        .scene("circle")
+        .imu_model(m.clone())
+        .rate(RATE)
+        .duration(5.0)
+        .seed(7)
+        .build()
+        .unwrap();
+    let grid = sim.grid();
+    let motion = sim.motion().clone();
+    let want: Vec<Record> = sim.records().unwrap().flat_map(|b| b.unwrap()).collect();
+    let mut p = imu_emu::job::Producer::for_model(motion.clone(), grid, &m, 7).unwrap();
+    let mut got = Vec::new();
+    while let Some(b) = p.next_records(300) {
+        got.extend_from_slice(b.records);
+    }
+    p.finished().unwrap();
+    assert_eq!(got.len(), 1000);
+    assert_eq!(got, want);
+    let bad = imu_emu::job::Grid {
+        rate_hz: 300.0,
+        ..grid
+    };
+    let e = imu_emu::job::Producer::for_model(motion, bad, &m, 7)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("integer multiple"), "{e}");
+}
