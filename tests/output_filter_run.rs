@@ -455,3 +455,35 @@ fn validate_and_compare_produce_what_generate_does() {
         .to_string();
     assert!(e.contains("integer multiple"), "{e}");
 }
+
+/// A rig unit whose template has an output filter is refused, naming the template and the
+/// unit (rigs do not run filters yet), rather than run without its filter.
+#[test]
+fn a_rig_refuses_a_filtered_unit() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("unit.toml");
+    std::fs::write(
+        &file,
+        format!(
+            "name = \"unit\"\n[output_filter]\ninternal_rate_hz = 1600\n{}\n",
+            FILTERS[0]
+        ),
+    )
+    .unwrap();
+    let e = Simulation::builder()
+        .scene("static")
+        .rate(RATE)
+        .duration(1.0)
+        .unit(imu_emu::rig::config::UnitSpec::imu(
+            "a",
+            file.to_str().unwrap(),
+        ))
+        .build_rig()
+        .err()
+        .unwrap();
+    let text = format!("{e}: {}", e.root());
+    assert!(
+        text.contains("`a`") && text.contains("`unit`") && text.contains("output_filter"),
+        "{text}"
+    );
+}
