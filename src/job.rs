@@ -103,6 +103,10 @@ pub enum JobError {
         /// Where it appeared: in the error-free signal or after the error chain.
         stage: &'static str,
     },
+    /// The template's output filter cannot run at this output rate, or is asked for something
+    /// it does not provide.
+    #[error("output filter: {0}")]
+    Filter(String),
     /// The caller asked to stop (an interrupted run).
     #[error("stopped before the end of the run")]
     Stopped,
@@ -301,6 +305,9 @@ pub struct Producer {
     error: Option<JobError>,
     /// The IMU's timing errors, when it has any.
     timing: Option<Box<crate::timing::TimedRun>>,
+    /// A unit with an output filter: replaces the generator and chain above for the records
+    /// (the output-rate generator still gives the truth).
+    filtered: Option<Box<crate::filtered_imu::FilteredImu>>,
 }
 
 /// One block of production: the corrupted records and, if asked for, the error-free ones.
@@ -366,7 +373,37 @@ impl Producer {
             temperature: None,
             error: None,
             timing: None,
+            filtered: None,
         }
+    }
+
+    /// Produces the records of a unit with an output filter (`None`: none): the motion at the
+    /// filter's internal rate through `filtered`, instead of the output-rate generator and the
+    /// producer's own chain (give it none). The truth stays the exact increments over the
+    /// output intervals.
+    pub fn with_filter(mut self, filtered: Option<crate::filtered_imu::FilteredImu>) -> Producer {
+        self.filtered = filtered.map(Box::new);
+        self
+    }
+
+    /// A record producer for `model` seeded with `seed`: its plain error chain, or its output
+    /// filter's chain at the internal rate when it has one.
+    pub fn for_model(
+        motion: AnyMotion,
+        grid: Grid,
+        model: &crate::errors::ImuModel,
+        seed: u64,
+    ) -> Result<Producer, JobError> {
+        if model.output_filter.is_none() {
+            let chain = ErrorChain::new(model, grid.rate_hz, seed);
+            return Ok(Producer::records(motion, grid, Some(chain)));
+        }
+        let chain = crate::errors::filtered::FilteredChain::new(model, grid.rate_hz, seed)
+            .map_err(JobError::Filter)?;
+        let nodes = crate::generator::DEFAULT_NODES;
+        let f = crate::filtered_imu::FilteredImu::new(motion.clone(), grid, nodes, chain)
+            .map_err(JobError::Filter)?;
+        Ok(Producer::records(motion, grid, None).with_filter(Some(f)))
     }
 
     /// Samples at the sensor clock's instants with the IMU's timing errors (`None`: on the
@@ -471,6 +508,9 @@ impl Producer {
             self.block.resize(n, Record::default());
         }
         let first = self.k - 1;
+        if self.filtered.is_some() {
+            return self.step_filtered(first, n);
+        }
         match self.timing.as_mut() {
             Some(t) => {
                 let timed = t.instants(self.k, n);
@@ -516,6 +556,32 @@ impl Producer {
             }
             None => n,
         };
+        Some((first, n))
+    }
+
+    /// [`Producer::step`] for a unit with an output filter: the records from the internal-rate
+    /// run, the truth from the output-rate generator, the times (if any) from the timing run.
+    fn step_filtered(&mut self, first: u64, n: usize) -> Option<(u64, usize)> {
+        let f = self.filtered.as_mut()?;
+        f.fill(self.k, &mut self.block[..n]);
+        if let Err(e) = Producer::check_finite(&self.block[..n], "after the output filter") {
+            return self.fail(e);
+        }
+        if self.keep_truth {
+            self.truth.clear();
+            self.truth.resize(n, Record::default());
+            self.imu.fill(self.k, &mut self.truth);
+            if let Err(e) = Producer::check_finite(&self.truth, "in the error-free signal") {
+                return self.fail(e);
+            }
+        }
+        if let Some(t) = self.timing.as_mut() {
+            // Nominal instants (the builder allows no clock errors with a filter): only the
+            // times are taken, and no sample is skipped.
+            t.instants(self.k, n);
+            t.compact(&mut self.block[..n], &mut self.truth[..], None);
+        }
+        self.k += n as u64;
         Some((first, n))
     }
 
@@ -604,6 +670,11 @@ pub fn drain(
     mut injected: Option<&mut dyn Write>,
     mut progress: impl FnMut(u64) -> ControlFlow<()>,
 ) -> Result<(), JobError> {
+    if injected.is_some() && producer.filtered.is_some() {
+        return Err(JobError::Filter(
+            "the injected errors (--truth-errors) of a unit with an output filter are not written yet: they are generated at the internal rate".into(),
+        ));
+    }
     let format = producer.encoding.side();
     if format == Format::Csv {
         if let Some(t) = truth.as_mut() {

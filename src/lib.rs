@@ -19,6 +19,7 @@ pub mod config;
 pub mod csvio;
 pub mod earth;
 pub mod errors;
+pub mod filtered_imu;
 pub mod fit;
 pub mod generator;
 pub mod input;

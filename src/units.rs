@@ -45,6 +45,10 @@ pub enum Kind {
     RatePsd,
     /// Gyro quantization: an angle increment (rad) or a rate (rad/s).
     GyroLsb,
+    /// Rate ramp (IEEE Std 952 R of a gyro) → rad/s².
+    RateRamp,
+    /// Acceleration ramp (R of an accelerometer) → m/s³.
+    AccelRamp,
     /// Accelerometer quantization: a velocity increment (m/s) or an acceleration (m/s²).
     AccelLsb,
 }
@@ -151,6 +155,19 @@ impl Kind {
                 ("arcsec", DEG / 3600.0, true),
                 ("deg/s", DEG, false),
                 ("rad/s", 1.0, false),
+            ],
+            Kind::RateRamp => &[
+                ("deg/h^2", DEG / 3600.0 / 3600.0, false),
+                ("deg/h/h", DEG / 3600.0 / 3600.0, false),
+                ("deg/s^2", DEG, false),
+                ("rad/s^2", 1.0, false),
+            ],
+            Kind::AccelRamp => &[
+                ("m/s/h^2", 1.0 / 3600.0 / 3600.0, false),
+                ("m/s^2/h", 1.0 / 3600.0, false),
+                ("ug/h", G0 * 1e-6 / 3600.0, false),
+                ("mg/h", G0 * 1e-3 / 3600.0, false),
+                ("m/s^3", 1.0, false),
             ],
             Kind::AccelLsb => &[
                 ("m/s", 1.0, true),

@@ -1249,3 +1249,57 @@ fn correlated_noise_across_axes() {
         );
     }
 }
+
+/// The rate ramp (`ramp`, IEEE Std 952 R): a bias growing by R per second from the run's
+/// start. Record k (0-based) covers (kΔt, (k+1)Δt], so its error is the ramp's exact interval
+/// mean R·(k + ½)Δt — checked to 1e-13 relative over 10⁴ records streamed in blocks of 4096 (a
+/// ramp restarted per block, or sampled at the interval's end, is off by ≥ ½RΔt); the units
+/// convert as 1 deg/h² = (π/180)/3600² rad/s² and 1 ug/h = 1e-6·g₀/3600 m/s³. Its overlapping
+/// Allan deviation is Rτ/√2 at every octave (the R term's closed form: ½(Rτ)² for a line),
+/// to the estimator's round-off. A negative R (a drift downwards) is accepted; a wrong unit is refused.
+#[test]
+fn rate_ramp_is_exact() {
+    let rate = 100.0;
+    let m = model(
+        "[gyro]\nramp = [\"36 deg/h/h\", \"-7.2 deg/h^2\", \"0 deg/h/h\"]\n[accel]\nramp = \"100 ug/h\"\n",
+    );
+    let r_g = [36.0 * DEG_H / 3600.0, -7.2 * DEG_H / 3600.0, 0.0];
+    let r_a = 100e-6 * G0 / 3600.0;
+    assert!((m.gyro.ramp[0] - r_g[0]).abs() < 1e-15 * r_g[0]);
+    assert!((m.gyro.ramp[1] - r_g[1]).abs() < 1e-15 * -r_g[1]);
+    assert!((m.accel.ramp[2] - r_a).abs() < 1e-15 * r_a);
+    assert!(m.has_error_figures());
+    let n = 10_000;
+    let e = simulate(&m, rate, 1, n, Reduce::Every(1));
+    for (axis, series) in e.iter().enumerate() {
+        assert_eq!(series.len(), n);
+        let r = if axis < 3 { r_g[axis] } else { r_a };
+        for (k, v) in series.iter().enumerate() {
+            let want = r * (k as f64 + 0.5) / rate;
+            assert!(
+                (v - want).abs() <= 1e-13 * want.abs(),
+                "channel {axis} k {k}: {v} vs {want}"
+            );
+        }
+    }
+    // The estimator differences cumulative sums of size ≈ R·T²/2 to get Rτ², so its round-off
+    // is ≈ ε·(T/τ)² relative (1e-8 at τ = Δt over T = 100 s): bound 1e-12 + 1e-15·(T/τ)².
+    let span = n as f64 / rate;
+    for p in allan::overlapping(&e[0], 1.0 / rate) {
+        let want = r_g[0] * p.tau / 2f64.sqrt();
+        let tol = 1e-12 + 1e-15 * (span / p.tau).powi(2);
+        assert!(
+            (p.adev - want).abs() < tol * want,
+            "τ {}: {} vs {want}",
+            p.tau,
+            p.adev
+        );
+    }
+    let err = template::parse("[accel]\nramp = \"1 deg/h/h\"\n", Path::new("r.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("accel.ramp") && err.contains("m/s/h^2"),
+        "{err}"
+    );
+}

@@ -311,8 +311,7 @@ fn a_tone_above_nyquist_aliases_through_the_response() {
 }
 
 /// Bad `[output_filter]` input names the file and the key; a rate that is not an integer
-/// divisor of the internal rate is refused when the chain is built; generate-style
-/// simulations refuse a filtered template instead of ignoring its filter.
+/// divisor of the internal rate is refused when the chain is built, and by a simulation.
 #[test]
 fn bad_filters_are_refused() {
     for (text, key) in [
@@ -367,12 +366,15 @@ fn bad_filters_are_refused() {
     .unwrap();
     let e = imu_emu::sim::Simulation::builder()
         .imu(file.to_str().unwrap())
-        .rate(200.0)
+        .rate(300.0)
         .duration(1.0)
         .build()
         .err()
         .expect("refused")
         .to_string();
-    assert!(e.contains("output_filter"), "{e}");
+    assert!(
+        e.contains("output_filter") && e.contains("integer multiple"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

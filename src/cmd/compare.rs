@@ -140,12 +140,6 @@ pub fn compare(a: CompareArgs) -> Result<()> {
         .map(|n| imu_emu::errors::template::load(n.trim()).with_context(|| format!("--imu `{n}`")))
         .collect::<Result<Vec<_>>>()?;
     for m in &models {
-        if m.output_filter.is_some() {
-            bail!(
-                "template `{}` has an [output_filter]: compare does not apply output filters yet",
-                m.name
-            );
-        }
         if m.grade != "ideal" && !m.has_error_figures() {
             eprintln!(
                 "imu-emu: warning: template `{}` has no error figures: it will look ideal apart from quantization",

@@ -54,6 +54,8 @@ pub fn max_magnitude(kind: Kind, increment: bool) -> Option<(f64, &'static str)>
         Kind::Angle => (0.2, "rad"),
         Kind::GSensitivity => (1.0, "(rad/s)/(m/s^2)"),
         Kind::Time => (1e9, "s"),
+        Kind::RateRamp => (1e3, "rad/s^2"),
+        Kind::AccelRamp => (1e5, "m/s^3"),
         Kind::Length => (100.0, "m"),
         Kind::GyroLsb if increment => (1.0, "rad"),
         Kind::GyroLsb => (1e4, "rad/s"),

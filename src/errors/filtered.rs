@@ -8,6 +8,7 @@
 use super::chain::ErrorChain;
 use super::model::{ImuModel, TriadModel};
 use super::output_filter::{Filter, FilterSpec};
+use crate::generator::RotationTerms;
 use crate::math::Vec3;
 use crate::record::Record;
 
@@ -22,6 +23,7 @@ pub struct FilteredChain {
     flags: u8,
     buf: Vec<Record>,
     carried: Vec<u8>,
+    primed: bool,
 }
 
 impl FilteredChain {
@@ -33,12 +35,8 @@ impl FilteredChain {
             .clone()
             .ok_or("the template has no [output_filter]")?;
         let decimation = spec.check(output_rate_hz)?;
-        let mut inner_model = model.clone();
+        let inner_model = FilteredChain::inner_model(model);
         let mut outer_model = model.clone();
-        for t in [&mut inner_model.gyro, &mut inner_model.accel] {
-            t.quantization = None;
-            t.range = None;
-        }
         let interface = |t: &TriadModel| TriadModel {
             quantization: t.quantization,
             range: t.range,
@@ -47,7 +45,6 @@ impl FilteredChain {
         outer_model.gyro = interface(&model.gyro);
         outer_model.accel = interface(&model.accel);
         outer_model.output_filter = None;
-        inner_model.output_filter = None;
         Ok(FilteredChain {
             inner: ErrorChain::new(&inner_model, spec.internal_rate_hz, seed),
             filter: Filter::new(&spec, decimation),
@@ -57,7 +54,26 @@ impl FilteredChain {
             flags: 0,
             buf: Vec::new(),
             carried: Vec::new(),
+            primed: false,
         })
+    }
+
+    /// The model of the internal-rate chain: `model` without its quantization, range and
+    /// filter (those act at the output). To configure that chain, build it from this model at
+    /// the internal rate and hand it to [`FilteredChain::map_inner`].
+    pub fn inner_model(model: &ImuModel) -> ImuModel {
+        let mut inner = model.clone();
+        for t in [&mut inner.gyro, &mut inner.accel] {
+            t.quantization = None;
+            t.range = None;
+        }
+        inner.output_filter = None;
+        inner
+    }
+
+    /// Whether the internal-rate chain needs the motion's rotation terms (a lever arm).
+    pub fn needs_rotation_terms(&self) -> bool {
+        self.inner.needs_rotation_terms()
     }
 
     /// Lets the internal-rate chain be configured (vibration, temperature, mounting…).
@@ -80,10 +96,27 @@ impl FilteredChain {
     /// Corrupts internal-rate records and appends the output-rate records they complete to
     /// `out` (time tag: the end of the output interval; flags: any raised in the interval).
     pub fn apply(&mut self, input: &[Record], out: &mut Vec<Record>) {
+        self.apply_with(input, None, out);
+    }
+
+    /// [`FilteredChain::apply`] with the internal records' rotation terms (see
+    /// [`ErrorChain::apply_with`]). The filter starts primed with the first corrupted record,
+    /// as a unit's filter has been running since power-on.
+    pub fn apply_with(
+        &mut self,
+        input: &[Record],
+        rotation: Option<&[RotationTerms]>,
+        out: &mut Vec<Record>,
+    ) {
         self.buf.clear();
         self.buf.extend_from_slice(input);
-        self.inner.apply(&mut self.buf);
+        self.inner.apply_with(&mut self.buf, rotation);
         let first = out.len();
+        if let Some(r) = self.buf.first().filter(|_| !self.primed) {
+            let (g, a) = (r.gyro, r.accel);
+            self.filter.prime([g[0], g[1], g[2], a[0], a[1], a[2]]);
+            self.primed = true;
+        }
         for r in &self.buf {
             self.flags |= r.flags;
             let (g, a) = (r.gyro, r.accel);

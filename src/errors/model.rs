@@ -22,6 +22,9 @@ pub struct TriadModel {
     pub random_walk: [f64; 3],
     /// White-noise density N (ARW / VRW).
     pub noise: [f64; 3],
+    /// Rate ramp R (IEEE Std 952): a bias growing by R per second from the run's start
+    /// (rad/s² or m/s³).
+    pub ramp: [f64; 3],
     /// Constant scale-factor error.
     pub scale_factor: [f64; 3],
     /// Random-constant scale-factor error, 1σ.
@@ -93,6 +96,7 @@ impl ImuModel {
                 || any(&t.bias_instability)
                 || t.bias_gm.is_some()
                 || any(&t.random_walk)
+                || any(&t.ramp)
                 || any(&t.noise)
                 || any(&t.scale_factor)
                 || any(&t.scale_factor_turn_on)

@@ -213,6 +213,18 @@ impl FilterSpec {
         samples / self.internal_rate_hz
     }
 
+    /// How long before the end of its output interval an output sample is valid (s), in the
+    /// sense of an unfiltered record: a ramp's filtered sample equals the ramp's mean over the
+    /// output interval that ends that long before the sample's time tag.
+    ///
+    /// Each internal sample is the mean over its interval, so it equals a ramp at Δt_in/2
+    /// before its end; the filter adds its DC group delay g; an unfiltered record equals the
+    /// ramp at Δt_out/2 before its end. Hence g + Δt_in/2 − Δt_out/2, which is zero for a unit
+    /// that sums exactly its D internal samples (a moving average of D taps).
+    pub fn validity_offset_s(&self, output_rate_hz: f64) -> f64 {
+        self.latency_s() + 0.5 / self.internal_rate_hz - 0.5 / output_rate_hz
+    }
+
     /// Impulse response h_0 … h_{n−1} at the internal rate (exact for FIR, truncated IIR).
     pub fn impulse_response(&self, n: usize) -> Vec<f64> {
         let mut f = Filter::new(self, 1);
@@ -251,6 +263,29 @@ impl Filter {
             state: vec![[0.0; 6]; len],
             head: 0,
             phase: 0,
+        }
+    }
+
+    /// Sets the state to the steady state of a constant input `x`, as if the filter had run on
+    /// it for ever: a unit's filter runs from power-on, so its first outputs carry no start-up
+    /// transient. Every kind has unit DC gain, so the next output of a constant `x` is `x`.
+    pub fn prime(&mut self, x: [f64; 6]) {
+        match &self.design {
+            Design::Fir(_) => self.state.iter_mut().for_each(|s| *s = x),
+            Design::Iir(sections) => {
+                // A section in transposed direct form II at rest with input v has output
+                // G·v (G its DC gain) and states s2 = (b2 − a2·G)·v, s1 = (b1 − a1·G)·v + s2;
+                // its output is the next section's input.
+                let mut v = x;
+                for (q, st) in sections.iter().zip(self.state.chunks_exact_mut(2)) {
+                    let g = (q.b[0] + q.b[1] + q.b[2]) / (1.0 + q.a[0] + q.a[1]);
+                    for (i, vi) in v.iter_mut().enumerate() {
+                        st[1][i] = (q.b[2] - q.a[1] * g) * *vi;
+                        st[0][i] = (q.b[1] - q.a[0] * g) * *vi + st[1][i];
+                        *vi *= g;
+                    }
+                }
+            }
         }
     }
 

@@ -435,6 +435,11 @@ fn triad(v: Option<&toml::Value>, sensor: &str, path: &Path) -> Result<TriadMode
             Kind::AccelLsb,
         )
     };
+    let ramp = if gyro {
+        Kind::RateRamp
+    } else {
+        Kind::AccelRamp
+    };
     for (key, val) in table {
         let full = format!("{sensor}.{key}");
         let err = |msg: String| key_err(path, &full, &msg);
@@ -471,6 +476,7 @@ fn triad(v: Option<&toml::Value>, sensor: &str, path: &Path) -> Result<TriadMode
                 m.random_walk = axes(val, bias_rw).map_err(err)?;
                 nonneg(&m.random_walk)?
             }
+            "ramp" => m.ramp = axes(val, ramp).map_err(err)?,
             "noise" => {
                 m.noise = axes(val, rw).map_err(err)?;
                 nonneg(&m.noise)?

@@ -219,14 +219,42 @@ fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
             sig4(q * f)
         );
     }
-    for (a, fit) in axes.iter().enumerate() {
-        if let Some(e) = fit.and_then(|f| f.ramp_alternative) {
-            s.push_str(&describe(a, Component::Ramp, &e, gyro, ""));
-            let _ = writeln!(
-                s,
-                "#    a rate ramp fits better, but a template has no key for one (a slow drift such as warm-up;\n                 #    a scene's temperature ramp with `bias_temperature` makes one): the figures above are the best fit without it"
-            );
+    // The Allan variance sees R², not its sign: the key is written positive.
+    let (u, f) = unit(gyro, Component::Ramp);
+    if kept(Component::Ramp) {
+        for a in 0..3 {
+            if let Some(e) = est(a, Component::Ramp) {
+                s.push_str(&describe(a, Component::Ramp, &e, gyro, ""));
+            }
         }
+        let _ = writeln!(
+            s,
+            "ramp = {}   # sign not observable from the Allan variance",
+            values(Component::Ramp, f, u)
+        );
+    }
+    let alternative = |a: usize| axes[a].and_then(|f| f.ramp_alternative);
+    if (0..3).any(|a| alternative(a).is_some()) {
+        for a in 0..3 {
+            if let Some(e) = alternative(a) {
+                s.push_str(&describe(a, Component::Ramp, &e, gyro, ""));
+            }
+        }
+        let v: Vec<String> = (0..3)
+            .map(|a| {
+                format!(
+                    "\"{} {u}\"",
+                    sig4(alternative(a).map_or(0.0, |e| e.value) * f)
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "#    a rate ramp (a slow drift such as warm-up) fits better than the figures above, which were\n\
+             #    fitted without it; to simulate the drift instead, uncomment (sign not observable from the ADEV):\n\
+             # ramp = [{}]",
+            v.join(", ")
+        );
     }
 }
 

@@ -11,7 +11,6 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::closure::CloseError;
 use super::strapdown::{NavState, Navigator, Settings, StateError};
-use crate::errors::ErrorChain;
 use crate::errors::template::ImuModel;
 use crate::job::{BLOCK, Grid, Producer};
 use crate::motion::Motion;
@@ -123,10 +122,10 @@ fn run_one(
     outages: u64,
 ) -> Result<RunErrors, CloseError> {
     let g = &plan.grid;
-    let chain = ErrorChain::new(model, g.rate_hz, run_seed(plan.seed, run));
     let total = outage * outages;
     let grid = Grid { count: total, ..*g };
-    let mut producer = Producer::records(plan.motion.clone(), grid, Some(chain));
+    let seed = run_seed(plan.seed, run);
+    let mut producer = Producer::for_model(plan.motion.clone(), grid, model, seed)?;
     let truth_at = |k: u64| NavState::from_pose(&plan.motion.pose(imu_time(g, k)));
     let mut nav = Navigator::new(truth_at(0), g.rate_hz, plan.settings)?;
     let mut out = Vec::with_capacity(offsets.len() * outages as usize);

@@ -11,6 +11,7 @@ use crate::aiding::gnss::ConfigError as AidingConfigError;
 use crate::aiding::odometer::OdometerConfig;
 use crate::config::{self, SceneFile};
 use crate::errors::ErrorChain;
+use crate::errors::filtered::FilteredChain;
 use crate::errors::temperature::TemperatureProfile;
 use crate::errors::template::ImuModel;
 use crate::errors::vibration::{Vibration, VibrationSpec};
@@ -564,7 +565,8 @@ impl SimulationBuilder {
     }
 
     /// The error chain of `imu` with the temperature, mounting, lever arm and vibration;
-    /// `None` when nothing would change the error-free records.
+    /// `None` when nothing would change the error-free records. A unit with an output filter
+    /// gets its filtered chain instead (the second item), its stages at the internal rate.
     fn chain(
         &self,
         imu: &ImuModel,
@@ -572,16 +574,32 @@ impl SimulationBuilder {
         seed: u64,
         temperature: Option<&TemperatureProfile>,
         warnings: &mut Vec<String>,
-    ) -> Result<Option<ErrorChain>, SimError> {
+    ) -> Result<(Option<ErrorChain>, Option<FilteredChain>), SimError> {
+        let Some(spec) = &imu.output_filter else {
+            let chain = ErrorChain::new(imu, rate_hz, seed);
+            let chain = self.configure(chain, imu, rate_hz, seed, temperature, warnings)?;
+            return Ok(((!chain.is_empty()).then_some(chain), None));
+        };
+        let filtered = FilteredChain::new(imu, rate_hz, seed).map_err(|e| {
+            SimError::Invalid(format!("template `{}`: [output_filter]: {e}", imu.name))
+        })?;
+        let internal = spec.internal_rate_hz;
+        let inner = ErrorChain::new(&FilteredChain::inner_model(imu), internal, seed);
+        let inner = self.configure(inner, imu, internal, seed, temperature, warnings)?;
+        Ok((None, Some(filtered.map_inner(|_| inner))))
+    }
+
+    /// `chain` (of `imu` at `rate_hz`) with the temperature, mounting, lever arm and vibration.
+    fn configure(
+        &self,
+        mut chain: ErrorChain,
+        imu: &ImuModel,
+        rate_hz: f64,
+        seed: u64,
+        temperature: Option<&TemperatureProfile>,
+        warnings: &mut Vec<String>,
+    ) -> Result<ErrorChain, SimError> {
         let label = self.file_label();
-        if imu.output_filter.is_some() {
-            // Never run a unit without the filter its template names.
-            return Err(SimError::Invalid(format!(
-                "template `{}` has an [output_filter]: generate and run do not apply output filters yet (the library's errors::filtered::FilteredChain does; see docs/fidelity.md)",
-                imu.name
-            )));
-        }
-        let mut chain = ErrorChain::new(imu, rate_hz, seed);
         if let Some(p) = temperature {
             chain = chain.with_temperature(p.clone(), imu);
         }
@@ -638,7 +656,7 @@ impl SimulationBuilder {
                 imu.name
             ));
         }
-        Ok((!chain.is_empty()).then_some(chain))
+        Ok(chain)
     }
 
     /// The scene file's `[faults]` plus the faults set in code, checked against the output.
@@ -755,7 +773,7 @@ impl SimulationBuilder {
             OdometerConfig::validate,
         )?;
         let mut warnings = Vec::new();
-        let chain = self.chain(
+        let (chain, filtered) = self.chain(
             &imu,
             grid.rate_hz,
             seed,
@@ -768,6 +786,7 @@ impl SimulationBuilder {
             nodes,
             output,
             chain,
+            filtered,
             imu,
             seed,
             temperature,
@@ -793,8 +812,15 @@ impl SimulationBuilder {
         seed: u64,
     ) -> Result<Option<crate::timing::TimedRun>, SimError> {
         let model = imu.timing;
-        if model.is_zero() {
+        let filter = imu.output_filter.as_ref();
+        if model.is_zero() && filter.is_none() {
             return Ok(None);
+        }
+        if filter.is_some() && !model.emission_only() {
+            return Err(SimError::Invalid(format!(
+                "template `{}` has an [output_filter] and sampling-clock timing errors (clock, jitter, skew or missing samples): with a filter only `latency`, `latency_spread` and late frames are modelled yet",
+                imu.name
+            )));
         }
         let duration = grid.count as f64 / grid.rate_hz;
         let margin = model.margin(duration);
@@ -820,11 +846,11 @@ impl SimulationBuilder {
         let duration = grid.count as f64 / grid.rate_hz;
         let sensor = crate::timing::SensorTiming::new(model, grid.rate_hz, duration, seed, span)
             .map_err(|e| SimError::Invalid(format!("{}: {e}", imu.name)))?;
-        Ok(Some(crate::timing::TimedRun::new(
-            sensor,
-            grid.rate_hz,
-            grid.t0,
-        )))
+        let offset = filter.map_or(0.0, |f| f.validity_offset_s(grid.rate_hz));
+        Ok(Some(
+            crate::timing::TimedRun::new(sensor, grid.rate_hz, grid.t0)
+                .with_validity_offset(offset),
+        ))
     }
 }
 

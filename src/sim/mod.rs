@@ -27,9 +27,11 @@ pub use builder::SimulationBuilder;
 
 use crate::aiding::GnssConfig;
 use crate::config::ConfigError;
+use crate::errors::filtered::FilteredChain;
 use crate::errors::temperature::TemperatureProfile;
 use crate::errors::template::{ImuModel, TemplateError};
 use crate::errors::{ErrorChain, template};
+use crate::filtered_imu::FilteredImu;
 use crate::job::{self, Encoding, Grid, JobError, Producer};
 use crate::output::Format;
 use crate::protocol::{EncoderState, FaultInjector, Plan, SpecError};
@@ -112,6 +114,8 @@ pub struct Simulation {
     nodes: usize,
     output: Output,
     chain: Option<ErrorChain>,
+    /// The chain of a unit with an output filter (then `chain` is `None`).
+    filtered: Option<FilteredChain>,
     imu: ImuModel,
     seed: u64,
     temperature: Option<TemperatureProfile>,
@@ -158,7 +162,7 @@ impl Simulation {
 
     /// Whether the records differ from the error-free ones (an error chain is applied).
     pub fn has_errors(&self) -> bool {
-        self.chain.is_some()
+        self.chain.is_some() || self.filtered.is_some()
     }
 
     /// The main output.
@@ -229,6 +233,13 @@ impl Simulation {
     /// real-time emulator drives it.
     pub fn producer(self) -> Result<Producer, SimError> {
         let encoding = self.encoding();
+        let filtered = match self.filtered {
+            Some(c) => Some(
+                FilteredImu::new(self.motion.clone(), self.grid, self.nodes, c)
+                    .map_err(JobError::Filter)?,
+            ),
+            None => None,
+        };
         let p = Producer::new(
             self.motion,
             self.grid,
@@ -238,7 +249,8 @@ impl Simulation {
             false,
         )?;
         Ok(p.with_temperature(self.temperature)
-            .with_timing(self.timing))
+            .with_timing(self.timing)
+            .with_filter(filtered))
     }
 
     /// The records, block by block, without any wire encoding.

@@ -79,6 +79,19 @@ impl TimingModel {
         *self == TimingModel::default()
     }
 
+    /// True when only the emission is perturbed (latency, its spread, late frames): the
+    /// samples stay on the nominal grid and none is skipped.
+    pub fn emission_only(&self) -> bool {
+        TimingModel {
+            latency: 0.0,
+            latency_spread: 0.0,
+            late_probability: 0.0,
+            late_delay: 0.0,
+            ..*self
+        }
+        .is_zero()
+    }
+
     /// Sets the figures a `[timing]` table gives (values are `"number unit"` strings, the
     /// probabilities plain numbers), leaving the others; the whole model is then checked.
     pub fn apply_table(&mut self, table: &toml::Table) -> Result<(), KeyError> {

@@ -38,6 +38,8 @@ pub struct TimedRun {
     tov: Vec<f64>,
     tov_accel: Vec<f64>,
     emit: Vec<f64>,
+    /// How long before its sample instant a record is valid (an output filter's delay, s).
+    validity_offset: f64,
 }
 
 impl TimedRun {
@@ -56,7 +58,16 @@ impl TimedRun {
             tov: Vec::new(),
             tov_accel: Vec::new(),
             emit: Vec::new(),
+            validity_offset: 0.0,
         }
+    }
+
+    /// Records valid `offset` s before their sample instants (the delay of the unit's output
+    /// filter, [`crate::errors::output_filter::FilterSpec::validity_offset_s`]): `tov` and
+    /// `tov_accel` move back by it; the emission times stay, so it adds to the latency.
+    pub fn with_validity_offset(mut self, offset: f64) -> TimedRun {
+        self.validity_offset = offset;
+        self
     }
 
     /// The sensor's instants of samples `k_first .. k_first + n`.
@@ -94,8 +105,8 @@ impl TimedRun {
                 continue;
             }
             self.gaps.push(std::mem::take(&mut self.gap));
-            self.tov.push(b.tov(i));
-            self.tov_accel.push(b.tov_accel(i));
+            self.tov.push(b.tov(i) - self.validity_offset);
+            self.tov_accel.push(b.tov_accel(i) - self.validity_offset);
             self.emit.push(b.emit[i]);
         }
         kept

@@ -1,5 +1,5 @@
-//! Bias stage (paper eq. 5–6): constant, turn-on, Gauss–Markov, random walk and bias
-//! instability (flicker) per axis, then the gyro's g-sensitivity to the error-free specific
+//! Bias stage (paper eq. 5–6): constant, turn-on, Gauss–Markov, random walk, bias
+//! instability (flicker) and rate ramp per axis, then the gyro's g-sensitivity to the error-free specific
 //! force.
 
 use super::{AXES, Block, Stage, any, stream, turn_on};
@@ -14,6 +14,8 @@ struct Axis {
     gm: Option<GaussMarkov>,
     rw: Option<RandomWalk>,
     flicker: Option<Flicker>,
+    /// Rate ramp R: the bias grows by R per second from the run's start.
+    ramp: f64,
 }
 
 /// The bias of one triad.
@@ -23,6 +25,9 @@ pub(crate) struct Bias {
     axes: Option<[Axis; 3]>,
     /// Gyro g-sensitivity, (rad/s)/(m/s²), row-major.
     g_sens: Option<Mat3>,
+    /// Record interval (s) and records done: the ramp's clock.
+    dt: f64,
+    done: u64,
 }
 
 impl Bias {
@@ -33,7 +38,8 @@ impl Bias {
             || any(&m.bias_turn_on)
             || any(&m.bias_instability)
             || m.bias_gm.is_some()
-            || any(&m.random_walk);
+            || any(&m.random_walk)
+            || any(&m.ramp);
         let axis = |i: usize| Axis {
             fixed: m.bias[i] + turn_on(seed, sensor, AXES[i], "bias_turn_on", m.bias_turn_on[i]),
             gm: m.bias_gm.and_then(|(s, t)| {
@@ -53,6 +59,7 @@ impl Bias {
                     stream(seed, sensor, AXES[i], &format!("bias_instability/{j}"))
                 })
             }),
+            ramp: m.ramp[i],
         };
         let s = &m.g_sensitivity;
         let g_sens = (sensor == Sensor::Gyro && any(s)).then_some(Mat3::from_row_slice(s));
@@ -61,6 +68,8 @@ impl Bias {
             sensor,
             axes,
             g_sens,
+            dt,
+            done: 0,
         })
     }
 }
@@ -75,6 +84,14 @@ impl Stage for Bias {
     fn apply(&mut self, b: &mut Block<'_>) {
         let s = self.sensor;
         for (i, a) in self.axes.iter_mut().flatten().enumerate() {
+            if a.ramp != 0.0 {
+                // Record k covers ((k−1)Δt, kΔt] from the start: the ramp's exact mean there
+                // is R·(k − ½)Δt. A loop of its own, so a template without a ramp pays nothing
+                // per record.
+                for (j, r) in b.records.iter_mut().enumerate() {
+                    s.rate(r)[i] += a.ramp * ((self.done + j as u64) as f64 + 0.5) * self.dt;
+                }
+            }
             for r in b.records.iter_mut() {
                 let v = &mut s.rate(r)[i];
                 *v += a.fixed;
@@ -89,6 +106,7 @@ impl Stage for Bias {
                 }
             }
         }
+        self.done += b.records.len() as u64;
         if let Some(m) = &self.g_sens {
             for (r, f) in b.records.iter_mut().zip(b.f_true) {
                 *s.rate(r) += m * f;

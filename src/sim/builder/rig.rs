@@ -107,6 +107,14 @@ impl SimulationBuilder {
                     layout: layout.clone(),
                 },
                 (UnitModel::Template(_), Some(t)) => {
+                    if t.output_filter.is_some() {
+                        // Never run a unit without the filter its template names.
+                        return Err(SimError::Invalid(format!(
+                            "template `{}` has an [output_filter]: rig units do not run output filters yet (a single IMU does)",
+                            t.name
+                        ))
+                        .at(Some(place("model"))));
+                    }
                     let chain = ErrorChain::new(&t, grid.rate_hz, seed);
                     let encoding = match plan {
                         Some(plan) => Encoding::Frames {

@@ -1,0 +1,79 @@
+//! A unit with an output filter, as a run produces it: the motion's exact increments over the
+//! unit's internal intervals (the same generator as every run, at the internal rate), the
+//! error chain at that rate, the filter and the decimation to the output rate
+//! ([`crate::errors::filtered::FilteredChain`]). [`crate::job::Producer`] drives it in place
+//! of the output-rate generator and chain.
+
+use crate::errors::filtered::FilteredChain;
+use crate::generator::{IdealImu, RotationTerms};
+use crate::job::Grid;
+use crate::record::Record;
+use crate::source::AnyMotion;
+
+/// The internal-rate generator and the filtered chain of one run.
+pub struct FilteredImu {
+    imu: IdealImu<AnyMotion>,
+    chain: FilteredChain,
+    decimation: u64,
+    grid: Grid,
+    internal: Vec<Record>,
+    rot: Vec<RotationTerms>,
+    out: Vec<Record>,
+}
+
+impl FilteredImu {
+    /// The run of `chain` over the output grid `grid`, the motion integrated with `nodes`
+    /// Gauss–Legendre nodes per internal interval. Refuses an output rate that does not
+    /// divide the internal rate.
+    pub fn new(
+        motion: AnyMotion,
+        grid: Grid,
+        nodes: usize,
+        chain: FilteredChain,
+    ) -> Result<FilteredImu, String> {
+        let decimation = chain.spec().check(grid.rate_hz)? as u64;
+        let rate = chain.spec().internal_rate_hz;
+        Ok(FilteredImu {
+            imu: IdealImu::new(motion, rate, grid.t0, grid.count * decimation, nodes),
+            chain,
+            decimation,
+            grid,
+            internal: Vec::new(),
+            rot: Vec::new(),
+            out: Vec::new(),
+        })
+    }
+
+    /// The filtered chain (its spec and latency).
+    pub fn chain(&self) -> &FilteredChain {
+        &self.chain
+    }
+
+    /// Fills `out` with output records k_first, k_first + 1, … (k ≥ 1): record k filters the
+    /// internal records up to the end of its output interval; its time tag is t₀ + k/rate
+    /// (from the integer k, as every run's).
+    pub fn fill(&mut self, k_first: u64, out: &mut [Record]) {
+        let d = self.decimation as usize;
+        let n_in = out.len() * d;
+        let j_first = (k_first - 1) * self.decimation + 1;
+        self.internal.resize(n_in, Record::default());
+        self.imu.fill(j_first, &mut self.internal);
+        let rotation = if self.chain.needs_rotation_terms() {
+            self.rot.resize(n_in, RotationTerms::default());
+            self.imu.rotation_terms(j_first, &mut self.rot);
+            Some(&self.rot[..])
+        } else {
+            None
+        };
+        self.out.clear();
+        self.chain
+            .apply_with(&self.internal, rotation, &mut self.out);
+        debug_assert_eq!(self.out.len(), out.len());
+        for (i, (o, r)) in out.iter_mut().zip(&self.out).enumerate() {
+            *o = Record {
+                t: self.grid.t0 + (k_first + i as u64) as f64 / self.grid.rate_hz,
+                ..*r
+            };
+        }
+    }
+}
