@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::{Context, Result, bail};
 
 use imu_emu::protocol::Plan;
-use imu_emu::realtime::addr::SinkAddr;
+use imu_emu::rig::SinkAddr;
 use imu_emu::realtime::merge::{self, WindowSource};
 use imu_emu::realtime::pacer::{Clocking, Pacing, Routed, Status};
 use imu_emu::realtime::serial::{SerialSink, check_link};

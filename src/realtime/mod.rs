@@ -8,7 +8,6 @@
 //! start + k·Δt/speed to every sink. A sink that cannot take a frame drops and counts it: the
 //! clock never waits for a consumer.
 
-pub mod addr;
 pub mod clock;
 pub mod hostclock;
 pub mod merge;

@@ -297,7 +297,9 @@ pub fn run(
     Ok(guard.clone())
 }
 
-/// Hands frames `i..j` of the block to every sink, each in its stream.
+/// Hands frames `i..j` of the block to every sink, each in its stream. A merged block
+/// (several streams with their own emission times, `merge`) goes frame by frame, so that
+/// sinks of different streams get the frames of a burst in emission order too.
 fn write_all(
     sinks: &mut [Routed],
     block: &FrameBlock,
@@ -305,6 +307,12 @@ fn write_all(
     j: usize,
     ends: &mut Vec<usize>,
 ) -> io::Result<()> {
+    if block.streams.len() > 1 && !block.emit_ns.is_empty() && j > i + 1 {
+        for k in i..j {
+            write_all(sinks, block, k, k + 1, ends)?;
+        }
+        return Ok(());
+    }
     for s in sinks.iter_mut() {
         let bytes = block.frames(s.stream, i, j, ends);
         // None of the frames is this sink's (a merged block's other streams).

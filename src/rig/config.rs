@@ -11,7 +11,7 @@ use super::failure::{FailureKind, FailureSpec, Pick};
 use super::skew::{SkewLayout, SkewSensor};
 use crate::config::{ConfigError, ImuSection};
 use crate::math::Vec3;
-use crate::realtime::addr::SinkAddr;
+use super::addr::SinkAddr;
 use crate::units::{self, Kind};
 
 /// One `[[imu]]` entry.

@@ -7,6 +7,7 @@
 //! Built by [`crate::sim::SimulationBuilder::build_rig`] from a scene file's `[[imu]]` list or
 //! from code; docs/rig.md describes the scene-file schema and the outputs.
 
+pub mod addr;
 pub mod config;
 pub mod failure;
 pub mod geometry;
@@ -25,6 +26,7 @@ use crate::record::{COLUMNS, Record};
 use crate::sim::SimError;
 use crate::source::AnyMotion;
 
+pub use addr::SinkAddr;
 pub use failure::{Failure, FailureKind, FailureSet, FailureSpec, Pick};
 pub use geometry::Placement;
 pub use skew::{SkewLayout, SkewSensor, dodecahedron_axes};
@@ -56,7 +58,7 @@ pub struct Unit {
     pub(crate) failures: FailureSet,
     pub(crate) seed: u64,
     pub(crate) path: Option<std::path::PathBuf>,
-    pub(crate) sinks: Vec<crate::realtime::addr::SinkAddr>,
+    pub(crate) sinks: Vec<addr::SinkAddr>,
 }
 
 /// Reused per-unit buffers: nothing is allocated per block once they have grown.
@@ -112,7 +114,7 @@ impl Unit {
     }
 
     /// Where `imu-emu run` streams the unit (the scene file's `sink`).
-    pub fn sinks(&self) -> &[crate::realtime::addr::SinkAddr] {
+    pub fn sinks(&self) -> &[addr::SinkAddr] {
         &self.sinks
     }
 

@@ -1,13 +1,13 @@
 //! A rig as a real-time frame source: every unit's frames, one stream per unit, window by
 //! window of simulated time, for the merger and pacer of `imu-emu run`
-//! ([`crate::realtime::merge`]). A unit sends record k at the end of its interval,
+//! (`realtime::merge`). A unit sends record k at the end of its interval,
 //! t_k = t₀ + k/rate; units on the same grid share one evaluation of the motion per instant,
 //! as in [`Rig::write`].
 
 use super::{Rig, Scratch, Unit};
 use crate::generator::{IdealImu, RotationTerms};
 use crate::job::{self, Grid, JobError, Producer};
-use crate::realtime::merge::{Part, WindowSource};
+use crate::emission::{Part, WindowSource};
 use crate::record::Record;
 use crate::source::AnyMotion;
 

@@ -1,4 +1,4 @@
-//! Where a stream goes, written as one string (a scene file's `sink` key, `--unit-sink`):
+//! Where a unit's stream goes, written as one string (a scene file's `sink` key, `--unit-sink`):
 //! `pty:PATH`, `serial:DEV`, `udp:HOST:PORT` or `file:PATH` (`KIND://TARGET` also reads).
 
 use std::fmt;
