@@ -43,4 +43,3 @@ pub trait WindowSource: Send {
     /// True once every frame has been given.
     fn done(&self) -> bool;
 }
-

@@ -164,7 +164,10 @@ fn udp_units_merge_in_emission_order() {
         if u < 2 {
             streams[u].extend_from_slice(dg);
         }
-        assert!(t >= last_t - 1e-9, "a frame of {t} s after one of {last_t} s");
+        assert!(
+            t >= last_t - 1e-9,
+            "a frame of {t} s after one of {last_t} s"
+        );
         last_t = t;
     }
     assert_eq!(seen.to_vec(), planned.to_vec());
@@ -179,7 +182,10 @@ fn udp_units_merge_in_emission_order() {
             plan.name
         );
     }
-    assert!(err.contains("unit aft: 150 of 150 records, 0 skipped"), "{err}");
+    assert!(
+        err.contains("unit aft: 150 of 150 records, 0 skipped"),
+        "{err}"
+    );
 }
 
 /// The LN-200 unit on a real pty and the KVH unit on UDP, at real time: the reader of the
@@ -236,7 +242,10 @@ fn pty_and_udp_units_are_decoded() {
     for k in 1..=300 {
         let n = rx.recv(&mut buf).expect("a KVH datagram");
         let tag = aft.decode(&buf[..n]).unwrap().contract(None)[0].unwrap();
-        assert!((tag - k as f64 / 100.0).abs() < 1e-6, "frame {k} tagged {tag}");
+        assert!(
+            (tag - k as f64 / 100.0).abs() < 1e-6,
+            "frame {k} tagged {tag}"
+        );
     }
     let got = reader.join().unwrap();
     let err = ok(&child.wait_with_output().unwrap());
@@ -254,7 +263,10 @@ fn pty_and_udp_units_are_decoded() {
     ] {
         assert!(err.contains(line), "no `{line}` in {err}");
     }
-    assert!(err.contains(&format!("unit `nav` on {}", link.display())), "{err}");
+    assert!(
+        err.contains(&format!("unit `nav` on {}", link.display())),
+        "{err}"
+    );
 }
 
 /// Bad sinks and flags that do not fit a rig are refused before anything runs, naming the
@@ -272,14 +284,23 @@ fn bad_sinks_are_refused() {
     let out = imu_emu(&["run", s], d);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
-    assert!(err.contains("imu[0].sink") && err.contains("udp:HOST:PORT"), "{err}");
+    assert!(
+        err.contains("imu[0].sink") && err.contains("udp:HOST:PORT"),
+        "{err}"
+    );
     let s2 = scene(d, 1.0, ["", "", ""]);
     let s2 = s2.to_str().unwrap();
     for (args, expect) in [
         (vec!["--unit-sink", "tail=file:x.bin"], "no unit `tail`"),
         (vec!["--unit-sink", "nav"], "expected NAME=SINK"),
-        (vec!["--unit-sink", "nav=tcp:x:1"], "unknown sink kind `tcp`"),
-        (vec!["--udp", "127.0.0.1:9"], "--udp does not apply to a rig"),
+        (
+            vec!["--unit-sink", "nav=tcp:x:1"],
+            "unknown sink kind `tcp`",
+        ),
+        (
+            vec!["--udp", "127.0.0.1:9"],
+            "--udp does not apply to a rig",
+        ),
         (vec!["--time-base", "gps"], "--time-base gps"),
     ] {
         let out = imu_emu(&[&["run", s2], &args[..]].concat(), d);

@@ -7,7 +7,6 @@ use std::path::Path;
 use anyhow::{Context, Result, bail};
 
 use imu_emu::protocol::Plan;
-use imu_emu::rig::SinkAddr;
 use imu_emu::realtime::merge::{self, WindowSource};
 use imu_emu::realtime::pacer::{Clocking, Pacing, Routed, Status};
 use imu_emu::realtime::serial::{SerialSink, check_link};
@@ -15,6 +14,7 @@ use imu_emu::realtime::signal::StopSignals;
 use imu_emu::realtime::sink::Sink;
 use imu_emu::realtime::udp::{self, UdpSink};
 use imu_emu::realtime::{clock, pty::PtySink};
+use imu_emu::rig::SinkAddr;
 use imu_emu::rig::Unit;
 
 use super::run::{FOREVER_S, RunArgs, drive, file_sink};

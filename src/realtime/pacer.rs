@@ -154,8 +154,17 @@ pub struct StreamCounts {
 }
 
 /// Adds frames `i..j` of `block` to the per-stream counts (`skipped` or handed over).
-fn count_streams(counts: &mut Vec<StreamCounts>, block: &FrameBlock, i: usize, j: usize, skipped: bool) {
-    counts.resize(block.streams.len().max(counts.len()), StreamCounts::default());
+fn count_streams(
+    counts: &mut Vec<StreamCounts>,
+    block: &FrameBlock,
+    i: usize,
+    j: usize,
+    skipped: bool,
+) {
+    counts.resize(
+        block.streams.len().max(counts.len()),
+        StreamCounts::default(),
+    );
     for (s, c) in counts.iter_mut().enumerate().take(block.streams.len()) {
         let n = block.count(s, i, j);
         if skipped {

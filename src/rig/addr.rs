@@ -33,7 +33,9 @@ impl SinkAddr {
             }
         };
         match kind {
-            "pty" => Ok(SinkAddr::Pty((!target.is_empty()).then(|| target.to_string()))),
+            "pty" => Ok(SinkAddr::Pty(
+                (!target.is_empty()).then(|| target.to_string()),
+            )),
             "serial" => need("a device").map(SinkAddr::Serial),
             "file" => need("a path").map(SinkAddr::File),
             "udp" => match target.rsplit_once(':') {

@@ -7,11 +7,11 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use serde::de::{self, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 
+use super::addr::SinkAddr;
 use super::failure::{FailureKind, FailureSpec, Pick};
 use super::skew::{SkewLayout, SkewSensor};
 use crate::config::{ConfigError, ImuSection};
 use crate::math::Vec3;
-use super::addr::SinkAddr;
 use crate::units::{self, Kind};
 
 /// One `[[imu]]` entry.
@@ -239,7 +239,8 @@ impl UnitEntry {
                 Some(OneOrMany::Many(_)) => format!("sink[{j}]"),
                 _ => "sink".into(),
             };
-            spec.sinks.push(SinkAddr::parse(s).map_err(|m| bad(&key, m))?);
+            spec.sinks
+                .push(SinkAddr::parse(s).map_err(|m| bad(&key, m))?);
         }
         let names = spec.channel_names();
         for (j, f) in self.failure.iter().enumerate() {

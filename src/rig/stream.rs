@@ -5,9 +5,9 @@
 //! as in [`Rig::write`].
 
 use super::{Rig, Scratch, Unit};
+use crate::emission::{Part, WindowSource};
 use crate::generator::{IdealImu, RotationTerms};
 use crate::job::{self, Grid, JobError, Producer};
-use crate::emission::{Part, WindowSource};
 use crate::record::Record;
 use crate::source::AnyMotion;
 
@@ -124,7 +124,10 @@ impl WindowSource for RigStream {
                     let p = &mut parts[i];
                     let mut from = 0;
                     for (j, &end) in s.ends.iter().enumerate() {
-                        p.push(&s.buf[from..end], emit_ns(&g.grid, self.origin, k + j as u64));
+                        p.push(
+                            &s.buf[from..end],
+                            emit_ns(&g.grid, self.origin, k + j as u64),
+                        );
                         from = end;
                     }
                 }
