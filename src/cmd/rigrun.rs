@@ -37,11 +37,13 @@ fn refuse_single_imu_flags(a: &RunArgs) -> Result<()> {
         ("--serial", !a.serial.is_empty()),
         ("--udp", !a.udp.is_empty()),
         ("--file", !a.file.is_empty()),
-        ("--live-motion", a.live.motion.is_some()),
+        ("--motion", a.live.motion.is_some()),
     ];
     if let Some((flag, _)) = given.iter().find(|g| g.1) {
+        let file = s.source.scene_file.as_deref().unwrap_or(Path::new("?"));
         bail!(
-            "{flag} does not apply to a rig (the scene file lists `[[imu]]` units): give each unit its `model`, `format` and `sink` in the scene file, or `--unit-sink NAME=SINK`"
+            "{flag} does not apply to a rig ({} lists `[[imu]]` units): give each unit its `model`, `format` and `sink` in the scene file, or `--unit-sink NAME=SINK`",
+            file.display()
         );
     }
     if a.time_base != "sim" {
