@@ -18,6 +18,7 @@ pub mod analysis;
 pub mod config;
 pub mod csvio;
 pub mod earth;
+pub mod emission;
 pub mod errors;
 pub mod filtered_imu;
 pub mod fit;

@@ -465,8 +465,8 @@ fn bad_rig_entries_name_the_file_and_key() {
     }
 }
 
-/// A command that runs one IMU refuses a rig scene file rather than quietly running the
-/// default IMU.
+/// `run` on a rig refuses the flags of one IMU's sinks rather than quietly sending every
+/// unit there (tests/rig_run.rs streams rigs).
 #[test]
 fn single_imu_commands_refuse_a_rig() {
     let dir = tempfile::TempDir::new().unwrap();
@@ -477,7 +477,9 @@ fn single_imu_commands_refuse_a_rig() {
     );
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        !out.status.success() && err.contains("`[[imu]]`") && err.contains("rig.toml"),
+        !out.status.success()
+            && err.contains("--file does not apply to a rig")
+            && err.contains("rig.toml"),
         "{err}"
     );
     assert!(!dir.path().join("x.bin").exists());

@@ -11,6 +11,7 @@ pub mod live;
 pub mod navigate;
 pub mod plot_errors;
 pub mod rig;
+pub mod rigrun;
 pub mod run;
 pub mod setup;
 pub mod validate;

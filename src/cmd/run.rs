@@ -16,7 +16,7 @@ use imu_emu::realtime::serial::{Framing, SerialSink, check_link};
 use imu_emu::realtime::signal::{Interrupted, StopSignals};
 use imu_emu::realtime::sink::FileSink;
 use imu_emu::realtime::udp::{self, UdpSink};
-use imu_emu::realtime::{self, clock, pty::PtySink};
+use imu_emu::realtime::{self, FrameBlock, clock, pty::PtySink};
 
 use super::setup::{SimArgs, announce, require_frames};
 
@@ -53,6 +53,10 @@ pub struct RunArgs {
     /// UDP sink HOST:PORT (unicast, broadcast or multicast); repeatable.
     #[arg(long, value_name = "HOST:PORT[,protocol=NAME]")]
     pub udp: Vec<String>,
+    /// A rig unit's sink, NAME=KIND:TARGET with KIND pty, serial, udp or file (e.g.
+    /// `nav=udp:127.0.0.1:9001`); repeatable; replaces the scene file's `sink` of that unit.
+    #[arg(long, value_name = "NAME=SINK")]
+    pub unit_sink: Vec<String>,
     /// Frames per UDP datagram.
     #[arg(long, default_value_t = 1)]
     pub udp_batch: usize,
@@ -109,6 +113,13 @@ pub fn run(a: RunArgs) -> Result<()> {
             "--max-behind-ms {}: expected a non-negative number",
             a.max_behind_ms
         );
+    }
+    // A scene file with an `[[imu]]` list: every unit on one pacer.
+    if a.sim.source.scene_file.is_some() && a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?.is_rig() {
+        return super::rigrun::run(a);
+    }
+    if !a.unit_sink.is_empty() {
+        bail!("--unit-sink names a unit of a rig: the scene file lists no `[[imu]]` units");
     }
     // A live run in lockstep writes records as well as frames.
     if let Some(source) = &a.live.motion {
@@ -248,18 +259,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     for value in &a.file {
         let (path, proto) = split_sink(value);
         let (stream, _) = streams.route(proto)?;
-        let (label, w): (String, Box<dyn std::io::Write + Send>) = if path == "-" {
-            ("stdout".into(), Box::new(std::io::stdout()))
-        } else {
-            let f = std::fs::File::create(path).with_context(|| format!("creating {path}"))?;
-            let label = format!("file {path}");
-            (label.clone(), Box::new(Labeled { label, inner: f }))
-        };
-        let sink = Box::new(FileSink::new(
-            label,
-            Box::new(std::io::BufWriter::with_capacity(1 << 16, w)),
-            paced,
-        ));
+        let sink = file_sink(path, paced)?;
         sinks.push(Routed { stream, sink });
     }
     let n_streams = streams.plans.len();
@@ -297,13 +297,60 @@ pub fn run(a: RunArgs) -> Result<()> {
         realtime::CHANNEL_BLOCKS
     );
 
+    let ended = drive(
+        &rt,
+        &mut signals,
+        sinks,
+        pacing,
+        move |tx, recycle_rx| realtime::produce(producer, block, n_streams, tx, recycle_rx),
+        status_line,
+    )?;
+    let (final_status, interrupted, failed) = (ended.status, ended.interrupted, ended.failed);
+    eprintln!(
+        "imu-emu: {}{}",
+        interrupted.map_or(String::new(), |i| format!("{i}: ")),
+        summary(&final_status, grid.count, paced)
+    );
+    // After the summary: the exit status tells a script the run did not complete.
+    if let Some(e) = failed {
+        return Err(anyhow::Error::new(e).context("stopped: nothing non-finite was sent"));
+    }
+    interrupted.map_or(Ok(()), |i| Err(i.into()))
+}
+
+/// How a paced (or unpaced) run ended.
+pub(super) struct Ended {
+    /// The pacer's final counts.
+    pub status: Status,
+    /// The signal that stopped it, if one did.
+    pub interrupted: Option<Interrupted>,
+    /// Why the producer stopped early, if it did.
+    pub failed: Option<imu_emu::job::JobError>,
+}
+
+/// Runs `produce` (blocks of frames, on a blocking thread) into the pacer (its own thread)
+/// writing `sinks`, shows `line` of the live status once a second on a terminal, and stops
+/// on a signal.
+pub(super) fn drive(
+    rt: &tokio::runtime::Runtime,
+    signals: &mut StopSignals,
+    sinks: Vec<Routed>,
+    pacing: Pacing,
+    produce: impl FnOnce(
+        tokio::sync::mpsc::Sender<FrameBlock>,
+        tokio::sync::mpsc::Receiver<FrameBlock>,
+    ) -> Option<imu_emu::job::JobError>
+    + Send
+    + 'static,
+    line: impl Fn(&Status) -> String,
+) -> Result<Ended> {
+    let paced = matches!(pacing, Pacing::Paced(_));
     let stop = Arc::new(AtomicBool::new(false));
     let status = Arc::new(Mutex::new(Status::default()));
     let (tx, rx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
     let (recycle_tx, recycle_rx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
     let (done_tx, done_rx) = tokio::sync::oneshot::channel();
-    let producer_task =
-        rt.spawn_blocking(move || realtime::produce(producer, block, n_streams, tx, recycle_rx));
+    let producer_task = rt.spawn_blocking(move || produce(tx, recycle_rx));
     let pacer_thread = {
         let (stop, status) = (stop.clone(), status.clone());
         std::thread::Builder::new()
@@ -329,7 +376,7 @@ pub fn run(a: RunArgs) -> Result<()> {
                 _ = tick.tick() => {
                     if live && paced {
                         let s = status.lock().unwrap_or_else(|e| e.into_inner()).clone();
-                        eprint!("\r\x1b[2K{}", status_line(&s));
+                        eprint!("\r\x1b[2K{}", line(&s));
                     }
                 }
             }
@@ -338,23 +385,34 @@ pub fn run(a: RunArgs) -> Result<()> {
     if live && paced {
         eprint!("\r\x1b[2K");
     }
-    let final_status = pacer_thread
+    let status = pacer_thread
         .join()
         .map_err(|_| anyhow::anyhow!("the pacer thread panicked"))??;
     // The producer ends once the pacer has dropped its channel.
     let failed = rt
         .block_on(producer_task)
         .map_err(|e| anyhow::anyhow!("the producer task failed: {e}"))?;
-    eprintln!(
-        "imu-emu: {}{}",
-        interrupted.map_or(String::new(), |i| format!("{i}: ")),
-        summary(&final_status, grid.count, paced)
-    );
-    // After the summary: the exit status tells a script the run did not complete.
-    if let Some(e) = failed {
-        return Err(anyhow::Error::new(e).context("stopped: nothing non-finite was sent"));
-    }
-    interrupted.map_or(Ok(()), |i| Err(i.into()))
+    Ok(Ended {
+        status,
+        interrupted,
+        failed,
+    })
+}
+
+/// A file sink at `path` (`-`: stdout), buffered; its write errors name the file.
+pub(super) fn file_sink(path: &str, paced: bool) -> Result<Box<dyn realtime::sink::Sink>> {
+    let (label, w): (String, Box<dyn std::io::Write + Send>) = if path == "-" {
+        ("stdout".into(), Box::new(std::io::stdout()))
+    } else {
+        let f = std::fs::File::create(path).with_context(|| format!("creating {path}"))?;
+        let label = format!("file {path}");
+        (label.clone(), Box::new(Labeled { label, inner: f }))
+    };
+    Ok(Box::new(FileSink::new(
+        label,
+        Box::new(std::io::BufWriter::with_capacity(1 << 16, w)),
+        paced,
+    )))
 }
 
 /// Splits a sink flag's value into its target and the protocol of `,protocol=NAME`.

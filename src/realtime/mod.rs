@@ -10,6 +10,7 @@
 
 pub mod clock;
 pub mod hostclock;
+pub mod merge;
 pub mod pacer;
 pub mod pty;
 pub mod serial;
@@ -45,13 +46,32 @@ impl FrameBlock {
     }
 
     /// Frames `i..j` of stream `s`: their bytes, and their ends relative to those bytes.
+    /// Empty frames (another stream's, in a merged block: [`merge`]) are left out.
     pub fn frames(&self, s: usize, i: usize, j: usize, ends: &mut Vec<usize>) -> &[u8] {
         let (bytes, all) = &self.streams[s];
         let start = if i == 0 { 0 } else { all[i - 1] };
         let end = if j == 0 { 0 } else { all[j - 1] };
         ends.clear();
-        ends.extend(all[i..j].iter().map(|e| e - start));
+        let mut prev = start;
+        for &e in &all[i..j] {
+            if e > prev {
+                ends.push(e - start);
+            }
+            prev = e;
+        }
         &bytes[start..end]
+    }
+
+    /// Number of non-empty frames of stream `s` among frames `i..j`.
+    pub fn count(&self, s: usize, i: usize, j: usize) -> u64 {
+        let all = &self.streams[s].1;
+        let mut prev = if i == 0 { 0 } else { all[i - 1] };
+        let mut n = 0;
+        for &e in &all[i..j] {
+            n += u64::from(e > prev);
+            prev = e;
+        }
+        n
     }
 }
 

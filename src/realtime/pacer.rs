@@ -139,6 +139,40 @@ pub struct Status {
     pub sinks: Vec<(String, SinkStats)>,
     /// Whether `SCHED_FIFO` was granted (`None`: not asked).
     pub fifo: Option<bool>,
+    /// Per stream of the blocks: frames handed to its sinks and frames skipped (a merged
+    /// run's per-source counts; empty frames of other streams are not counted).
+    pub streams: Vec<StreamCounts>,
+}
+
+/// One stream's frames, as the pacer handled them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StreamCounts {
+    /// Frames handed to the sinks.
+    pub frames: u64,
+    /// Frames skipped by catch-up.
+    pub skipped: u64,
+}
+
+/// Adds frames `i..j` of `block` to the per-stream counts (`skipped` or handed over).
+fn count_streams(
+    counts: &mut Vec<StreamCounts>,
+    block: &FrameBlock,
+    i: usize,
+    j: usize,
+    skipped: bool,
+) {
+    counts.resize(
+        block.streams.len().max(counts.len()),
+        StreamCounts::default(),
+    );
+    for (s, c) in counts.iter_mut().enumerate().take(block.streams.len()) {
+        let n = block.count(s, i, j);
+        if skipped {
+            c.skipped += n;
+        } else {
+            c.frames += n;
+        }
+    }
 }
 
 /// A sink and the stream (index into [`FrameBlock::streams`]) it takes.
@@ -192,6 +226,7 @@ pub fn run(
         let n = block.len();
         let Some(c) = &clocking else {
             write_all(&mut sinks, &block, 0, n, &mut ends)?;
+            count_streams(&mut st.streams, &block, 0, n, false);
             st.frames += n as u64;
             let _ = recycle.try_send(block);
             if stop.load(Ordering::Relaxed) {
@@ -224,6 +259,7 @@ pub fn run(
                 from += 1;
             }
             if from > i {
+                count_streams(&mut st.streams, &block, i, from, true);
                 st.skipped += (from - i) as u64;
                 if !warned_skip {
                     tracing::warn!(
@@ -240,6 +276,7 @@ pub fn run(
             }
             if to > from {
                 write_all(&mut sinks, &block, from, to, &mut ends)?;
+                count_streams(&mut st.streams, &block, from, to, false);
                 let done = monotonic_ns();
                 for j in from..to {
                     pending.push(done - c.deadline_in(t0, &block, j));
@@ -264,11 +301,14 @@ pub fn run(
     guard.frames = st.frames;
     guard.skipped = st.skipped;
     guard.fifo = st.fifo;
+    guard.streams = st.streams.clone();
     guard.sinks = sink_stats(&sinks);
     Ok(guard.clone())
 }
 
-/// Hands frames `i..j` of the block to every sink, each in its stream.
+/// Hands frames `i..j` of the block to every sink, each in its stream. A merged block
+/// (several streams with their own emission times, `merge`) goes frame by frame, so that
+/// sinks of different streams get the frames of a burst in emission order too.
 fn write_all(
     sinks: &mut [Routed],
     block: &FrameBlock,
@@ -276,8 +316,18 @@ fn write_all(
     j: usize,
     ends: &mut Vec<usize>,
 ) -> io::Result<()> {
+    if block.streams.len() > 1 && !block.emit_ns.is_empty() && j > i + 1 {
+        for k in i..j {
+            write_all(sinks, block, k, k + 1, ends)?;
+        }
+        return Ok(());
+    }
     for s in sinks.iter_mut() {
         let bytes = block.frames(s.stream, i, j, ends);
+        // None of the frames is this sink's (a merged block's other streams).
+        if ends.is_empty() {
+            continue;
+        }
         s.sink.write(bytes, ends)?;
     }
     Ok(())
@@ -312,6 +362,7 @@ fn publish(status: &Mutex<Status>, st: &mut Status, pending: &mut Vec<i128>, sin
         g.frames = st.frames;
         g.skipped = st.skipped;
         g.fifo = st.fifo;
+        g.streams.clone_from(&st.streams);
         g.sinks = sink_stats(sinks);
     }
 }

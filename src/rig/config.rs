@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use serde::de::{self, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 
+use super::addr::SinkAddr;
 use super::failure::{FailureKind, FailureSpec, Pick};
 use super::skew::{SkewLayout, SkewSensor};
 use crate::config::{ConfigError, ImuSection};
@@ -42,6 +43,18 @@ pub struct UnitEntry {
     /// Scheduled sensor failures.
     #[serde(default)]
     pub failure: Vec<FailureEntry>,
+    /// Where `run` streams the unit: one sink (`"udp:127.0.0.1:9001"`) or a list.
+    pub sink: Option<OneOrMany>,
+}
+
+/// A string or a list of strings.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum OneOrMany {
+    /// One.
+    One(String),
+    /// Several.
+    Many(Vec<String>),
 }
 
 /// One `[[imu.gyro]]` or `[[imu.accel]]`.
@@ -111,6 +124,8 @@ pub struct UnitSpec {
     pub path: Option<PathBuf>,
     /// Failures.
     pub failures: Vec<FailureSpec>,
+    /// Where `imu-emu run` streams the unit.
+    pub sinks: Vec<SinkAddr>,
 }
 
 impl UnitSpec {
@@ -135,6 +150,7 @@ impl UnitSpec {
             format: None,
             path: None,
             failures: Vec::new(),
+            sinks: Vec::new(),
         }
     }
 
@@ -211,7 +227,21 @@ impl UnitEntry {
             format: self.format.clone(),
             path: self.path.clone(),
             failures: Vec::new(),
+            sinks: Vec::new(),
         };
+        let sinks = match &self.sink {
+            None => &[][..],
+            Some(OneOrMany::One(s)) => std::slice::from_ref(s),
+            Some(OneOrMany::Many(v)) => &v[..],
+        };
+        for (j, s) in sinks.iter().enumerate() {
+            let key = match self.sink {
+                Some(OneOrMany::Many(_)) => format!("sink[{j}]"),
+                _ => "sink".into(),
+            };
+            spec.sinks
+                .push(SinkAddr::parse(s).map_err(|m| bad(&key, m))?);
+        }
         let names = spec.channel_names();
         for (j, f) in self.failure.iter().enumerate() {
             let s = f

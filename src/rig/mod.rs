@@ -7,10 +7,12 @@
 //! Built by [`crate::sim::SimulationBuilder::build_rig`] from a scene file's `[[imu]]` list or
 //! from code; docs/rig.md describes the scene-file schema and the outputs.
 
+pub mod addr;
 pub mod config;
 pub mod failure;
 pub mod geometry;
 pub mod skew;
+pub mod stream;
 
 use std::io::Write;
 use std::ops::ControlFlow;
@@ -24,9 +26,11 @@ use crate::record::{COLUMNS, Record};
 use crate::sim::SimError;
 use crate::source::AnyMotion;
 
+pub use addr::SinkAddr;
 pub use failure::{Failure, FailureKind, FailureSet, FailureSpec, Pick};
 pub use geometry::Placement;
 pub use skew::{SkewLayout, SkewSensor, dodecahedron_axes};
+pub use stream::RigStream;
 
 use skew::ChannelErrors;
 
@@ -54,6 +58,7 @@ pub struct Unit {
     pub(crate) failures: FailureSet,
     pub(crate) seed: u64,
     pub(crate) path: Option<std::path::PathBuf>,
+    pub(crate) sinks: Vec<addr::SinkAddr>,
 }
 
 /// Reused per-unit buffers: nothing is allocated per block once they have grown.
@@ -106,6 +111,22 @@ impl Unit {
     /// The output path the scene file gives, if any.
     pub fn path(&self) -> Option<&std::path::Path> {
         self.path.as_deref()
+    }
+
+    /// Where `imu-emu run` streams the unit (the scene file's `sink`).
+    pub fn sinks(&self) -> &[addr::SinkAddr] {
+        &self.sinks
+    }
+
+    /// The compiled frame of a unit that speaks a protocol.
+    pub fn plan(&self) -> Option<&crate::protocol::Plan> {
+        match &self.body {
+            Body::Triad { encoding, .. } => match &**encoding {
+                Encoding::Frames { plan, .. } => Some(plan),
+                Encoding::Records(_) => None,
+            },
+            Body::Skew { .. } => None,
+        }
     }
 
     /// The skew-redundant layout, if the unit is one.
@@ -185,6 +206,20 @@ impl Unit {
         s: &mut Scratch,
         out: &mut UnitOutputs<'_>,
     ) -> Result<(), JobError> {
+        self.encode(reference, rot, s, &mut out.truth)?;
+        out.main.write_all(&s.buf)?;
+        Ok(())
+    }
+
+    /// [`Unit::process`] without the main output: the frames are left in `s.buf`, one per
+    /// record (ends in `s.ends`); the truth rows go to `truth`.
+    fn encode(
+        &mut self,
+        reference: &[Record],
+        rot: Option<&[RotationTerms]>,
+        s: &mut Scratch,
+        truth: &mut Option<&mut dyn Write>,
+    ) -> Result<(), JobError> {
         let dt = 1.0 / self.grid.rate_hz;
         let n = reference.len();
         s.masks.clear();
@@ -196,7 +231,7 @@ impl Unit {
                 s.recs.extend_from_slice(reference);
                 place_triad(&self.place, &mut s.recs, rot, dt);
                 s.truth.clear();
-                if out.truth.is_some() {
+                if truth.is_some() {
                     s.truth.extend_from_slice(&s.recs);
                 }
                 if let Some(c) = chain.as_mut() {
@@ -227,7 +262,7 @@ impl Unit {
                     s.masks.push(mask);
                 }
                 encoding.encode(&s.recs, &[], None, &mut s.buf, &mut s.ends);
-                if let Some(w) = out.truth.as_mut() {
+                if let Some(w) = truth.as_mut() {
                     s.side.clear();
                     for (r, m) in s.truth.iter().zip(&s.masks) {
                         csv_row(&mut s.side, &r.values(), *m);
@@ -266,9 +301,10 @@ impl Unit {
                     row.extend_from_slice(&s.vals[i * ch..(i + 1) * ch]);
                     row.extend(s.vals[i * ch..(i + 1) * ch].iter().map(|v| v * dt));
                     csv_row(&mut s.buf, row, u64::MAX);
+                    s.ends.push(s.buf.len());
                 }
                 check_values(&s.vals, reference, ch)?;
-                if let Some(w) = out.truth.as_mut() {
+                if let Some(w) = truth.as_mut() {
                     s.side.clear();
                     for (i, r) in reference.iter().enumerate() {
                         row.clear();
@@ -282,7 +318,7 @@ impl Unit {
             }
         }
         debug_assert_eq!(s.masks.len(), n);
-        out.main.write_all(&s.buf)?;
+        debug_assert_eq!(s.ends.len(), n);
         Ok(())
     }
 }

@@ -150,6 +150,7 @@ impl SimulationBuilder {
                 failures: FailureSet::new(failures, channels, seed),
                 seed,
                 path: spec.path.clone(),
+                sinks: spec.sinks.clone(),
             });
         }
         Ok(Rig {

@@ -1,0 +1,149 @@
+//! Several frame streams on one pacer: each source (a rig's units, a GNSS receiver, an
+//! odometer) gives, window after window of simulated time, its frames with their emission
+//! times; the merger lays them out in one [`FrameBlock`] in emission-time order, one stream
+//! per source stream. A frame belongs to one stream: in the others it is empty (zero bytes),
+//! and the pacer hands a sink only the non-empty frames of its stream.
+//!
+//! The interface is deliberately small: a stream is a sequence of (emission time, bytes).
+
+use crate::job::JobError;
+
+pub use crate::emission::{Part, WindowSource};
+
+use super::FrameBlock;
+
+/// Lays `parts` out in `block` in emission-time order (ties: the lower stream first): every
+/// stream gets an end per frame, empty where the frame is another stream's. `order` is
+/// scratch. `block.first` is left to the caller.
+pub fn merge_into(parts: &[Part], block: &mut FrameBlock, order: &mut Vec<(i64, u32, u32)>) {
+    order.clear();
+    for (s, p) in parts.iter().enumerate() {
+        order.extend((p.emit_ns.iter().enumerate()).map(|(i, e)| (*e, s as u32, i as u32)));
+    }
+    // Each part is already in order: a stable sort by time keeps equal times by stream.
+    order.sort_by_key(|o| (o.0, o.1));
+    block.streams.resize_with(parts.len(), Default::default);
+    block.emit_ns.clear();
+    for (bytes, ends) in block.streams.iter_mut() {
+        bytes.clear();
+        ends.clear();
+    }
+    for &(t, s, i) in order.iter() {
+        let p = &parts[s as usize];
+        let i = i as usize;
+        let from = if i == 0 { 0 } else { p.ends[i - 1] };
+        for (j, (bytes, ends)) in block.streams.iter_mut().enumerate() {
+            if j == s as usize {
+                bytes.extend_from_slice(&p.bytes[from..p.ends[i]]);
+            }
+            ends.push(bytes.len());
+        }
+        block.emit_ns.push(t);
+    }
+}
+
+/// Merges `sources` window by window (`window_ns` of simulated time each) and sends a block
+/// per non-empty window, like [`super::produce`] does for one IMU: blocking, on its own
+/// thread; buffers come back on `recycled`. Returns why production stopped early, if it did.
+pub fn produce_merged(
+    mut sources: Vec<Box<dyn WindowSource>>,
+    window_ns: i64,
+    tx: tokio::sync::mpsc::Sender<FrameBlock>,
+    mut recycled: tokio::sync::mpsc::Receiver<FrameBlock>,
+) -> Option<JobError> {
+    let n: usize = sources.iter().map(|s| s.streams()).sum();
+    let mut parts = vec![Part::default(); n];
+    let mut order = Vec::new();
+    let (mut until, mut first) = (0i64, 0u64);
+    while !sources.iter().all(|s| s.done()) {
+        until += window_ns;
+        parts.iter_mut().for_each(Part::clear);
+        let mut at = 0;
+        for s in sources.iter_mut() {
+            let k = s.streams();
+            if let Err(e) = s.fill(until, &mut parts[at..at + k]) {
+                return Some(e);
+            }
+            at += k;
+        }
+        if parts.iter().all(|p| p.ends.is_empty()) {
+            continue;
+        }
+        let mut b = recycled.try_recv().unwrap_or_default();
+        merge_into(&parts, &mut b, &mut order);
+        b.first = first;
+        first += b.len() as u64;
+        if tx.blocking_send(b).is_err() {
+            return None;
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn part(frames: &[(&[u8], i64)]) -> Part {
+        let mut p = Part::default();
+        for (f, t) in frames {
+            p.push(f, *t);
+        }
+        p
+    }
+
+    /// Two streams at different rates come out in emission order, each frame in its own
+    /// stream only, equal times in stream order; a sink of one stream sees its frames alone.
+    #[test]
+    fn merges_in_emission_order() {
+        let a = part(&[(b"a1", 10), (b"a2", 20), (b"a3", 30)]);
+        let b = part(&[(b"bb1", 15), (b"bb2", 30)]);
+        let mut block = FrameBlock::default();
+        merge_into(&[a, b], &mut block, &mut Vec::new());
+        assert_eq!(block.emit_ns, [10, 15, 20, 30, 30]);
+        assert_eq!(block.len(), 5);
+        assert_eq!(block.streams[0].0, b"a1a2a3");
+        assert_eq!(block.streams[0].1, [2, 2, 4, 6, 6]);
+        assert_eq!(block.streams[1].0, b"bb1bb2");
+        assert_eq!(block.streams[1].1, [0, 3, 3, 3, 6]);
+        let mut ends = Vec::new();
+        assert_eq!(block.frames(1, 0, 5, &mut ends), b"bb1bb2");
+        assert_eq!(ends, [3, 6]);
+        assert_eq!(block.frames(0, 1, 4, &mut ends), b"a2a3");
+        assert_eq!(ends, [2, 4]);
+        assert_eq!(block.frames(1, 2, 3, &mut ends), b"");
+        assert!(ends.is_empty());
+    }
+
+    /// A source with frames every 3 ns, windows of 10 ns: blocks are numbered on, and no
+    /// frame is lost or repeated.
+    #[test]
+    fn windows_cover_every_frame() {
+        struct Every3(i64);
+        impl WindowSource for Every3 {
+            fn streams(&self) -> usize {
+                1
+            }
+            fn fill(&mut self, until: i64, parts: &mut [Part]) -> Result<(), JobError> {
+                while self.0 + 3 <= until.min(40) {
+                    self.0 += 3;
+                    parts[0].push(&[self.0 as u8], self.0);
+                }
+                Ok(())
+            }
+            fn done(&self) -> bool {
+                self.0 + 3 > 40
+            }
+        }
+        let (tx, mut rx) = tokio::sync::mpsc::channel(64);
+        let (_keep, recycled) = tokio::sync::mpsc::channel(1);
+        assert!(produce_merged(vec![Box::new(Every3(0))], 10, tx, recycled).is_none());
+        let (mut all, mut next) = (Vec::new(), 0);
+        while let Ok(b) = rx.try_recv() {
+            assert_eq!(b.first, next);
+            next += b.len() as u64;
+            all.extend_from_slice(&b.emit_ns);
+        }
+        assert_eq!(all, (1..=13).map(|k| 3 * k).collect::<Vec<i64>>());
+    }
+}
