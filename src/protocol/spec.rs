@@ -129,11 +129,78 @@ pub enum Source {
     /// A status word: its healthy value with bits set or cleared by the record's saturation
     /// flags, by values beyond a field's range and by injected failures (`[field.status]`).
     Status,
+    /// Single-axis channel `i` of an N-channel unit (a skew-redundant one): `gyro[i]`,
+    /// `accel[i]`, `dtheta[i]`, `dv[i]`, in SI.
+    Channel(Channel, usize),
+}
+
+/// What a single-axis channel field carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Channel {
+    /// Interval-mean angular rate of gyro i (rad/s).
+    Gyro,
+    /// Interval-mean specific force of accelerometer i (m/s²).
+    Accel,
+    /// Angle increment of gyro i (rad).
+    DTheta,
+    /// Velocity increment of accelerometer i (m/s).
+    Dv,
+}
+
+impl Channel {
+    /// Whether the channel is a gyro's (else an accelerometer's).
+    pub fn is_gyro(self) -> bool {
+        matches!(self, Channel::Gyro | Channel::DTheta)
+    }
+
+    /// Whether the channel carries an increment (else an interval mean).
+    pub fn is_increment(self) -> bool {
+        matches!(self, Channel::DTheta | Channel::Dv)
+    }
+
+    fn from_name(s: &str) -> Option<Channel> {
+        Some(match s {
+            "gyro" => Channel::Gyro,
+            "accel" => Channel::Accel,
+            "dtheta" => Channel::DTheta,
+            "dv" => Channel::Dv,
+            _ => return None,
+        })
+    }
+}
+
+/// Most single-axis channels of one kind (gyros, accelerometers) a frame can carry: the bits of
+/// a unit's failure mask.
+pub const MAX_CHANNELS: usize = 64;
+
+/// `gyro[3]` → (Gyro, 3..4); `dtheta[0..6]` → (DTheta, 0..6): the channels an indexed source
+/// names, `None` when it is not one. `Err` for an indexed source that cannot be.
+pub fn channel_range(s: &str) -> Option<Result<(Channel, std::ops::Range<usize>), String>> {
+    let (kind, rest) = s.split_once('[')?;
+    let kind = Channel::from_name(kind)?;
+    let bad = || {
+        format!(
+            "`{s}`: expected `{{gyro|accel|dtheta|dv}}[i]` or `[i..j]` with i < j ≤ {MAX_CHANNELS}"
+        )
+    };
+    let Some(inner) = rest.strip_suffix(']') else {
+        return Some(Err(bad()));
+    };
+    let num = |x: &str| x.trim().parse::<usize>().ok();
+    let range = match inner.split_once("..") {
+        Some((a, b)) => num(a).zip(num(b)).map(|(a, b)| a..b),
+        None => num(inner).map(|i| i..i + 1),
+    };
+    Some(match range {
+        Some(r) if r.start < r.end && r.end <= MAX_CHANNELS => Ok((kind, r)),
+        _ => Err(bad()),
+    })
 }
 
 impl Source {
     /// Parses `gyro.x`, `accel.z`, `dtheta.y`, `dv.x`, `mag.x`, `time`, `counter`,
-    /// `temperature`, `gps.week`, `gps.seconds`, `gps.whole_seconds`, `gps.micros`, `gps.millis`, `status`.
+    /// `temperature`, `gps.week`, `gps.seconds`, `gps.whole_seconds`, `gps.micros`, `gps.millis`,
+    /// `status`, and single-axis channels `gyro[i]`, `accel[i]`, `dtheta[i]`, `dv[i]`.
     pub fn from_name(s: &str) -> Option<Source> {
         let axis = |a: &str| match a {
             "x" => Some(0),
@@ -156,7 +223,10 @@ impl Source {
             Some(("gps", "whole_seconds")) => Source::GpsWholeSeconds,
             Some(("gps", "micros")) => Source::GpsMicros,
             Some(("gps", "millis")) => Source::GpsMillis,
-            _ => return None,
+            _ => match channel_range(s)? {
+                Ok((c, r)) if r.len() == 1 => Source::Channel(c, r.start),
+                _ => return None,
+            },
         })
     }
 }
@@ -210,6 +280,9 @@ pub struct StatusSpec {
     pub accel_overrange: Option<BitEdit>,
     /// A built-in-test failure (set by fault injection).
     pub failure: Option<BitEdit>,
+    /// Per-channel failure bits of an N-channel unit: bit `failed_channels + i` is set while
+    /// channel i (gyros, then accelerometers) has an active failure.
+    pub failed_channels: Option<u32>,
 }
 
 /// Bits a condition sets and clears in a status word (clear first, then set).
@@ -396,10 +469,12 @@ pub enum SpecError {
         message: String,
     },
     /// A field that cannot be used.
-    #[error("{path}: field `{field}`: {message}")]
+    #[error("{}{}: field `{field}`: {message}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
     Field {
         /// File.
         path: PathBuf,
+        /// Line of the field's `name` in the file, when known.
+        line: Option<usize>,
         /// Field name.
         field: String,
         /// What is wrong.
