@@ -1051,6 +1051,9 @@ fn non_finite_values_never_reach_a_healthy_frame() {
     ];
     for name in protocol::builtin_names() {
         let (_, plan) = protocol::load(name).unwrap();
+        if plan.channels().is_some() {
+            continue; // an N-channel frame takes no three-axis record: tests/skew_frames.rs
+        }
         for (i, r) in bad.iter().enumerate() {
             // Which non-finite quantities this protocol carries at all.
             let sources = plan.value_sources().concat();
