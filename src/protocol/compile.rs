@@ -104,7 +104,7 @@ pub(super) fn compile_layout(
             }
             (None, Some(src)) => {
                 let source = Source::from_name(src).ok_or_else(|| {
-                    ferr(&f.name, format!("unknown source quantity `{src}` (gyro.x…z, accel.*, dtheta.*, dv.*, mag.*, time, counter, temperature, status, gps.*, gyro[i], accel[i], dtheta[i], dv[i])"))
+                    ferr(&f.name, format!("unknown source quantity `{src}` (gyro.x…z, accel.*, dtheta.*, dv.*, mag.*, time, counter, temperature, status, gps.*, gyro[i], accel[i], dtheta[i], dv[i], state.*, raw)"))
                 })?;
                 match source {
                     Source::Status => {

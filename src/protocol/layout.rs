@@ -403,6 +403,8 @@ fn quantity(r: &Record, temperature: f64, st: &EncoderState, s: Source) -> f64 {
         Source::Temperature => temperature,
         // The magnetometer is not simulated.
         Source::Mag(_) => 0.0,
-        Source::Counter | Source::Status | Source::Channel(..) => 0.0,
+        // No IMU output carries a vehicle's state.
+        Source::State(_) => f64::NAN,
+        Source::Counter | Source::Status | Source::Channel(..) | Source::Raw => 0.0,
     }
 }

@@ -188,6 +188,15 @@ impl Plan {
         (g + a > 0).then_some((g, a))
     }
 
+    /// Byte offset in the (untruncated) frame of the first message's field carrying `s`.
+    pub fn offset_of(&self, s: Source) -> Option<usize> {
+        self.layouts[0].ops.iter().find_map(|op| match op.what {
+            What::Quantity { source, .. } if source == s => Some(op.offset),
+            What::Counter { .. } if s == Source::Counter => Some(op.offset),
+            _ => None,
+        })
+    }
+
     /// Whether some field carries a three-axis rate, force or increment (`gyro.x`, `dv.z`, …).
     pub fn carries_triad(&self) -> bool {
         self.value_sources().iter().flatten().any(|s| {

@@ -132,6 +132,52 @@ pub enum Source {
     /// Single-axis channel `i` of an N-channel unit (a skew-redundant one): `gyro[i]`,
     /// `accel[i]`, `dtheta[i]`, `dv[i]`, in SI.
     Channel(Channel, usize),
+    /// A vehicle state quantity of a simulator's state message (MAVLink
+    /// HIL_STATE_QUATERNION, read by live input): decoded, never encoded (no IMU output
+    /// carries it; an encoder treats it as a value that is not a measurement).
+    State(StateQty),
+    /// An integer carried as is, read by the caller itself (MAVLink's flags and system id);
+    /// encoders send 0.
+    Raw,
+}
+
+/// A vehicle state quantity (`state.qw`, `state.lat`, …).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StateQty {
+    /// Attitude quaternion body → NED, component w, x, y, z (0–3).
+    Q(usize),
+    /// Latitude (deg, as trajectory files).
+    Lat,
+    /// Longitude (deg).
+    Lon,
+    /// Altitude (m).
+    Alt,
+    /// Velocity north, east, down (0–2; m/s).
+    Vel(usize),
+    /// Indicated airspeed (m/s).
+    Ias,
+    /// True airspeed (m/s).
+    Tas,
+}
+
+impl StateQty {
+    fn from_name(s: &str) -> Option<StateQty> {
+        Some(match s {
+            "qw" => StateQty::Q(0),
+            "qx" => StateQty::Q(1),
+            "qy" => StateQty::Q(2),
+            "qz" => StateQty::Q(3),
+            "lat" => StateQty::Lat,
+            "lon" => StateQty::Lon,
+            "alt" => StateQty::Alt,
+            "vn" => StateQty::Vel(0),
+            "ve" => StateQty::Vel(1),
+            "vd" => StateQty::Vel(2),
+            "ias" => StateQty::Ias,
+            "tas" => StateQty::Tas,
+            _ => return None,
+        })
+    }
 }
 
 /// What a single-axis channel field carries.
@@ -200,7 +246,8 @@ pub fn channel_range(s: &str) -> Option<Result<(Channel, std::ops::Range<usize>)
 impl Source {
     /// Parses `gyro.x`, `accel.z`, `dtheta.y`, `dv.x`, `mag.x`, `time`, `counter`,
     /// `temperature`, `gps.week`, `gps.seconds`, `gps.whole_seconds`, `gps.micros`, `gps.millis`,
-    /// `status`, and single-axis channels `gyro[i]`, `accel[i]`, `dtheta[i]`, `dv[i]`.
+    /// `status`, single-axis channels `gyro[i]`, `accel[i]`, `dtheta[i]`, `dv[i]`, vehicle
+    /// state `state.qw|qx|qy|qz|lat|lon|alt|vn|ve|vd|ias|tas` and `raw`.
     pub fn from_name(s: &str) -> Option<Source> {
         let axis = |a: &str| match a {
             "x" => Some(0),
@@ -223,6 +270,8 @@ impl Source {
             Some(("gps", "whole_seconds")) => Source::GpsWholeSeconds,
             Some(("gps", "micros")) => Source::GpsMicros,
             Some(("gps", "millis")) => Source::GpsMillis,
+            Some(("state", q)) => Source::State(StateQty::from_name(q)?),
+            None if s == "raw" => Source::Raw,
             _ => match channel_range(s)? {
                 Ok((c, r)) if r.len() == 1 => Source::Channel(c, r.start),
                 _ => return None,
