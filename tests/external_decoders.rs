@@ -203,18 +203,16 @@ fn our_live_decoder_reads_pymavlink_hil_state_quaternion() {
             (s.q_b_n.coords - want.normalize().coords).norm() <= 1e-15,
             "{line}"
         );
-        let rates = list("rates");
         let w = d.state.omega_ib_b.unwrap();
-        for i in 0..3 {
-            assert_eq!(w[i], rates[i] as f32 as f64);
+        for (got, want) in w.iter().zip(list("rates")) {
+            assert_eq!(*got, want as f32 as f64);
         }
         let pos = list("pos");
         assert_eq!(s.lat, (pos[0] / 1e7).to_radians());
         assert_eq!(s.lon, (pos[1] / 1e7).to_radians());
         assert_eq!(s.h, pos[2] / 1e3);
-        let vel = list("vel");
-        for i in 0..3 {
-            assert_eq!(s.v_n[i], vel[i] / 100.0);
+        for (got, cm_s) in s.v_n.iter().zip(list("vel")) {
+            assert_eq!(*got, cm_s / 100.0);
         }
         n += 1;
     }
