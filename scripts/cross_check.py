@@ -5,7 +5,8 @@ tests/external_decoders.rs (run by .ci/run in a venv under target/).
 
 NMEA 0183 with pynmea2 and u-blox UBX with pyubx2 likewise.
 
-usage: cross_check.py mavlink|novatel|nmea|ubx FILE
+usage: cross_check.py mavlink|novatel|nmea|ubx FILE, or cross_check.py pack-hil-state N (frames
+packed by pymavlink for our live MAVLink decoder)
 """
 import sys
 
@@ -64,8 +65,39 @@ def ubx(data):
         yield d
 
 
+def pack_hil_state(n):
+    """n HIL_STATE_QUATERNION frames packed by pymavlink (a yaw turn, drifting position and
+    velocity; every fifth with zero airspeeds and accelerations, so MAVLink 2 truncates it),
+    one line each: the frame's hex and the values given."""
+    import math
+
+    from pymavlink.dialects.v20 import common
+
+    for k in range(int(n)):
+        mav = common.MAVLink(None, srcSystem=1 + k % 3, srcComponent=1 + k % 7)
+        mav.seq = k % 256
+        a = 0.01 * k
+        q = [math.cos(a / 2), 0.01 * math.sin(a), -0.02 * math.sin(a), math.sin(a / 2)]
+        norm = math.sqrt(sum(x * x for x in q))
+        q = [x / norm for x in q]
+        rates = [0.01 * math.sin(0.1 * k), -0.02, 0.5 * math.cos(0.05 * k)]
+        pos = [451000000 + 37 * k, -75000000 - 53 * k, 100000 + 250 * k]
+        vel = [1000 + k, -200 - 3 * k, 30 - k]
+        extra = [0, 0, 0, 0, 0] if k % 5 == 0 else [1500 + k, 1510 + k, 12 - k, -7, -1000 + k]
+        t_us = 1_234_567 + 10_000 * k
+        msg = common.MAVLink_hil_state_quaternion_message(t_us, q, *rates, *pos, *vel, *extra)
+        buf = msg.pack(mav)
+        yield {"hex": buf.hex(), "time_usec": t_us, "q": ",".join(map(repr, q)),
+               "rates": ",".join(map(repr, rates)), "pos": ",".join(map(str, pos)),
+               "vel": ",".join(map(str, vel)), "seq": k % 256}
+
+
 def main():
     kind, path = sys.argv[1], sys.argv[2]
+    if kind == "pack-hil-state":
+        for d in pack_hil_state(path):
+            print(";".join(f"{k}={v}" for k, v in d.items()))
+        return
     with open(path, "rb") as f:
         data = f.read()
     for d in {"mavlink": mavlink, "novatel": novatel, "nmea": nmea, "ubx": ubx}[kind](data):

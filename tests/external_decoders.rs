@@ -158,6 +158,67 @@ fn pymavlink_check(name: &str, kind: &str) {
     }
 }
 
+/// HIL_STATE_QUATERNION frames packed by pymavlink (several senders, full and truncated
+/// payloads) decode through our spec-driven live decoder to pymavlink's values: µs time,
+/// float32 quaternion (normalised) and rates, 1e-7° position, mm altitude, cm/s velocity,
+/// sequence number.
+#[test]
+#[ignore = "needs IMU_EMU_PYTHON: a Python with pymavlink and novatel-edie (.ci/run)"]
+fn our_live_decoder_reads_pymavlink_hil_state_quaternion() {
+    use imu_emu::live::mavlink;
+    let python = std::env::var("IMU_EMU_PYTHON").expect(NEEDS);
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/cross_check.py");
+    let out = std::process::Command::new(&python)
+        .args([script, "pack-hil-state", "500"])
+        .output()
+        .unwrap_or_else(|e| panic!("running {python}: {e}"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let (mut n, mut truncated) = (0, 0);
+    for line in text.lines() {
+        let m = Msg(line
+            .split(';')
+            .filter_map(|kv| kv.split_once('='))
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect());
+        let list =
+            |k: &str| -> Vec<f64> { m.s(k).split(',').map(|x| x.parse().unwrap()).collect() };
+        let hex = m.s("hex");
+        let bytes: Vec<u8> = (0..hex.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap())
+            .collect();
+        truncated += usize::from(bytes[1] < 64);
+        let d = mavlink::decode(&bytes).unwrap().unwrap();
+        let s = d.state.sample;
+        assert_eq!(d.seq, Some(m.i("seq") as u64));
+        assert_eq!(s.t, m.i("time_usec") as f64 / 1e6);
+        let q: Vec<f64> = list("q").iter().map(|x| *x as f32 as f64).collect();
+        let want = imu_emu::math::Quat::new(q[0], q[1], q[2], q[3]);
+        assert!(
+            (s.q_b_n.coords - want.normalize().coords).norm() <= 1e-15,
+            "{line}"
+        );
+        let w = d.state.omega_ib_b.unwrap();
+        for (got, want) in w.iter().zip(list("rates")) {
+            assert_eq!(*got, want as f32 as f64);
+        }
+        let pos = list("pos");
+        assert_eq!(s.lat, (pos[0] / 1e7).to_radians());
+        assert_eq!(s.lon, (pos[1] / 1e7).to_radians());
+        assert_eq!(s.h, pos[2] / 1e3);
+        for (got, cm_s) in s.v_n.iter().zip(list("vel")) {
+            assert_eq!(*got, cm_s / 100.0);
+        }
+        n += 1;
+    }
+    assert_eq!((n, truncated), (500, 100));
+}
+
 /// NovAtel EDIE accepts every intact RAWIMUSXB frame (NovAtel CRC-32) and drops the corrupted
 /// ones; its counts are the record's values over the EG320N scale factors in NovAtel's order
 /// z, −y, x, and its GPS week and seconds are the run's time reference plus the record time.

@@ -17,8 +17,8 @@ use imu_emu::realtime::stats::Lateness;
 pub struct DecodeArgs {
     /// Built-in protocol: ln200, ln200-sdlc, hg4930, hg1700-sdlc, kvh1750, kvh1750-b,
     /// kvh1750-c, imar-ixcom, novatel-rawimusx, stim300 (0x93), stim300-90, stim300-91, stim300-a7,
-    /// mavlink-hil-sensor, mavlink-highres-imu.
-    #[arg(long, conflicts_with = "protocol_file")]
+    /// mavlink-hil-sensor, mavlink-highres-imu, skew6 (N-channel: printed as its own fields).
+    #[arg(long, visible_alias = "format", conflicts_with = "protocol_file")]
     pub protocol: Option<String>,
     /// A protocol spec file.
     #[arg(long)]
@@ -154,7 +154,8 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     // fields, merged by name (plus the message name when the protocol interleaves several);
     // a row leaves the columns its message lacks empty.
     let multi = plan.messages() > 1;
-    let contract = !a.native;
+    // An N-channel frame (a skew-redundant unit's) has no three-axis record: its own fields.
+    let contract = !a.native && plan.channels().is_none();
     let mut columns: Vec<String> = if contract {
         imu_emu::record::COLUMNS
             .iter()

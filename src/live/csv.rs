@@ -3,7 +3,10 @@
 //! simulation knows: `wx,wy,wz` (body angular rate ω_ib^b, deg/s) and `an,ae,ad` (time
 //! derivative of the NED velocity, m/s²). A header line names the columns and may be sent at
 //! any time (again over UDP, where a receiver can join late); without one the ten trajectory
-//! columns are assumed in their file order. `#` starts a comment line.
+//! columns are assumed in their file order. `#` starts a comment line. Instead of `t`, the
+//! time tag can be GPS time: `gps_week` (whole weeks since 1980-01-06) and `gps_sow` (seconds
+//! of week, [0, 604800)), taken as GPS seconds since the GPS epoch, week·604800 + sow, as the
+//! binary datagram's week and time tag are (GPS time has no leap seconds).
 
 use super::{Decoded, Malformed};
 use crate::csvio::{clip, num, parse_finite};
@@ -15,8 +18,15 @@ use crate::trajectory::COLUMNS;
 /// The optional columns, in groups of three that come together.
 pub const EXTRA_COLUMNS: [&str; 6] = ["wx", "wy", "wz", "an", "ae", "ad"];
 
-/// Number of known columns: the trajectory's then the extras.
-const KNOWN: usize = 16;
+/// The GPS time tag's columns, which replace `t`.
+pub const GPS_COLUMNS: [&str; 2] = ["gps_week", "gps_sow"];
+
+/// Number of known columns: the trajectory's, the extras, then the GPS time tag's.
+const KNOWN: usize = 18;
+/// Index of `gps_week` among the known columns (`gps_sow` follows).
+const GPS: usize = 16;
+/// Seconds in a GPS week.
+const WEEK_S: f64 = 604_800.0;
 
 /// The decoder's view of the columns: where each known column is in a line.
 #[derive(Clone, Debug)]
@@ -42,8 +52,10 @@ impl Default for CsvDecoder {
 fn name_of(k: usize) -> &'static str {
     if k < COLUMNS.len() {
         COLUMNS[k]
-    } else {
+    } else if k < GPS {
         EXTRA_COLUMNS[k - COLUMNS.len()]
+    } else {
+        GPS_COLUMNS[k - GPS]
     }
 }
 
@@ -72,11 +84,12 @@ impl CsvDecoder {
                 return Err(Malformed::at(
                     0,
                     format!(
-                        "header: column {}: unknown column {} (expected `{}` and optionally `{}`)",
+                        "header: column {}: unknown column {} (expected `{}` and optionally `{}`; `{}` for `t`)",
                         c + 1,
                         clip(name),
                         COLUMNS.join(","),
-                        EXTRA_COLUMNS.join(",")
+                        EXTRA_COLUMNS.join(","),
+                        GPS_COLUMNS.join(",")
                     ),
                 ));
             };
@@ -88,7 +101,23 @@ impl CsvDecoder {
             }
             at[k] = Some(c);
         }
-        if let Some(k) = (0..COLUMNS.len()).find(|&k| at[k].is_none()) {
+        match (at[0].is_some(), at[GPS].is_some(), at[GPS + 1].is_some()) {
+            (_, true, false) | (_, false, true) => {
+                return Err(Malformed::at(
+                    0,
+                    "header: `gps_week` and `gps_sow` come together".to_string(),
+                ));
+            }
+            (true, true, true) => {
+                return Err(Malformed::at(
+                    0,
+                    "header: give the time as `t` or as `gps_week,gps_sow`, not both".to_string(),
+                ));
+            }
+            _ => {}
+        }
+        let gps = at[GPS].is_some();
+        if let Some(k) = (0..COLUMNS.len()).find(|&k| at[k].is_none() && !(k == 0 && gps)) {
             return Err(Malformed::at(
                 0,
                 format!("header: missing column `{}`", name_of(k)),
@@ -134,6 +163,24 @@ impl CsvDecoder {
                     format!("column {} (`{}`): {m}", c + 1, name_of(k)),
                 )
             })?;
+            let bad_week = k == GPS && !(x >= 0.0 && x.fract() == 0.0 && x < 65536.0);
+            let bad_sow = k == GPS + 1 && !(0.0..WEEK_S).contains(&x);
+            if bad_week || bad_sow {
+                let want = if bad_week {
+                    "a whole number of weeks ≥ 0"
+                } else {
+                    "seconds of week in [0, 604800)"
+                };
+                return Err(Malformed::at(
+                    offsets[c],
+                    format!(
+                        "column {} (`{}`): {}: expected {want}",
+                        c + 1,
+                        name_of(k),
+                        num(x)
+                    ),
+                ));
+            }
             if k == 1 && x.abs() > 90.0 {
                 return Err(Malformed::at(
                     offsets[c],
@@ -151,8 +198,12 @@ impl CsvDecoder {
                 .is_some()
                 .then(|| Vec3::new(v[g], v[g + 1], v[g + 2]))
         };
+        let t = match self.at[GPS] {
+            Some(_) => v[GPS] * WEEK_S + v[GPS + 1],
+            None => v[0],
+        };
         let sample = Sample {
-            t: v[0],
+            t,
             lat: v[1].to_radians(),
             lon: v[2].to_radians(),
             h: v[3],
@@ -221,5 +272,39 @@ mod tests {
         let e = d.decode(b"1.5,45,\xff").unwrap_err();
         assert_eq!(e.offset, 7);
         assert!(d.decode(b"1.5,45,7,1,1,2,3,0,0,90").unwrap().is_some());
+    }
+
+    /// `gps_week,gps_sow` instead of `t`: the time is GPS seconds since the GPS epoch; a
+    /// fractional or negative week, seconds of week outside [0, 604800) and headers with both
+    /// or half of the time tags are refused naming the column and its byte offset.
+    #[test]
+    fn gps_week_and_seconds_time_tags() {
+        let mut d = CsvDecoder::default();
+        let head = b"gps_week,gps_sow,lat,lon,h,vn,ve,vd,roll,pitch,yaw";
+        assert_eq!(d.decode(head).unwrap(), None);
+        let s = d
+            .decode(b"2400,345600.25,45,7,100,1,2,3,0,0,90")
+            .unwrap()
+            .unwrap();
+        assert_eq!(s.state.sample.t, 2400.0 * 604_800.0 + 345_600.25);
+        assert_eq!(s.state.sample.h, 100.0);
+        let e = d.decode(b"2400.5,1,45,7,100,1,2,3,0,0,90").unwrap_err();
+        assert_eq!(e.offset, 0);
+        assert!(e.message.contains("column 1 (`gps_week`): 2400.5"), "{e:?}");
+        let e = d.decode(b"2400,604800,45,7,100,1,2,3,0,0,90").unwrap_err();
+        assert_eq!(e.offset, 5);
+        assert!(e.message.contains("column 2 (`gps_sow`)"), "{e:?}");
+        let e = d.decode(b"-1,5,45,7,100,1,2,3,0,0,90").unwrap_err();
+        assert!(e.message.contains("whole number of weeks"), "{e:?}");
+        let e = d
+            .decode(b"t,gps_week,gps_sow,lat,lon,h,vn,ve,vd,roll,pitch,yaw")
+            .unwrap_err();
+        assert!(e.message.contains("not both"), "{e:?}");
+        let e = d
+            .decode(b"gps_week,lat,lon,h,vn,ve,vd,roll,pitch,yaw")
+            .unwrap_err();
+        assert!(e.message.contains("come together"), "{e:?}");
+        // The header in force is still the GPS one.
+        assert!(d.decode(b"2400,0,45,7,100,1,2,3,0,0,90").unwrap().is_some());
     }
 }

@@ -1,13 +1,10 @@
 //! MAVLink 2 `HIL_STATE_QUATERNION` (message 115, common.xml on mavlink.io), what PX4- and
-//! ArduPilot-style simulators send as the vehicle's state. The frame check is the project's
-//! catalogue CRC-16/MCRF4XX with the message's CRC_EXTRA (4), as for the HIL_SENSOR frames of
-//! `protocols/mavlink-hil-sensor.toml`; MAVLink 2 drops trailing zero bytes of the payload,
-//! which are restored before decoding.
-//!
-//! Payload (fields by size, as MAVLink serialises them): time_usec u64 (µs), attitude
-//! quaternion f32[4] (w, x, y, z; body to NED), rollspeed, pitchspeed, yawspeed f32 (rad/s),
-//! lat, lon i32 (1e-7 deg), alt i32 (mm), vx, vy, vz i16 (cm/s, NED), ind_airspeed,
-//! true_airspeed u16 (cm/s), xacc, yacc, zacc i16 (mG).
+//! ArduPilot-style simulators send as the vehicle's state, decoded by the project's protocol
+//! machinery from its specification `protocols/live/mavlink-hil-state-quaternion.toml`
+//! (layout, scales, trailing-zero truncation, CRC-16/MCRF4XX with CRC_EXTRA 4), as the
+//! HIL_SENSOR frames of `protocols/mavlink-hil-sensor.toml` are. This module only finds the
+//! frame (its length, a signature after the CRC when incompat_flags bit 0 is set), skips other
+//! messages and turns the decoded fields into a state.
 //!
 //! Taken: time, attitude, position, velocity, and the body rates as ω_ib^b (the simulators'
 //! gyro-like rates). Not taken: airspeeds and the accelerations (their frame and whether
@@ -15,11 +12,16 @@
 //! ellipsoid. The message's resolution is coarse (1 cm/s, float32 attitude): see
 //! docs/live-input.md for what that costs.
 
+use std::path::Path;
+use std::sync::OnceLock;
+
 use super::{Decoded, Malformed};
 use crate::math::{Quat, QuatExt, Vec3};
 use crate::motion::causal::LiveSample;
 use crate::motion::sampled::Sample;
 use crate::protocol::check::Check;
+use crate::protocol::spec::{Source, StateQty};
+use crate::protocol::{DecodeError, Plan};
 
 /// Message id of HIL_STATE_QUATERNION.
 pub const MSG_ID: u32 = 115;
@@ -33,6 +35,19 @@ pub const STX: u8 = 0xFD;
 pub const HEADER: usize = 10;
 /// Incompatibility flag: the frame is signed (13 more bytes after the CRC).
 const SIGNED: u8 = 1;
+/// The message's specification.
+pub const SPEC: &str = include_str!("../../protocols/live/mavlink-hil-state-quaternion.toml");
+
+/// The compiled specification (compiled once; a test checks it compiles).
+fn plan() -> &'static Plan {
+    static PLAN: OnceLock<Plan> = OnceLock::new();
+    PLAN.get_or_init(|| {
+        let path = Path::new("protocols/live/mavlink-hil-state-quaternion.toml");
+        crate::protocol::load::compile_text(SPEC, path)
+            .expect("the built-in HIL_STATE_QUATERNION spec compiles")
+            .1
+    })
+}
 
 /// Length of the MAVLink 2 frame that starts `b` (header, payload, CRC, signature), if the
 /// header is there.
@@ -66,61 +81,77 @@ pub fn decode(b: &[u8]) -> Result<Option<Decoded>, Malformed> {
             format!("payload {n} bytes, HIL_STATE_QUATERNION has {PAYLOAD}"),
         ));
     }
-    let crc_at = HEADER + n;
-    let check = Check::named("crc-16/mcrf4xx").expect("a catalogue CRC");
-    let c = check.compute_parts(&[&b[1..crc_at], &[CRC_EXTRA]]) as u16;
-    let sent = u16::from_le_bytes([b[crc_at], b[crc_at + 1]]);
-    if c != sent {
-        return Err(Malformed::at(
-            crc_at,
-            format!("CRC {sent:04x}, computed {c:04x}"),
-        ));
+    let plan = plan();
+    // The signature, if any, follows the CRC: the spec's frame ends at the CRC.
+    let d = plan.decode(b).map_err(|e| match e {
+        DecodeError::Check { got, computed, .. } => Malformed::at(
+            HEADER + n,
+            format!("CRC {got:04x}, computed {computed:04x}"),
+        ),
+        DecodeError::Length { got, max } => {
+            Malformed::at(1, format!("payload {got} bytes, expected 1 to {max}"))
+        }
+        e => Malformed::at(0, e.to_string()),
+    })?;
+    let get = |s: Source| d.get(s).expect("a field of the HIL_STATE_QUATERNION spec");
+    let state = |q: StateQty| get(Source::State(q));
+    let at = |s: Source| plan.offset_of(s).expect("a field of the spec");
+    let floats = (0..4)
+        .map(|i| Source::State(StateQty::Q(i)))
+        .chain((0..3).map(Source::Gyro));
+    if let Some(s) = floats.into_iter().find(|s| !get(*s).is_finite()) {
+        return Err(Malformed::at(at(s), "value is not finite"));
     }
-    let mut p = [0u8; PAYLOAD];
-    p[..n].copy_from_slice(&b[HEADER..crc_at]);
-    let f32_at = |i: usize| f64::from(f32::from_le_bytes(p[i..i + 4].try_into().expect("4")));
-    let i32_at = |i: usize| f64::from(i32::from_le_bytes(p[i..i + 4].try_into().expect("4")));
-    let i16_at = |i: usize| f64::from(i16::from_le_bytes(p[i..i + 2].try_into().expect("2")));
-    let t = u64::from_le_bytes(p[..8].try_into().expect("8")) as f64 / 1e6;
-    let q = Quat::new(f32_at(8), f32_at(12), f32_at(16), f32_at(20));
-    if let Some(i) = (8..36).step_by(4).find(|&i| !f32_at(i).is_finite()) {
-        return Err(Malformed::at(HEADER + i, "value is not finite"));
-    }
+    let q = Quat::new(
+        state(StateQty::Q(0)),
+        state(StateQty::Q(1)),
+        state(StateQty::Q(2)),
+        state(StateQty::Q(3)),
+    );
     // float32 components: a unit quaternion's norm is within a few 1e-7 of 1.
     let norm = q.norm_squared().sqrt();
     if (norm - 1.0).abs() > 1e-5 {
         return Err(Malformed::at(
-            HEADER + 8,
+            at(Source::State(StateQty::Q(0))),
             format!("quaternion norm {norm}, expected 1"),
         ));
     }
-    let lat = i32_at(36) / 1e7;
+    let lat = state(StateQty::Lat);
     if lat.abs() > 90.0 {
         return Err(Malformed::at(
-            HEADER + 36,
+            at(Source::State(StateQty::Lat)),
             format!("latitude {lat} is outside [-90, 90] degrees"),
         ));
     }
     let sample = Sample {
-        t,
+        t: get(Source::Time),
         lat: lat.to_radians(),
-        lon: (i32_at(40) / 1e7).to_radians(),
-        h: i32_at(44) / 1e3,
-        v_n: Vec3::new(i16_at(48) / 100.0, i16_at(50) / 100.0, i16_at(52) / 100.0),
+        lon: state(StateQty::Lon).to_radians(),
+        h: state(StateQty::Alt),
+        v_n: Vec3::new(
+            state(StateQty::Vel(0)),
+            state(StateQty::Vel(1)),
+            state(StateQty::Vel(2)),
+        ),
         q_b_n: q.normalized(),
     };
     Ok(Some(Decoded {
-        seq: Some(u64::from(b[4])),
+        seq: Some(get(Source::Counter) as u64),
         state: LiveSample {
             sample,
-            omega_ib_b: Some(Vec3::new(f32_at(24), f32_at(28), f32_at(32))),
+            omega_ib_b: Some(Vec3::new(
+                get(Source::Gyro(0)),
+                get(Source::Gyro(1)),
+                get(Source::Gyro(2)),
+            )),
             accel_n: None,
         },
     }))
 }
 
 /// Encodes a HIL_STATE_QUATERNION frame (system 1, component 1), trailing zeros dropped as
-/// MAVLink 2 senders do: for tests and replays.
+/// MAVLink 2 senders do: for tests and replays. Written by hand, independently of the
+/// specification the decoder runs, so that each checks the other.
 pub fn encode(
     seq: u8,
     time_usec: u64,
@@ -205,6 +236,51 @@ mod tests {
         assert_eq!(
             decode(&f).unwrap().unwrap().state,
             decode(&want).unwrap().unwrap().state
+        );
+    }
+
+    /// The pymavlink frame re-sent signed (incompat_flags bit 0, 13 signature bytes after
+    /// the CRC) by another system and component decodes to the same state; the quaternion's
+    /// and the latitude's errors name their byte in the frame.
+    #[test]
+    fn signed_frames_other_senders_and_bad_values() {
+        let plain = hex(PYMAVLINK);
+        let reframe = |f: &mut Vec<u8>| {
+            let n = HEADER + f[1] as usize;
+            let c = Check::named("crc-16/mcrf4xx").unwrap();
+            let crc = c.compute_parts(&[&f[1..n], &[CRC_EXTRA]]) as u16;
+            f[n..n + 2].copy_from_slice(&crc.to_le_bytes());
+        };
+        let mut signed = plain.clone();
+        signed[2] = SIGNED;
+        signed[5] = 42;
+        signed[6] = 200;
+        reframe(&mut signed);
+        signed.extend_from_slice(&[0xAB; 13]);
+        assert_eq!(frame_len(&signed), Some(plain.len() + 13));
+        assert_eq!(
+            decode(&signed).unwrap().unwrap(),
+            decode(&plain).unwrap().unwrap()
+        );
+        // Quaternion w (payload byte 8) = 2.0: norm 2.
+        let mut q = plain.clone();
+        q[HEADER + 8..HEADER + 12].copy_from_slice(&2.0f32.to_le_bytes());
+        reframe(&mut q);
+        let e = decode(&q).unwrap_err();
+        assert_eq!(e.offset, HEADER + 8, "{e:?}");
+        assert!(e.message.contains("quaternion norm 2"), "{e:?}");
+        // Latitude (payload byte 36) = 95°; yawspeed (byte 32) NaN.
+        let mut lat = plain.clone();
+        lat[HEADER + 36..HEADER + 40].copy_from_slice(&950_000_000i32.to_le_bytes());
+        reframe(&mut lat);
+        assert_eq!(decode(&lat).unwrap_err().offset, HEADER + 36);
+        let mut nan = plain;
+        nan[HEADER + 32..HEADER + 36].copy_from_slice(&f32::NAN.to_le_bytes());
+        reframe(&mut nan);
+        let e = decode(&nan).unwrap_err();
+        assert_eq!(
+            (e.offset, e.message.as_str()),
+            (HEADER + 32, "value is not finite")
         );
     }
 

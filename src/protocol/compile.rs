@@ -1,13 +1,14 @@
 //! Compiling one message's `[[field]]`s, `[check]` and `[truncate]` into a [`Layout`] of byte
 //! offsets and conversions, refusing what cannot be used with the file and field named.
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use super::check::Check;
 use super::layout::{CheckOp, Layout, Op, StatusModel, Truncate, What};
 use super::spec::{
     ByteOrder, CheckSpec, FieldSpec, MAX_FIELDS, MAX_FRAME_BYTES, Source, SpecError, TruncateSpec,
-    compact,
+    channel_range, compact,
 };
 use crate::record::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED};
 
@@ -31,9 +32,11 @@ pub(super) fn compile_layout(
 ) -> Result<Layout, SpecError> {
     let ferr = |field: &str, message: String| SpecError::Field {
         path: path.to_path_buf(),
+        line: None,
         field: field.to_string(),
         message,
     };
+    let fields = &expand_channels(fields).map_err(|(f, m)| ferr(&f, m))?[..];
     let status_model = |f: &FieldSpec| {
         f.status.as_ref().map(|st| {
             Box::new(StatusModel {
@@ -41,6 +44,7 @@ pub(super) fn compile_layout(
                 gyro: st.gyro_overrange.unwrap_or_default(),
                 accel: st.accel_overrange.unwrap_or_default(),
                 failure: st.failure,
+                channels_at: st.failed_channels,
             })
         })
     };
@@ -100,7 +104,7 @@ pub(super) fn compile_layout(
             }
             (None, Some(src)) => {
                 let source = Source::from_name(src).ok_or_else(|| {
-                    ferr(&f.name, format!("unknown source quantity `{src}` (gyro.x…z, accel.*, dtheta.*, dv.*, mag.*, time, counter, temperature, status, gps.*)"))
+                    ferr(&f.name, format!("unknown source quantity `{src}` (gyro.x…z, accel.*, dtheta.*, dv.*, mag.*, time, counter, temperature, status, gps.*, gyro[i], accel[i], dtheta[i], dv[i], state.*, raw)"))
                 })?;
                 match source {
                     Source::Status => {
@@ -193,8 +197,26 @@ pub(super) fn compile_layout(
                             _ if f.flags_overrange == Some(false) => 0,
                             Source::Gyro(_) | Source::DTheta(_) => FLAG_GYRO_SATURATED,
                             Source::Accel(_) | Source::Dv(_) => FLAG_ACCEL_SATURATED,
+                            Source::Channel(c, _) if c.is_gyro() => FLAG_GYRO_SATURATED,
+                            Source::Channel(..) => FLAG_ACCEL_SATURATED,
                             _ => 0,
                         };
+                        if accumulate && matches!(source, Source::Channel(c, _) if c.is_increment())
+                        {
+                            return Err(ferr(
+                                &f.name,
+                                "an accumulating message sums three-axis Δθ/ΔV only, not single-axis channels".into(),
+                            ));
+                        }
+                        if let Some(other) = ops.iter().find(|op| {
+                            matches!(source, Source::Channel(..))
+                                && matches!(op.what, What::Quantity { source: s, .. } if s == source)
+                        }) {
+                            return Err(ferr(
+                                &f.name,
+                                format!("`{src}` is already carried by field `{}`", other.name),
+                            ));
+                        }
                         let wrap = f.wrap.unwrap_or(false);
                         if wrap && f.ty.int_range().is_none() {
                             return Err(ferr(&f.name, "`wrap` needs an integer type".into()));
@@ -295,6 +317,7 @@ pub(super) fn compile_layout(
             })
         }
     };
+    check_channel_bits(&ops).map_err(|(f, m)| ferr(&f, m))?;
     let len = offset + check.as_ref().map_or(0, |c| c.ty.bytes());
     if offset == 0 {
         return Err(SpecError::Syntax {
@@ -310,4 +333,93 @@ pub(super) fn compile_layout(
         accumulate,
         len,
     })
+}
+
+/// The fields with every channel range (`source = "dtheta[0..6]"`) written out one field per
+/// channel, named `NAME_i` (`dtheta[i]`, each with the range's type, LSB and sign); the
+/// fields as given when there is none. `Err((field, problem))` for a malformed index.
+fn expand_channels(fields: &[FieldSpec]) -> Result<Cow<'_, [FieldSpec]>, (String, String)> {
+    let mut out: Option<Vec<FieldSpec>> = None;
+    for (k, f) in fields.iter().enumerate() {
+        let range = match f.source.as_deref().and_then(channel_range) {
+            Some(r) => r.map_err(|m| (f.name.clone(), m))?,
+            None => {
+                if let Some(v) = out.as_mut() {
+                    v.push(f.clone());
+                }
+                continue;
+            }
+        };
+        if range.1.len() == 1 {
+            if let Some(v) = out.as_mut() {
+                v.push(f.clone());
+            }
+            continue;
+        }
+        let v = out.get_or_insert_with(|| fields[..k].to_vec());
+        let kind = f.source.as_deref().and_then(|s| s.split_once('['));
+        let kind = kind.map_or("", |k| k.0);
+        for i in range.1 {
+            let mut one = f.clone();
+            one.name = format!("{}_{i}", f.name);
+            one.source = Some(format!("{kind}[{i}]"));
+            v.push(one);
+        }
+        if v.len() > MAX_FIELDS {
+            return Err((
+                f.name.clone(),
+                format!("expands past {MAX_FIELDS} fields in its message"),
+            ));
+        }
+    }
+    Ok(out.map_or(Cow::Borrowed(fields), Cow::Owned))
+}
+
+/// Every channel's failure bit of a status word fits in it: bit `failed_channels + i` for
+/// the i-th channel (gyros, then accelerometers) of this message.
+fn check_channel_bits(ops: &[Op]) -> Result<(), (String, String)> {
+    let (gyros, accels) = channel_counts(ops);
+    for op in ops {
+        let m = match &op.what {
+            What::Status(m) => m,
+            What::Counter {
+                status: Some(m), ..
+            } => m,
+            _ => continue,
+        };
+        let Some(at) = m.channels_at else { continue };
+        let bits = op.ty.bytes() as u32 * 8;
+        let n = (gyros + accels) as u32;
+        if n == 0 || at + n > bits {
+            return Err((
+                op.name.clone(),
+                format!(
+                    "`failed_channels` = {at}: {n} channel bits from bit {at} do not fit in {:?} ({bits} bits){}",
+                    op.ty,
+                    if n == 0 {
+                        "; the message carries no channel"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The gyro and accelerometer channels a layout's fields carry (highest index + 1 of each).
+pub(super) fn channel_counts(ops: &[Op]) -> (usize, usize) {
+    let (mut g, mut a) = (0, 0);
+    for op in ops {
+        if let What::Quantity {
+            source: Source::Channel(c, i),
+            ..
+        } = op.what
+        {
+            let n = if c.is_gyro() { &mut g } else { &mut a };
+            *n = (*n).max(i + 1);
+        }
+    }
+    (g, a)
 }

@@ -4,7 +4,7 @@
 
 use super::faults::FaultInjector;
 use super::framing::BitWriter;
-use super::spec::Source;
+use super::spec::{Channel, Source};
 use crate::math::Vec3;
 
 /// Encoder state carried from frame to frame (the counter) and the run's time reference.
@@ -31,6 +31,45 @@ pub struct EncoderState {
     /// split so that seconds of week stay exact to the record's own time resolution. With
     /// both 0, record times are GPS seconds since the epoch (1980-01-06).
     pub gps_sow0: f64,
+}
+
+/// The single-axis channels of an N-channel unit (a skew-redundant one) for one frame, next
+/// to the record that carries its time tag.
+#[derive(Clone, Copy, Debug)]
+pub struct Channels<'a> {
+    /// Interval-mean readings: the gyros' (rad/s), then the accelerometers' (m/s²).
+    pub values: &'a [f64],
+    /// How many of `values` are gyros.
+    pub gyros: usize,
+    /// The sample interval (s): a channel's increment is its mean times it.
+    pub dt: f64,
+    /// Bit i set while channel i (the index into `values`) has an active failure.
+    pub failed: u64,
+}
+
+impl Channels<'_> {
+    /// The value a `Source::Channel(c, i)` field carries; NaN for a channel the unit does
+    /// not have (the frame then reports a failure, or is withheld).
+    pub fn value(&self, c: Channel, i: usize) -> f64 {
+        let (k, n) = if c.is_gyro() {
+            (i, self.gyros)
+        } else {
+            (
+                self.gyros + i,
+                self.values.len() - self.gyros.min(self.values.len()),
+            )
+        };
+        match self.values.get(k) {
+            Some(v) if i < n => {
+                if c.is_increment() {
+                    v * self.dt
+                } else {
+                    *v
+                }
+            }
+            _ => f64::NAN,
+        }
+    }
 }
 
 /// Seconds in a GPS week.

@@ -5,7 +5,7 @@
 
 use super::check::Check;
 use super::faults::FrameFaults;
-use super::frame::{DecodeError, Decoded, EncoderState, GPS_WEEK_S};
+use super::frame::{Channels, DecodeError, Decoded, EncoderState, GPS_WEEK_S};
 use super::spec::{BitEdit, ByteOrder, Source, WireType};
 use super::wire::{get_int, get_value, put_int, put_value};
 use crate::record::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED, FLAG_INVALID, Record};
@@ -52,11 +52,16 @@ pub(super) struct StatusModel {
     pub(super) gyro: BitEdit,
     pub(super) accel: BitEdit,
     pub(super) failure: Option<BitEdit>,
+    /// Bit of channel 0's failure flag (channel i at this + i).
+    pub(super) channels_at: Option<u32>,
 }
 
 impl StatusModel {
-    fn value(&self, flags: u8, failure: bool) -> i64 {
+    fn value(&self, flags: u8, failure: bool, failed: u64) -> i64 {
         let mut v = self.ok;
+        if let Some(at) = self.channels_at {
+            v |= (failed << at) as i64;
+        }
         if flags & FLAG_GYRO_SATURATED != 0 {
             v = self.gyro.apply(v);
         }
@@ -139,6 +144,7 @@ impl Layout {
     pub(super) fn encode(
         &self,
         r: &Record,
+        ch: Option<&Channels<'_>>,
         temperature: f64,
         state: &EncoderState,
         faults: FrameFaults,
@@ -168,7 +174,12 @@ impl Layout {
                     flag,
                     wrap,
                 } => {
-                    let q = quantity(r, temperature, state, *source);
+                    let q = match (*source, ch) {
+                        (Source::Channel(c, i), Some(ch)) => ch.value(c, i),
+                        // No channels given (a three-axis record): not a measurement.
+                        (Source::Channel(..), None) => f64::NAN,
+                        _ => quantity(r, temperature, state, *source),
+                    };
                     if !q.is_finite() {
                         flags |= FLAG_INVALID;
                     }
@@ -184,19 +195,23 @@ impl Layout {
                 What::Status(_) | What::Counter { .. } | What::Length => {}
             }
         }
+        let failed = ch.map_or(0, |c| c.failed);
         for op in &self.ops {
             let dst = &mut frame[op.offset..op.offset + op.ty.bytes()];
             match &op.what {
-                What::Status(m) => {
-                    put_int(dst, op.ty, op.order, m.value(flags, faults.status).into())
-                }
+                What::Status(m) => put_int(
+                    dst,
+                    op.ty,
+                    op.order,
+                    m.value(flags, faults.status, failed).into(),
+                ),
                 What::Counter {
                     modulo,
                     step,
                     status: Some(m),
                     ..
                 } => {
-                    let v = m.value(flags, faults.status) as u64 | counter(*modulo, *step);
+                    let v = m.value(flags, faults.status, failed) as u64 | counter(*modulo, *step);
                     put_int(dst, op.ty, op.order, v as i128)
                 }
                 _ => {}
@@ -388,6 +403,8 @@ fn quantity(r: &Record, temperature: f64, st: &EncoderState, s: Source) -> f64 {
         Source::Temperature => temperature,
         // The magnetometer is not simulated.
         Source::Mag(_) => 0.0,
-        Source::Counter | Source::Status => 0.0,
+        // No IMU output carries a vehicle's state.
+        Source::State(_) => f64::NAN,
+        Source::Counter | Source::Status | Source::Channel(..) | Source::Raw => 0.0,
     }
 }

@@ -22,6 +22,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("kvh1750-b", include_str!("../../protocols/kvh1750-b.toml")),
     ("kvh1750-c", include_str!("../../protocols/kvh1750-c.toml")),
     ("ln200", include_str!("../../protocols/ln200.toml")),
+    ("skew6", include_str!("../../protocols/skew6.toml")),
     (
         "ln200-sdlc",
         include_str!("../../protocols/ln200-sdlc.toml"),
@@ -61,8 +62,41 @@ pub fn builtin_names() -> Vec<&'static str> {
 /// Parses and compiles spec text; `path` names it in messages.
 pub fn compile_text(text: &str, path: &Path) -> Result<(FrameSpec, Plan), SpecError> {
     let spec = FrameSpec::parse(text, path)?;
-    let plan = Plan::compile(&spec, path)?;
+    let plan = Plan::compile(&spec, path).map_err(|e| with_line(e, text))?;
     Ok((spec, plan))
+}
+
+/// A field error with the line of the field's `name = "…"` in `text` (the first such line:
+/// a name is unique within a message).
+fn with_line(e: SpecError, text: &str) -> SpecError {
+    match e {
+        SpecError::Field {
+            path,
+            line: None,
+            field,
+            message,
+        } => {
+            let line_of = |name: &str| {
+                text.lines().position(|l| {
+                    let v = l.trim_start().strip_prefix("name").map(str::trim_start);
+                    let v = v.and_then(|r| r.strip_prefix('='));
+                    v.is_some_and(|r| {
+                        r.split('#').next().unwrap_or("").trim() == format!("\"{name}\"")
+                    })
+                })
+            };
+            // A field written as a channel range is reported as `NAME_i`.
+            let line = line_of(&field)
+                .or_else(|| field.rsplit_once('_').and_then(|(base, _)| line_of(base)));
+            SpecError::Field {
+                path,
+                line: line.map(|i| i + 1),
+                field,
+                message,
+            }
+        }
+        e => e,
+    }
 }
 
 /// Loads and compiles a built-in protocol by name, or a spec file by path. A name that is

@@ -15,7 +15,7 @@ pub mod stream;
 mod wire;
 
 pub use faults::{FaultInjector, FaultKind, FaultSpec, FaultTally};
-pub use frame::{DecodeError, Decoded, EncoderState, GPS_WEEK_S};
+pub use frame::{Channels, DecodeError, Decoded, EncoderState, GPS_WEEK_S};
 pub use load::{BUILTIN, builtin_names, load, load_file};
 pub use plan::{Plan, Transport};
 pub use spec::{FrameSpec, SpecError};

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use super::compile::{compile_layout, tick_step};
 use super::faults::{FaultError, FaultKind, FrameFaults};
-use super::frame::{DecodeError, Decoded, EncoderState};
+use super::frame::{Channels, DecodeError, Decoded, EncoderState};
 use super::framing::{self, BitWriter, Fcs, HdlcOptions, SdlcOptions};
 use super::layout::{Layout, What};
 use super::spec::{FrameSpec, MAX_MESSAGES, MAX_RATE_HZ, ScheduleBy, Source, SpecError, compact};
@@ -177,6 +177,36 @@ impl Plan {
         Ok(())
     }
 
+    /// The single-axis channels the frames carry, (gyros, accelerometers) (the highest
+    /// `gyro[i]`/`dtheta[i]` and `accel[i]`/`dv[i]` index + 1 over every message); `None`
+    /// for a frame of a three-axis IMU.
+    pub fn channels(&self) -> Option<(usize, usize)> {
+        let (g, a) = self.layouts.iter().fold((0, 0), |acc, l| {
+            let (g, a) = super::compile::channel_counts(&l.ops);
+            (acc.0.max(g), acc.1.max(a))
+        });
+        (g + a > 0).then_some((g, a))
+    }
+
+    /// Byte offset in the (untruncated) frame of the first message's field carrying `s`.
+    pub fn offset_of(&self, s: Source) -> Option<usize> {
+        self.layouts[0].ops.iter().find_map(|op| match op.what {
+            What::Quantity { source, .. } if source == s => Some(op.offset),
+            What::Counter { .. } if s == Source::Counter => Some(op.offset),
+            _ => None,
+        })
+    }
+
+    /// Whether some field carries a three-axis rate, force or increment (`gyro.x`, `dv.z`, …).
+    pub fn carries_triad(&self) -> bool {
+        self.value_sources().iter().flatten().any(|s| {
+            matches!(
+                s,
+                Source::Gyro(_) | Source::Accel(_) | Source::DTheta(_) | Source::Dv(_)
+            )
+        })
+    }
+
     /// Full length in bytes of the first message (the only one of most protocols).
     pub fn len(&self) -> usize {
         self.layouts[0].len
@@ -214,6 +244,21 @@ impl Plan {
     pub fn encode(
         &self,
         r: &Record,
+        temperature: f64,
+        state: &mut EncoderState,
+        out: &mut Vec<u8>,
+    ) {
+        self.encode_with(r, None, temperature, state, out);
+    }
+
+    /// [`Plan::encode`] of a frame that also carries single-axis channels (`gyro[i]`,
+    /// `dv[i]`, … fields) from `ch`, with their failure bits in a status word's
+    /// `failed_channels`; `r` gives the time tag and the rest. A channel field without `ch`
+    /// is not a measurement (the status word's failure bits, or the frame withheld).
+    pub fn encode_with(
+        &self,
+        r: &Record,
+        ch: Option<&Channels<'_>>,
         temperature: f64,
         state: &mut EncoderState,
         out: &mut Vec<u8>,
@@ -256,7 +301,7 @@ impl Plan {
         match &self.transport {
             Transport::Plain => {
                 let start = out.len();
-                if withhold(layout.encode(&rec, temperature, state, f, out)) {
+                if withhold(layout.encode(&rec, ch, temperature, state, f, out)) {
                     out.truncate(start);
                     state.withheld += 1;
                 } else if f.duplicate {
@@ -266,7 +311,8 @@ impl Plan {
             transport => {
                 let mut frame = std::mem::take(&mut state.scratch);
                 frame.clear();
-                let sends = if withhold(layout.encode(&rec, temperature, state, f, &mut frame)) {
+                let sends = if withhold(layout.encode(&rec, ch, temperature, state, f, &mut frame))
+                {
                     state.withheld += 1;
                     0
                 } else {

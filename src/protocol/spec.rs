@@ -129,11 +129,125 @@ pub enum Source {
     /// A status word: its healthy value with bits set or cleared by the record's saturation
     /// flags, by values beyond a field's range and by injected failures (`[field.status]`).
     Status,
+    /// Single-axis channel `i` of an N-channel unit (a skew-redundant one): `gyro[i]`,
+    /// `accel[i]`, `dtheta[i]`, `dv[i]`, in SI.
+    Channel(Channel, usize),
+    /// A vehicle state quantity of a simulator's state message (MAVLink
+    /// HIL_STATE_QUATERNION, read by live input): decoded, never encoded (no IMU output
+    /// carries it; an encoder treats it as a value that is not a measurement).
+    State(StateQty),
+    /// An integer carried as is, read by the caller itself (MAVLink's flags and system id);
+    /// encoders send 0.
+    Raw,
+}
+
+/// A vehicle state quantity (`state.qw`, `state.lat`, …).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StateQty {
+    /// Attitude quaternion body → NED, component w, x, y, z (0–3).
+    Q(usize),
+    /// Latitude (deg, as trajectory files).
+    Lat,
+    /// Longitude (deg).
+    Lon,
+    /// Altitude (m).
+    Alt,
+    /// Velocity north, east, down (0–2; m/s).
+    Vel(usize),
+    /// Indicated airspeed (m/s).
+    Ias,
+    /// True airspeed (m/s).
+    Tas,
+}
+
+impl StateQty {
+    fn from_name(s: &str) -> Option<StateQty> {
+        Some(match s {
+            "qw" => StateQty::Q(0),
+            "qx" => StateQty::Q(1),
+            "qy" => StateQty::Q(2),
+            "qz" => StateQty::Q(3),
+            "lat" => StateQty::Lat,
+            "lon" => StateQty::Lon,
+            "alt" => StateQty::Alt,
+            "vn" => StateQty::Vel(0),
+            "ve" => StateQty::Vel(1),
+            "vd" => StateQty::Vel(2),
+            "ias" => StateQty::Ias,
+            "tas" => StateQty::Tas,
+            _ => return None,
+        })
+    }
+}
+
+/// What a single-axis channel field carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Channel {
+    /// Interval-mean angular rate of gyro i (rad/s).
+    Gyro,
+    /// Interval-mean specific force of accelerometer i (m/s²).
+    Accel,
+    /// Angle increment of gyro i (rad).
+    DTheta,
+    /// Velocity increment of accelerometer i (m/s).
+    Dv,
+}
+
+impl Channel {
+    /// Whether the channel is a gyro's (else an accelerometer's).
+    pub fn is_gyro(self) -> bool {
+        matches!(self, Channel::Gyro | Channel::DTheta)
+    }
+
+    /// Whether the channel carries an increment (else an interval mean).
+    pub fn is_increment(self) -> bool {
+        matches!(self, Channel::DTheta | Channel::Dv)
+    }
+
+    fn from_name(s: &str) -> Option<Channel> {
+        Some(match s {
+            "gyro" => Channel::Gyro,
+            "accel" => Channel::Accel,
+            "dtheta" => Channel::DTheta,
+            "dv" => Channel::Dv,
+            _ => return None,
+        })
+    }
+}
+
+/// Most single-axis channels of one kind (gyros, accelerometers) a frame can carry: the bits of
+/// a unit's failure mask.
+pub const MAX_CHANNELS: usize = 64;
+
+/// `gyro[3]` → (Gyro, 3..4); `dtheta[0..6]` → (DTheta, 0..6): the channels an indexed source
+/// names, `None` when it is not one. `Err` for an indexed source that cannot be.
+pub fn channel_range(s: &str) -> Option<Result<(Channel, std::ops::Range<usize>), String>> {
+    let (kind, rest) = s.split_once('[')?;
+    let kind = Channel::from_name(kind)?;
+    let bad = || {
+        format!(
+            "`{s}`: expected `{{gyro|accel|dtheta|dv}}[i]` or `[i..j]` with i < j ≤ {MAX_CHANNELS}"
+        )
+    };
+    let Some(inner) = rest.strip_suffix(']') else {
+        return Some(Err(bad()));
+    };
+    let num = |x: &str| x.trim().parse::<usize>().ok();
+    let range = match inner.split_once("..") {
+        Some((a, b)) => num(a).zip(num(b)).map(|(a, b)| a..b),
+        None => num(inner).map(|i| i..i + 1),
+    };
+    Some(match range {
+        Some(r) if r.start < r.end && r.end <= MAX_CHANNELS => Ok((kind, r)),
+        _ => Err(bad()),
+    })
 }
 
 impl Source {
     /// Parses `gyro.x`, `accel.z`, `dtheta.y`, `dv.x`, `mag.x`, `time`, `counter`,
-    /// `temperature`, `gps.week`, `gps.seconds`, `gps.whole_seconds`, `gps.micros`, `gps.millis`, `status`.
+    /// `temperature`, `gps.week`, `gps.seconds`, `gps.whole_seconds`, `gps.micros`, `gps.millis`,
+    /// `status`, single-axis channels `gyro[i]`, `accel[i]`, `dtheta[i]`, `dv[i]`, vehicle
+    /// state `state.qw|qx|qy|qz|lat|lon|alt|vn|ve|vd|ias|tas` and `raw`.
     pub fn from_name(s: &str) -> Option<Source> {
         let axis = |a: &str| match a {
             "x" => Some(0),
@@ -156,7 +270,12 @@ impl Source {
             Some(("gps", "whole_seconds")) => Source::GpsWholeSeconds,
             Some(("gps", "micros")) => Source::GpsMicros,
             Some(("gps", "millis")) => Source::GpsMillis,
-            _ => return None,
+            Some(("state", q)) => Source::State(StateQty::from_name(q)?),
+            None if s == "raw" => Source::Raw,
+            _ => match channel_range(s)? {
+                Ok((c, r)) if r.len() == 1 => Source::Channel(c, r.start),
+                _ => return None,
+            },
         })
     }
 }
@@ -210,6 +329,9 @@ pub struct StatusSpec {
     pub accel_overrange: Option<BitEdit>,
     /// A built-in-test failure (set by fault injection).
     pub failure: Option<BitEdit>,
+    /// Per-channel failure bits of an N-channel unit: bit `failed_channels + i` is set while
+    /// channel i (gyros, then accelerometers) has an active failure.
+    pub failed_channels: Option<u32>,
 }
 
 /// Bits a condition sets and clears in a status word (clear first, then set).
@@ -396,10 +518,12 @@ pub enum SpecError {
         message: String,
     },
     /// A field that cannot be used.
-    #[error("{path}: field `{field}`: {message}")]
+    #[error("{}{}: field `{field}`: {message}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
     Field {
         /// File.
         path: PathBuf,
+        /// Line of the field's `name` in the file, when known.
+        line: Option<usize>,
         /// Field name.
         field: String,
         /// What is wrong.

@@ -30,7 +30,7 @@ pub struct UnitEntry {
     pub mounting_deg: Option<[f64; 3]>,
     /// Lever arm from the trajectory's reference point to the unit (body frame, m).
     pub lever_arm_m: Option<[f64; 3]>,
-    /// `csv`, `bin` or a protocol (three-axis IMUs; skew units write CSV).
+    /// `csv`, `bin` or a protocol (skew units: `csv` or an N-channel protocol, e.g. `skew6`).
     pub format: Option<String>,
     /// Output path (default: NAME.csv or NAME.bin in the output directory).
     pub path: Option<PathBuf>,
@@ -206,8 +206,11 @@ impl UnitEntry {
                 UnitModel::Skew(layout)
             }
         };
-        if skew && self.format.as_deref().is_some_and(|f| f != "csv") {
-            return Err(bad("format", "a skew-redundant unit writes `csv`".into()));
+        if skew && self.format.as_deref() == Some("bin") {
+            return Err(bad(
+                "format",
+                "a skew-redundant unit writes `csv` or an N-channel protocol's frames (e.g. `skew6`)".into(),
+            ));
         }
         for (key, v) in [
             ("mounting_deg", self.mounting_deg),

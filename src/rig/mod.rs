@@ -22,8 +22,9 @@ use crate::generator::{IdealImu, RotationTerms};
 use crate::job::{self, Encoding, Grid, JobError, Producer};
 use crate::math::Vec3;
 use crate::output::Format;
+use crate::protocol::{Channels, EncoderState, Plan};
 use crate::record::{COLUMNS, Record};
-use crate::sim::SimError;
+use crate::sim::{DEFAULT_FRAME_CELSIUS, SimError};
 use crate::source::AnyMotion;
 
 pub use addr::SinkAddr;
@@ -42,10 +43,12 @@ pub(crate) enum Body {
         chain: Option<Box<ErrorChain>>,
         encoding: Box<Encoding>,
     },
-    /// A skew-redundant unit: its sensors and their error terms; CSV output.
+    /// A skew-redundant unit: its sensors and their error terms; CSV output, or the frames of
+    /// an N-channel protocol (its compiled plan and encoder state).
     Skew {
         layout: SkewLayout,
         errors: Vec<ChannelErrors>,
+        frames: Option<Box<(Plan, EncoderState)>>,
     },
 }
 
@@ -157,7 +160,10 @@ impl Unit {
                 Encoding::Records(Format::Csv) => "csv",
                 _ => "bin",
             },
-            Body::Skew { .. } => "csv",
+            Body::Skew { frames, .. } => match frames {
+                Some(_) => "bin",
+                None => "csv",
+            },
         }
     }
 
@@ -192,6 +198,9 @@ impl Unit {
             {
                 String::new()
             }
+            Body::Skew {
+                frames: Some(_), ..
+            } => String::new(),
             _ => main,
         };
         (main, truth)
@@ -270,7 +279,11 @@ impl Unit {
                     w.write_all(&s.side)?;
                 }
             }
-            Body::Skew { layout, errors } => {
+            Body::Skew {
+                layout,
+                errors,
+                frames,
+            } => {
                 let ch = layout.channels();
                 s.vals.clear();
                 s.tvals.clear();
@@ -294,16 +307,33 @@ impl Unit {
                         .extend(row.iter().zip(errors.iter_mut()).map(|(x, e)| e.read(*x)));
                     s.masks.push(self.failures.apply(r.t, &mut s.vals[start..]));
                 }
+                check_values(&s.vals, reference, ch)?;
                 let row = &mut s.row;
                 for (i, r) in reference.iter().enumerate() {
+                    let vals = &s.vals[i * ch..(i + 1) * ch];
+                    if let Some(f) = frames.as_mut() {
+                        let (plan, state) = &mut **f;
+                        let c = Channels {
+                            values: vals,
+                            gyros: layout.gyros.len(),
+                            dt,
+                            failed: s.masks[i],
+                        };
+                        let rec = Record {
+                            t: r.t,
+                            ..Record::default()
+                        };
+                        plan.encode_with(&rec, Some(&c), DEFAULT_FRAME_CELSIUS, state, &mut s.buf);
+                        s.ends.push(s.buf.len());
+                        continue;
+                    }
                     row.clear();
                     row.push(r.t);
-                    row.extend_from_slice(&s.vals[i * ch..(i + 1) * ch]);
-                    row.extend(s.vals[i * ch..(i + 1) * ch].iter().map(|v| v * dt));
+                    row.extend_from_slice(vals);
+                    row.extend(vals.iter().map(|v| v * dt));
                     csv_row(&mut s.buf, row, u64::MAX);
                     s.ends.push(s.buf.len());
                 }
-                check_values(&s.vals, reference, ch)?;
                 if let Some(w) = truth.as_mut() {
                     s.side.clear();
                     for (i, r) in reference.iter().enumerate() {

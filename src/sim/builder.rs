@@ -463,7 +463,7 @@ impl SimulationBuilder {
     /// The output encoding: a protocol file, else `csv`, `bin` or a built-in protocol.
     fn output(&self) -> Result<Output, SimError> {
         if let Some(p) = &self.protocol_file {
-            return Ok(Output::Frames(protocol::load(&p.to_string_lossy())?.1));
+            return triad_frames(protocol::load(&p.to_string_lossy())?.1, None);
         }
         let file = &self.file.output.format;
         let at = self.file_key(self.format.is_some(), file.is_some(), "output.format");
@@ -475,7 +475,7 @@ impl SimulationBuilder {
         }
         let builtin = protocol::builtin_names();
         if builtin.contains(&name.as_str()) {
-            return Ok(Output::Frames(protocol::load(&name)?.1));
+            return triad_frames(protocol::load(&name)?.1, at);
         }
         Err(SimError::Invalid(format!(
             "output format `{name}`: expected `csv`, `bin` or a protocol ({})",
@@ -859,4 +859,16 @@ impl SimulationBuilder {
 struct Rate {
     hz: f64,
     place: Option<String>,
+}
+
+/// A three-axis IMU's frames; an N-channel protocol (a skew-redundant unit's) is refused.
+fn triad_frames(plan: protocol::Plan, at: Option<String>) -> Result<Output, SimError> {
+    match plan.channels() {
+        None => Ok(Output::Frames(plan)),
+        Some((g, a)) => Err(SimError::Invalid(format!(
+            "protocol `{}` carries {g} gyro and {a} accelerometer single-axis channels: it is the frame of a skew-redundant unit, a rig's `[[imu]]` entry with `[[imu.gyro]]`/`[[imu.accel]]` sensors (docs/rig.md)",
+            plan.name
+        ))
+        .at(at)),
+    }
 }

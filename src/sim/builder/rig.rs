@@ -101,10 +101,16 @@ impl SimulationBuilder {
                 p.set_rate(grid.rate_hz)
                     .map_err(|e| SimError::Invalid(e).at(Some(place("rate_hz"))))?;
             }
+            if let Some(p) = &plan {
+                channels_fit(p, &spec.model).map_err(|e| {
+                    SimError::Invalid(format!("`{format}`: {e}")).at(Some(place("format")))
+                })?;
+            }
             let body = match (&spec.model, template) {
                 (UnitModel::Skew(layout), _) => Body::Skew {
                     errors: ChannelErrors::of(layout, grid.rate_hz, seed),
                     layout: layout.clone(),
+                    frames: plan.map(|p| Box::new((p, EncoderState::default()))),
                 },
                 (UnitModel::Template(_), Some(t)) => {
                     if t.output_filter.is_some() {
@@ -159,5 +165,29 @@ impl SimulationBuilder {
             units,
             warnings: Vec::new(),
         })
+    }
+}
+
+/// A protocol's frames suit the unit: an N-channel frame carries exactly a skew unit's
+/// channels (none dropped, none made up), a three-axis frame goes with a three-axis IMU.
+fn channels_fit(plan: &protocol::Plan, model: &UnitModel) -> Result<(), String> {
+    match (model, plan.channels()) {
+        (UnitModel::Skew(_), Some((g, a))) if plan.carries_triad() => Err(format!(
+            "carries three-axis fields next to its {g} gyro and {a} accelerometer channels; a skew-redundant unit has no three-axis reading"
+        )),
+        (UnitModel::Skew(l), Some((g, a))) if (g, a) != (l.gyros.len(), l.accels.len()) => {
+            Err(format!(
+                "carries {g} gyro and {a} accelerometer channels; the unit has {} and {}",
+                l.gyros.len(),
+                l.accels.len()
+            ))
+        }
+        (UnitModel::Skew(_), None) => Err(
+            "is a three-axis IMU's frame; a skew-redundant unit writes `csv` or an N-channel protocol's frames (e.g. `skew6`)".into(),
+        ),
+        (UnitModel::Template(_), Some((g, a))) => Err(format!(
+            "carries {g} gyro and {a} accelerometer single-axis channels: it is a skew-redundant unit's frame (give the unit `[[imu.gyro]]`/`[[imu.accel]]` sensors)"
+        )),
+        _ => Ok(()),
     }
 }
