@@ -123,7 +123,10 @@ fn closure_at(seed: u64) {
         assert!(f.estimate(Component::Ramp).is_none());
     }
     assert!(missed.is_empty(), "seed {seed}:\n{}", missed.join("\n"));
-    assert!(k_left_out.len() <= 1, "seed {seed}: K left out on {k_left_out:?}");
+    assert!(
+        k_left_out.len() <= 1,
+        "seed {seed}: K left out on {k_left_out:?}"
+    );
 
     // The fitted template, as written and loaded, simulated with another seed.
     let prov = Provenance {

@@ -155,7 +155,8 @@ fn stated(line: &str, opts: &mut TableOptions, path: &Path, no: u64) -> Result<(
     let v = units::parse(value.trim(), kind)
         .map(|v| v.0)
         .map_err(|e| FileError::line(path, no, format!("{key}: {e}")))?;
-    if !(v > 0.0) {
+    // units::parse refuses a non-finite number.
+    if v <= 0.0 {
         return Err(FileError::line(
             path,
             no,

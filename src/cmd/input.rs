@@ -88,7 +88,7 @@ impl InputArgs {
                 let v = units::parse(t, Kind::Time)
                     .with_context(|| format!("--record-length `{t}`"))?
                     .0;
-                if !(v > 0.0) {
+                if v <= 0.0 {
                     bail!("--record-length `{t}`: expected a positive duration");
                 }
                 Some(v)

@@ -233,7 +233,7 @@ pub fn panels(curves: &[(&Analysis, String)]) -> Vec<Panel> {
     let mut out = Vec::new();
     for base in [0, 3] {
         let (unit, k) = adev_unit(base == 0);
-        for ch in base..base + 3 {
+        for (ch, name) in CHANNELS.iter().enumerate().skip(base).take(3) {
             let series = curves
                 .iter()
                 .enumerate()
@@ -242,7 +242,7 @@ pub fn panels(curves: &[(&Analysis, String)]) -> Vec<Panel> {
                 })
                 .collect();
             out.push(Panel {
-                title: format!("{}: Allan deviation", CHANNELS[ch]),
+                title: format!("{name}: Allan deviation"),
                 x_label: "τ (s)".into(),
                 y_label: format!("σ(τ) ({unit})"),
                 log_x: true,
