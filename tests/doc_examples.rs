@@ -6,7 +6,7 @@
 //! * Blocks fenced as `sh`, `bash` or `shell` are scripts; in `console` blocks the lines that
 //!   start with `$ ` (and their `\` continuations) are the commands, the rest is output.
 //! * Each page is followed on its own, as a reader would from a fresh clone: a new temporary
-//!   directory holding copies of `examples/`, `templates/` and `protocols/`, the built binary on
+//!   directory holding copies of `examples/`, `templates/`, `protocols/` and `docs/data/`, the built binary on
 //!   `PATH` as `imu-emu`. Its blocks run in order, each as one `bash -eo pipefail` script, so
 //!   files made by one block are there for the next.
 //! * A block that cannot run here is preceded by `<!-- no-test: REASON -->` (a real device, a
@@ -146,11 +146,12 @@ exec "$real" "${{args[@]}}"
     )
 }
 
-/// A fresh directory as a reader's checkout would offer: the repository's input files, and a
+/// A fresh directory as a reader's checkout would offer: the repository's input files (and the
+/// data tables the docs read), and a
 /// `bin/` with the wrapper.
 fn fresh_dir(root: &Path) -> tempfile::TempDir {
     let dir = tempfile::tempdir().expect("temporary directory");
-    for sub in ["examples", "templates", "protocols"] {
+    for sub in ["examples", "templates", "protocols", "docs/data"] {
         copy_tree(&root.join(sub), &dir.path().join(sub));
     }
     let bin = dir.path().join(".doc-bin");

@@ -25,9 +25,16 @@ use tempfile::TempDir;
 ///
 /// The band edges lie on the fit's half-decade grid: an edge off the grid is fitted at a
 /// neighbouring grid value and the terms next to it absorb the difference (docs/fit.md shows
-/// σ_GM 9 % high for an edge at 30 s). K is the term the record knows least: of the 12 K of
-/// seeds 11 and 12, the χ² gate left one out (accel x, seed 11); the test runs seed 12, and
-/// every other figure of both seeds lies inside its interval (docs/fit.md).
+/// σ_GM 9 % high for an edge at 30 s).
+///
+/// K is the term the record knows least: it holds most of σ² only in the last three octaves
+/// before T/8, where the edf are a few tens, so its Δχ² is 16–35 against the gate's 6.6 and
+/// the gate sometimes leaves it out — legitimately: the record is at the edge of resolving it.
+/// Over seeds 11–18 (48 channel fits) K was left out 3 times (accel x seed 11, accel z seeds 15
+/// and 17), once per seed at most, and every one of the 285 other figures kept lay inside its
+/// 99 % interval. The test runs two seeds and allows K to be left out on at most one channel
+/// per seed (for a per-channel miss rate of 1/16, two or more of six has probability 5 %);
+/// every other term must be kept, and every kept figure must be inside its interval.
 const TRUTH: &str = r#"
 name = "truth"
 rate_hz = 20
@@ -71,8 +78,14 @@ fn true_value(t: &imu_emu::errors::template::TriadModel, k: Component) -> f64 {
 
 #[test]
 fn closure_recovers_every_term_and_reproduces_the_adev() {
+    for seed in [11, 12] {
+        closure_at(seed);
+    }
+}
+
+fn closure_at(seed: u64) {
     let m = truth();
-    let rec = closure::simulate(m.clone(), DT, SAMPLES, 12, 1 << 14).unwrap();
+    let rec = closure::simulate(m.clone(), DT, SAMPLES, seed, 1 << 14).unwrap();
     let n = rec.samples as usize;
     let c = &rec.channels;
     let mut fits: Vec<Option<AxisFit>> = Vec::new();
@@ -84,6 +97,7 @@ fn closure_recovers_every_term_and_reproduces_the_adev() {
         ));
     }
     let mut missed = Vec::new();
+    let mut k_left_out = Vec::new();
     for (ch, f) in fits.iter().enumerate() {
         let f = f.as_ref().unwrap();
         let triad = if ch < 3 { &m.gyro } else { &m.accel };
@@ -97,6 +111,7 @@ fn closure_recovers_every_term_and_reproduces_the_adev() {
             let want = true_value(triad, k);
             match f.estimate(k) {
                 Some(e) if e.lo <= want && want <= e.hi => {}
+                None if k == Component::RandomWalk => k_left_out.push(ch),
                 e => missed.push(format!("channel {ch} {k:?}: true {want:e}, fitted {e:?}")),
             }
         }
@@ -107,7 +122,11 @@ fn closure_recovers_every_term_and_reproduces_the_adev() {
         // No ramp was simulated: none is kept.
         assert!(f.estimate(Component::Ramp).is_none());
     }
-    assert!(missed.is_empty(), "{}", missed.join("\n"));
+    assert!(missed.is_empty(), "seed {seed}:\n{}", missed.join("\n"));
+    assert!(
+        k_left_out.len() <= 1,
+        "seed {seed}: K left out on {k_left_out:?}"
+    );
 
     // The fitted template, as written and loaded, simulated with another seed.
     let prov = Provenance {
@@ -118,14 +137,14 @@ fn closure_recovers_every_term_and_reproduces_the_adev() {
     };
     let text = template_toml(&prov, &fits, &vec![Vec::new(); 6]);
     let fitted = template::parse(&text, Path::new("fitted.toml")).unwrap();
-    let sim = closure::simulate(fitted, DT, SAMPLES, 13, 1 << 14).unwrap();
+    let sim = closure::simulate(fitted, DT, SAMPLES, seed + 100, 1 << 14).unwrap();
     for ch in 0..6 {
         let model = &fits[ch].as_ref().unwrap().model;
         let pts = closure::compare(&c[ch].adev, &sim.channels[ch].adev, model, n);
         // Octaves m = 1 … 2^18 (τ = 0.05 s … 13 107 s = T/8).
         assert_eq!(pts.len(), 19);
         for p in &pts {
-            assert!(p.inside(), "channel {ch}: {p:?}");
+            assert!(p.inside(), "seed {seed} channel {ch}: {p:?}");
         }
     }
 }

@@ -2,6 +2,7 @@
 //! term fit, Welch PSD, the template's theoretical curves and the term-by-term check against
 //! a template. Pure functions and streaming accumulators; [`reader`] is the only I/O.
 
+pub mod adev_table;
 pub mod allan;
 pub mod analyzer;
 pub mod confidence;

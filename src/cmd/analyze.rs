@@ -9,6 +9,7 @@ use anyhow::{Context, Result};
 use imu_emu::analysis::analyzer::DEFAULT_SEGMENT;
 use imu_emu::analysis::conformance::{channel_theory, term_rows};
 use imu_emu::analysis::report;
+use imu_emu::fit::compare;
 
 use super::input::InputArgs;
 
@@ -28,6 +29,15 @@ pub struct AnalyzeArgs {
     /// Welch segment length in samples (a power of two)
     #[arg(long, default_value_t = DEFAULT_SEGMENT)]
     pub segment: usize,
+    /// A second recording or ADEV table to compare with: overlaid on the plot, terms compared (repeatable)
+    #[arg(long)]
+    pub reference: Vec<PathBuf>,
+    /// Format of the reference (csv, bin or a protocol name) [default: bin for *.bin, else csv]
+    #[arg(long, requires = "reference")]
+    pub reference_format: Option<String>,
+    /// Write the per-term comparison with the reference here as CSV
+    #[arg(long, requires = "reference")]
+    pub compare_csv: Option<PathBuf>,
 }
 
 /// `imu-emu analyze`.
@@ -40,6 +50,16 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         .transpose()?;
 
     let (res, summary) = a.input.analyze(a.segment, "analyze")?;
+    let references = a
+        .reference
+        .iter()
+        .map(|p| {
+            Ok(InputArgs::other(p.clone(), a.reference_format.clone())
+                .analyze(a.segment, "analyze")
+                .with_context(|| format!("--reference {}", p.display()))?
+                .0)
+        })
+        .collect::<Result<Vec<_>>>()?;
     let dt = res.dt;
     // The report goes to stdout in one write at the end, so a reader that stops early
     // (`… | head`) ends the command quietly (main treats a broken pipe as success) instead of
@@ -86,7 +106,36 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         .input
         .file_name()
         .map_or("input".into(), |n| n.to_string_lossy().into_owned());
-    if let Some(p) = &a.plot {
+    let file_name = |p: &Path| {
+        p.file_name()
+            .map_or("input".into(), |n| n.to_string_lossy().into_owned())
+    };
+    if !references.is_empty() {
+        let this = compare::fit_all(&res);
+        let mut csv = String::from(compare::csv_header());
+        for (r, path) in references.iter().zip(&a.reference) {
+            let rows = compare::compare(&this, &compare::fit_all(r));
+            writeln!(text)?;
+            write!(text, "{}", compare::markdown(&rows, &file_name(path)))?;
+            csv += &compare::csv(&rows, &file_name(path));
+        }
+        if let Some(p) = &a.compare_csv {
+            write_file(p, csv.as_bytes())?;
+        }
+        if let Some(p) = &a.plot {
+            let mut curves = vec![(&res, title.clone())];
+            curves.extend(
+                references
+                    .iter()
+                    .zip(&a.reference)
+                    .map(|(r, p)| (r, file_name(p))),
+            );
+            let panels = compare::panels(&curves);
+            let columns = if panels.len() == 8 { 4 } else { 3 };
+            imu_emu::plot::render(p, &panels, columns, (500 * columns as u32, 1000))?;
+            eprintln!("imu-emu analyze: plot written to {}", p.display());
+        }
+    } else if let Some(p) = &a.plot {
         let panels = report::panels(&res, theory.as_deref(), &title);
         imu_emu::plot::render(p, &panels, 2, (1600, 1200))?;
         eprintln!("imu-emu analyze: plot written to {}", p.display());

@@ -7,7 +7,7 @@ use anyhow::{Context, Result};
 
 use imu_emu::analysis::analyzer::DEFAULT_SEGMENT;
 use imu_emu::fit::closure::{self, ClosurePoint};
-use imu_emu::fit::gmwm::{AxisFit, fit_triad};
+use imu_emu::fit::compare;
 use imu_emu::fit::template::{Provenance, sines_scene, template_toml};
 use imu_emu::fit::{lines, report};
 
@@ -46,20 +46,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
     super::input::check_plot_path(a.plot.as_deref())?;
     let (rec, _) = a.input.analyze(a.segment, "fit")?;
     let samples = rec.samples as usize;
-    let triad = |base: usize| {
-        let c = &rec.channels;
-        fit_triad(
-            [&c[base].adev, &c[base + 1].adev, &c[base + 2].adev],
-            samples,
-            rec.dt,
-        )
-    };
-    let fits: Vec<Option<AxisFit>> = std::thread::scope(|s| {
-        let accel = s.spawn(|| triad(3));
-        let mut v = triad(0).to_vec();
-        v.extend(accel.join().expect("fit thread"));
-        v
-    });
+    let fits = compare::fit_all(&rec);
     let found: Vec<Vec<lines::Line>> = rec.channels.iter().map(|c| lines::find(&c.psd)).collect();
     let name = a.name.clone().unwrap_or_else(|| {
         a.output

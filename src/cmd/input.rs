@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 
+use imu_emu::analysis::adev_table::{self, TableOptions};
 use imu_emu::analysis::analyzer::{Analysis, Analyzer};
 use imu_emu::analysis::reader::{self, CsvOptions, InputFormat, ReadSummary};
 use imu_emu::units::{self, Kind};
@@ -31,16 +32,93 @@ pub struct InputArgs {
     /// Unit of the CSV accelerometer columns (m/s^2, g, mg, ug)
     #[arg(long, default_value = "m/s^2")]
     pub accel_unit: String,
+    /// ADEV table input: length of the recording it was computed from, e.g. "6 h" [default: the table's `# record_length`, else the shortest its longest τ allows]
+    #[arg(long)]
+    pub record_length: Option<String>,
+    /// ADEV table input: a further table (per-sensor file) whose channels are added
+    #[arg(long = "table")]
+    pub tables: Vec<PathBuf>,
 }
 
 impl InputArgs {
-    /// Reads the recording through an analyzer with Welch segments of `segment` samples;
+    /// Input flags for another file read with auto-detected format (`format`: a protocol,
+    /// csv or bin, when detection is not enough).
+    pub fn other(input: PathBuf, format: Option<String>) -> InputArgs {
+        InputArgs {
+            input,
+            format,
+            protocol_file: None,
+            rate: None,
+            columns: None,
+            gyro_unit: "rad/s".into(),
+            accel_unit: "m/s^2".into(),
+            record_length: None,
+            tables: Vec::new(),
+        }
+    }
+
+    /// The input as an ADEV table, when it is one (a CSV whose header starts with `tau_`).
+    fn table(&self) -> Result<Option<Analysis>> {
+        let csv =
+            matches!(self.format.as_deref(), None | Some("csv")) && self.protocol_file.is_none();
+        let is_bin = self.input.extension().is_some_and(|e| e == "bin");
+        if !csv || (is_bin && self.format.is_none()) {
+            return Ok(None);
+        }
+        let read = |p: &PathBuf| {
+            std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))
+        };
+        let text = match std::fs::read(&self.input) {
+            Ok(b) => String::from_utf8_lossy(&b).into_owned(),
+            // The recording reader reports what is wrong with the file.
+            Err(_) => return Ok(None),
+        };
+        let first = text
+            .lines()
+            .map(str::trim)
+            .find(|l| !l.is_empty() && !l.starts_with('#'));
+        if !first.is_some_and(adev_table::is_table_header) {
+            if let Some(t) = self.tables.first() {
+                bail!("--table {}: only with an ADEV table as input", t.display());
+            }
+            return Ok(None);
+        }
+        let record_length = match &self.record_length {
+            Some(t) => {
+                let v = units::parse(t, Kind::Time)
+                    .with_context(|| format!("--record-length `{t}`"))?
+                    .0;
+                if v <= 0.0 {
+                    bail!("--record-length `{t}`: expected a positive duration");
+                }
+                Some(v)
+            }
+            None => None,
+        };
+        let opts = TableOptions {
+            rate: self.rate,
+            record_length,
+        };
+        let mut table = adev_table::parse(&text, &self.input, opts)?;
+        for p in &self.tables {
+            table.merge(adev_table::parse(&read(p)?, p, opts)?, p)?;
+        }
+        Ok(Some(table.analysis()))
+    }
+
+    /// Reads the recording (or ADEV table) through an analyzer with Welch segments of `segment` samples;
     /// `command` names the caller in warnings. Returns the analysis and the read summary.
     pub fn analyze(&self, segment: usize, command: &str) -> Result<(Analysis, ReadSummary)> {
         if let Some(r) = self.rate
             && !(r > 0.0 && r.is_finite())
         {
             bail!("--rate: expected a positive number of Hz, got {r}");
+        }
+        if let Some(t) = self.table()? {
+            return Ok((t, ReadSummary::default()));
+        }
+        if self.record_length.is_some() {
+            bail!("--record-length: only with an ADEV table as input (a recording has its own)");
         }
         let unit = |text: &str, kind: Kind, flag: &str| -> Result<f64> {
             Ok(units::parse(&format!("1 {text}"), kind)

@@ -1,0 +1,318 @@
+//! This run against a reference (`analyze --reference`): the stochastic terms of both fitted
+//! by [`super::gmwm`] with their 99 % intervals, compared term by term, and the overlay of
+//! both Allan deviations (and PSDs) with their bands. Pure: no I/O.
+
+use std::fmt::Write as _;
+
+use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, fit_triad};
+use super::template::{sig4, unit};
+use crate::analysis::analyzer::{Analysis, CHANNELS};
+use crate::analysis::octave_adev::AdevPoint;
+use crate::analysis::report::{PSD_BINS_PER_DECADE, adev_unit, log_bins};
+use crate::plot::{Panel, Series};
+
+/// The fits of the six channels (gyro x y z, accel x y z; None where a channel has no
+/// usable Allan deviation), one band per triad as a template holds it.
+pub fn fit_all(a: &Analysis) -> Vec<Option<AxisFit>> {
+    let samples = a.samples as usize;
+    let triad = |base: usize| {
+        let c = &a.channels;
+        fit_triad(
+            [&c[base].adev, &c[base + 1].adev, &c[base + 2].adev],
+            samples,
+            a.dt,
+        )
+    };
+    std::thread::scope(|s| {
+        let accel = s.spawn(|| triad(3));
+        let mut v = triad(0).to_vec();
+        v.extend(accel.join().expect("fit thread"));
+        v
+    })
+}
+
+/// What the two intervals of a term say.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// Both kept the term and the 99 % intervals overlap.
+    Agree,
+    /// Both kept it and the intervals are disjoint.
+    Differ,
+    /// Only this run's fit kept the term.
+    OnlyThis,
+    /// Only the reference's fit kept it.
+    OnlyReference,
+}
+
+impl Verdict {
+    /// Word printed in the table.
+    pub fn word(self) -> &'static str {
+        match self {
+            Verdict::Agree => "agree",
+            Verdict::Differ => "DIFFER",
+            Verdict::OnlyThis => "only in this run",
+            Verdict::OnlyReference => "only in the reference",
+        }
+    }
+}
+
+/// A figure compared: the Gauss–Markov correlation time T is `component` GaussMarkov with
+/// `time` set.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Row {
+    /// Channel index ([`CHANNELS`]).
+    pub channel: usize,
+    /// The component.
+    pub component: Component,
+    /// Whether the row is the Gauss–Markov correlation time rather than σ_GM.
+    pub time: bool,
+    /// (value, lo, hi) of this run, SI.
+    pub this: Option<(f64, f64, f64)>,
+    /// (value, lo, hi) of the reference, SI.
+    pub reference: Option<(f64, f64, f64)>,
+}
+
+impl Row {
+    /// The verdict.
+    pub fn verdict(&self) -> Verdict {
+        match (self.this, self.reference) {
+            (Some(a), Some(b)) if a.1 <= b.2 && b.1 <= a.2 => Verdict::Agree,
+            (Some(_), Some(_)) => Verdict::Differ,
+            (Some(_), None) => Verdict::OnlyThis,
+            _ => Verdict::OnlyReference,
+        }
+    }
+    /// Symbol of the figure (Q, N, B, K, R, σ_GM, T_GM).
+    pub fn symbol(&self) -> &'static str {
+        if self.time {
+            return "T_GM";
+        }
+        ["Q", "N", "B", "K", "R", "σ_GM"][self.component as usize]
+    }
+    /// Unit and SI factor of the figure.
+    pub fn unit(&self) -> (&'static str, f64) {
+        if self.time {
+            ("s", 1.0)
+        } else {
+            unit(self.channel < 3, self.component)
+        }
+    }
+}
+
+/// Every figure kept by either fit, channel by channel (channels fitted on one side only
+/// included), in [`COMPONENTS`] order with T after σ_GM.
+pub fn compare(this: &[Option<AxisFit>], reference: &[Option<AxisFit>]) -> Vec<Row> {
+    let triple = |e: Estimate| (e.value, e.lo, e.hi);
+    let mut rows = Vec::new();
+    for ch in 0..this.len().min(reference.len()) {
+        let (a, b) = (this[ch].as_ref(), reference[ch].as_ref());
+        for k in COMPONENTS {
+            let get = |f: Option<&AxisFit>| f.and_then(|f| f.estimate(k)).map(triple);
+            let row = Row {
+                channel: ch,
+                component: k,
+                time: false,
+                this: get(a),
+                reference: get(b),
+            };
+            if row.this.is_none() && row.reference.is_none() {
+                continue;
+            }
+            rows.push(row);
+            if k == Component::GaussMarkov {
+                let t = |f: Option<&AxisFit>| {
+                    let f = f?;
+                    f.estimate(k)?;
+                    f.gm_tau_interval.map(|(lo, hi)| (f.model.gm_tau, lo, hi))
+                };
+                rows.push(Row {
+                    time: true,
+                    this: t(a),
+                    reference: t(b),
+                    ..row
+                });
+            }
+        }
+    }
+    rows
+}
+
+fn cell(v: Option<(f64, f64, f64)>, f: f64) -> String {
+    v.map_or("—".into(), |(v, lo, hi)| {
+        format!("{} [{}, {}]", sig4(v * f), sig4(lo * f), sig4(hi * f))
+    })
+}
+
+/// The comparison as a Markdown table with a closing count.
+pub fn markdown(rows: &[Row], reference: &str) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "Per-term comparison with {reference} (stochastic model fitted to each, docs/fit.md; 99 % intervals; \"agree\": the intervals overlap)\n"
+    );
+    let _ = writeln!(
+        s,
+        "| channel | term | unit | this run | reference | verdict |\n| --- | --- | --- | --- | --- | --- |"
+    );
+    for r in rows {
+        let (u, f) = r.unit();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {u} | {} | {} | {} |",
+            CHANNELS[r.channel],
+            r.symbol(),
+            cell(r.this, f),
+            cell(r.reference, f),
+            r.verdict().word()
+        );
+    }
+    let count = |v: Verdict| rows.iter().filter(|r| r.verdict() == v).count();
+    let _ = writeln!(
+        s,
+        "\n{} figures agree, {} differ, {} only in this run, {} only in the reference",
+        count(Verdict::Agree),
+        count(Verdict::Differ),
+        count(Verdict::OnlyThis),
+        count(Verdict::OnlyReference)
+    );
+    s
+}
+
+/// The header of the comparison CSV.
+pub fn csv_header() -> &'static str {
+    "reference,channel,term,unit,this,this_lo,this_hi,reference,reference_lo,reference_hi,verdict\n"
+}
+
+/// The rows of one reference's comparison as CSV lines (after [`csv_header`]; values in the
+/// units of the `unit` column; empty: not kept).
+pub fn csv(rows: &[Row], reference: &str) -> String {
+    let mut s = String::new();
+    let cells = |v: Option<(f64, f64, f64)>, f: f64| {
+        v.map_or(",,".into(), |(v, lo, hi)| {
+            format!("{:e},{:e},{:e}", v * f, lo * f, hi * f)
+        })
+    };
+    for r in rows {
+        let (u, f) = r.unit();
+        let _ = writeln!(
+            s,
+            "{},{},{},{u},{},{},{}",
+            reference.replace(',', ";"),
+            CHANNELS[r.channel],
+            r.symbol(),
+            cells(r.this, f),
+            cells(r.reference, f),
+            r.verdict().word()
+        );
+    }
+    s
+}
+
+fn adev_series(pts: &[AdevPoint], k: f64, label: String, color: usize, dashed: bool) -> Series {
+    Series {
+        label,
+        x: pts.iter().map(|p| p.tau).collect(),
+        y: pts.iter().map(|p| p.adev * k).collect(),
+        band: Some((
+            pts.iter().map(|p| p.lo * k).collect(),
+            pts.iter().map(|p| p.hi * k).collect(),
+        )),
+        color,
+        dashed,
+    }
+}
+
+/// The overlay: per channel every Allan deviation with its band (a recording's 68 % χ²
+/// band; a table's stated range, else the band of its record length), and per sensor every
+/// PSD that exists (three axes in one colour). `curves` is (analysis, label), this run
+/// first (solid), then the references (dashed). Rows gyro then accel, the PSD last in each.
+pub fn panels(curves: &[(&Analysis, String)]) -> Vec<Panel> {
+    let psd = curves
+        .iter()
+        .any(|(a, _)| a.channels.iter().any(|c| c.psd.segments > 0));
+    let mut out = Vec::new();
+    for base in [0, 3] {
+        let (unit, k) = adev_unit(base == 0);
+        for (ch, name) in CHANNELS.iter().enumerate().skip(base).take(3) {
+            let series = curves
+                .iter()
+                .enumerate()
+                .map(|(i, (a, name))| {
+                    adev_series(&a.channels[ch].adev, k, name.clone(), i % 6, i > 0)
+                })
+                .collect();
+            out.push(Panel {
+                title: format!("{name}: Allan deviation"),
+                x_label: "τ (s)".into(),
+                y_label: format!("σ(τ) ({unit})"),
+                log_x: true,
+                log_y: true,
+                series,
+            });
+        }
+        if psd {
+            let mut series = Vec::new();
+            for (i, (a, name)) in curves.iter().enumerate() {
+                for axis in 0..3 {
+                    let p = &a.channels[base + axis].psd;
+                    if p.segments == 0 {
+                        continue;
+                    }
+                    let end = p.freq.len().saturating_sub(1);
+                    let (x, y) = log_bins(&p.freq[..end], &p.density, PSD_BINS_PER_DECADE);
+                    series.push(Series {
+                        label: if axis == 0 {
+                            format!("{name} (x y z)")
+                        } else {
+                            String::new()
+                        },
+                        x,
+                        y: y.iter().map(|d| d * k * k).collect(),
+                        band: None,
+                        color: i % 6,
+                        dashed: i > 0,
+                    });
+                }
+            }
+            out.push(Panel {
+                title: format!(
+                    "{} PSD (Welch, Hann)",
+                    if base == 0 { "gyro" } else { "accel" }
+                ),
+                x_label: "f (Hz)".into(),
+                y_label: format!("PSD ({unit})²/Hz"),
+                log_x: true,
+                log_y: true,
+                series,
+            });
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(this: Option<(f64, f64, f64)>, reference: Option<(f64, f64, f64)>) -> Row {
+        Row {
+            channel: 0,
+            component: Component::WhiteNoise,
+            time: false,
+            this,
+            reference,
+        }
+    }
+
+    /// Overlap decides: touching intervals agree, disjoint ones differ, either side alone
+    /// is named.
+    #[test]
+    fn verdicts() {
+        let a = Some((1.0, 0.9, 1.1));
+        assert_eq!(row(a, Some((1.2, 1.1, 1.3))).verdict(), Verdict::Agree);
+        assert_eq!(row(a, Some((1.2, 1.11, 1.3))).verdict(), Verdict::Differ);
+        assert_eq!(row(Some((1.2, 1.11, 1.3)), a).verdict(), Verdict::Differ);
+        assert_eq!(row(a, None).verdict(), Verdict::OnlyThis);
+        assert_eq!(row(None, a).verdict(), Verdict::OnlyReference);
+    }
+}
