@@ -484,3 +484,293 @@ fn a_turn_after_a_full_roll_banks_from_wings_level() {
         worst.to_degrees()
     );
 }
+
+/// GNSS visibility reaches the outputs: a file whose middle command (1 s to 3 s) has
+/// visibility 0 gives `generate --truth` a `gnss_visible` column that is 0 at exactly the
+/// records with 1 ≤ t < 3, and the GNSS stream an outage (no fix, 0 satellites) at exactly
+/// the epochs in that span; a scene's truth file has no such column.
+#[test]
+fn gnss_visibility_in_truth_and_gnss_outages() {
+    let dir = scratch("vis");
+    std::fs::write(
+        dir.join("vis.csv"),
+        format!(
+            "{H1}\n32,120,0,10,0,0,0,0,0\n{H2}\n1,0,0,0,0,0,0,1,1\n1,0,0,0,0,0,0,2,0\n1,0,0,0,0,0,0,1,1\n"
+        ),
+    )
+    .unwrap();
+    let m = motiondef::open(&dir.join("vis.csv")).unwrap();
+    assert_eq!(m.gnss_outages(), vec![[1.0, 3.0]]);
+    let out = bin(
+        &[
+            "generate",
+            "--motion-def",
+            "vis.csv",
+            "--rate",
+            "10",
+            "-o",
+            "imu.csv",
+            "--truth",
+            "truth.csv",
+            "--gnss",
+            "nmea:g.nmea",
+            "--gnss-truth",
+            "g.csv",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let truth = std::fs::read_to_string(dir.join("truth.csv")).unwrap();
+    let mut lines = truth.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "t,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z,dtheta_x,dtheta_y,dtheta_z,dv_x,dv_y,dv_z,gnss_visible"
+    );
+    let mut rows = 0;
+    for l in lines {
+        let c: Vec<&str> = l.split(',').collect();
+        assert_eq!(c.len(), 14, "{l}");
+        let t: f64 = c[0].parse().unwrap();
+        let want = if (1.0..3.0).contains(&t) { "0" } else { "1" };
+        assert_eq!(c[13], want, "t = {t}");
+        rows += 1;
+    }
+    assert_eq!(rows, 40);
+    let gnss = std::fs::read_to_string(dir.join("g.csv")).unwrap();
+    let mut epochs = 0;
+    for l in gnss.lines().skip(1) {
+        let c: Vec<&str> = l.split(',').collect();
+        let t: f64 = c[1].parse().unwrap();
+        let outage = (1.0..3.0).contains(&t);
+        assert_eq!(c[4] == "0", outage, "t = {t}: {l}");
+        epochs += 1;
+    }
+    assert_eq!(epochs, 21);
+    // Without a motion definition the truth file keeps the record's columns only.
+    let out = bin(
+        &[
+            "generate",
+            "--scene",
+            "static",
+            "--duration",
+            "1",
+            "--rate",
+            "10",
+            "-o",
+            "s.csv",
+            "--truth",
+            "st.csv",
+        ],
+        &dir,
+    );
+    assert!(out.status.success());
+    let st = std::fs::read_to_string(dir.join("st.csv")).unwrap();
+    assert!(st.starts_with("t,gyro_x,") && st.lines().next().unwrap().ends_with(",dv_z"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn waypoints() -> DefinedMotion {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/waypoints.toml");
+    motiondef::open(&p).unwrap()
+}
+
+/// NED offset (m) of a pose from a geodetic origin, through ECEF (independent of the
+/// waypoint code's conversion, which goes the other way).
+fn ned_offset(origin: [f64; 3], p: &imu_emu::motion::Pose) -> [f64; 3] {
+    use imu_emu::earth::Geodetic;
+    let o = Geodetic::from_radians(origin[0], origin[1], origin[2]);
+    let d = Geodetic::from_radians(p.lat, p.lon, p.h).to_ecef() - o.to_ecef();
+    let (sp, cp, sl, cl) = (o.sin_lat, o.cos_lat, o.sin_lon, o.cos_lon);
+    [
+        -sp * cl * d[0] - sp * sl * d[1] + cp * d[2],
+        -sl * d[0] + cl * d[1],
+        -cp * cl * d[0] - cp * sl * d[1] - sp * d[2],
+    ]
+}
+
+/// The example waypoint path is at every waypoint at its time (NED offsets through ECEF to
+/// 1e-8 m: ECEF coordinates of 6.4e6 m carry 1e-9 m of round-off; lat/lon/h to an ulp), has
+/// the velocity given where one is, heads along its velocity with the roll at 0, joins without
+/// a jump of ω or f at any knot, and the reference navigator closes it within 1 mm.
+#[test]
+fn waypoints_pass_their_points_continuously_and_close() {
+    let m = waypoints();
+    let origin = [47.4f64.to_radians(), 8.55f64.to_radians(), 420.0];
+    let ned = [
+        (0.0, [0.0, 0.0, 0.0]),
+        (20.0, [300.0, 0.0, 0.0]),
+        (35.0, [420.0, 120.0, -5.0]),
+        (50.0, [400.0, 300.0, -10.0]),
+        (70.0, [150.0, 420.0, -10.0]),
+    ];
+    for (t, want) in ned {
+        let got = ned_offset(origin, &m.pose(t));
+        for k in 0..3 {
+            assert!(
+                (got[k] - want[k]).abs() < 1e-8,
+                "t {t}: {got:?} vs {want:?}"
+            );
+        }
+    }
+    let end = m.pose(90.0);
+    assert!(
+        (end.lat - 47.4004f64.to_radians()).abs() < 2e-16,
+        "{}",
+        end.lat
+    );
+    assert!(
+        (end.lon - 8.5562f64.to_radians()).abs() < 4e-16,
+        "{}",
+        end.lon
+    );
+    assert!((end.h - 425.0).abs() < 1e-12, "{}", end.h);
+    for (t, v) in [(0.0, [15.0, 0.0, 0.0]), (90.0, [-12.0, -6.0, 0.0])] {
+        let p = m.pose(t);
+        for k in 0..3 {
+            assert!((p.v_n[k] - v[k]).abs() < 1e-9, "t {t}: {:?}", p.v_n);
+        }
+    }
+    for t in [0.0, 12.5, 35.0, 61.3, 90.0] {
+        let p = m.pose(t);
+        let (roll, pitch, yaw) = imu_emu::math::euler_from_quat(p.q_b_n);
+        let v = p.v_n;
+        let hz = v[0].hypot(v[1]);
+        // At the knots the attitude is the velocity's direction to round-off; between them
+        // the quintic's interpolation error of the angle, ≈ ψ⁽⁶⁾Δt⁶/46080, stays below 1e-9.
+        assert!((yaw - v[1].atan2(v[0])).abs() < 1e-9, "t {t}: yaw {yaw}");
+        assert!(
+            (pitch - (-v[2]).atan2(hz)).abs() < 1e-9,
+            "t {t}: pitch {pitch}"
+        );
+        assert!(roll.abs() < 1e-15, "t {t}: roll {roll}");
+    }
+    let mut i = 0;
+    let (mut dw, mut df) = (0.0f64, 0.0f64);
+    while m.piece_end(i).is_finite() {
+        let t = m.piece_end(i);
+        let (a, b) = (m.sense(i, t), m.sense(i + 1, t));
+        dw = dw.max((a.omega_ib_b - b.omega_ib_b).amax());
+        df = df.max((a.f_b - b.f_b).amax());
+        i += 1;
+    }
+    println!("waypoints: {i} knots, largest jump ω {dw:.2e} rad/s, f {df:.2e} m/s²");
+    assert!(i >= 360 && dw < 1e-12 && df < 1e-9, "{i} {dw:e} {df:e}");
+    assert!(!m.gnss_visible(55.0) && m.gnss_visible(45.0) && m.gnss_visible(75.0));
+    let m = AnyMotion::Defined(m);
+    let grid = job::plan(&m, 200.0, None, None).unwrap();
+    let c = close(&m, &grid, Settings::default(), None, 100).unwrap();
+    println!(
+        "waypoints: position {:.2e} m (max {:.2e})",
+        c.last.pos_ned.norm(),
+        c.max_pos
+    );
+    assert!(c.max_pos <= 1e-3, "{:.3e} m", c.max_pos);
+}
+
+/// Closed forms of the path: between two waypoints with no velocity given, latitude is linear
+/// in time (the spline through two points is a line); through three heights 300, 310, 300 m
+/// at 0, 10, 20 s the natural cubic spline has ḧ(10) = 3(y₂ − 2y₁ + y₀)/(2Δt²) = −0.3 m/s²
+/// and h(5) = 300 + 7.5 − 0.3·5³/(6·10) = 306.875 m; Euler angles given at every waypoint are
+/// met there, with the roll the spline's.
+#[test]
+fn waypoints_against_closed_forms() {
+    let head = "[motion]\nstart = { lat_deg = 10, lon_deg = 20, h_m = 300 }\n";
+    let m = native(&format!(
+        "{head}waypoints = [{{ t_s = 0, north_m = 0 }}, {{ t_s = 8, north_m = 100 }}]\n"
+    ))
+    .unwrap();
+    let (a, b) = (m.pose(0.0).lat, m.pose(8.0).lat);
+    for t in [1.0, 3.7, 6.25] {
+        let want = a + (b - a) * t / 8.0;
+        assert!((m.pose(t).lat - want).abs() < 4e-16, "t {t}");
+    }
+    let m = native(&format!(
+        "{head}waypoints = [{{ t_s = 0, lat_deg = 10, lon_deg = 20, h_m = 300 }}, \
+         {{ t_s = 10, lat_deg = 10.001, lon_deg = 20, h_m = 310 }}, \
+         {{ t_s = 20, lat_deg = 10.002, lon_deg = 20, h_m = 300 }}]\n"
+    ))
+    .unwrap();
+    assert!((m.pose(5.0).h - 306.875).abs() < 1e-11, "{}", m.pose(5.0).h);
+    let i = m.piece_at(10.0, 0);
+    let vd_dot = (m.pose(10.0 + 1e-3).v_n[2] - m.pose(10.0 - 1e-3).v_n[2]) / 2e-3;
+    // Central difference of a cubic: exact but for the f64 round-off of v_d/2e-3 (1e-12).
+    assert!((vd_dot - 0.3).abs() < 1e-9, "{vd_dot} (piece {i})");
+    let m = native(&format!(
+        "{head}waypoints = [{{ t_s = 0, north_m = 0, yaw_deg = 350, roll_deg = 5 }}, \
+         {{ t_s = 10, north_m = 100, yaw_deg = 10 }}, {{ t_s = 20, north_m = 150, yaw_deg = 30 }}]\n"
+    ))
+    .unwrap();
+    for (t, yaw, roll) in [(0.0, -10.0, 5.0), (10.0, 10.0, 0.0), (20.0, 30.0, 0.0)] {
+        let (r, p, y) = imu_emu::math::euler_from_quat(m.pose(t).q_b_n);
+        assert!(
+            (y - f64::to_radians(yaw)).abs() < 1e-14,
+            "t {t}: yaw {}",
+            y.to_degrees()
+        );
+        assert!(
+            (r - f64::to_radians(roll)).abs() < 1e-14 && p.abs() < 1e-15,
+            "t {t}"
+        );
+    }
+    // The yaw goes the short way, through 0°, not back round through 180°.
+    let (_, _, y) = imu_emu::math::euler_from_quat(m.pose(5.0).q_b_n);
+    assert!(y.abs() < 10f64.to_radians(), "{}", y.to_degrees());
+}
+
+/// Waypoint mistakes are refused naming the waypoint and its line.
+#[test]
+fn waypoint_mistakes_are_refused() {
+    let head = "[motion]\nstart = { lat_deg = 10 }\nwaypoints = [\n";
+    let e = native(&format!(
+        "{head} {{ t_s = 0, north_m = 0 }},\n {{ t_s = 5, north_m = 50 }},\n {{ t_s = 5, north_m = 90 }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("m.toml:6: `motion.waypoints[2]`") && e.contains("must increase"),
+        "{e}"
+    );
+    // 1 km in 2 s from rest and back to rest: about 1500 m/s² at the ends.
+    let e = native(&format!(
+        "{head} {{ t_s = 0, north_m = 0, velocity_m_s = [1, 0, 0] }},\n {{ t_s = 2, north_m = 1000, velocity_m_s = [1, 0, 0] }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("m.toml:4: `motion.waypoints[0]`") && e.contains("beyond max_g"),
+        "{e}"
+    );
+    let e = native(&format!(
+        "{head} {{ t_s = 0, north_m = 0, yaw_deg = 0 }},\n {{ t_s = 5, north_m = 50 }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("`motion.waypoints[1]`") && e.contains("at every waypoint or at none"),
+        "{e}"
+    );
+    let e = native(&format!(
+        "{head} {{ t_s = 0, north_m = 0, lat_deg = 3, lon_deg = 4 }},\n {{ t_s = 5, north_m = 50 }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("`motion.waypoints[0]`") && e.contains("not both"),
+        "{e}"
+    );
+    let e = native(&format!(
+        "{head} {{ t_s = 0, north_m = 0 }},\n {{ t_s = 5, north_m = 0, east_m = 0 }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("`motion.waypoints[0]`") && e.contains("horizontal speed"),
+        "{e}"
+    );
+    let e = native(&format!("{head} {{ t_s = 0, north_m = 0 }},\n]\n")).unwrap_err();
+    assert!(e.contains("at least two waypoints"), "{e}");
+    let e = native(&format!(
+        "[motion]\nstart = {{ speed_m_s = 3 }}\nwaypoints = [{{ t_s = 0, north_m = 0 }}, {{ t_s = 1, north_m = 1 }}]\n"
+    ))
+    .unwrap_err();
+    assert!(e.contains("`motion.start.speed_m_s`"), "{e}");
+}

@@ -16,6 +16,7 @@
 pub mod gnss_ins_sim;
 pub mod native;
 pub mod profile;
+pub mod waypoints;
 
 use std::path::Path;
 
@@ -196,6 +197,31 @@ impl DefinedMotion {
         self.segments
             .get(i.saturating_sub(1))
             .is_none_or(|s| s.gnss_visible)
+    }
+
+    /// The spans [start, end) in which GNSS is not visible, adjacent commands merged: exactly
+    /// the times at which [`DefinedMotion::gnss_visible`] is false. The first command's flag
+    /// holds before the start and the last one's after the end, so a span reaching either
+    /// opens to ∓`f64::MAX` (finite, as outage windows must be).
+    pub fn gnss_outages(&self) -> Vec<[f64; 2]> {
+        let mut out: Vec<[f64; 2]> = Vec::new();
+        for (i, s) in self.segments.iter().enumerate() {
+            if s.gnss_visible {
+                continue;
+            }
+            let end = match self.segments.get(i + 1) {
+                Some(next) => next.span.0,
+                None => f64::MAX,
+            };
+            // Before the first command the flag is the first one's (`gnss_visible` defaults to it).
+            let start = if i == 0 { -f64::MAX } else { s.span.0 };
+            match out.last_mut() {
+                _ if start >= end => {}
+                Some(w) if w[1] == start => w[1] = end,
+                _ => out.push([start, end]),
+            }
+        }
+        out
     }
 
     #[inline]

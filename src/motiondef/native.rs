@@ -15,6 +15,7 @@ use std::path::Path;
 use serde::Deserialize;
 
 use super::profile::{BLEND_S, CHANNELS, Mobility, Profile};
+use super::waypoints::{self, PathLimits, WaypointSpec};
 use super::{DefinedMotion, Segment, prescribed};
 use crate::csvio::{FileError, num};
 use crate::earth;
@@ -84,7 +85,9 @@ struct MotionSpec {
     start: Start,
     #[serde(default)]
     limits: Limits,
+    #[serde(default)]
     segments: Vec<toml::Spanned<SegmentSpec>>,
+    waypoints: Option<Vec<toml::Spanned<WaypointSpec>>>,
 }
 
 /// The document: only `[motion]` is read, so a scene file's other tables pass.
@@ -122,7 +125,55 @@ pub fn parse(text: &str, path: &Path) -> Result<DefinedMotion, FileError> {
              `segments`; see docs/motion-definitions.md)",
         ));
     };
-    Builder::new(&spec, path)?.run(&spec, text, path)
+    let builder = Builder::new(&spec, path)?;
+    match &spec.waypoints {
+        Some(wps) => waypoint_path(&spec, &builder, wps, text, path),
+        None => builder.run(&spec, text, path),
+    }
+}
+
+/// The path through `motion.waypoints`.
+fn waypoint_path(
+    spec: &MotionSpec,
+    b: &Builder,
+    wps: &[toml::Spanned<WaypointSpec>],
+    text: &str,
+    path: &Path,
+) -> Result<DefinedMotion, FileError> {
+    let s = &spec.start;
+    if !spec.segments.is_empty() {
+        return Err(FileError::file(
+            path,
+            "`motion`: give `segments` or `waypoints`, not both",
+        ));
+    }
+    for (k, v) in [
+        ("speed_m_s", s.speed_m_s),
+        ("yaw_deg", s.yaw_deg),
+        ("pitch_deg", s.pitch_deg),
+        ("roll_deg", s.roll_deg),
+    ] {
+        if v != 0.0 {
+            return Err(FileError::file(
+                path,
+                format!(
+                    "`motion.start.{k}`: with waypoints the velocity and attitude come from the                      waypoints; `start` gives only the origin (`lat_deg`, `lon_deg`, `h_m`)"
+                ),
+            ));
+        }
+    }
+    let list: Vec<(u64, &WaypointSpec)> = wps
+        .iter()
+        .map(|w| (line_of(text, w.span().start), w.get_ref()))
+        .collect();
+    let lim = PathLimits {
+        max_g: b.max_g,
+        max_rate: b.mobility.max_rate,
+    };
+    waypoints::build(&list, b.origin, &lim).map_err(|(i, m)| {
+        let line = list.get(i).map_or(1, |w| w.0);
+        FileError::line(path, line, format!("`motion.waypoints[{i}]`: {m}"))
+    })
 }
 
 /// The limits in SI units, and the vehicle's state the segments need.
