@@ -777,3 +777,120 @@ fn waypoint_mistakes_are_refused() {
     .unwrap_err();
     assert!(e.contains("`motion.start.speed_m_s`"), "{e}");
 }
+
+fn ok(out: std::process::Output) -> String {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// `--motion-def` in every command: `run` into a file sink sends the same frames as
+/// `generate` writes; `navigate` closes generated error-free records against it within 1 mm;
+/// `compare` scores an ideal IMU at under 1 mm; `validate` adds its closure row, and a bad
+/// file makes it fail naming the line.
+#[test]
+fn every_command_takes_a_motion_definition() {
+    let dir = scratch("cmds");
+    let turn = demo("motion_def-90deg_turn.csv");
+    let turn = turn.to_str().unwrap();
+    let common = ["--motion-def", turn, "--imu", "ideal"];
+    let frames = ["--format", "kvh1750", "--duration", "2"];
+    ok(bin(
+        &[&["run"][..], &common, &frames, &["--file", "run.kvh"]].concat(),
+        &dir,
+    ));
+    ok(bin(
+        &[&["generate"][..], &common, &frames, &["-o", "g.kvh"]].concat(),
+        &dir,
+    ));
+    let (a, b) = (
+        std::fs::read(dir.join("run.kvh")).unwrap(),
+        std::fs::read(dir.join("g.kvh")).unwrap(),
+    );
+    assert!(
+        a.len() == 2000 * 36 && a == b,
+        "{} vs {} bytes",
+        a.len(),
+        b.len()
+    );
+    ok(bin(
+        &[
+            &["generate"][..],
+            &common,
+            &["--rate", "100", "-o", "full.csv"],
+        ]
+        .concat(),
+        &dir,
+    ));
+    ok(bin(
+        &[
+            "navigate",
+            "full.csv",
+            "--motion-def",
+            turn,
+            "--errors",
+            "e.csv",
+        ],
+        &dir,
+    ));
+    let e = std::fs::read_to_string(dir.join("e.csv")).unwrap();
+    let last: Vec<f64> = e
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert!(last[0] == 10.0 && last[10] < 1e-3, "{last:?}");
+    let out = ok(bin(
+        &[&["compare"][..], &common, &["--runs", "1", "--rate", "100"]].concat(),
+        &dir,
+    ));
+    let ideal = out.lines().find(|l| l.starts_with("ideal")).unwrap();
+    let median: f64 = ideal.split_whitespace().nth(3).unwrap().parse().unwrap();
+    assert!(median < 1e-3, "{out}");
+    ok(bin(
+        &[
+            "validate",
+            "--imu",
+            "ideal",
+            "--motion-def",
+            turn,
+            "--out",
+            "v",
+        ],
+        &dir,
+    ));
+    let report = std::fs::read_to_string(dir.join("v/report.md")).unwrap();
+    let row = report
+        .lines()
+        .find(|l| l.starts_with(&format!("| {turn} |")))
+        .unwrap();
+    assert!(row.ends_with("| pass |"), "{row}");
+    std::fs::write(
+        dir.join("bad.csv"),
+        format!("{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n1,0,0,0,0,0,0,-1,0\n"),
+    )
+    .unwrap();
+    let out = bin(
+        &[
+            "validate",
+            "--imu",
+            "ideal",
+            "--motion-def",
+            "bad.csv",
+            "--out",
+            "v2",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("bad.csv:4: column 8"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
