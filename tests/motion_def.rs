@@ -894,3 +894,25 @@ fn every_command_takes_a_motion_definition() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The specific force over every segment, transitions included, is checked against max_g:
+/// accelerating at 5 m/s² passes the acceleration limit (5 ≤ 1.05 g) but the specific force
+/// peaks at √(g² + 5²) ≈ 1.12 g, beyond max_g = 1.05 (the message gives the first sample
+/// beyond it); the same acceleration within max_g = 1.2 is accepted.
+#[test]
+fn specific_force_beyond_max_g_is_refused_naming_the_segment() {
+    let seg = "segments = [\n { hold_s = 1 },\n { accelerate_to_m_s = 30, accel_m_s2 = 5 },\n]\n";
+    let e = native(&format!(
+        "[motion]\nstart = {{ speed_m_s = 10 }}\nlimits = {{ max_g = 1.05 }}\n{seg}"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("m.toml:6: `motion.segments[1]`: the specific force reaches 1.0")
+            && e.contains("beyond max_g = 1.05"),
+        "{e}"
+    );
+    native(&format!(
+        "[motion]\nstart = {{ speed_m_s = 10 }}\nlimits = {{ max_g = 1.2 }}\n{seg}"
+    ))
+    .unwrap();
+}

@@ -224,6 +224,47 @@ impl DefinedMotion {
         out
     }
 
+    /// Checks the specific force against `max_g` times `g` (and, if given, |ω_ib| against
+    /// `max_rate` plus the Earth's rate) at the start, middle and end of every knot interval;
+    /// a violation returns the index of the segment it falls in and what was exceeded.
+    pub(crate) fn check_load(
+        &self,
+        g: f64,
+        max_g: f64,
+        max_rate: Option<f64>,
+    ) -> Result<(), (usize, String)> {
+        for (i, k) in self.knots.iter().enumerate() {
+            let end = self.piece_end(i).min(self.end);
+            let seg = self.pieces[k.piece].segment;
+            for t in [k.t0, 0.5 * (k.t0 + end), end] {
+                let s = self.sense(i, t);
+                let (n, w) = (s.f_b.norm() / g, s.omega_ib_b.norm());
+                if n > max_g || !n.is_finite() {
+                    return Err((
+                        seg,
+                        format!(
+                            "the specific force reaches {n:.3} g at t = {t} s, beyond max_g = {max_g}"
+                        ),
+                    ));
+                }
+                if let Some(r) = max_rate
+                    && (w > r + earth::OMEGA_IE || !w.is_finite())
+                {
+                    return Err((
+                        seg,
+                        format!(
+                            "the angular rate reaches {:.3}°/s at t = {t} s, beyond \
+                             max_rate_deg_s = {}",
+                            w.to_degrees(),
+                            r.to_degrees()
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
     #[inline]
     fn jets(&self, i: usize, t: f64) -> (Jet, Jet, Jet) {
         let k = &self.knots[i];

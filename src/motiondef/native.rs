@@ -303,11 +303,14 @@ impl Builder {
                 "`motion.segments`: no segment takes any time",
             ));
         }
-        Ok(DefinedMotion::new(
-            self.origin,
-            self.profile.into_pieces(),
-            segments,
-        ))
+        let m = DefinedMotion::new(self.origin, self.profile.into_pieces(), segments);
+        // The closed-form checks of each segment bound its steady part; this also covers the
+        // transitions (turn entry and exit, pitch-in, acceleration on top of gravity).
+        m.check_load(self.g, self.max_g, None).map_err(|(i, msg)| {
+            let line = m.segments().get(i).map_or(1, |s| s.line);
+            FileError::line(path, line, format!("`motion.segments[{i}]`: {msg}"))
+        })?;
+        Ok(m)
     }
 
     /// Height gained over the pieces from `first` on: ∫ −v_D dt by 16-point Gauss–Legendre on

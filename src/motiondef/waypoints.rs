@@ -19,7 +19,7 @@ use super::profile::{CHANNELS, Piece};
 use super::{DefinedMotion, KNOT_S, Knot, Segment};
 use crate::earth::{self, E2, Geodetic};
 use crate::math::Vec3;
-use crate::motion::{Motion, limits};
+use crate::motion::limits;
 use crate::scenes::path::{Jet, Poly};
 
 /// One entry of `motion.waypoints`.
@@ -176,7 +176,8 @@ pub(super) fn build(
         segments,
         end: times[wps.len() - 1],
     };
-    check_limits(&m, origin, lim)?;
+    let g = earth::normal_gravity(origin[0].sin(), origin[2]);
+    m.check_load(g, lim.max_g, Some(lim.max_rate))?;
     Ok(m)
 }
 
@@ -426,39 +427,4 @@ fn aligned(lat0: f64, p: &[Jet; 3]) -> Option<[[f64; 3]; 3]> {
         return None;
     }
     Some([ve.atan2(vn).0, up.atan2(horiz).0, [0.0; 3]])
-}
-
-/// The path's load factor and angular rate within the limits, checked at every knot and
-/// between knots.
-fn check_limits(m: &DefinedMotion, origin: [f64; 3], lim: &PathLimits) -> Result<(), Refusal> {
-    let g = earth::normal_gravity(origin[0].sin(), origin[2]);
-    for (i, k) in m.knots.iter().enumerate() {
-        let end = m.piece_end(i).min(m.end);
-        for t in [k.t0, 0.5 * (k.t0 + end), end] {
-            let s = m.sense(i, t);
-            let seg = m.pieces[k.piece].segment;
-            let (n, w) = (s.f_b.norm() / g, s.omega_ib_b.norm());
-            if n > lim.max_g || !n.is_finite() {
-                return Err((
-                    seg,
-                    format!(
-                        "the specific force reaches {:.3} g at t = {t} s on the way to the next \
-                         waypoint, beyond max_g: give it more time",
-                        n
-                    ),
-                ));
-            }
-            if w > lim.max_rate + earth::OMEGA_IE || !w.is_finite() {
-                return Err((
-                    seg,
-                    format!(
-                        "the angular rate reaches {:.3}°/s at t = {t} s on the way to the next \
-                         waypoint, beyond max_rate_deg_s: give it more time",
-                        w.to_degrees()
-                    ),
-                ));
-            }
-        }
-    }
-    Ok(())
 }
