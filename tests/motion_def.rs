@@ -630,8 +630,8 @@ fn waypoints_pass_their_points_continuously_and_close() {
     assert!((end.h - 425.0).abs() < 1e-12, "{}", end.h);
     for (t, v) in [(0.0, [15.0, 0.0, 0.0]), (90.0, [-12.0, -6.0, 0.0])] {
         let p = m.pose(t);
-        for k in 0..3 {
-            assert!((p.v_n[k] - v[k]).abs() < 1e-9, "t {t}: {:?}", p.v_n);
+        for (k, want) in v.iter().enumerate() {
+            assert!((p.v_n[k] - want).abs() < 1e-9, "t {t}: {:?}", p.v_n);
         }
     }
     for t in [0.0, 12.5, 35.0, 61.3, 90.0] {
@@ -771,9 +771,9 @@ fn waypoint_mistakes_are_refused() {
     );
     let e = native(&format!("{head} {{ t_s = 0, north_m = 0 }},\n]\n")).unwrap_err();
     assert!(e.contains("at least two waypoints"), "{e}");
-    let e = native(&format!(
-        "[motion]\nstart = {{ speed_m_s = 3 }}\nwaypoints = [{{ t_s = 0, north_m = 0 }}, {{ t_s = 1, north_m = 1 }}]\n"
-    ))
+    let e = native(
+        "[motion]\nstart = { speed_m_s = 3 }\nwaypoints = [{ t_s = 0, north_m = 0 }, { t_s = 1, north_m = 1 }]\n",
+    )
     .unwrap_err();
     assert!(e.contains("`motion.start.speed_m_s`"), "{e}");
 }
