@@ -916,3 +916,35 @@ fn specific_force_beyond_max_g_is_refused_naming_the_segment() {
     ))
     .unwrap();
 }
+
+/// gnss-ins-sim's type 2–5 limits set by the user: `[motion] gnss_ins_sim = FILE` with
+/// `gnss_ins_sim_limits`. A type-2 command to 10 m/s from rest is a minimum-jerk move of
+/// 1.875·Δv/a: 18.75 s at the default 1 m/s², 9.375 s at 2 m/s²; a zero limit is refused
+/// naming the key.
+#[test]
+fn gnss_ins_sim_limits_are_settable() {
+    let dir = scratch("lim");
+    let csv =
+        format!("{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n2,0,0,0,10,0,0,100,1\n1,0,0,0,0,0,0,1,1\n");
+    std::fs::write(dir.join("to10.csv"), csv).unwrap();
+    let span = |limits: &str| {
+        std::fs::write(
+            dir.join("m.toml"),
+            format!("[motion]\ngnss_ins_sim = \"to10.csv\"\n{limits}"),
+        )
+        .unwrap();
+        motiondef::open(&dir.join("m.toml")).map(|m| m.segments()[0].span.1)
+    };
+    let t1 = span("").unwrap();
+    assert!((t1 - 18.75).abs() < 1e-9, "{t1}");
+    let t2 = span("gnss_ins_sim_limits = { max_accel_m_s2 = 2 }\n").unwrap();
+    assert!((t2 - 9.375).abs() < 1e-9, "{t2}");
+    let e = span("gnss_ins_sim_limits = { max_rate_deg_s = 0 }\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("m.toml") && e.contains("`motion.gnss_ins_sim_limits.max_rate_deg_s`"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -88,6 +88,31 @@ struct MotionSpec {
     #[serde(default)]
     segments: Vec<toml::Spanned<SegmentSpec>>,
     waypoints: Option<Vec<toml::Spanned<WaypointSpec>>>,
+    /// A gnss-ins-sim file (relative to this one) read with `gnss_ins_sim_limits`.
+    gnss_ins_sim: Option<String>,
+    #[serde(default)]
+    gnss_ins_sim_limits: GnssInsSimLimits,
+}
+
+/// `[motion.gnss_ins_sim_limits]`: the limits of gnss-ins-sim's types 2–5 (defaults: its
+/// path-generation example's 1 m/s², 0.5 rad/s², 2 rad/s).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct GnssInsSimLimits {
+    max_accel_m_s2: f64,
+    max_angular_accel_deg_s2: f64,
+    max_rate_deg_s: f64,
+}
+
+impl Default for GnssInsSimLimits {
+    fn default() -> GnssInsSimLimits {
+        let m = super::gnss_ins_sim::MOBILITY;
+        GnssInsSimLimits {
+            max_accel_m_s2: m.max_accel,
+            max_angular_accel_deg_s2: m.max_angular_accel.to_degrees(),
+            max_rate_deg_s: m.max_rate.to_degrees(),
+        }
+    }
 }
 
 /// The document: only `[motion]` is read, so a scene file's other tables pass.
@@ -125,11 +150,57 @@ pub fn parse(text: &str, path: &Path) -> Result<DefinedMotion, FileError> {
              `segments`; see docs/motion-definitions.md)",
         ));
     };
+    if let Some(file) = &spec.gnss_ins_sim {
+        return gnss_ins_sim_file(&spec, file, path);
+    }
     let builder = Builder::new(&spec, path)?;
     match &spec.waypoints {
         Some(wps) => waypoint_path(&spec, &builder, wps, text, path),
         None => builder.run(&spec, text, path),
     }
+}
+
+/// A gnss-ins-sim file named by `motion.gnss_ins_sim`, read with the limits given.
+fn gnss_ins_sim_file(
+    spec: &MotionSpec,
+    file: &str,
+    path: &Path,
+) -> Result<DefinedMotion, FileError> {
+    if !spec.segments.is_empty() || spec.waypoints.is_some() {
+        return Err(FileError::file(
+            path,
+            "`motion`: give one of `segments`, `waypoints` or `gnss_ins_sim`",
+        ));
+    }
+    let l = &spec.gnss_ins_sim_limits;
+    let given = [
+        ("max_accel_m_s2", l.max_accel_m_s2, limits::MAX_ACCEL_M_S2),
+        (
+            "max_angular_accel_deg_s2",
+            l.max_angular_accel_deg_s2,
+            5.7e7,
+        ),
+        ("max_rate_deg_s", l.max_rate_deg_s, 5.7e5),
+    ];
+    for (k, v, top) in given {
+        if !(v > 0.0 && v <= top) {
+            return Err(FileError::file(
+                path,
+                format!(
+                    "`motion.gnss_ins_sim_limits.{k}` = {}: a positive number within the \
+                     kinematics' limits",
+                    num(v)
+                ),
+            ));
+        }
+    }
+    let mobility = Mobility {
+        max_accel: l.max_accel_m_s2,
+        max_angular_accel: l.max_angular_accel_deg_s2.to_radians(),
+        max_rate: l.max_rate_deg_s.to_radians(),
+    };
+    let csv = path.parent().unwrap_or(Path::new("")).join(file);
+    super::gnss_ins_sim::read_with(&csv, &mobility)
 }
 
 /// The path through `motion.waypoints`.
