@@ -9,7 +9,9 @@
 //!   isolates the integration error from the different smoothing of the commands.
 //!
 //! Both are compared with imu-emu's exact end position. Run:
-//! `cargo run --release --example first_order -- tests/data/gnss-ins-sim/motion_def-90deg_turn.csv`
+//! `cargo run --release --example first_order -- tests/data/gnss-ins-sim/motion_def-90deg_turn.csv`;
+//! a second argument (`docs/first-order.png`) also plots the horizontal distance of the
+//! gnss-ins-sim scheme from the exact position over the trip at each rate.
 
 use imu_emu::earth;
 use imu_emu::motion::Motion;
@@ -35,6 +37,7 @@ fn main() {
         "| rate (Hz) | gnss-ins-sim scheme: end position − exact (m) | Euler steps of the exact velocity (m) |"
     );
     println!("| --- | --- | --- |");
+    let mut series = Vec::new();
     for rate in [10.0f64, 100.0, 1000.0] {
         let dt = 1.0 / rate;
         // gnss-ins-sim's scheme for this file's type-1 commands (rate −15°/s for 6 s between
@@ -42,6 +45,7 @@ fn main() {
         let commands = [(0.0, 1.0f64), (-15f64.to_radians(), 6.0), (0.0, 3.0)];
         let (mut lat, mut lon, mut yaw, mut yaw_dot) =
             (start.lat, start.lon, 90f64.to_radians(), 0.0);
+        let (mut k, mut ts, mut ds) = (0usize, vec![0.0], vec![0.0]);
         for (cmd, duration) in commands {
             for _ in 0..(duration * rate).round() as usize {
                 yaw_dot = 0.9 * yaw_dot + 0.1 * cmd;
@@ -49,8 +53,19 @@ fn main() {
                 lat += vn / rn * dt;
                 lon += ve / (re * lat.cos()) * dt;
                 yaw += yaw_dot * dt;
+                k += 1;
+                let p = exact.pose(k as f64 * dt);
+                ts.push(k as f64 * dt);
+                ds.push(((lat - p.lat) * rn).hypot((lon - p.lon) * re * start.lat.cos()));
             }
         }
+        series.push(imu_emu::plot::Series {
+            label: format!("{rate} Hz"),
+            x: ts,
+            y: ds,
+            color: series.len(),
+            ..Default::default()
+        });
         let scheme = metres(lat, lon);
         // Forward Euler on our own velocity.
         let (mut lat, mut lon) = (start.lat, start.lon);
@@ -71,5 +86,21 @@ fn main() {
             euler.1,
             euler.0.hypot(euler.1)
         );
+    }
+    if let Some(png) = std::env::args().nth(2) {
+        let panel = imu_emu::plot::Panel {
+            title: "gnss-ins-sim's first-order scheme − exact, 90° turn demo".into(),
+            x_label: "time (s)".into(),
+            y_label: "horizontal position difference (m)".into(),
+            series,
+            ..Default::default()
+        };
+        imu_emu::plot::render(std::path::Path::new(&png), &[panel], 1, (900, 500)).unwrap_or_else(
+            |e| {
+                eprintln!("error: {e}");
+                std::process::exit(1)
+            },
+        );
+        println!("{png}");
     }
 }

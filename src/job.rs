@@ -322,6 +322,8 @@ pub struct Block<'a> {
     pub chain: Option<&'a ErrorChain>,
     /// Times of validity and emission of the records, when the IMU has timing errors.
     pub times: Option<crate::timing::Times<'a>>,
+    /// The motion the records sense (for the truth's GNSS visibility).
+    pub motion: &'a AnyMotion,
 }
 
 impl Producer {
@@ -599,6 +601,7 @@ impl Producer {
             truth: &self.truth[..if self.keep_truth { n } else { 0 }],
             chain: self.chain.as_ref(),
             times: self.timing.as_ref().map(|t| t.times()),
+            motion: self.imu.motion(),
         }
     }
 
@@ -678,11 +681,8 @@ pub fn drain(
     let format = producer.encoding.side();
     if format == Format::Csv {
         if let Some(t) = truth.as_mut() {
-            let header = if producer.is_timed() {
-                output::csv_header_timed()
-            } else {
-                output::csv_header()
-            };
+            let gnss = producer.imu.motion().defined().is_some();
+            let header = output::csv_header_truth(producer.is_timed(), gnss);
             t.write_all(header.as_bytes())?;
         }
         if let Some(t) = injected.as_mut() {
@@ -706,10 +706,9 @@ pub fn drain(
         };
         if let Some(t) = truth.as_mut() {
             side.clear();
-            match &b.times {
-                Some(times) => output::encode_timed(format, b.truth, times, &mut side),
-                None => output::encode(format, b.truth, &mut side),
-            }
+            let gnss = b.motion.defined().map(|m| move |t| m.gnss_visible(t));
+            let gnss = gnss.as_ref().map(|g| g as &dyn Fn(f64) -> bool);
+            output::encode_truth(format, b.truth, b.times.as_ref(), gnss, &mut side);
             t.write_all(&side)?;
         }
         if let (Some(w), Some(c)) = (injected.as_mut(), b.chain) {

@@ -59,22 +59,68 @@ pub fn encode_timed(
     times: &crate::timing::Times<'_>,
     buf: &mut Vec<u8>,
 ) {
+    encode_truth(format, records, Some(times), None, buf);
+}
+
+/// Column a truth file adds last when the motion is a motion definition: whether GNSS is
+/// visible at the record's time (1 or 0; in binary one more f64).
+pub const GNSS_VISIBLE_COLUMN: &str = "gnss_visible";
+
+/// The CSV header line of a truth file: the record's columns, [`TIMING_COLUMNS`] if `timed`,
+/// [`GNSS_VISIBLE_COLUMN`] if `gnss`.
+pub fn csv_header_truth(timed: bool, gnss: bool) -> String {
+    let mut s = if timed {
+        csv_header_timed()
+    } else {
+        csv_header()
+    };
+    if gnss {
+        s.pop();
+        s.push(',');
+        s.push_str(GNSS_VISIBLE_COLUMN);
+        s.push('\n');
+    }
+    s
+}
+
+/// Appends truth `records`: each with its [`TIMING_COLUMNS`] from `times` when given, then
+/// `gnss(t)` at its time as [`GNSS_VISIBLE_COLUMN`] when given.
+pub fn encode_truth(
+    format: Format,
+    records: &[Record],
+    times: Option<&crate::timing::Times<'_>>,
+    gnss: Option<&dyn Fn(f64) -> bool>,
+    buf: &mut Vec<u8>,
+) {
+    if times.is_none() && gnss.is_none() {
+        return encode(format, records, buf);
+    }
     let mut f = ryu::Buffer::new();
     for (i, r) in records.iter().enumerate() {
         encode(format, std::slice::from_ref(r), buf);
-        let extra = [times.tov[i], times.tov_accel[i], times.emit[i]].map(|x| times.t0 + x);
-        match format {
-            Format::Bin => extra
-                .iter()
-                .for_each(|v| buf.extend_from_slice(&v.to_le_bytes())),
-            Format::Csv => {
-                buf.pop();
-                for v in extra {
-                    buf.push(b',');
-                    buf.extend_from_slice(f.format(v).as_bytes());
-                }
-                buf.push(b'\n');
+        let csv = format == Format::Csv;
+        if csv {
+            buf.pop();
+        }
+        let push = |buf: &mut Vec<u8>, v: f64, text: &str| {
+            if csv {
+                buf.push(b',');
+                buf.extend_from_slice(text.as_bytes());
+            } else {
+                buf.extend_from_slice(&v.to_le_bytes());
             }
+        };
+        if let Some(times) = times {
+            for v in [times.tov[i], times.tov_accel[i], times.emit[i]].map(|x| times.t0 + x) {
+                push(buf, v, f.format(v));
+            }
+        }
+        if let Some(g) = gnss {
+            let on = g(r.t);
+            push(buf, f64::from(u8::from(on)), if on { "1" } else { "0" });
+        }
+        if csv {
+            buf.push(b'\n');
         }
     }
 }

@@ -35,6 +35,17 @@ macro_rules! each {
     };
 }
 
+impl AnyMotion {
+    /// The motion definition's GNSS visibility flags, when the motion is one (other motions
+    /// have none: GNSS is always visible).
+    pub fn defined(&self) -> Option<&DefinedMotion> {
+        match self {
+            AnyMotion::Defined(m) => Some(m),
+            _ => None,
+        }
+    }
+}
+
 impl Motion for AnyMotion {
     fn start(&self) -> f64 {
         each!(self, m => m.start())

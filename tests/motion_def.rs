@@ -484,3 +484,467 @@ fn a_turn_after_a_full_roll_banks_from_wings_level() {
         worst.to_degrees()
     );
 }
+
+/// GNSS visibility reaches the outputs: a file whose middle command (1 s to 3 s) has
+/// visibility 0 gives `generate --truth` a `gnss_visible` column that is 0 at exactly the
+/// records with 1 ≤ t < 3, and the GNSS stream an outage (no fix, 0 satellites) at exactly
+/// the epochs in that span; a scene's truth file has no such column.
+#[test]
+fn gnss_visibility_in_truth_and_gnss_outages() {
+    let dir = scratch("vis");
+    std::fs::write(
+        dir.join("vis.csv"),
+        format!(
+            "{H1}\n32,120,0,10,0,0,0,0,0\n{H2}\n1,0,0,0,0,0,0,1,1\n1,0,0,0,0,0,0,2,0\n1,0,0,0,0,0,0,1,1\n"
+        ),
+    )
+    .unwrap();
+    let m = motiondef::open(&dir.join("vis.csv")).unwrap();
+    assert_eq!(m.gnss_outages(), vec![[1.0, 3.0]]);
+    let out = bin(
+        &[
+            "generate",
+            "--motion-def",
+            "vis.csv",
+            "--rate",
+            "10",
+            "-o",
+            "imu.csv",
+            "--truth",
+            "truth.csv",
+            "--gnss",
+            "nmea:g.nmea",
+            "--gnss-truth",
+            "g.csv",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let truth = std::fs::read_to_string(dir.join("truth.csv")).unwrap();
+    let mut lines = truth.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "t,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z,dtheta_x,dtheta_y,dtheta_z,dv_x,dv_y,dv_z,gnss_visible"
+    );
+    let mut rows = 0;
+    for l in lines {
+        let c: Vec<&str> = l.split(',').collect();
+        assert_eq!(c.len(), 14, "{l}");
+        let t: f64 = c[0].parse().unwrap();
+        let want = if (1.0..3.0).contains(&t) { "0" } else { "1" };
+        assert_eq!(c[13], want, "t = {t}");
+        rows += 1;
+    }
+    assert_eq!(rows, 40);
+    let gnss = std::fs::read_to_string(dir.join("g.csv")).unwrap();
+    let mut epochs = 0;
+    for l in gnss.lines().skip(1) {
+        let c: Vec<&str> = l.split(',').collect();
+        let t: f64 = c[1].parse().unwrap();
+        let outage = (1.0..3.0).contains(&t);
+        assert_eq!(c[4] == "0", outage, "t = {t}: {l}");
+        epochs += 1;
+    }
+    assert_eq!(epochs, 21);
+    // Without a motion definition the truth file keeps the record's columns only.
+    let out = bin(
+        &[
+            "generate",
+            "--scene",
+            "static",
+            "--duration",
+            "1",
+            "--rate",
+            "10",
+            "-o",
+            "s.csv",
+            "--truth",
+            "st.csv",
+        ],
+        &dir,
+    );
+    assert!(out.status.success());
+    let st = std::fs::read_to_string(dir.join("st.csv")).unwrap();
+    assert!(st.starts_with("t,gyro_x,") && st.lines().next().unwrap().ends_with(",dv_z"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn waypoints() -> DefinedMotion {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/waypoints.toml");
+    motiondef::open(&p).unwrap()
+}
+
+/// NED offset (m) of a pose from a geodetic origin, through ECEF (independent of the
+/// waypoint code's conversion, which goes the other way).
+fn ned_offset(origin: [f64; 3], p: &imu_emu::motion::Pose) -> [f64; 3] {
+    use imu_emu::earth::Geodetic;
+    let o = Geodetic::from_radians(origin[0], origin[1], origin[2]);
+    let d = Geodetic::from_radians(p.lat, p.lon, p.h).to_ecef() - o.to_ecef();
+    let (sp, cp, sl, cl) = (o.sin_lat, o.cos_lat, o.sin_lon, o.cos_lon);
+    [
+        -sp * cl * d[0] - sp * sl * d[1] + cp * d[2],
+        -sl * d[0] + cl * d[1],
+        -cp * cl * d[0] - cp * sl * d[1] - sp * d[2],
+    ]
+}
+
+/// The example waypoint path is at every waypoint at its time (NED offsets through ECEF to
+/// 1e-8 m: ECEF coordinates of 6.4e6 m carry 1e-9 m of round-off; lat/lon/h to an ulp), has
+/// the velocity given where one is, heads along its velocity with the roll at 0, joins without
+/// a jump of ω or f at any knot, and the reference navigator closes it within 1 mm.
+#[test]
+fn waypoints_pass_their_points_continuously_and_close() {
+    let m = waypoints();
+    let origin = [47.4f64.to_radians(), 8.55f64.to_radians(), 420.0];
+    let ned = [
+        (0.0, [0.0, 0.0, 0.0]),
+        (20.0, [300.0, 0.0, 0.0]),
+        (35.0, [420.0, 120.0, -5.0]),
+        (50.0, [400.0, 300.0, -10.0]),
+        (70.0, [150.0, 420.0, -10.0]),
+    ];
+    for (t, want) in ned {
+        let got = ned_offset(origin, &m.pose(t));
+        for k in 0..3 {
+            assert!(
+                (got[k] - want[k]).abs() < 1e-8,
+                "t {t}: {got:?} vs {want:?}"
+            );
+        }
+    }
+    let end = m.pose(90.0);
+    assert!(
+        (end.lat - 47.4004f64.to_radians()).abs() < 2e-16,
+        "{}",
+        end.lat
+    );
+    assert!(
+        (end.lon - 8.5562f64.to_radians()).abs() < 4e-16,
+        "{}",
+        end.lon
+    );
+    assert!((end.h - 425.0).abs() < 1e-12, "{}", end.h);
+    for (t, v) in [(0.0, [15.0, 0.0, 0.0]), (90.0, [-12.0, -6.0, 0.0])] {
+        let p = m.pose(t);
+        for (k, want) in v.iter().enumerate() {
+            assert!((p.v_n[k] - want).abs() < 1e-9, "t {t}: {:?}", p.v_n);
+        }
+    }
+    for t in [0.0, 12.5, 35.0, 61.3, 90.0] {
+        let p = m.pose(t);
+        let (roll, pitch, yaw) = imu_emu::math::euler_from_quat(p.q_b_n);
+        let v = p.v_n;
+        let hz = v[0].hypot(v[1]);
+        // At the knots the attitude is the velocity's direction to round-off; between them
+        // the quintic's interpolation error of the angle, ≈ ψ⁽⁶⁾Δt⁶/46080, stays below 1e-9.
+        assert!((yaw - v[1].atan2(v[0])).abs() < 1e-9, "t {t}: yaw {yaw}");
+        assert!(
+            (pitch - (-v[2]).atan2(hz)).abs() < 1e-9,
+            "t {t}: pitch {pitch}"
+        );
+        assert!(roll.abs() < 1e-15, "t {t}: roll {roll}");
+    }
+    let mut i = 0;
+    let (mut dw, mut df) = (0.0f64, 0.0f64);
+    while m.piece_end(i).is_finite() {
+        let t = m.piece_end(i);
+        let (a, b) = (m.sense(i, t), m.sense(i + 1, t));
+        dw = dw.max((a.omega_ib_b - b.omega_ib_b).amax());
+        df = df.max((a.f_b - b.f_b).amax());
+        i += 1;
+    }
+    println!("waypoints: {i} knots, largest jump ω {dw:.2e} rad/s, f {df:.2e} m/s²");
+    assert!(i == 359 && dw < 1e-12 && df < 1e-9, "{i} {dw:e} {df:e}");
+    assert!(!m.gnss_visible(55.0) && m.gnss_visible(45.0) && m.gnss_visible(75.0));
+    let m = AnyMotion::Defined(m);
+    let grid = job::plan(&m, 200.0, None, None).unwrap();
+    let c = close(&m, &grid, Settings::default(), None, 100).unwrap();
+    println!(
+        "waypoints: position {:.2e} m (max {:.2e})",
+        c.last.pos_ned.norm(),
+        c.max_pos
+    );
+    assert!(c.max_pos <= 1e-3, "{:.3e} m", c.max_pos);
+}
+
+/// Closed forms of the path: between two waypoints with no velocity given, latitude is linear
+/// in time (the spline through two points is a line); through three heights 300, 310, 300 m
+/// at 0, 10, 20 s the natural cubic spline has ḧ(10) = 3(y₂ − 2y₁ + y₀)/(2Δt²) = −0.3 m/s²
+/// and h(5) = 300 + 1.5·5 − 0.3·5³/(6·10) = 306.875 m; Euler angles given at every waypoint are
+/// met there, with the roll the spline's.
+#[test]
+fn waypoints_against_closed_forms() {
+    let head = "[motion]\nstart = { lat_deg = 10, lon_deg = 20, h_m = 300 }\n";
+    let m = native(&format!(
+        "{head}waypoints = [{{ t_s = 0, north_m = 0 }}, {{ t_s = 8, north_m = 100 }}]\n"
+    ))
+    .unwrap();
+    let (a, b) = (m.pose(0.0).lat, m.pose(8.0).lat);
+    for t in [1.0, 3.7, 6.25] {
+        let want = a + (b - a) * t / 8.0;
+        assert!((m.pose(t).lat - want).abs() < 4e-16, "t {t}");
+    }
+    let m = native(&format!(
+        "{head}waypoints = [{{ t_s = 0, lat_deg = 10, lon_deg = 20, h_m = 300 }}, \
+         {{ t_s = 10, lat_deg = 10.001, lon_deg = 20, h_m = 310 }}, \
+         {{ t_s = 20, lat_deg = 10.002, lon_deg = 20, h_m = 300 }}]\n"
+    ))
+    .unwrap();
+    assert!((m.pose(5.0).h - 306.875).abs() < 1e-11, "{}", m.pose(5.0).h);
+    // On [10, 20] s: ḣ(10) = 0 by symmetry, ḧ(10) = −0.3, third derivative (m₂ − m₁)/Δt =
+    // 0.03, so v_d(10 + τ) = −ḣ = 0.3τ − 0.015τ².
+    for tau in [0.0, 2.0, 7.5] {
+        let vd = m.pose(10.0 + tau).v_n[2];
+        let want = 0.3 * tau - 0.015 * tau * tau;
+        assert!((vd - want).abs() < 1e-12, "τ {tau}: {vd} vs {want}");
+    }
+    let m = native(&format!(
+        "{head}waypoints = [{{ t_s = 0, north_m = 0, yaw_deg = 350, roll_deg = 5 }}, \
+         {{ t_s = 10, north_m = 100, yaw_deg = 10 }}, {{ t_s = 20, north_m = 150, yaw_deg = 30 }}]\n"
+    ))
+    .unwrap();
+    for (t, yaw, roll) in [(0.0, -10.0, 5.0), (10.0, 10.0, 0.0), (20.0, 30.0, 0.0)] {
+        let (r, p, y) = imu_emu::math::euler_from_quat(m.pose(t).q_b_n);
+        assert!(
+            (y - f64::to_radians(yaw)).abs() < 1e-14,
+            "t {t}: yaw {}",
+            y.to_degrees()
+        );
+        assert!(
+            (r - f64::to_radians(roll)).abs() < 1e-14 && p.abs() < 1e-15,
+            "t {t}"
+        );
+    }
+    // The yaw goes the short way, through 0°, not back round through 180°.
+    let (_, _, y) = imu_emu::math::euler_from_quat(m.pose(5.0).q_b_n);
+    assert!(y.abs() < 10f64.to_radians(), "{}", y.to_degrees());
+}
+
+/// Waypoint mistakes are refused naming the waypoint and its line.
+#[test]
+fn waypoint_mistakes_are_refused() {
+    let head = "[motion]\nstart = { lat_deg = 10 }\nwaypoints = [\n";
+    let e = native(&format!(
+        "{head} {{ t_s = 0, north_m = 0 }},\n {{ t_s = 5, north_m = 50 }},\n {{ t_s = 5, north_m = 90 }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("m.toml:6: `motion.waypoints[2]`") && e.contains("must increase"),
+        "{e}"
+    );
+    // 1 km in 2 s from rest and back to rest: about 1500 m/s² at the ends.
+    let e = native(&format!(
+        "{head} {{ t_s = 0, north_m = 0, velocity_m_s = [1, 0, 0] }},\n {{ t_s = 2, north_m = 1000, velocity_m_s = [1, 0, 0] }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("m.toml:4: `motion.waypoints[0]`") && e.contains("beyond max_g"),
+        "{e}"
+    );
+    let e = native(&format!(
+        "{head} {{ t_s = 0, north_m = 0, yaw_deg = 0 }},\n {{ t_s = 5, north_m = 50 }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("`motion.waypoints[1]`") && e.contains("at every waypoint or at none"),
+        "{e}"
+    );
+    let e = native(&format!(
+        "{head} {{ t_s = 0, north_m = 0, lat_deg = 3, lon_deg = 4 }},\n {{ t_s = 5, north_m = 50 }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("`motion.waypoints[0]`") && e.contains("not both"),
+        "{e}"
+    );
+    let e = native(&format!(
+        "{head} {{ t_s = 0, north_m = 0 }},\n {{ t_s = 5, north_m = 0, east_m = 0 }},\n]\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("`motion.waypoints[0]`") && e.contains("horizontal speed"),
+        "{e}"
+    );
+    let e = native(&format!("{head} {{ t_s = 0, north_m = 0 }},\n]\n")).unwrap_err();
+    assert!(e.contains("at least two waypoints"), "{e}");
+    let e = native(
+        "[motion]\nstart = { speed_m_s = 3 }\nwaypoints = [{ t_s = 0, north_m = 0 }, { t_s = 1, north_m = 1 }]\n",
+    )
+    .unwrap_err();
+    assert!(e.contains("`motion.start.speed_m_s`"), "{e}");
+}
+
+fn ok(out: std::process::Output) -> String {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// `--motion-def` in every command: `run` into a file sink sends the same frames as
+/// `generate` writes; `navigate` closes generated error-free records against it within 1 mm;
+/// `compare` scores an ideal IMU at under 1 mm; `validate` adds its closure row, and a bad
+/// file makes it fail naming the line.
+#[test]
+fn every_command_takes_a_motion_definition() {
+    let dir = scratch("cmds");
+    let turn = demo("motion_def-90deg_turn.csv");
+    let turn = turn.to_str().unwrap();
+    let common = ["--motion-def", turn, "--imu", "ideal"];
+    let frames = ["--format", "kvh1750", "--duration", "2"];
+    ok(bin(
+        &[&["run"][..], &common, &frames, &["--file", "run.kvh"]].concat(),
+        &dir,
+    ));
+    ok(bin(
+        &[&["generate"][..], &common, &frames, &["-o", "g.kvh"]].concat(),
+        &dir,
+    ));
+    let (a, b) = (
+        std::fs::read(dir.join("run.kvh")).unwrap(),
+        std::fs::read(dir.join("g.kvh")).unwrap(),
+    );
+    assert!(
+        a.len() == 2000 * 36 && a == b,
+        "{} vs {} bytes",
+        a.len(),
+        b.len()
+    );
+    ok(bin(
+        &[
+            &["generate"][..],
+            &common,
+            &["--rate", "100", "-o", "full.csv"],
+        ]
+        .concat(),
+        &dir,
+    ));
+    ok(bin(
+        &[
+            "navigate",
+            "full.csv",
+            "--motion-def",
+            turn,
+            "--errors",
+            "e.csv",
+        ],
+        &dir,
+    ));
+    let e = std::fs::read_to_string(dir.join("e.csv")).unwrap();
+    let last: Vec<f64> = e
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert!(last[0] == 10.0 && last[10] < 1e-3, "{last:?}");
+    let out = ok(bin(
+        &[&["compare"][..], &common, &["--runs", "1", "--rate", "100"]].concat(),
+        &dir,
+    ));
+    let ideal = out.lines().find(|l| l.starts_with("ideal")).unwrap();
+    let median: f64 = ideal.split_whitespace().nth(3).unwrap().parse().unwrap();
+    assert!(median < 1e-3, "{out}");
+    ok(bin(
+        &[
+            "validate",
+            "--imu",
+            "ideal",
+            "--motion-def",
+            turn,
+            "--out",
+            "v",
+        ],
+        &dir,
+    ));
+    let report = std::fs::read_to_string(dir.join("v/report.md")).unwrap();
+    let row = report
+        .lines()
+        .find(|l| l.starts_with(&format!("| {turn} |")))
+        .unwrap();
+    assert!(row.ends_with("| pass |"), "{row}");
+    std::fs::write(
+        dir.join("bad.csv"),
+        format!("{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n1,0,0,0,0,0,0,-1,0\n"),
+    )
+    .unwrap();
+    let out = bin(
+        &[
+            "validate",
+            "--imu",
+            "ideal",
+            "--motion-def",
+            "bad.csv",
+            "--out",
+            "v2",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("bad.csv:4: column 8"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The specific force over every segment, transitions included, is checked against max_g:
+/// accelerating at 5 m/s² passes the acceleration limit (5 ≤ 1.05 g) but the specific force
+/// peaks at √(g² + 5²) ≈ 1.12 g, beyond max_g = 1.05 (the message gives the first sample
+/// beyond it); the same acceleration within max_g = 1.2 is accepted.
+#[test]
+fn specific_force_beyond_max_g_is_refused_naming_the_segment() {
+    let seg = "segments = [\n { hold_s = 1 },\n { accelerate_to_m_s = 30, accel_m_s2 = 5 },\n]\n";
+    let e = native(&format!(
+        "[motion]\nstart = {{ speed_m_s = 10 }}\nlimits = {{ max_g = 1.05 }}\n{seg}"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("m.toml:6: `motion.segments[1]`: the specific force reaches 1.0")
+            && e.contains("beyond max_g = 1.05"),
+        "{e}"
+    );
+    native(&format!(
+        "[motion]\nstart = {{ speed_m_s = 10 }}\nlimits = {{ max_g = 1.2 }}\n{seg}"
+    ))
+    .unwrap();
+}
+
+/// gnss-ins-sim's type 2–5 limits set by the user: `[motion] gnss_ins_sim = FILE` with
+/// `gnss_ins_sim_limits`. A type-2 command to 10 m/s from rest is a minimum-jerk move of
+/// 1.875·Δv/a: 18.75 s at the default 1 m/s², 9.375 s at 2 m/s²; a zero limit is refused
+/// naming the key.
+#[test]
+fn gnss_ins_sim_limits_are_settable() {
+    let dir = scratch("lim");
+    let csv =
+        format!("{H1}\n32,120,0,0,0,0,0,0,0\n{H2}\n2,0,0,0,10,0,0,100,1\n1,0,0,0,0,0,0,1,1\n");
+    std::fs::write(dir.join("to10.csv"), csv).unwrap();
+    let span = |limits: &str| {
+        std::fs::write(
+            dir.join("m.toml"),
+            format!("[motion]\ngnss_ins_sim = \"to10.csv\"\n{limits}"),
+        )
+        .unwrap();
+        motiondef::open(&dir.join("m.toml")).map(|m| m.segments()[0].span.1)
+    };
+    let t1 = span("").unwrap();
+    assert!((t1 - 18.75).abs() < 1e-9, "{t1}");
+    let t2 = span("gnss_ins_sim_limits = { max_accel_m_s2 = 2 }\n").unwrap();
+    assert!((t2 - 9.375).abs() < 1e-9, "{t2}");
+    let e = span("gnss_ins_sim_limits = { max_rate_deg_s = 0 }\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("m.toml") && e.contains("`motion.gnss_ins_sim_limits.max_rate_deg_s`"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -20,7 +20,8 @@ pub struct SourceArgs {
     /// Trajectory CSV: t,lat,lon,h,vn,ve,vd,roll,pitch,yaw.
     #[arg(long, conflicts_with = "motion_def")]
     pub trajectory: Option<PathBuf>,
-    /// Motion definition: a gnss-ins-sim motion-definition CSV (docs/motion-definitions.md).
+    /// Motion definition: a native `[motion]` TOML or a gnss-ins-sim motion-definition CSV
+    /// (docs/motion-definitions.md).
     #[arg(long, conflicts_with = "scene")]
     pub motion_def: Option<PathBuf>,
 }
@@ -60,7 +61,8 @@ pub struct ReferenceArgs {
     /// Trajectory CSV: t,lat,lon,h,vn,ve,vd,roll,pitch,yaw.
     #[arg(long, conflicts_with = "motion_def")]
     pub trajectory: Option<PathBuf>,
-    /// Motion definition: a gnss-ins-sim motion-definition CSV (docs/motion-definitions.md).
+    /// Motion definition: a native `[motion]` TOML or a gnss-ins-sim motion-definition CSV
+    /// (docs/motion-definitions.md).
     #[arg(long, conflicts_with = "scene")]
     pub motion_def: Option<PathBuf>,
 }

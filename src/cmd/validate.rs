@@ -31,11 +31,18 @@ pub struct ValidateArgs {
     /// Length of the static perturbed run (s) [default: long enough for the template's terms].
     #[arg(long)]
     pub duration: Option<f64>,
+    /// Also close the reference navigator over this motion definition (native TOML or
+    /// gnss-ins-sim CSV) in the closure table; repeatable.
+    #[arg(long)]
+    pub motion_def: Vec<PathBuf>,
     /// Deliberately break the generator, to show the report can fail. `noise-scaling`: white
     /// noise σ·√Δt instead of σ/√Δt.
     #[arg(long, hide = true)]
     pub sabotage: Option<String>,
 }
+
+/// Largest position error of a closure (m).
+const BOUND_M: f64 = 1e-3;
 
 /// A section of the report: its Markdown and its checks' verdicts.
 struct Section {
@@ -96,7 +103,7 @@ impl Section {
 }
 
 /// The error-free half: static grid and the dynamic scenes.
-fn error_free() -> Section {
+fn error_free(motion_defs: &[PathBuf]) -> Result<Section> {
     let mut s = Section::new("1. Error-free signal");
     s.markdown.push_str(
         "The engine's output against references computed without its kinematics \
@@ -114,15 +121,15 @@ fn error_free() -> Section {
         &truth::scene_checks(),
         "rad/s; rad for Δθ",
     );
-    closure(&mut s);
-    s
+    closure(&mut s, motion_defs)?;
+    Ok(s)
 }
 
 /// Closure through the reference navigator: each scene's error-free records at 400 Hz,
-/// navigated free-inertially from the true initial state, must end within 1 mm of the truth.
-fn closure(s: &mut Section) {
+/// navigated free-inertially from the true initial state, must end within 1 mm of the truth;
+/// so must each motion definition's over its whole length.
+fn closure(s: &mut Section, motion_defs: &[PathBuf]) -> Result<()> {
     const RATE: f64 = 400.0;
-    const BOUND_M: f64 = 1e-3;
     let _ = writeln!(
         s.markdown,
         "### Closure through the reference navigator ({RATE} Hz, `src/nav/`)\n\n\
@@ -136,23 +143,44 @@ fn closure(s: &mut Section) {
             "survey" => None,
             _ => Some(600.0),
         };
-        match imu_emu::nav::closure::close_scene(name, RATE, seconds) {
+        s.closure_row(
+            name,
+            imu_emu::nav::closure::close_scene(name, RATE, seconds),
+        );
+    }
+    for path in motion_defs {
+        let m = imu_emu::source::AnyMotion::Defined(imu_emu::motiondef::open(path)?);
+        let grid = imu_emu::job::plan(&m, RATE, None, None)?;
+        let c = imu_emu::nav::close(&m, &grid, Default::default(), None, 100);
+        s.closure_row(&path.display().to_string(), c);
+    }
+    s.markdown.push('\n');
+    Ok(())
+}
+
+impl Section {
+    /// A row of the closure table: `name`'s closure against the 1 mm bound.
+    fn closure_row(
+        &mut self,
+        name: &str,
+        c: Result<imu_emu::nav::closure::Closure, imu_emu::nav::closure::CloseError>,
+    ) {
+        match c {
             Ok(c) => {
                 let last = c.last.pos_ned.norm();
-                let v = s.verdict(&format!("closure {name}"), c.max_pos <= BOUND_M);
+                let v = self.verdict(&format!("closure {name}"), c.max_pos <= BOUND_M);
                 let _ = writeln!(
-                    s.markdown,
+                    self.markdown,
                     "| {name} | {} | {last:.1e} | {:.1e} | {:.1e} | {:.1e} | {BOUND_M:.0e} | {v} |",
                     c.records, c.max_pos, c.max_vel, c.max_att
                 );
             }
             Err(e) => {
-                let v = s.verdict(&format!("closure {name}"), false);
-                let _ = writeln!(s.markdown, "| {name} | — | {e} | | | | | {v} |");
+                let v = self.verdict(&format!("closure {name}"), false);
+                let _ = writeln!(self.markdown, "| {name} | — | {e} | | | | | {v} |");
             }
         }
     }
-    s.markdown.push('\n');
 }
 
 /// A static run of `model` at `rate_hz` for `seconds`, streamed through the analyzer.
@@ -296,7 +324,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     } else {
         bail!("--imu {imu}: the template has no error figures to validate against");
     };
-    let sections = vec![error_free(), second];
+    let sections = vec![error_free(&a.motion_def)?, second];
     let passed: usize = sections.iter().map(|s| s.passed).sum();
     let failed: Vec<&String> = sections.iter().flat_map(|s| &s.failed).collect();
     let mut md = String::from("# imu-emu validation report\n\n");

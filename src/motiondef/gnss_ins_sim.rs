@@ -92,8 +92,13 @@ fn cells(
     Ok(out)
 }
 
-/// Reads a gnss-ins-sim motion-definition file.
+/// Reads a gnss-ins-sim motion-definition file with its example's limits [`MOBILITY`].
 pub fn read(path: &Path) -> Result<DefinedMotion, FileError> {
+    read_with(path, &MOBILITY)
+}
+
+/// Reads a gnss-ins-sim motion-definition file with the type 2–5 limits `mobility`.
+pub fn read_with(path: &Path, mobility: &Mobility) -> Result<DefinedMotion, FileError> {
     let mut lines = CsvLines::open(path)?;
     let expect_header = |lines: &mut CsvLines<_>, what: &str| -> Result<(), FileError> {
         if !lines.advance()? {
@@ -175,7 +180,7 @@ pub fn read(path: &Path) -> Result<DefinedMotion, FileError> {
                 let rel = if k < 3 { rel_att } else { rel_vel };
                 if rel { now[k] + v[k] } else { v[k] }
             });
-            profile.reach(target, &MOBILITY, duration);
+            profile.reach(target, mobility, duration);
         }
         segments.push(Segment {
             line,

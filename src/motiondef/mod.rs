@@ -16,6 +16,7 @@
 pub mod gnss_ins_sim;
 pub mod native;
 pub mod profile;
+pub mod waypoints;
 
 use std::path::Path;
 
@@ -196,6 +197,72 @@ impl DefinedMotion {
         self.segments
             .get(i.saturating_sub(1))
             .is_none_or(|s| s.gnss_visible)
+    }
+
+    /// The spans [start, end) in which GNSS is not visible, adjacent commands merged: exactly
+    /// the times at which [`DefinedMotion::gnss_visible`] is false. The first command's flag
+    /// holds before the start and the last one's after the end, so a span reaching either
+    /// opens to ∓`f64::MAX` (finite, as outage windows must be).
+    pub fn gnss_outages(&self) -> Vec<[f64; 2]> {
+        let mut out: Vec<[f64; 2]> = Vec::new();
+        for (i, s) in self.segments.iter().enumerate() {
+            if s.gnss_visible {
+                continue;
+            }
+            let end = match self.segments.get(i + 1) {
+                Some(next) => next.span.0,
+                None => f64::MAX,
+            };
+            // Before the first command the flag is the first one's (`gnss_visible` defaults to it).
+            let start = if i == 0 { -f64::MAX } else { s.span.0 };
+            match out.last_mut() {
+                _ if start >= end => {}
+                Some(w) if w[1] == start => w[1] = end,
+                _ => out.push([start, end]),
+            }
+        }
+        out
+    }
+
+    /// Checks the specific force against `max_g` times `g` (and, if given, |ω_ib| against
+    /// `max_rate` plus the Earth's rate) at the start, middle and end of every knot interval;
+    /// a violation returns the index of the segment it falls in and what was exceeded.
+    pub(crate) fn check_load(
+        &self,
+        g: f64,
+        max_g: f64,
+        max_rate: Option<f64>,
+    ) -> Result<(), (usize, String)> {
+        for (i, k) in self.knots.iter().enumerate() {
+            let end = self.piece_end(i).min(self.end);
+            let seg = self.pieces[k.piece].segment;
+            for t in [k.t0, 0.5 * (k.t0 + end), end] {
+                let s = self.sense(i, t);
+                let (n, w) = (s.f_b.norm() / g, s.omega_ib_b.norm());
+                if n > max_g || !n.is_finite() {
+                    return Err((
+                        seg,
+                        format!(
+                            "the specific force reaches {n:.3} g at t = {t} s, beyond max_g = {max_g}"
+                        ),
+                    ));
+                }
+                if let Some(r) = max_rate
+                    && (w > r + earth::OMEGA_IE || !w.is_finite())
+                {
+                    return Err((
+                        seg,
+                        format!(
+                            "the angular rate reaches {:.3}°/s at t = {t} s, beyond \
+                             max_rate_deg_s = {}",
+                            w.to_degrees(),
+                            r.to_degrees()
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     #[inline]

@@ -15,6 +15,7 @@ use std::path::Path;
 use serde::Deserialize;
 
 use super::profile::{BLEND_S, CHANNELS, Mobility, Profile};
+use super::waypoints::{self, PathLimits, WaypointSpec};
 use super::{DefinedMotion, Segment, prescribed};
 use crate::csvio::{FileError, num};
 use crate::earth;
@@ -84,7 +85,34 @@ struct MotionSpec {
     start: Start,
     #[serde(default)]
     limits: Limits,
+    #[serde(default)]
     segments: Vec<toml::Spanned<SegmentSpec>>,
+    waypoints: Option<Vec<toml::Spanned<WaypointSpec>>>,
+    /// A gnss-ins-sim file (relative to this one) read with `gnss_ins_sim_limits`.
+    gnss_ins_sim: Option<String>,
+    #[serde(default)]
+    gnss_ins_sim_limits: GnssInsSimLimits,
+}
+
+/// `[motion.gnss_ins_sim_limits]`: the limits of gnss-ins-sim's types 2–5 (defaults: its
+/// path-generation example's 1 m/s², 0.5 rad/s², 2 rad/s).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct GnssInsSimLimits {
+    max_accel_m_s2: f64,
+    max_angular_accel_deg_s2: f64,
+    max_rate_deg_s: f64,
+}
+
+impl Default for GnssInsSimLimits {
+    fn default() -> GnssInsSimLimits {
+        let m = super::gnss_ins_sim::MOBILITY;
+        GnssInsSimLimits {
+            max_accel_m_s2: m.max_accel,
+            max_angular_accel_deg_s2: m.max_angular_accel.to_degrees(),
+            max_rate_deg_s: m.max_rate.to_degrees(),
+        }
+    }
 }
 
 /// The document: only `[motion]` is read, so a scene file's other tables pass.
@@ -122,7 +150,101 @@ pub fn parse(text: &str, path: &Path) -> Result<DefinedMotion, FileError> {
              `segments`; see docs/motion-definitions.md)",
         ));
     };
-    Builder::new(&spec, path)?.run(&spec, text, path)
+    if let Some(file) = &spec.gnss_ins_sim {
+        return gnss_ins_sim_file(&spec, file, path);
+    }
+    let builder = Builder::new(&spec, path)?;
+    match &spec.waypoints {
+        Some(wps) => waypoint_path(&spec, &builder, wps, text, path),
+        None => builder.run(&spec, text, path),
+    }
+}
+
+/// A gnss-ins-sim file named by `motion.gnss_ins_sim`, read with the limits given.
+fn gnss_ins_sim_file(
+    spec: &MotionSpec,
+    file: &str,
+    path: &Path,
+) -> Result<DefinedMotion, FileError> {
+    if !spec.segments.is_empty() || spec.waypoints.is_some() {
+        return Err(FileError::file(
+            path,
+            "`motion`: give one of `segments`, `waypoints` or `gnss_ins_sim`",
+        ));
+    }
+    let l = &spec.gnss_ins_sim_limits;
+    let given = [
+        ("max_accel_m_s2", l.max_accel_m_s2, limits::MAX_ACCEL_M_S2),
+        (
+            "max_angular_accel_deg_s2",
+            l.max_angular_accel_deg_s2,
+            5.7e7,
+        ),
+        ("max_rate_deg_s", l.max_rate_deg_s, 5.7e5),
+    ];
+    for (k, v, top) in given {
+        if !(v > 0.0 && v <= top) {
+            return Err(FileError::file(
+                path,
+                format!(
+                    "`motion.gnss_ins_sim_limits.{k}` = {}: a positive number within the \
+                     kinematics' limits",
+                    num(v)
+                ),
+            ));
+        }
+    }
+    let mobility = Mobility {
+        max_accel: l.max_accel_m_s2,
+        max_angular_accel: l.max_angular_accel_deg_s2.to_radians(),
+        max_rate: l.max_rate_deg_s.to_radians(),
+    };
+    let csv = path.parent().unwrap_or(Path::new("")).join(file);
+    super::gnss_ins_sim::read_with(&csv, &mobility)
+}
+
+/// The path through `motion.waypoints`.
+fn waypoint_path(
+    spec: &MotionSpec,
+    b: &Builder,
+    wps: &[toml::Spanned<WaypointSpec>],
+    text: &str,
+    path: &Path,
+) -> Result<DefinedMotion, FileError> {
+    let s = &spec.start;
+    if !spec.segments.is_empty() {
+        return Err(FileError::file(
+            path,
+            "`motion`: give `segments` or `waypoints`, not both",
+        ));
+    }
+    for (k, v) in [
+        ("speed_m_s", s.speed_m_s),
+        ("yaw_deg", s.yaw_deg),
+        ("pitch_deg", s.pitch_deg),
+        ("roll_deg", s.roll_deg),
+    ] {
+        if v != 0.0 {
+            return Err(FileError::file(
+                path,
+                format!(
+                    "`motion.start.{k}`: with waypoints the velocity and attitude come from the                      waypoints; `start` gives only the origin (`lat_deg`, `lon_deg`, `h_m`)"
+                ),
+            ));
+        }
+    }
+    let list: Vec<(u64, &WaypointSpec)> = wps
+        .iter()
+        .map(|w| (line_of(text, w.span().start), w.get_ref()))
+        .collect();
+    let lim = PathLimits {
+        max_g: b.max_g,
+        max_rate: b.mobility.max_rate,
+    };
+    waypoints::build(&list, b.origin, &lim).map_err(|(i, m)| {
+        let line = list.get(i).map_or(1, |w| w.0);
+        FileError::line(path, line, format!("`motion.waypoints[{i}]`: {m}"))
+    })
 }
 
 /// The limits in SI units, and the vehicle's state the segments need.
@@ -252,11 +374,14 @@ impl Builder {
                 "`motion.segments`: no segment takes any time",
             ));
         }
-        Ok(DefinedMotion::new(
-            self.origin,
-            self.profile.into_pieces(),
-            segments,
-        ))
+        let m = DefinedMotion::new(self.origin, self.profile.into_pieces(), segments);
+        // The closed-form checks of each segment bound its steady part; this also covers the
+        // transitions (turn entry and exit, pitch-in, acceleration on top of gravity).
+        m.check_load(self.g, self.max_g, None).map_err(|(i, msg)| {
+            let line = m.segments().get(i).map_or(1, |s| s.line);
+            FileError::line(path, line, format!("`motion.segments[{i}]`: {msg}"))
+        })?;
+        Ok(m)
     }
 
     /// Height gained over the pieces from `first` on: ∫ −v_D dt by 16-point Gauss–Legendre on

@@ -18,9 +18,13 @@ impl Simulation {
         self.gnss.as_ref()
     }
 
-    /// The receiver (the configured one, else the default) with this run's seed.
+    /// The receiver (the configured one, else the default) with this run's seed; a motion
+    /// definition's spans without GNSS visibility are further outages.
     pub fn gnss_receiver(&self) -> Receiver {
-        let cfg = self.gnss.clone().unwrap_or_default();
+        let mut cfg = self.gnss.clone().unwrap_or_default();
+        if let Some(m) = self.motion.defined() {
+            cfg.outages_s.extend(m.gnss_outages());
+        }
         // The settings were checked when the simulation was built; the default is valid.
         Receiver::new(cfg, self.seed).expect("checked GNSS settings")
     }
