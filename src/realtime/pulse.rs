@@ -133,7 +133,7 @@ impl PulseSpec {
             // A whole second in (previous ToV, this ToV]; the first frame marks t₀'s second
             // only when it falls on it.
             Mark::Pps => {
-                let sec = |t: i64| (t - 1).div_euclid(1_000_000_000);
+                let sec = |t: i64| t.div_euclid(1_000_000_000);
                 match prev_tov_sim_ns {
                     Some(p) => sec(p) != sec(f.tov_sim_ns),
                     None => f.tov_sim_ns.rem_euclid(1_000_000_000) == 0,
