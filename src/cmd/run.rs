@@ -476,7 +476,9 @@ fn sync_extras(
             .map_err(|e| anyhow::anyhow!("--pulse: {e}"))?;
         let dev = (a.pulse_port.as_deref())
             .or(a.serial.first().map(|s| split_sink(s).0))
-            .ok_or_else(|| anyhow::anyhow!("--pulse: give --pulse-port DEV or a --serial device"))?;
+            .ok_or_else(|| {
+                anyhow::anyhow!("--pulse: give --pulse-port DEV or a --serial device")
+            })?;
         let line = pulse::ModemLine::open(dev, spec.pin).context("--pulse")?;
         extras
             .hooks

@@ -135,7 +135,10 @@ mod tests {
         assert_eq!(s.at(2_000_000_000), 1_000 + 2_000_000_000);
         // One second later in nominal time is 0.999 s later on the wall.
         assert_eq!(s.at(3_000_000_000), 1_000 + 2_000_000_000 + 999_000_000);
-        assert_eq!(s.nominal(1_000 + 2_000_000_000 + 999_000_000), 3_000_000_000);
+        assert_eq!(
+            s.nominal(1_000 + 2_000_000_000 + 999_000_000),
+            3_000_000_000
+        );
     }
 
     /// One edge 3 ms before our whole second: φ = +3 ms exactly, and the rate is 1 − (Kp + Ki)·φ/P.
@@ -173,6 +176,10 @@ mod tests {
         assert!(errs[0] > 2.9e6, "{}", errs[0]);
         assert!(errs[10].abs() < 2e4, "{errs:?}");
         assert!(errs[59].abs() < 1.0, "{}", errs[59]);
-        assert!((l.state.freq_offset_ppm - 20.0).abs() < 0.01, "{}", l.state.freq_offset_ppm);
+        assert!(
+            (l.state.freq_offset_ppm - 20.0).abs() < 0.01,
+            "{}",
+            l.state.freq_offset_ppm
+        );
     }
 }

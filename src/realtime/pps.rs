@@ -94,7 +94,12 @@ impl EdgeSource for UdpEdges {
                 Ok(Some(monotonic_ns() + (utc as i128 - realtime_ns())))
             }
             Ok(_) => Ok(Some(monotonic_ns())),
-            Err(e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                ) =>
+            {
                 Ok(None)
             }
             Err(e) => Err(e),

@@ -174,11 +174,7 @@ impl ModemLine {
 
 impl Line for ModemLine {
     fn set(&mut self, high: bool) -> io::Result<()> {
-        let req = if high {
-            libc::TIOCMBIS
-        } else {
-            libc::TIOCMBIC
-        };
+        let req = if high { libc::TIOCMBIS } else { libc::TIOCMBIC };
         // Neither std nor nix wraps the modem-line ioctls. SAFETY: `fd` is an open descriptor we
         // own, and TIOCMBIS/TIOCMBIC read one `int` through the pointer, which lives across the
         // call.
@@ -282,12 +278,28 @@ mod tests {
         );
         let p: PulseSpec = "rts:tov".parse().unwrap();
         assert_eq!((p.offset_ns, p.width_ns), (0, DEFAULT_WIDTH_NS));
-        assert_eq!("rts:tov:0:2 ms".parse::<PulseSpec>().unwrap().width_ns, 2_000_000);
-        for bad in ["cts:tov", "rts", "rts:edge", "rts:tov:5", "rts:tov:1ms:0", "rts:tov:1ms:1ms:1"] {
+        assert_eq!(
+            "rts:tov:0:2 ms".parse::<PulseSpec>().unwrap().width_ns,
+            2_000_000
+        );
+        for bad in [
+            "cts:tov",
+            "rts",
+            "rts:edge",
+            "rts:tov:5",
+            "rts:tov:1ms:0",
+            "rts:tov:1ms:1ms:1",
+        ] {
             assert!(bad.parse::<PulseSpec>().is_err(), "{bad}");
         }
         assert!(p.check(5e6).is_ok());
-        assert!("rts:tov:0:5ms".parse::<PulseSpec>().unwrap().check(5e6).is_err());
+        assert!(
+            "rts:tov:0:5ms"
+                .parse::<PulseSpec>()
+                .unwrap()
+                .check(5e6)
+                .is_err()
+        );
     }
 
     fn frame(tov_sim_ns: i64) -> FrameTime {
@@ -309,8 +321,14 @@ mod tests {
         let pps: PulseSpec = "rts:pps:1ms".parse().unwrap();
         assert_eq!(pps.edge(&frame(0), None), Some(1_000 + 1_000_000));
         assert_eq!(pps.edge(&frame(5_000_000), None), None);
-        assert_eq!(pps.edge(&frame(1_000_000_000), Some(995_000_000)), Some(1_000 + 1_001_000_000));
-        assert_eq!(pps.edge(&frame(1_004_000_000), Some(999_000_000)), Some(1_000 + 1_005_000_000));
+        assert_eq!(
+            pps.edge(&frame(1_000_000_000), Some(995_000_000)),
+            Some(1_000 + 1_001_000_000)
+        );
+        assert_eq!(
+            pps.edge(&frame(1_004_000_000), Some(999_000_000)),
+            Some(1_000 + 1_005_000_000)
+        );
         assert_eq!(pps.edge(&frame(1_005_000_000), Some(1_000_000_000)), None);
     }
 }

@@ -101,9 +101,8 @@ impl TimeMarks {
         let out = match target.strip_prefix("udp://") {
             Some(dest) => {
                 let sock = UdpSocket::bind("0.0.0.0:0")?;
-                sock.connect(dest).map_err(|e| {
-                    io::Error::new(e.kind(), format!("--time-marks {target}: {e}"))
-                })?;
+                sock.connect(dest)
+                    .map_err(|e| io::Error::new(e.kind(), format!("--time-marks {target}: {e}")))?;
                 sock.set_nonblocking(true)?;
                 Out::Udp(sock)
             }

@@ -101,10 +101,7 @@ impl SensorTiming {
         if model.skew < span.0 {
             return Err(format!(
                 "`skew` = {} s: the accelerometers' first interval would begin {} s before t₀, before the motion starts ({} s before t₀); start the run at least that much later (--start) or give a skew ≥ {} s",
-                model.skew,
-                -model.skew,
-                -span.0,
-                span.0
+                model.skew, -model.skew, -span.0, span.0
             ));
         }
         let stream = |name: &str| NormalStream::new(seed, name);
