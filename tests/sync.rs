@@ -25,9 +25,12 @@ fn utc_now_ns() -> i128 {
         .as_nanos() as i128
 }
 
+/// A datagram: CLOCK_REALTIME when `recv` returned (ns), and its bytes.
+type Arrival = (i128, Vec<u8>);
+
 /// A loopback UDP receiver on its own thread until `secs` have passed: each datagram with
 /// CLOCK_REALTIME at its arrival.
-fn receive(secs: f64) -> (String, std::thread::JoinHandle<Vec<(i128, Vec<u8>)>>) {
+fn receive(secs: f64) -> (String, std::thread::JoinHandle<Vec<Arrival>>) {
     let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
     rx.set_read_timeout(Some(Duration::from_millis(100)))
         .unwrap();
