@@ -96,11 +96,11 @@ impl GpsClock {
         };
         match kernel_clock() {
             Some(k) if k.synchronised => format!(
-                "{source} synchronised, est. error {} µs (max {} µs)",
+                "{source} synchronised, estimated ±{} µs (bound {} µs)",
                 k.est_error_us, k.max_error_us
             ),
             Some(k) => format!(
-                "{source} not synchronised (max error {} µs)",
+                "{source} not synchronised (uncertainty bound {} µs)",
                 k.max_error_us
             ),
             None => format!("{source}, status unavailable"),
