@@ -209,6 +209,7 @@ pub fn run(a: RunArgs) -> Result<()> {
         &mut signals,
         sinks,
         pacing,
+        Default::default(),
         move |tx, recycled| merge::produce_merged(sources, WINDOW_NS, tx, recycled),
         move |s| status_line(s, &line_names),
     )?;

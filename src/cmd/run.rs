@@ -78,6 +78,22 @@ pub struct RunArgs {
     /// own time, offset by --gps-time).
     #[arg(long, default_value = "sim", value_parser = ["gps", "utc", "sim"])]
     pub time_base: String,
+    /// Time-mark side channel: per frame its index, time of validity, due and emission
+    /// instants, to `udp://HOST:PORT` (40-byte datagrams) or a file (CSV if it ends in .csv,
+    /// else 40-byte records); see docs/timing.md. Repeatable.
+    #[arg(long, value_name = "udp://HOST:PORT|FILE")]
+    pub time_marks: Vec<String>,
+    /// Pulse on a modem line: LINE rts|dtr, MARK tov (every sample's time of validity) or pps
+    /// (each whole second), the rising edge OFFSET after it and WIDTH high [default 0, 500us].
+    #[arg(long, value_name = "LINE:MARK[:OFFSET][:WIDTH]")]
+    pub pulse: Option<imu_emu::realtime::pulse::PulseSpec>,
+    /// Serial device whose modem line --pulse drives [default: the first --serial].
+    #[arg(long, value_name = "DEV")]
+    pub pulse_port: Option<String>,
+    /// Phase-lock the output's whole seconds to a PPS: `/dev/ppsN`, `dcd:DEV`, `cts:DEV` or
+    /// `udp://HOST:PORT` (edge datagrams); see docs/timing.md.
+    #[arg(long, value_name = "SOURCE")]
+    pub pps_in: Option<String>,
     /// Frames later than this are skipped and counted rather than sent in a burst (ms).
     #[arg(long, default_value_t = 100.0)]
     pub max_behind_ms: f64,
@@ -201,6 +217,7 @@ pub fn run(a: RunArgs) -> Result<()> {
         StopSignals::new()?
     };
 
+    let stop = Arc::new(AtomicBool::new(false));
     // Sinks, each on stream 0 (the main protocol) or on a stream of its own protocol.
     let mut streams = Streams::new(plan.clone(), grid.rate_hz);
     let mut sinks: Vec<Routed> = Vec::new();
@@ -267,6 +284,7 @@ pub fn run(a: RunArgs) -> Result<()> {
         .map(|p| sim.frames_encoding(p))
         .collect();
 
+    let extras = sync_extras(&a, paced, speed, grid.rate_hz, &stop)?;
     let pacing = if paced {
         let start_ns = start_at
             .map(clock::start_at)
@@ -302,8 +320,9 @@ pub fn run(a: RunArgs) -> Result<()> {
         &mut signals,
         sinks,
         pacing,
+        (stop, extras),
         move |tx, recycle_rx| realtime::produce(producer, block, n_streams, tx, recycle_rx),
-        status_line,
+        |s| format!("{} | {}", status_line(s), host.brief()),
     )?;
     let (final_status, interrupted, failed) = (ended.status, ended.interrupted, ended.failed);
     eprintln!(
@@ -311,6 +330,9 @@ pub fn run(a: RunArgs) -> Result<()> {
         interrupted.map_or(String::new(), |i| format!("{i}: ")),
         summary(&final_status, grid.count, paced)
     );
+    if paced {
+        eprintln!("imu-emu: host clock: {}", host.brief());
+    }
     // After the summary: the exit status tells a script the run did not complete.
     if let Some(e) = failed {
         return Err(anyhow::Error::new(e).context("stopped: nothing non-finite was sent"));
@@ -329,13 +351,14 @@ pub(super) struct Ended {
 }
 
 /// Runs `produce` (blocks of frames, on a blocking thread) into the pacer (its own thread)
-/// writing `sinks`, shows `line` of the live status once a second on a terminal, and stops
-/// on a signal.
+/// writing `sinks` with the `extras` (time marks, pulses, phase lock), shows `line` of the
+/// live status once a second on a terminal, and stops on a signal (or when `stop` is set).
 pub(super) fn drive(
     rt: &tokio::runtime::Runtime,
     signals: &mut StopSignals,
     sinks: Vec<Routed>,
     pacing: Pacing,
+    (stop, extras): (Arc<AtomicBool>, pacer::Extras),
     produce: impl FnOnce(
         tokio::sync::mpsc::Sender<FrameBlock>,
         tokio::sync::mpsc::Receiver<FrameBlock>,
@@ -345,7 +368,6 @@ pub(super) fn drive(
     line: impl Fn(&Status) -> String,
 ) -> Result<Ended> {
     let paced = matches!(pacing, Pacing::Paced(_));
-    let stop = Arc::new(AtomicBool::new(false));
     let status = Arc::new(Mutex::new(Status::default()));
     let (tx, rx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
     let (recycle_tx, recycle_rx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
@@ -356,7 +378,7 @@ pub(super) fn drive(
         std::thread::Builder::new()
             .name("imu-pacer".into())
             .spawn(move || {
-                let r = pacer::run(rx, recycle_tx, sinks, pacing, stop, status);
+                let r = pacer::run_with(rx, recycle_tx, sinks, pacing, stop, status, extras);
                 let _ = done_tx.send(());
                 r
             })?
@@ -473,10 +495,65 @@ fn status_line(s: &Status) -> String {
     if s.skipped > 0 {
         line += &format!(", {} skipped", s.skipped);
     }
+    if let Some(l) = &s.lock {
+        line += &format!(", {}", lock_text(l));
+    }
     for (label, st) in &s.sinks {
         line += &format!(" | {label}: {} dropped", st.dropped + st.no_reader);
     }
     line
+}
+
+/// The phase lock's state in words.
+fn lock_text(l: &imu_emu::realtime::lock::LockState) -> String {
+    format!(
+        "PPS lock: {} edges, phase error {:.3} ms, frequency offset {:+.3} ppm",
+        l.edges,
+        l.phase_error_ns / 1e6,
+        l.freq_offset_ppm
+    )
+}
+
+/// The time marks, pulse output and PPS lock the flags ask for.
+fn sync_extras(
+    a: &RunArgs,
+    paced: bool,
+    speed: f64,
+    rate_hz: f64,
+    stop: &Arc<AtomicBool>,
+) -> Result<pacer::Extras> {
+    use imu_emu::realtime::{lock::PhaseLock, pps, pulse, timemark::TimeMarks};
+    let mut extras = pacer::Extras::default();
+    let asked = !a.time_marks.is_empty() || a.pulse.is_some() || a.pps_in.is_some();
+    if asked && !paced {
+        bail!("--time-marks, --pulse and --pps-in need a paced run: give --speed 1");
+    }
+    for t in &a.time_marks {
+        extras.hooks.push(Box::new(TimeMarks::open(t)?));
+    }
+    if let Some(spec) = a.pulse {
+        spec.check(1e9 / (rate_hz * speed))
+            .map_err(|e| anyhow::anyhow!("--pulse: {e}"))?;
+        let dev = (a.pulse_port.as_deref())
+            .or(a.serial.first().map(|s| split_sink(s).0))
+            .ok_or_else(|| {
+                anyhow::anyhow!("--pulse: give --pulse-port DEV or a --serial device")
+            })?;
+        let line = pulse::ModemLine::open(dev, spec.pin).context("--pulse")?;
+        extras
+            .hooks
+            .push(Box::new(pulse::Pulse::new(spec, Box::new(line))?));
+    } else if a.pulse_port.is_some() {
+        bail!("--pulse-port without --pulse");
+    }
+    if let Some(src) = &a.pps_in {
+        if speed != 1.0 {
+            bail!("--pps-in locks real seconds: give --speed 1");
+        }
+        let edges = pps::spawn(pps::open(src)?, stop.clone())?;
+        extras.lock = Some((edges, PhaseLock::new(1_000_000_000)));
+    }
+    Ok(extras)
 }
 
 /// The end-of-run summary.
@@ -485,6 +562,9 @@ fn summary(s: &Status, planned: u64, paced: bool) -> String {
     if paced {
         out += &format!(", write lateness {}", s.lateness.summary());
         out += &format!(", {} skipped (too late)", s.skipped);
+    }
+    if let Some(l) = &s.lock {
+        out += &format!(", {}", lock_text(l));
     }
     if let Some(f) = s.fifo {
         out += if f {

@@ -87,6 +87,26 @@ impl GpsClock {
         self.utc_to_gps_ns(realtime_ns())
     }
 
+    /// A few words for the status line: the clock source and the kernel's error estimate.
+    pub fn brief(&self) -> String {
+        let source = if self.uses_tai() {
+            "CLOCK_TAI"
+        } else {
+            "CLOCK_REALTIME"
+        };
+        match kernel_clock() {
+            Some(k) if k.synchronised => format!(
+                "{source} synchronised, estimated ±{} µs (bound {} µs)",
+                k.est_error_us, k.max_error_us
+            ),
+            Some(k) => format!(
+                "{source} not synchronised (uncertainty bound {} µs)",
+                k.max_error_us
+            ),
+            None => format!("{source}, status unavailable"),
+        }
+    }
+
     /// One line for the user: the clock source, the leap seconds and the kernel's error
     /// estimate.
     pub fn describe(&self, utc_ns: i128) -> String {

@@ -9,14 +9,19 @@
 //! clock never waits for a consumer.
 
 pub mod clock;
+pub mod hook;
 pub mod hostclock;
 pub mod merge;
+pub mod lock;
 pub mod pacer;
+pub mod pps;
 pub mod pty;
+pub mod pulse;
 pub mod serial;
 pub mod signal;
 pub mod sink;
 pub mod stats;
+pub mod timemark;
 pub mod udp;
 
 use crate::job::Producer;
@@ -32,6 +37,9 @@ pub struct FrameBlock {
     /// Emission time of each frame after the run's t₀ in simulated ns, when the IMU has
     /// timing errors (latency, its own clock); empty: frame k at k·Δt, the end of its interval.
     pub emit_ns: Vec<i64>,
+    /// Time of validity of each frame after t₀ in simulated ns, when the IMU has timing
+    /// errors; empty: frame k's time of validity is the end of its interval, k·Δt.
+    pub tov_ns: Vec<i64>,
 }
 
 impl FrameBlock {
@@ -110,9 +118,12 @@ pub fn produce(
         };
         b.first = out.first;
         b.emit_ns.clear();
+        b.tov_ns.clear();
         if let Some(t) = &out.times {
             b.emit_ns
                 .extend(t.emit.iter().map(|e| (e * 1e9).round() as i64));
+            b.tov_ns
+                .extend(t.tov.iter().map(|e| (e * 1e9).round() as i64));
         }
         if tx.blocking_send(b).is_err() {
             return None;

@@ -23,6 +23,8 @@ use tokio::sync::mpsc::{Receiver, Sender};
 
 use super::FrameBlock;
 use super::clock::{monotonic_ns, sleep_until};
+use super::hook::{FrameHook, FrameTime};
+use super::lock::{LockState, PhaseLock, Schedule};
 use super::sink::{Sink, SinkStats};
 use super::stats::Lateness;
 
@@ -95,8 +97,25 @@ impl Clocking {
     /// block carries them, else the nominal one.
     fn deadline_in(&self, start: i128, block: &FrameBlock, i: usize) -> i128 {
         match block.emit_ns.get(i) {
-            Some(e) => start + (*e as f64 * self.wall_per_sim).round() as i128,
+            Some(e) => start + self.wall(*e),
             None => self.deadline(start, block.first + i as u64 + 1),
+        }
+    }
+
+    /// Wall-clock ns of `sim_ns` simulated ns at the run's speed.
+    fn wall(&self, sim_ns: i64) -> i128 {
+        (sim_ns as f64 * self.wall_per_sim).round() as i128
+    }
+
+    /// When frame `i` of `block` is valid, on the records' time axis (simulated ns after t₀)
+    /// and as a nominal wall-clock offset after the start.
+    fn tov_in(&self, block: &FrameBlock, i: usize) -> (i64, i128) {
+        match block.tov_ns.get(i) {
+            Some(t) => (*t, self.wall(*t)),
+            None => {
+                let n = self.deadline(0, block.first + i as u64 + 1);
+                ((n as f64 / self.wall_per_sim).round() as i64, n)
+            }
         }
     }
 
@@ -142,6 +161,8 @@ pub struct Status {
     /// Per stream of the blocks: frames handed to its sinks and frames skipped (a merged
     /// run's per-source counts; empty frames of other streams are not counted).
     pub streams: Vec<StreamCounts>,
+    /// The phase lock to external edges, when there is one.
+    pub lock: Option<LockState>,
 }
 
 /// One stream's frames, as the pacer handled them.
@@ -190,15 +211,37 @@ impl Routed {
     }
 }
 
+/// What a run may add to the frames: hooks told of every frame, and edges to phase-lock to.
+#[derive(Default)]
+pub struct Extras {
+    /// Told of every frame (time marks, pulses).
+    pub hooks: Vec<Box<dyn FrameHook>>,
+    /// Edges (CLOCK_MONOTONIC ns) the schedule's whole seconds lock to, and the loop.
+    pub lock: Option<(std::sync::mpsc::Receiver<i128>, PhaseLock)>,
+}
+
 /// Runs the pacer on the calling thread until the producer's channel closes or `stop` is set;
 /// returns the final counts (also left in `status`).
 pub fn run(
+    rx: Receiver<FrameBlock>,
+    recycle: Sender<FrameBlock>,
+    sinks: Vec<Routed>,
+    pacing: Pacing,
+    stop: Arc<AtomicBool>,
+    status: Arc<Mutex<Status>>,
+) -> io::Result<Status> {
+    run_with(rx, recycle, sinks, pacing, stop, status, Extras::default())
+}
+
+/// [`run`] with hooks and a phase lock.
+pub fn run_with(
     mut rx: Receiver<FrameBlock>,
     recycle: Sender<FrameBlock>,
     mut sinks: Vec<Routed>,
     pacing: Pacing,
     stop: Arc<AtomicBool>,
     status: Arc<Mutex<Status>>,
+    mut extras: Extras,
 ) -> io::Result<Status> {
     let mut st = Status {
         sinks: sink_stats(&sinks),
@@ -222,6 +265,8 @@ pub fn run(
     let mut last_publish = 0i128;
     let mut warned_skip = false;
     let mut ends = Vec::new();
+    let mut times: Vec<FrameTime> = Vec::new();
+    let mut sched: Option<Schedule> = None;
     'blocks: while let Some(block) = rx.blocking_recv() {
         let n = block.len();
         let Some(c) = &clocking else {
@@ -236,26 +281,53 @@ pub fn run(
         };
         let t0 = *start.get_or_insert_with(monotonic_ns);
         st.start_ns = Some(t0);
+        let sched = sched.get_or_insert_with(|| Schedule::new(t0));
+        // Deadlines through the schedule, which a phase lock may slew.
+        let due = |s: &Schedule, j: usize| s.at(c.deadline_in(0, &block, j));
+        if !extras.hooks.is_empty() {
+            times.clear();
+            times.extend((0..n).map(|j| {
+                let (tov_sim_ns, tov) = c.tov_in(&block, j);
+                let due_ns = due(sched, j);
+                FrameTime {
+                    index: block.first + j as u64,
+                    tov_sim_ns,
+                    tov_ns: sched.at(tov),
+                    due_ns,
+                    written_ns: due_ns,
+                }
+            }));
+            for h in extras.hooks.iter_mut() {
+                h.ahead(&times);
+            }
+        }
         let mut i = 0;
         while i < n {
             // The wake-up of i's batch: the deadline of the batch's last frame in this block.
-            let last = c.batch_end(t0, &block, i); // exclusive index
-            let wake = c.deadline_in(t0, &block, last - 1);
+            let last = c.batch_end(0, &block, i); // exclusive index
             loop {
                 if stop.load(Ordering::Relaxed) {
                     break 'blocks;
                 }
                 let now = monotonic_ns();
+                if let Some((edges, pll)) = &mut extras.lock {
+                    while let Ok(edge) = edges.try_recv() {
+                        pll.edge(sched, edge, now);
+                        st.lock = Some(pll.state);
+                    }
+                }
+                let wake = due(sched, last - 1);
                 if now >= wake {
                     break;
                 }
-                // Sleep in slices of at most 100 ms so a stop request is seen promptly.
+                // Sleep in slices of at most 100 ms so a stop request (or an edge) is seen
+                // promptly.
                 sleep_until(wake.min(now + 100_000_000));
             }
             let now = monotonic_ns();
             // Skip what is too late to be worth sending; send at once what is due.
             let mut from = i;
-            while from < n && c.deadline_in(t0, &block, from) + c.max_behind_ns < now {
+            while from < n && due(sched, from) + c.max_behind_ns < now {
                 from += 1;
             }
             if from > i {
@@ -271,7 +343,7 @@ pub fn run(
                 }
             }
             let mut to = last.max(from);
-            while to < n && c.deadline_in(t0, &block, to) <= now {
+            while to < n && due(sched, to) <= now {
                 to += 1;
             }
             if to > from {
@@ -279,7 +351,15 @@ pub fn run(
                 count_streams(&mut st.streams, &block, from, to, false);
                 let done = monotonic_ns();
                 for j in from..to {
-                    pending.push(done - c.deadline_in(t0, &block, j));
+                    let due_ns = due(sched, j);
+                    pending.push(done - due_ns);
+                    if let Some(f) = times.get_mut(j) {
+                        f.due_ns = due_ns;
+                        f.written_ns = done;
+                        for h in extras.hooks.iter_mut() {
+                            h.written(f)?;
+                        }
+                    }
                 }
                 st.frames += (to - from) as u64;
             }
@@ -293,6 +373,9 @@ pub fn run(
     for s in sinks.iter_mut() {
         s.sink.finish()?;
     }
+    for h in extras.hooks.iter_mut() {
+        h.finish()?;
+    }
     let mut guard = status.lock().unwrap_or_else(|e| e.into_inner());
     for l in pending.drain(..) {
         guard.lateness.add(l);
@@ -302,6 +385,7 @@ pub fn run(
     guard.skipped = st.skipped;
     guard.fifo = st.fifo;
     guard.streams = st.streams.clone();
+    guard.lock = st.lock;
     guard.sinks = sink_stats(&sinks);
     Ok(guard.clone())
 }
@@ -363,6 +447,7 @@ fn publish(status: &Mutex<Status>, st: &mut Status, pending: &mut Vec<i128>, sin
         g.skipped = st.skipped;
         g.fifo = st.fifo;
         g.streams.clone_from(&st.streams);
+        g.lock = st.lock;
         g.sinks = sink_stats(sinks);
     }
 }
@@ -410,6 +495,7 @@ mod tests {
             first: 0,
             streams: vec![(vec![0; 4], vec![1, 2, 3, 4])],
             emit_ns: vec![1_400_000, 2_350_000, 3_450_000, 4_400_000],
+            tov_ns: Vec::new(),
         };
         let c = Clocking::new(1000.0, None, false).unwrap().with_speed(2.0);
         assert_eq!(c.deadline_in(100, &block, 1), 100 + 1_175_000);

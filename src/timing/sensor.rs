@@ -95,6 +95,15 @@ impl SensorTiming {
                 model.clock_drift, duration
             ));
         }
+        // The accelerometers' first interval starts at the skew: a negative one reaches before
+        // t₀, where the motion may not be defined. Clamping it would silently shorten that
+        // interval, so it is refused.
+        if model.skew < span.0 {
+            return Err(format!(
+                "`skew` = {} s: the accelerometers' first interval would begin {} s before t₀, before the motion starts ({} s before t₀); start the run at least that much later (--start) or give a skew ≥ {} s",
+                model.skew, -model.skew, -span.0, span.0
+            ));
+        }
         let stream = |name: &str| NormalStream::new(seed, name);
         let uniform = |name: &str| splitmix64(seed ^ fnv1a64(name));
         Ok(SensorTiming {
@@ -110,7 +119,7 @@ impl SensorTiming {
                 uniform("timing/missing"),
             ],
             next: 1,
-            last: (0.0, model.skew.clamp(span.0, span.1), f64::NEG_INFINITY),
+            last: (0.0, model.skew.min(span.1), f64::NEG_INFINITY),
             span,
         })
     }
@@ -279,5 +288,14 @@ mod tests {
         };
         let e = SensorTiming::new(d, 1000.0, 200.0, 1, (0.0, 1.0)).unwrap_err();
         assert!(e.contains("10 %"), "{e}");
+        // A negative skew is refused when the motion starts at t₀, taken when it starts earlier.
+        let s = TimingModel {
+            skew: -20e-6,
+            ..Default::default()
+        };
+        let e = SensorTiming::new(s, 1000.0, 1.0, 1, (0.0, 1.0)).unwrap_err();
+        assert!(e.contains("`skew`") && e.contains("--start"), "{e}");
+        let ok = SensorTiming::new(s, 1000.0, 1.0, 1, (-1.0, 1.0)).unwrap();
+        assert_eq!(ok.last.1, -20e-6);
     }
 }

@@ -1,0 +1,33 @@
+//! Per-frame hooks of the pacer: what the time-mark channel and the pulse output need to know
+//! of each frame — its index, time of validity, deadline and the instant it was written.
+
+use std::io;
+
+/// When one frame was valid, due and written. Instants are CLOCK_MONOTONIC ns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameTime {
+    /// Record index (0-based) in the run.
+    pub index: u64,
+    /// Time of validity after the run's t₀ on the records' own time axis (simulated ns).
+    pub tov_sim_ns: i64,
+    /// Wall-clock instant of the time of validity.
+    pub tov_ns: i128,
+    /// Wall-clock instant the frame's first byte is due.
+    pub due_ns: i128,
+    /// Wall-clock instant the pacer handed the frame to the sinks (equals `due_ns` until
+    /// written).
+    pub written_ns: i128,
+}
+
+/// Something the pacer tells about every frame. Calls come from the pacer's thread, so each
+/// must return quickly (no blocking I/O).
+pub trait FrameHook: Send {
+    /// A block of frames arrived, ahead of their deadlines (`written_ns` not yet known).
+    fn ahead(&mut self, _frames: &[FrameTime]) {}
+    /// Frame `f` was handed to the sinks at `f.written_ns`.
+    fn written(&mut self, f: &FrameTime) -> io::Result<()>;
+    /// End of the run: flush what is buffered, stop threads.
+    fn finish(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
