@@ -147,7 +147,7 @@ mod tests {
         let mut m = ClockMap::new();
         for i in 0..300 {
             let t = i as f64 * 0.01;
-            m.observe(t, (t * 1e9) as i128 + 1_000_000);
+            m.observe(t, (t * 1e9).round() as i128 + 1_000_000);
         }
         assert_eq!(m.host_ns(0.0), 1_000_000);
         // The path gets 1 ms faster: one step of 10 ms moves the offset by 5 µs only.
