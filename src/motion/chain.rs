@@ -15,7 +15,8 @@
 //!   cut at the end of the last emitted record, t_e, and a bridge piece joins the cut — value,
 //!   first and second derivative of position, velocity and quaternion taken from the emitted
 //!   piece at t_e — to the received motion at t_e + horizon (value, first and second
-//!   derivative again). Velocity, acceleration, attitude and angular rate are thus continuous
+//!   derivative again; sooner, at the newest state, when that is at least a tenth of the
+//!   horizon ahead). Velocity, acceleration, attitude and angular rate are thus continuous
 //!   across both ends: no step in velocity or attitude, no spike in the increments. The
 //!   bridge is the quintic Hermite blend of the two motions: its basis weights are the C²
 //!   smoothstep 10s³ − 15s⁴ + 6s⁵ and its companions (the standard quintic Hermite basis).
@@ -188,13 +189,24 @@ impl Chain {
         co.attitude = co
             .attitude
             .max(2.0 * (qa.conjugate() * qb).imag().norm().min(1.0).asin());
-        let t_b = t_e + self.settings.horizon;
+        // A horizon longer than the received motion is ahead of the output would always
+        // end on an extrapolation, and every state would start another bridge: end at the
+        // newest state instead, once it is a tenth of the horizon ahead.
+        let h = self.settings.horizon;
+        let newest = knots[knots.len() - 1].t;
+        let t_b = if t_e + h > newest && newest - t_e >= h / 10.0 {
+            newest
+        } else {
+            t_e + h
+        };
         let target = reference(knots, self.settings.max_extrapolation, t_b);
         self.push(c, target.knot, t_e, t_b);
         match target.after {
             After::Pair(i) => {
                 let (k0, k1) = (knots[i], knots[i + 1]);
-                self.push(k0, k1, t_b, k1.t);
+                if k1.t > t_b {
+                    self.push(k0, k1, t_b, k1.t);
+                }
                 self.next_pair = kbase + i + 1;
                 self.tail = Tail::Following;
             }
