@@ -154,7 +154,9 @@ impl Chain {
 
     /// Switches to holding at `emitted` (the input is stale and the policy says hold).
     pub(super) fn hold_from(&mut self, emitted: f64) {
-        if self.tail == Tail::Holding || !(emitted < self.covered) {
+        if self.tail == Tail::Holding
+            || emitted.partial_cmp(&self.covered) != Some(std::cmp::Ordering::Less)
+        {
             return;
         }
         let c = self.cut_at(emitted);
@@ -210,7 +212,8 @@ impl Chain {
                 self.next_pair = kbase + i + 1;
                 self.tail = Tail::Following;
             }
-            After::Extrapolation(k0, k1) => {
+            After::Extrapolation(pair) => {
+                let (k0, k1) = *pair;
                 self.push(k0, k1, t_b, k1.t);
                 self.tail = Tail::Extrapolating;
             }
@@ -270,7 +273,7 @@ enum After {
     /// The received pair (i, i + 1), indices into the knots given.
     Pair(usize),
     /// The extrapolation piece of the newest knot.
-    Extrapolation(Knot, Knot),
+    Extrapolation(Box<(Knot, Knot)>),
     /// Past the extrapolation bound.
     Hold,
 }
@@ -298,7 +301,7 @@ fn reference(knots: &VecDeque<Knot>, max_ext: f64, t: f64) -> Reference {
     if t <= e.t {
         return Reference {
             knot: cut(&last, &e, t),
-            after: After::Extrapolation(last, e),
+            after: After::Extrapolation(Box::new((last, e))),
         };
     }
     let h0 = held(&e);
