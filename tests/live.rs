@@ -497,6 +497,8 @@ fn cli_tcp_run_equals_the_library_and_reports() {
             "run",
             "--motion",
             &format!("tcp://127.0.0.1:{port}"),
+            "--time-mode",
+            "lockstep",
             "--file",
         ])
         .arg(&out)
@@ -561,23 +563,43 @@ fn cli_refuses_bad_settings_and_short_input() {
         !ok && err.contains("--input-format xml: expected csv, bin or mavlink"),
         "{err}"
     );
-    let (ok, err) = run(&["--time-mode", "realtime"], "");
+    let (ok, err) = run(&["--time-mode", "fast"], "");
     assert!(
-        !ok && err.contains("only `lockstep` is implemented"),
+        !ok && err.contains("--time-mode fast: expected realtime or lockstep"),
         "{err}"
     );
-    let (ok, err) = run(&["--pty", "x"], "");
+    for (flags, msg) in [
+        (
+            &["--on-timeout", "later"][..],
+            "--on-timeout later: expected stop, hold or extrapolate",
+        ),
+        (
+            &["--correction-horizon", "0"][..],
+            "--correction-horizon 0: expected a number of seconds of at least 0.001",
+        ),
+        (
+            &["--output-delay", "nan"][..],
+            "--output-delay NaN: expected",
+        ),
+        (&["--interp", "cubic"][..], "needs the quintic motion model"),
+    ] {
+        let (ok, err) = run(flags, "");
+        assert!(!ok && err.contains(msg), "{flags:?}: {err}");
+    }
+    let (ok, err) = run(&["--pty", "x", "--time-mode", "lockstep"], "");
     assert!(!ok && err.contains("writes to one --file"), "{err}");
     // Refused before any state arrives (stdin stays empty).
     let (ok, err) = run(&["--imu", "no-such-imu"], "");
     assert!(!ok && err.contains("no-such-imu"), "{err}");
     let short: String = survey_csv(0.05);
-    let (ok, err) = run(&[], &short);
-    assert!(
-        !ok && err
-            .contains("stdin: the input ended after 6 usable states; the motion model needs 9"),
-        "{err}"
-    );
+    for mode in ["lockstep", "realtime"] {
+        let (ok, err) = run(&["--time-mode", mode], &short);
+        assert!(
+            !ok && err
+                .contains("stdin: the input ended after 6 usable states; the motion model needs 9"),
+            "{mode}: {err}"
+        );
+    }
     assert!(!out.exists(), "no partial output");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }

@@ -1,5 +1,6 @@
 //! `imu-emu run --motion SOURCE`: follow a vehicle simulation's states as they arrive
-//! (docs/live-input.md). Parses and prints; the run is `imu_emu::live::lockstep`.
+//! (docs/live-input.md). Parses and prints; the run is `imu_emu::live::lockstep`, or
+//! `imu_emu::live::realtime` through [`super::live_rt`].
 
 use std::io::{IsTerminal, Write};
 use std::path::Path;
@@ -25,10 +26,28 @@ pub struct LiveArgs {
     /// Wire format of the --motion states: csv, bin or mavlink (HIL_STATE_QUATERNION).
     #[arg(long, default_value = "csv", value_name = "FORMAT")]
     pub input_format: String,
-    /// How output follows --motion: lockstep (each state releases the records up to its
-    /// time, no wall clock). The real-time mode is not implemented yet.
-    #[arg(long, default_value = "lockstep", value_name = "MODE")]
+    /// How output follows --motion: realtime (simulation time mapped to the host clock,
+    /// frames at their instants plus --output-delay, to every sink) or lockstep (each state
+    /// releases the records up to its time, no wall clock, one --file).
+    #[arg(long, default_value = "realtime", value_name = "MODE")]
     pub time_mode: String,
+    /// Realtime: how long the frames trail the simulation (s) [default: the measured input
+    /// period plus its jitter plus 3 ms, reported at the start].
+    #[arg(long, value_name = "SECONDS")]
+    pub output_delay: Option<f64>,
+    /// Realtime: the longest extrapolation past the newest state with its jerk and angular
+    /// acceleration (s); past it the motion holds its acceleration and angular rate.
+    #[arg(long, default_value_t = 0.25, value_name = "SECONDS")]
+    pub max_extrapolation: f64,
+    /// Realtime: duration of the smooth correction back to the received motion after a late
+    /// state (s).
+    #[arg(long, default_value_t = 0.1, value_name = "SECONDS")]
+    pub correction_horizon: f64,
+    /// Realtime: once the input is silent for --input-timeout (or its stream ended):
+    /// stop (emit up to the newest state, then end), hold (constant acceleration and
+    /// angular rate) or extrapolate (keep going).
+    #[arg(long, default_value = "stop", value_name = "POLICY")]
+    pub on_timeout: String,
     /// Write every message received on --motion to FILE, to replay the run bit for bit
     /// (`--motion FILE`).
     #[arg(long, value_name = "FILE")]
@@ -48,11 +67,8 @@ pub fn run(a: &RunArgs, source: &str) -> Result<()> {
             l.input_format
         )
     })?;
-    if l.time_mode != "lockstep" {
-        bail!(
-            "--time-mode {}: only `lockstep` is implemented (the real-time mode is not yet)",
-            l.time_mode
-        );
+    if l.time_mode != "lockstep" && l.time_mode != "realtime" {
+        bail!("--time-mode {}: expected realtime or lockstep", l.time_mode);
     }
     if !(l.input_timeout.is_finite() && l.input_timeout > 0.0) {
         bail!(
@@ -63,12 +79,15 @@ pub fn run(a: &RunArgs, source: &str) -> Result<()> {
     if a.sim.source.scene.is_some() || a.sim.source.trajectory.is_some() {
         bail!("--motion replaces --scene and --trajectory: give one source");
     }
+    let endpoint = Endpoint::parse(source).map_err(|e| anyhow::anyhow!("--motion {e}"))?;
+    if l.time_mode == "realtime" {
+        return super::live_rt::run(a, &endpoint, format);
+    }
     if !(a.pty.is_empty() && a.serial.is_empty() && a.udp.is_empty()) || a.file.len() != 1 {
         bail!(
-            "--motion in lockstep writes to one --file (a path, a FIFO or - for stdout); the paced sinks (--pty, --serial, --udp) need the real-time mode, not implemented yet"
+            "--motion in lockstep writes to one --file (a path, a FIFO or - for stdout); the paced sinks (--pty, --serial, --udp) take --time-mode realtime"
         );
     }
-    let endpoint = Endpoint::parse(source).map_err(|e| anyhow::anyhow!("--motion {e}"))?;
     let builder = (a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?).unbounded_duration(FOREVER_S);
     let run = Lockstep::new(builder, format)?;
     let idle = Some(Duration::from_secs_f64(l.input_timeout));

@@ -8,6 +8,7 @@ pub mod generate;
 pub mod info;
 pub mod input;
 pub mod live;
+pub mod live_rt;
 pub mod navigate;
 pub mod plot_errors;
 pub mod rig;

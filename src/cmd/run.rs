@@ -218,69 +218,9 @@ pub fn run(a: RunArgs) -> Result<()> {
     };
 
     let stop = Arc::new(AtomicBool::new(false));
-    // Sinks, each on stream 0 (the main protocol) or on a stream of its own protocol.
-    let mut streams = Streams::new(plan.clone(), grid.rate_hz);
-    let mut sinks: Vec<Routed> = Vec::new();
-    let mut ptys: Vec<Option<&str>> = a.pty.iter().map(|p| Some(p.as_str())).collect();
-    if ptys.is_empty() && a.serial.is_empty() && a.udp.is_empty() && a.file.is_empty() {
-        ptys.push(None);
-    }
-    for value in ptys {
-        let (link, proto) = value.map_or((None, None), |v| {
-            let (l, p) = split_sink(v);
-            (Some(Path::new(l)), p)
-        });
-        let (stream, p) = streams.route(proto)?;
-        let s = PtySink::open(link, a.take_over).with_context(|| {
-            format!(
-                "opening a pty{}",
-                link.map_or(String::new(), |l| format!(" at {}", l.display()))
-            )
-        })?;
-        eprintln!(
-            "imu-emu: {} frames at {} Hz on {}{}",
-            p.name,
-            grid.rate_hz,
-            s.path().display(),
-            if s.path() != s.slave() {
-                format!(" -> {}", s.slave().display())
-            } else {
-                String::new()
-            }
-        );
-        sinks.push(Routed {
-            stream,
-            sink: Box::new(s),
-        });
-    }
-    for value in &a.serial {
-        let (dev, proto) = split_sink(value);
-        let (stream, p) = streams.route(proto)?;
-        let baud = a.baud.or(p.baud.map(|b| b as u32)).unwrap_or(921_600);
-        check_link(p.len(), frames_per_s, baud, a.framing)
-            .map_err(|e| anyhow::anyhow!("--serial {dev}: {e}"))?;
-        let sink = Box::new(SerialSink::open(dev, baud, a.framing)?);
-        sinks.push(Routed { stream, sink });
-    }
-    for value in &a.udp {
-        let (dest, proto) = split_sink(value);
-        let (stream, p) = streams.route(proto)?;
-        let sink = UdpSink::open(dest, a.udp_batch).with_context(|| format!("--udp {dest}"))?;
-        sink.check_datagram(udp::max_wire_len(&p))
-            .map_err(|e| anyhow::anyhow!("--udp {dest}: {e}"))?;
-        sinks.push(Routed {
-            stream,
-            sink: Box::new(sink),
-        });
-    }
-    for value in &a.file {
-        let (path, proto) = split_sink(value);
-        let (stream, _) = streams.route(proto)?;
-        let sink = file_sink(path, paced)?;
-        sinks.push(Routed { stream, sink });
-    }
-    let n_streams = streams.plans.len();
-    let extra: Vec<job::Encoding> = (streams.plans.into_iter().skip(1))
+    let (sinks, plans) = open_sinks(&a, plan.clone(), grid.rate_hz, frames_per_s, paced)?;
+    let n_streams = plans.len();
+    let extra: Vec<job::Encoding> = (plans.into_iter().skip(1))
         .map(|p| sim.frames_encoding(p))
         .collect();
 
@@ -437,6 +377,80 @@ pub(super) fn file_sink(path: &str, paced: bool) -> Result<Box<dyn realtime::sin
     )))
 }
 
+/// Opens every sink of `a` (a pty when none is given), each on stream 0 (the main protocol,
+/// `plan`) or on a stream of its own protocol; returns them and the plans of the streams.
+pub fn open_sinks(
+    a: &RunArgs,
+    plan: Plan,
+    rate_hz: f64,
+    frames_per_s: f64,
+    paced: bool,
+) -> Result<(Vec<Routed>, Vec<Plan>)> {
+    let grid_rate = rate_hz;
+    // Sinks, each on stream 0 (the main protocol) or on a stream of its own protocol.
+    let mut streams = Streams::new(plan, grid_rate);
+    let mut sinks: Vec<Routed> = Vec::new();
+    let mut ptys: Vec<Option<&str>> = a.pty.iter().map(|p| Some(p.as_str())).collect();
+    if ptys.is_empty() && a.serial.is_empty() && a.udp.is_empty() && a.file.is_empty() {
+        ptys.push(None);
+    }
+    for value in ptys {
+        let (link, proto) = value.map_or((None, None), |v| {
+            let (l, p) = split_sink(v);
+            (Some(Path::new(l)), p)
+        });
+        let (stream, p) = streams.route(proto)?;
+        let s = PtySink::open(link, a.take_over).with_context(|| {
+            format!(
+                "opening a pty{}",
+                link.map_or(String::new(), |l| format!(" at {}", l.display()))
+            )
+        })?;
+        eprintln!(
+            "imu-emu: {} frames at {} Hz on {}{}",
+            p.name,
+            grid_rate,
+            s.path().display(),
+            if s.path() != s.slave() {
+                format!(" -> {}", s.slave().display())
+            } else {
+                String::new()
+            }
+        );
+        sinks.push(Routed {
+            stream,
+            sink: Box::new(s),
+        });
+    }
+    for value in &a.serial {
+        let (dev, proto) = split_sink(value);
+        let (stream, p) = streams.route(proto)?;
+        let baud = a.baud.or(p.baud.map(|b| b as u32)).unwrap_or(921_600);
+        check_link(p.len(), frames_per_s, baud, a.framing)
+            .map_err(|e| anyhow::anyhow!("--serial {dev}: {e}"))?;
+        let sink = Box::new(SerialSink::open(dev, baud, a.framing)?);
+        sinks.push(Routed { stream, sink });
+    }
+    for value in &a.udp {
+        let (dest, proto) = split_sink(value);
+        let (stream, p) = streams.route(proto)?;
+        let sink = UdpSink::open(dest, a.udp_batch).with_context(|| format!("--udp {dest}"))?;
+        sink.check_datagram(udp::max_wire_len(&p))
+            .map_err(|e| anyhow::anyhow!("--udp {dest}: {e}"))?;
+        sinks.push(Routed {
+            stream,
+            sink: Box::new(sink),
+        });
+    }
+    for value in &a.file {
+        let (path, proto) = split_sink(value);
+        let (stream, _) = streams.route(proto)?;
+        let sink = file_sink(path, paced)?;
+        sinks.push(Routed { stream, sink });
+    }
+    Ok((sinks, streams.plans))
+}
+
 /// Splits a sink flag's value into its target and the protocol of `,protocol=NAME`.
 fn split_sink(v: &str) -> (&str, Option<&str>) {
     match v.rsplit_once(",protocol=") {
@@ -557,7 +571,7 @@ fn sync_extras(
 }
 
 /// The end-of-run summary.
-fn summary(s: &Status, planned: u64, paced: bool) -> String {
+pub(super) fn summary(s: &Status, planned: u64, paced: bool) -> String {
     let mut out = format!("{} of {planned} frames", s.frames);
     if paced {
         out += &format!(", write lateness {}", s.lateness.summary());

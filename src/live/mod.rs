@@ -1,15 +1,18 @@
 //! Live motion input for hardware-in-the-loop runs: states of a vehicle simulation arriving
 //! over UDP, TCP, a pipe or a file, decoded ([`csv`], [`binary`], [`mavlink`]), checked and
 //! counted ([`stats`]), fed to the causal motion model ([`crate::motion::causal`]), and turned
-//! into records or frames in step with them ([`lockstep`]). docs/live-input.md is the user's
+//! into records or frames in step with them ([`lockstep`]) or with the host clock
+//! ([`realtime`], [`clockmap`]). docs/live-input.md is the user's
 //! guide and specifies the binary datagram.
 //!
 //! Decoding is pure (bytes in, states out); [`transport`] is the only I/O.
 
 pub mod binary;
+pub mod clockmap;
 pub mod csv;
 pub mod lockstep;
 pub mod mavlink;
+pub mod realtime;
 pub mod stats;
 pub mod transport;
 

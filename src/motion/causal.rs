@@ -17,6 +17,7 @@
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 
+use super::chain::{Chain, ChainSettings, Corrections, Tail};
 use super::fd::fornberg;
 use super::limits::{Violation, check_sample, check_step};
 use super::sampled::{Conv, Degree, Knot, ModelSettings, Sample, convert, hermite, knot_at};
@@ -92,6 +93,8 @@ struct Inner {
     /// Global index of `knots[0]`.
     base: usize,
     first: f64,
+    /// The emitted chain of a real-time run (`None`: the received pieces as they are).
+    chain: Option<Chain>,
 }
 
 /// A live, causal motion model (a shared handle: clones see the same states).
@@ -120,6 +123,7 @@ impl CausalMotion {
                 knots: VecDeque::new(),
                 base: 0,
                 first: f64::NAN,
+                chain: None,
             })),
         }
     }
@@ -196,6 +200,45 @@ impl CausalMotion {
         m.base + m.knots.len()
     }
 
+    /// Makes this model emit through a chain ([`super::chain`]): it follows the received
+    /// pieces while they cover what [`CausalMotion::prepare`] asks for, extrapolates past
+    /// them, and bridges back when a late state arrives.
+    pub fn enable_chain(&self, settings: ChainSettings) {
+        self.lock().chain = Some(Chain::new(settings));
+    }
+
+    /// Extends the emitted chain to `upto`, the records up to `emitted` being already
+    /// produced; returns what its end is doing (following without a chain).
+    pub fn prepare(&self, emitted: f64, upto: f64) -> Tail {
+        let mut m = self.lock();
+        let Inner {
+            knots, base, chain, ..
+        } = &mut *m;
+        match chain {
+            Some(c) => {
+                c.prepare(knots, *base, emitted, upto);
+                c.tail()
+            }
+            None => Tail::Following,
+        }
+    }
+
+    /// Holds the emitted motion from `emitted` on (constant acceleration and angular rate)
+    /// until a newer state arrives.
+    pub fn hold_from(&self, emitted: f64) {
+        if let Some(c) = self.lock().chain.as_mut() {
+            c.hold_from(emitted);
+        }
+    }
+
+    /// The largest corrections the chain applied so far.
+    pub fn corrections(&self) -> Corrections {
+        self.lock()
+            .chain
+            .as_ref()
+            .map_or_else(Corrections::default, |c| c.corrections)
+    }
+
     /// The newest state received, if any.
     pub fn newest_state(&self) -> Option<Sample> {
         self.lock().recent.back().map(|e| e.sample)
@@ -268,6 +311,9 @@ impl Motion for CausalMotion {
     }
     fn piece_at(&self, t: f64, hint: usize) -> usize {
         let m = self.lock();
+        if let Some(c) = &m.chain {
+            return c.piece_at(t, hint);
+        }
         let n = m.knots.len();
         if n < 2 {
             return m.base;
@@ -286,6 +332,9 @@ impl Motion for CausalMotion {
     }
     fn piece_end(&self, piece: usize) -> f64 {
         let m = self.lock();
+        if let Some(c) = &m.chain {
+            return c.piece_end(piece);
+        }
         match piece.checked_sub(m.base).map(|i| i + 1) {
             // The newest piece may still grow: its end is the next knot, not yet known.
             Some(i) if i + 1 < m.knots.len() => m.knots[i].t,
@@ -295,6 +344,12 @@ impl Motion for CausalMotion {
     #[inline]
     fn sense(&self, piece: usize, t: f64) -> Sensed {
         let m = self.lock();
+        if let Some(c) = &m.chain {
+            return c.sense(piece, t).unwrap_or(Sensed {
+                omega_ib_b: NAN3,
+                f_b: NAN3,
+            });
+        }
         match m.pair(piece) {
             Some((k0, k1)) => sense_ecef(&hermite(m.degree, k0, k1, t).0),
             None => Sensed {
@@ -306,7 +361,10 @@ impl Motion for CausalMotion {
     fn pose(&self, t: f64) -> Pose {
         let piece = self.piece_at(t, 0);
         let m = self.lock();
-        let Some((k0, k1)) = m.pair(piece) else {
+        let chained = m.chain.as_ref().map(|c| c.state(piece, t));
+        let Some(s) =
+            chained.unwrap_or_else(|| m.pair(piece).map(|(k0, k1)| hermite(m.degree, k0, k1, t).0))
+        else {
             return Pose {
                 t,
                 lat: f64::NAN,
@@ -316,7 +374,6 @@ impl Motion for CausalMotion {
                 q_b_n: Quat::new(f64::NAN, f64::NAN, f64::NAN, f64::NAN),
             };
         };
-        let (s, _) = hermite(m.degree, k0, k1, t);
         Pose {
             t,
             lat: s.pos.lat(),

@@ -6,6 +6,7 @@
 //! quadrature splits its intervals at piece boundaries, so its order is never lost to a kink.
 
 pub mod causal;
+pub mod chain;
 pub mod fd;
 pub mod limits;
 pub mod sampled;

@@ -1,0 +1,416 @@
+//! Real-time mode: states arrive on their own thread and update the causal model and the
+//! clock map ([`super::clockmap`]); the emitter produces record k just before its deadline
+//! — the host instant simulation time t_k maps to, plus a constant output delay — from what
+//! has arrived by then, and hands the frame to the pacer ([`crate::realtime::pacer`]), which
+//! writes it at that deadline to every sink.
+//!
+//! What the emitter integrates is the chain of [`crate::motion::chain`]: the received
+//! pieces while states come in time, a bounded extrapolation when one is late, a smooth
+//! bridge back when it arrives. When the input goes silent for the receiver's timeout (or a
+//! stream ends), [`OnTimeout`] decides.
+
+use std::io::Write;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::Duration;
+
+use tokio::sync::mpsc::{Receiver as BlockRx, Sender as BlockTx};
+
+use super::clockmap::ClockMap;
+use super::lockstep::LiveError;
+use super::stats::InputStats;
+use super::transport::Receiver;
+use super::{Decoder, InputFormat};
+use crate::job::Grid;
+use crate::motion::causal::CausalMotion;
+use crate::motion::chain::{ChainSettings, Corrections, Tail};
+use crate::protocol::Plan;
+use crate::realtime::FrameBlock;
+use crate::realtime::clock::{monotonic_ns, sleep_until};
+use crate::sim::{SimError, SimulationBuilder};
+
+/// The emitter wakes this long before a frame's deadline to produce it (s): what it
+/// computes for one frame takes microseconds; the rest absorbs its own wake-up lateness.
+pub const LEAD_S: f64 = 0.001;
+
+/// Scheduling margin added to the default output delay (s): the emitter's lead and the
+/// input thread's wake-up on a loaded machine.
+pub const MARGIN_S: f64 = 0.003;
+
+/// What happens once the input is silent for the timeout (or its stream ended).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OnTimeout {
+    /// Keep extrapolating (bounded, then holding), frames keep coming.
+    Extrapolate,
+    /// Hold at once: constant acceleration and angular rate.
+    Hold,
+    /// Emit up to the newest state, then stop the run.
+    Stop,
+}
+
+impl OnTimeout {
+    /// The policy named `extrapolate`, `hold` or `stop`.
+    pub fn from_name(s: &str) -> Option<OnTimeout> {
+        match s {
+            "extrapolate" => Some(OnTimeout::Extrapolate),
+            "hold" => Some(OnTimeout::Hold),
+            "stop" => Some(OnTimeout::Stop),
+            _ => None,
+        }
+    }
+}
+
+/// Settings of a real-time run.
+#[derive(Clone, Copy, Debug)]
+pub struct RealtimeSettings {
+    /// Output delay (s); `None`: [`ClockMap::default_delay`] at the first knot.
+    pub delay: Option<f64>,
+    /// Extrapolation bound and correction horizon.
+    pub chain: ChainSettings,
+    /// What a silent input leads to.
+    pub on_timeout: OnTimeout,
+}
+
+/// Live figures of a real-time run (the CLI prints them once a second).
+#[derive(Clone, Debug, Default)]
+pub struct LiveStatus {
+    /// What the newest frame's motion was doing.
+    pub tail: Option<Tail>,
+    /// The input has gone silent (or ended).
+    pub stale: bool,
+    /// States per second over the clock map's window.
+    pub rate: f64,
+    /// Arrival jitter over the window (s).
+    pub jitter: f64,
+    /// Output delay in use (s).
+    pub delay: f64,
+    /// What happened to the input.
+    pub stats: InputStats,
+    /// Largest corrections so far.
+    pub corrections: Corrections,
+    /// Frames produced, and how many of them were extrapolated or held.
+    pub frames: u64,
+    /// Frames whose motion was extrapolated or held past the newest state.
+    pub extrapolated: u64,
+}
+
+impl LiveStatus {
+    /// One line: state, input rate, jitter, loss, delay, corrections.
+    pub fn line(&self) -> String {
+        let state = match (self.stale, self.tail) {
+            (true, _) => "stale",
+            (_, None) => "waiting",
+            (_, Some(Tail::Following)) => "following",
+            (_, Some(Tail::Extrapolating)) => "extrapolating",
+            (_, Some(Tail::Holding)) => "holding",
+        };
+        let c = &self.corrections;
+        format!(
+            "{state}; input {:.1} Hz, jitter {:.2} ms, {} missing, {} late; delay {:.2} ms; {} frames ({} extrapolated); {} corrections, max {:.3e} m, {:.3e} m/s, {:.3e} rad",
+            self.rate,
+            self.jitter * 1e3,
+            self.stats.missing,
+            self.stats.reordered,
+            self.delay * 1e3,
+            self.frames,
+            self.extrapolated,
+            c.count,
+            c.position,
+            c.velocity,
+            c.attitude
+        )
+    }
+}
+
+/// How a real-time run ended.
+#[derive(Clone, Debug)]
+pub struct RealtimeSummary {
+    /// The final figures.
+    pub status: LiveStatus,
+    /// The run's grid.
+    pub grid: Grid,
+    /// Why the run ended.
+    pub ended: &'static str,
+}
+
+/// Where the frames go: the pacer's channel, the buffers it returns, and the pacer's start
+/// instant (frame deadlines are sent relative to it).
+pub struct FrameOut {
+    /// Blocks to the pacer.
+    pub tx: BlockTx<FrameBlock>,
+    /// Blocks back from the pacer, for reuse.
+    pub recycle: BlockRx<FrameBlock>,
+    /// The pacer's start instant (CLOCK_MONOTONIC ns).
+    pub anchor_ns: i128,
+}
+
+struct Input {
+    stats: InputStats,
+    map: ClockMap,
+    ended: bool,
+    error: Option<std::io::Error>,
+}
+
+/// A real-time run, ready to follow an input.
+pub struct Realtime {
+    builder: SimulationBuilder,
+    model: CausalMotion,
+    format: InputFormat,
+    settings: RealtimeSettings,
+    need: usize,
+}
+
+impl Realtime {
+    /// A run of the simulation `builder` describes, following messages of `format`.
+    pub fn new(
+        builder: SimulationBuilder,
+        format: InputFormat,
+        settings: RealtimeSettings,
+    ) -> Result<Realtime, SimError> {
+        let model_settings = builder.model_settings()?;
+        (builder.clone().scene("static").start(0.0).duration(1000.0)).build()?;
+        let model = CausalMotion::new(model_settings);
+        model.enable_chain(settings.chain);
+        Ok(Realtime {
+            builder: builder.live_motion(model.clone()),
+            model,
+            format,
+            settings,
+            need: model_settings.stencil.max(3),
+        })
+    }
+
+    /// Follows `rx` until the input ends (and the policy stops), `stop` is set, or the
+    /// duration is done; `record`, when given, receives every message as it arrives.
+    /// `extra` are the sinks' other protocols. `status` is refreshed after every frame block.
+    pub fn run<W: Write + Send + 'static>(
+        self,
+        mut rx: Receiver,
+        record: Arc<Mutex<Option<W>>>,
+        extra: Vec<Plan>,
+        mut out: FrameOut,
+        stop: Arc<AtomicBool>,
+        status: Arc<Mutex<LiveStatus>>,
+    ) -> Result<RealtimeSummary, LiveError> {
+        let shared = Arc::new((
+            Mutex::new(Input {
+                stats: InputStats::default(),
+                map: ClockMap::new(),
+                ended: false,
+                error: None,
+            }),
+            Condvar::new(),
+        ));
+        let name = rx.name().to_string();
+        {
+            let (shared, model, stop) = (shared.clone(), self.model.clone(), stop.clone());
+            let format = self.format;
+            std::thread::Builder::new()
+                .name("imu-live-input".into())
+                .spawn(move || receive(&mut rx, format, &model, &record, &shared, &stop))
+                .map_err(|source| LiveError::Io {
+                    what: "starting the input thread".into(),
+                    source,
+                })?;
+        }
+        let (lock, cv) = &*shared;
+        let get = || lock.lock().unwrap_or_else(|e| e.into_inner());
+        // Wait for the model's first knot.
+        let delay = loop {
+            let g = get();
+            if self.model.knots() > 0 {
+                break self.settings.delay.unwrap_or(g.map.default_delay(MARGIN_S));
+            }
+            if g.ended || stop.load(Ordering::Relaxed) {
+                let states = g.stats.states;
+                if let Some(source) = get_error(g) {
+                    return Err(LiveError::Io {
+                        what: format!("reading {name}"),
+                        source,
+                    });
+                }
+                return Err(LiveError::TooFewStates {
+                    input: name,
+                    states,
+                    need: self.need,
+                });
+            }
+            drop(cv.wait_timeout(g, Duration::from_millis(50)));
+        };
+        let delay_ns = (delay * 1e9).round() as i128;
+        let lead_ns = (LEAD_S * 1e9) as i128;
+        let sim = self.builder.build()?;
+        let grid = sim.grid();
+        let extra: Vec<_> = extra.into_iter().map(|p| sim.frames_encoding(p)).collect();
+        let streams = 1 + extra.len();
+        let mut producer = sim.producer()?.with_extra_encodings(extra);
+        let block_max = crate::realtime::block_len(grid.rate_hz);
+        let time = |k: u64| grid.t0 + k as f64 / grid.rate_hz;
+        let mut st = LiveStatus {
+            delay,
+            ..LiveStatus::default()
+        };
+        let mut k = 0u64;
+        let mut held = false;
+        let ended = loop {
+            if stop.load(Ordering::Relaxed) {
+                break "interrupted";
+            }
+            if producer.remaining() == 0 {
+                break "duration reached";
+            }
+            let deadline = get().map.host_ns(time(k + 1)) + delay_ns;
+            let wake = deadline - lead_ns;
+            while monotonic_ns() < wake && !stop.load(Ordering::Relaxed) {
+                sleep_until(wake.min(monotonic_ns() + 100_000_000));
+            }
+            let now = monotonic_ns();
+            let (map, input_ended) = {
+                let g = get();
+                st.stats = g.stats.clone();
+                st.rate = g.map.rate();
+                st.jitter = g.map.jitter();
+                (g.map.clone(), g.ended)
+            };
+            st.stale = input_ended;
+            let newest = self.model.newest();
+            if input_ended {
+                match self.settings.on_timeout {
+                    OnTimeout::Stop if time(k + 1) > newest => break "input ended",
+                    OnTimeout::Hold if !held => {
+                        self.model.hold_from(time(k));
+                        held = true;
+                    }
+                    _ => {}
+                }
+            }
+            // Every frame due by now (after a stall, several), within one block.
+            let mut n = 1u64;
+            while (n as usize) < block_max
+                && n < producer.remaining()
+                && map.host_ns(time(k + n + 1)) + delay_ns <= now + lead_ns
+                && !(input_ended
+                    && self.settings.on_timeout == OnTimeout::Stop
+                    && time(k + n + 1) > newest)
+            {
+                n += 1;
+            }
+            let tail = self.model.prepare(time(k), time(k + n));
+            let mut b = out.recycle.try_recv().unwrap_or_default();
+            b.streams.resize_with(streams, Default::default);
+            for (bytes, ends) in b.streams.iter_mut() {
+                bytes.clear();
+                ends.clear();
+            }
+            let Some(block) = producer.next_block_multi(n as usize, &mut b.streams) else {
+                if let Some(e) = producer.take_error() {
+                    return Err(e.into());
+                }
+                break "duration reached";
+            };
+            b.first = block.first;
+            b.emit_ns.clear();
+            b.emit_ns.extend(
+                (1..=n).map(|i| (map.host_ns(time(k + i)) + delay_ns - out.anchor_ns) as i64),
+            );
+            k += n;
+            st.tail = Some(tail);
+            st.frames = k;
+            if tail != Tail::Following {
+                st.extrapolated += n;
+            }
+            st.corrections = self.model.corrections();
+            if let Ok(mut s) = status.try_lock() {
+                *s = st.clone();
+            }
+            if out.tx.blocking_send(b).is_err() {
+                break "the output closed";
+            }
+        };
+        drop(out);
+        let g = get();
+        st.stats = g.stats.clone();
+        st.corrections = self.model.corrections();
+        *status.lock().unwrap_or_else(|e| e.into_inner()) = st.clone();
+        if let Some(source) = get_error(g) {
+            return Err(LiveError::Io {
+                what: format!("reading {name}"),
+                source,
+            });
+        }
+        Ok(RealtimeSummary {
+            status: st,
+            grid,
+            ended,
+        })
+    }
+}
+
+fn get_error(mut g: std::sync::MutexGuard<'_, Input>) -> Option<std::io::Error> {
+    g.error.take()
+}
+
+/// The input thread: receives, records, decodes, feeds the model and the clock map.
+fn receive<W: Write>(
+    rx: &mut Receiver,
+    format: InputFormat,
+    model: &CausalMotion,
+    record: &Mutex<Option<W>>,
+    shared: &(Mutex<Input>, Condvar),
+    stop: &AtomicBool,
+) {
+    let mut decoder = Decoder::new(format);
+    let modulo = match format {
+        InputFormat::Mavlink => 256,
+        _ => 1 << 32,
+    };
+    let name = rx.name().to_string();
+    let (lock, cv) = shared;
+    let error = loop {
+        if stop.load(Ordering::Relaxed) {
+            break None;
+        }
+        let m = match rx.next_message() {
+            Ok(Some(m)) => m,
+            Ok(None) => break None,
+            Err(e) => break Some(e),
+        };
+        let arrival_ns = monotonic_ns() - m.arrival.elapsed().as_nanos() as i128;
+        if let Some(r) = record.lock().unwrap_or_else(|e| e.into_inner()).as_mut() {
+            let nl: &[u8] = if format == InputFormat::Csv {
+                b"\n"
+            } else {
+                b""
+            };
+            if let Err(e) = r.write_all(&m.bytes).and_then(|_| r.write_all(nl)) {
+                break Some(e);
+            }
+        }
+        let decoded = decoder.decode(&m.bytes);
+        let mut g = lock.lock().unwrap_or_else(|e| e.into_inner());
+        g.stats.messages += 1;
+        match decoded {
+            Ok(Some(d)) => {
+                let outcome = model.push(&d.state);
+                let place = format!("{name}: {}", m.place);
+                g.stats.state(&d, &outcome, modulo, &place);
+                if outcome.is_ok() {
+                    g.map.observe(d.state.sample.t, arrival_ns);
+                }
+            }
+            Ok(None) => {}
+            Err(e) => {
+                let at = format!("{name}: {}, byte {}", m.place, e.offset);
+                g.stats.malformed(&at, &e.message);
+            }
+        }
+        drop(g);
+        cv.notify_all();
+    };
+    let mut g = lock.lock().unwrap_or_else(|e| e.into_inner());
+    g.ended = true;
+    g.error = error;
+    g.stats.skipped_bytes = rx.skipped_bytes();
+    drop(g);
+    cv.notify_all();
+}

@@ -1,0 +1,325 @@
+//! Real-time live input over loopback: the survey scene's states sent at 100 Hz in real time
+//! by a sender thread (binary datagrams over UDP) to `imu-emu run --motion … --time-mode
+//! realtime`, frames out to a UDP sink and a file at 400 Hz.
+//!
+//! * In time (a delay the input always meets): no extrapolation, no correction, and the
+//!   frames are the bytes `lockstep` makes from the run's `--record-input` log — so the
+//!   accuracy figures of tests/live.rs (the same engine on the same states) hold for the
+//!   real-time output too.
+//! * With ±3 ms jitter and 1 % loss at the default delay: the loss and jitter are measured
+//!   and reported, the delay is the one documented, and the corrections stay within the bound
+//!   derived below.
+//!
+//! Timing bounds are loose on purpose (a loaded 2-core machine); timing figures belong in
+//! benches/live_latency.rs.
+
+use std::io::{BufRead, BufReader};
+use std::net::UdpSocket;
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use imu_emu::live::binary::{self, Datagram};
+use imu_emu::motion::{Motion, Pose};
+use imu_emu::sim::Simulation;
+
+fn imu_emu() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+}
+
+/// The survey's states every 10 ms from 0 to `seconds`.
+fn survey_states(seconds: f64) -> Vec<Pose> {
+    let sim = Simulation::builder().build().unwrap();
+    let m = sim.motion();
+    (0..=(seconds * 100.0) as u64)
+        .map(|k| m.pose(k as f64 / 100.0))
+        .collect()
+}
+
+fn datagram(p: &Pose, seq: u32) -> [u8; binary::LEN] {
+    binary::encode(&Datagram {
+        seq,
+        week: binary::NO_WEEK,
+        time: p.t,
+        flags: 0,
+        pos: [p.lat.to_degrees(), p.lon.to_degrees(), p.h],
+        vel: p.v_n.into(),
+        acc: [0.0; 3],
+        quat: [p.q_b_n.w, p.q_b_n.i, p.q_b_n.j, p.q_b_n.k],
+        rate: [0.0; 3],
+    })
+}
+
+/// A small fixed-seed generator (xorshift64*) for the sender's jitter and loss.
+struct Rng(u64);
+
+impl Rng {
+    fn uniform(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Sends state i at start + t_i + a delay uniform in [0, 2·jitter] (±jitter around its
+/// mean), skipping each with probability `loss`; returns how many were not sent.
+fn send(states: &[Pose], to: u16, jitter: f64, loss: f64, seed: u64) -> u64 {
+    let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let mut rng = Rng(seed);
+    let start = Instant::now();
+    let mut lost = 0;
+    for (i, p) in states.iter().enumerate() {
+        let at = start + Duration::from_secs_f64(p.t + 2.0 * jitter * rng.uniform());
+        if let Some(d) = at.checked_duration_since(Instant::now()) {
+            thread::sleep(d);
+        }
+        // Never the stencil's first states: the run needs them to start.
+        if i > 10 && rng.uniform() < loss {
+            lost += 1;
+            continue;
+        }
+        s.send_to(&datagram(p, i as u32), ("127.0.0.1", to))
+            .unwrap();
+    }
+    lost
+}
+
+fn free_udp_port() -> u16 {
+    UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Starts a real-time run on a free UDP port; returns it, its port, and its stderr lines
+/// (once it listens: the `following` line has been read).
+fn start(dir: &std::path::Path, extra: &[&str]) -> (Child, u16, mpsc::Receiver<String>) {
+    let port = free_udp_port();
+    let mut child = imu_emu()
+        .current_dir(dir)
+        .args([
+            "run",
+            "--motion",
+            &format!("udp://127.0.0.1:{port}"),
+            "--input-format",
+            "bin",
+            "--imu",
+            "ideal",
+            "--rate",
+            "400",
+            "--input-timeout",
+            "1",
+        ])
+        .args(extra)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let err = child.stderr.take().unwrap();
+    let (tx, rx) = mpsc::channel();
+    thread::spawn(move || {
+        for l in BufReader::new(err).lines() {
+            let Ok(l) = l else { break };
+            if tx.send(l).is_err() {
+                break;
+            }
+        }
+    });
+    loop {
+        let l = rx
+            .recv_timeout(Duration::from_secs(60))
+            .expect("the run starts");
+        if l.contains("following udp://") {
+            break;
+        }
+    }
+    (child, port, rx)
+}
+
+/// Collects the datagrams a UDP sink sends until it is quiet for 3 s.
+fn collect(sock: UdpSocket) -> thread::JoinHandle<Vec<u8>> {
+    thread::spawn(move || {
+        sock.set_read_timeout(Some(Duration::from_secs(3))).unwrap();
+        let mut all = Vec::new();
+        let mut buf = vec![0u8; 65536];
+        while let Ok(n) = sock.recv(&mut buf) {
+            all.extend_from_slice(&buf[..n]);
+        }
+        all
+    })
+}
+
+/// The number after `key` in `line` (e.g. `"extrapolated"` in "(12 extrapolated)" reads
+/// the word before: use `before`).
+fn number_before(line: &str, key: &str) -> f64 {
+    let i = line
+        .find(key)
+        .unwrap_or_else(|| panic!("`{key}` in {line}"));
+    let head = line[..i].trim_end();
+    let word = head.rsplit([' ', '(']).next().unwrap();
+    word.parse()
+        .unwrap_or_else(|_| panic!("{word} before {key} in {line}"))
+}
+
+fn number_after(line: &str, key: &str) -> f64 {
+    let i = line
+        .find(key)
+        .unwrap_or_else(|| panic!("`{key}` in {line}"))
+        + key.len();
+    let word: String = line[i..]
+        .trim_start()
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || ".e-+".contains(*c))
+        .collect();
+    word.parse()
+        .unwrap_or_else(|_| panic!("{word} after {key} in {line}"))
+}
+
+/// In time: a 60 ms delay the loopback input always meets. The frames on the UDP sink are
+/// the file's; the file begins with the bytes lockstep makes from the recorded input, and
+/// what follows them is the extrapolation until the input's 1 s timeout (counted in the
+/// summary); no correction was needed.
+#[test]
+fn realtime_in_time_is_lockstep_of_its_recorded_input() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let sink = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let sink_port = sink.local_addr().unwrap().port();
+    let got = collect(sink);
+    let (child, port, lines) = start(
+        dir.path(),
+        &[
+            "--output-delay",
+            "0.06",
+            "--udp",
+            &format!("127.0.0.1:{sink_port}"),
+            "--file",
+            "out.bin",
+            "--record-input",
+            "in.rec",
+        ],
+    );
+    let states = survey_states(3.0);
+    assert_eq!(send(&states, port, 0.0, 0.0, 1), 0);
+    let out = child.wait_with_output().unwrap();
+    let err: Vec<String> = lines.iter().collect();
+    let err = err.join("\n");
+    eprintln!("{err}");
+    assert!(out.status.success(), "{err}");
+    let summary = err
+        .lines()
+        .find(|l| l.contains("frames at 400 Hz from t ="))
+        .expect("a summary");
+    assert!(summary.contains("(input ended)"), "{summary}");
+    assert!(summary.contains("0 corrections"), "{summary}");
+    assert!(summary.contains("delay 60.00 ms"), "{summary}");
+    let frames = number_before(summary, "frames at 400 Hz") as usize;
+    let extrapolated = number_before(summary, "extrapolated)") as usize;
+
+    let live = std::fs::read(dir.path().join("out.bin")).unwrap();
+    assert_eq!(
+        got.join().unwrap(),
+        live,
+        "the UDP sink got the file's bytes"
+    );
+    let replay = imu_emu()
+        .current_dir(dir.path())
+        .args([
+            "run",
+            "--motion",
+            "in.rec",
+            "--input-format",
+            "bin",
+            "--time-mode",
+            "lockstep",
+            "--imu",
+            "ideal",
+            "--rate",
+            "400",
+            "--file",
+            "replay.bin",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        replay.status.success(),
+        "{}",
+        String::from_utf8_lossy(&replay.stderr)
+    );
+    let replay = std::fs::read(dir.path().join("replay.bin")).unwrap();
+    let len = live.len() / frames;
+    assert_eq!(live.len(), frames * len);
+    assert_eq!(
+        replay.len() / len,
+        frames - extrapolated,
+        "frames past the newest state"
+    );
+    assert!(
+        live.starts_with(&replay),
+        "the interpolated frames are lockstep's bytes"
+    );
+    // States up to 3 s from t₀ = 0.08 s at 400 Hz: 1168 frames before the newest state.
+    assert_eq!(frames - extrapolated, 1168);
+}
+
+/// ±3 ms jitter and 1 % loss at the default delay (period + jitter + 3 ms). Reported: the
+/// missing states, the jitter (at least the 6 ms peak-to-peak sent, plus the loopback's
+/// scheduling noise), a delay of 10 ms + the jitter of the first states + 3 ms.
+///
+/// Corrections: when a state is lost, the emitter runs up to one period (10 ms) past the
+/// newest state before the next one arrives, plus whatever that one's arrival exceeds the
+/// delay by, at most the jitter measured: τ = 10 ms + that jitter. Extrapolating from a
+/// state, the motion's acceleration and body rate are off by at most twice their largest
+/// magnitude A, W over the states sent, so after τ the velocity is off by ≤ 2Aτ, the
+/// position by ≤ Aτ², the attitude by ≤ 2Wτ (A, W measured from the states themselves).
+#[test]
+fn realtime_jitter_and_loss_are_bounded_and_reported() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let (child, port, lines) = start(dir.path(), &["--file", "out.bin"]);
+    let states = survey_states(4.0);
+    let lost = send(&states, port, 0.003, 0.01, 7);
+    let out = child.wait_with_output().unwrap();
+    let err: Vec<String> = lines.iter().collect();
+    let err = err.join("\n");
+    eprintln!("{lost} states not sent\n{err}");
+    assert!(out.status.success(), "{err}");
+    let summary = err
+        .lines()
+        .find(|l| l.contains("frames at 400 Hz from t ="))
+        .expect("a summary");
+    assert_eq!(
+        number_before(summary, "missing in") as u64,
+        lost,
+        "{summary}"
+    );
+    let jitter = number_after(summary, "jitter") * 1e-3;
+    // At least most of the 6 ms sent; no upper bound: a stall of the loaded machine delays
+    // the sender's datagrams too and is measured as jitter.
+    assert!(jitter >= 0.005, "{summary}");
+    let delay = number_after(summary, "delay") * 1e-3;
+    // The delay is set from the states before the first knot: period + their jitter + 3 ms.
+    assert!(delay >= 0.013, "{summary}");
+    let (mut big_a, mut big_w) = (0.0f64, 0.0f64);
+    for w in states.windows(2) {
+        let dt = w[1].t - w[0].t;
+        big_a = big_a.max((w[1].v_n - w[0].v_n).norm() / dt);
+        let dq = w[0].q_b_n.conjugate() * w[1].q_b_n;
+        big_w = big_w.max(2.0 * dq.imag().norm().asin() / dt);
+    }
+    // Gravity's transport and Earth-rate terms make the sensed values differ from these
+    // by far less than the margin of τ.
+    let tau = 0.01 + jitter;
+    let dr = number_before(summary, " m,");
+    let dv = number_before(summary, " m/s,");
+    let dtheta = number_before(summary, " rad");
+    eprintln!(
+        "A = {big_a} m/s², W = {big_w} rad/s: bounds {} m, {} m/s, {} rad",
+        big_a * tau * tau,
+        2.0 * big_a * tau,
+        2.0 * big_w * tau
+    );
+    assert!(dr <= big_a * tau * tau + 1e-6, "{summary}");
+    assert!(dv <= 2.0 * big_a * tau + 1e-6, "{summary}");
+    assert!(dtheta <= 2.0 * big_w * tau + 1e-7, "{summary}");
+}
