@@ -97,6 +97,22 @@ pub struct GnssFix {
     pub sigma_vel: Vec3,
 }
 
+impl GnssFix {
+    /// The fix a receiver reports in epoch `e`, with its σ's; `None` in an outage.
+    pub fn from_epoch(e: &crate::aiding::GnssEpoch) -> Option<GnssFix> {
+        let m = &e.measured;
+        (e.fix != crate::aiding::Fix::None).then_some(GnssFix {
+            t: e.t,
+            lat: m.lat,
+            lon: m.lon,
+            h: m.h,
+            v_n: m.v_n,
+            sigma_pos: e.sigma_pos,
+            sigma_vel: e.sigma_vel,
+        })
+    }
+}
+
 /// The GNSS-aided navigator.
 #[derive(Clone, Debug)]
 pub struct AidedNavigator {
@@ -149,6 +165,11 @@ impl AidedNavigator {
     /// The current navigation state.
     pub fn state(&self) -> NavState {
         self.nav.state()
+    }
+
+    /// The strapdown navigator inside (its state, settings and record history).
+    pub fn navigator(&self) -> &Navigator {
+        &self.nav
     }
 
     /// The estimated gyro (rad/s) and accelerometer (m/s²) biases.
