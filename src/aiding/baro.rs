@@ -116,7 +116,7 @@ impl BaroConfig {
             }
         }
         // A bias beyond a tenth of the sea-level pressure is not a barometer's.
-        if !(self.bias0_pa.abs() <= 0.1 * P0) {
+        if !(self.bias0_pa.is_finite() && self.bias0_pa.abs() <= 0.1 * P0) {
             return bad(
                 "bias0_pa",
                 format!("{} is outside ±{} Pa", self.bias0_pa, 0.1 * P0),
