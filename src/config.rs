@@ -47,6 +47,12 @@ pub struct SceneFile {
     /// The odometer (`[odometer]`; docs/aiding.md).
     #[serde(default)]
     pub odometer: Option<crate::aiding::odometer::OdometerConfig>,
+    /// The barometer (`[baro]`; docs/aiding.md).
+    #[serde(default)]
+    pub baro: Option<crate::aiding::baro::BaroConfig>,
+    /// The magnetometer (`[magnetometer]`; docs/aiding.md).
+    #[serde(default)]
+    pub magnetometer: Option<crate::aiding::magnetometer::MagConfig>,
 }
 
 /// `[faults]`: faults injected into protocol frames (`[[faults.event]]` entries).

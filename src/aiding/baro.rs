@@ -65,15 +65,65 @@ pub fn pressure_altitude(p: f64) -> f64 {
     }
 }
 
-/// Barometer settings.
-#[derive(Clone, Debug, PartialEq)]
+/// Barometer settings: the scene file's `[baro]` table (every key optional).
+#[derive(Clone, Debug, serde::Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
 pub struct BaroConfig {
+    /// Samples per second, in (0, 1000].
+    pub rate_hz: f64,
     /// White pressure noise σ per sample (Pa).
     pub noise_pa: f64,
     /// Random-walk density of the pressure bias (Pa/√s).
     pub bias_rw_pa_sqrt_s: f64,
     /// Initial pressure bias (Pa).
     pub bias0_pa: f64,
+}
+
+impl Default for BaroConfig {
+    /// 10 Hz, 1 Pa white noise (about 8 cm at sea level), no bias.
+    fn default() -> BaroConfig {
+        BaroConfig {
+            rate_hz: 10.0,
+            noise_pa: 1.0,
+            bias_rw_pa_sqrt_s: 0.0,
+            bias0_pa: 0.0,
+        }
+    }
+}
+
+impl BaroConfig {
+    /// Checks every value; the error names the `[baro]` key.
+    pub fn validate(&self) -> Result<(), super::gnss::ConfigError> {
+        let bad = |key, message: String| {
+            Err(super::gnss::ConfigError {
+                table: "baro",
+                key,
+                message,
+            })
+        };
+        if !(self.rate_hz > 0.0 && self.rate_hz <= 1000.0) {
+            return bad(
+                "rate_hz",
+                format!("{} Hz is outside (0, 1000] Hz", self.rate_hz),
+            );
+        }
+        for (key, v) in [
+            ("noise_pa", self.noise_pa),
+            ("bias_rw_pa_sqrt_s", self.bias_rw_pa_sqrt_s),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(key, format!("{v} must be ≥ 0"));
+            }
+        }
+        // A bias beyond a tenth of the sea-level pressure is not a barometer's.
+        if !(self.bias0_pa.is_finite() && self.bias0_pa.abs() <= 0.1 * P0) {
+            return bad(
+                "bias0_pa",
+                format!("{} is outside ±{} Pa", self.bias0_pa, 0.1 * P0),
+            );
+        }
+        Ok(())
+    }
 }
 
 /// One barometer sample.
@@ -171,6 +221,7 @@ mod tests {
             noise_pa: 0.0,
             bias_rw_pa_sqrt_s: 0.0,
             bias0_pa: -12.0,
+            ..BaroConfig::default()
         };
         let s = Barometer::new(cfg, 0.1, 1).sample(500.0);
         assert_eq!(s.pa, pressure(geopotential(500.0)) - 12.0);
@@ -187,6 +238,7 @@ mod tests {
                     noise_pa: 0.0,
                     bias_rw_pa_sqrt_s: k,
                     bias0_pa: 0.0,
+                    ..BaroConfig::default()
                 };
                 let mut b = Barometer::new(cfg, 0.1, i);
                 (0..10_000).map(|_| b.sample(0.0).bias_pa).last().unwrap()

@@ -5,8 +5,15 @@
 //! potential is V = a³ (g·r)/r³ and the field B = −∇V = (a/r)³ [3 (g·r̂) r̂ − g], a the
 //! reference radius 6 371.2 km (IGRF; Alken et al., "International Geomagnetic Reference Field:
 //! the thirteenth generation", Earth Planets Space 73, 49, 2021, table of coefficients).
-//! The measurement is m = S B^b + b_hard + n.
+//! The measurement is m = S B^b + b_hard + n. Instead of the dipole, a tabulated field
+//! ([`super::field_table`]) may give B^n.
 
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use serde::Deserialize;
+
+use super::field_table::{FieldTable, OutsideTable};
 use crate::earth::Geodetic;
 use crate::math::{Mat3, Quat, QuatExt, Vec3};
 use crate::rng::NormalStream;
@@ -17,11 +24,20 @@ pub const IGRF_RADIUS_M: f64 = 6_371_200.0;
 /// IGRF-13 degree-1 coefficients for epoch 2020.0, (g₁⁰, g₁¹, h₁¹) in nT.
 pub const IGRF13_2020_DIPOLE_NT: [f64; 3] = [-29_404.8, -1_450.9, 4_652.5];
 
-/// Magnetometer settings.
-#[derive(Clone, Debug, PartialEq)]
+/// Magnetometer settings: the scene file's `[magnetometer]` table (every key optional).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
 pub struct MagConfig {
+    /// Samples per second, in (0, 1000].
+    pub rate_hz: f64,
     /// Dipole coefficients (g₁⁰, g₁¹, h₁¹) (nT).
     pub dipole_nt: [f64; 3],
+    /// A field table file (format in [`super::field_table`]) used instead of the dipole;
+    /// relative to the scene file.
+    pub field_table: Option<PathBuf>,
+    /// The table read from `field_table` (set by whoever reads the file).
+    #[serde(skip)]
+    pub table: Option<Arc<FieldTable>>,
     /// Hard-iron offset, body axes (T).
     pub hard_iron_t: [f64; 3],
     /// Soft-iron matrix S (identity: none).
@@ -31,14 +47,56 @@ pub struct MagConfig {
 }
 
 impl Default for MagConfig {
-    /// The IGRF-13 2020 dipole, no distortion, no noise.
+    /// The IGRF-13 2020 dipole at 10 Hz, no distortion, no noise.
     fn default() -> MagConfig {
         MagConfig {
+            rate_hz: 10.0,
             dipole_nt: IGRF13_2020_DIPOLE_NT,
+            field_table: None,
+            table: None,
             hard_iron_t: [0.0; 3],
             soft_iron: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
             noise_t: 0.0,
         }
+    }
+}
+
+impl MagConfig {
+    /// Checks every value; the error names the `[magnetometer]` key.
+    pub fn validate(&self) -> Result<(), super::gnss::ConfigError> {
+        let bad = |key, message: String| {
+            Err(super::gnss::ConfigError {
+                table: "magnetometer",
+                key,
+                message,
+            })
+        };
+        if !(self.rate_hz > 0.0 && self.rate_hz <= 1000.0) {
+            return bad(
+                "rate_hz",
+                format!("{} Hz is outside (0, 1000] Hz", self.rate_hz),
+            );
+        }
+        for (key, v) in [
+            ("dipole_nt", &self.dipole_nt),
+            ("hard_iron_t", &self.hard_iron_t),
+        ] {
+            if v.iter().any(|x| !x.is_finite()) {
+                return bad(key, format!("{v:?} has a non-finite value"));
+            }
+        }
+        let s = Mat3::from_row_slice(self.soft_iron.as_flattened());
+        let det = s.determinant();
+        if !(det.is_finite() && det.abs() > 1e-9) {
+            return bad(
+                "soft_iron",
+                format!("{:?} must be finite and invertible", self.soft_iron),
+            );
+        }
+        if !(self.noise_t.is_finite() && self.noise_t >= 0.0) {
+            return bad("noise_t", format!("{} must be ≥ 0", self.noise_t));
+        }
+        Ok(())
     }
 }
 
@@ -76,15 +134,25 @@ impl Magnetometer {
         }
     }
 
-    /// The true body-axis field (T) at `pos` with attitude C_b^n = `q_b_n`.
-    pub fn true_field_b(&self, pos: &Geodetic, q_b_n: Quat) -> Vec3 {
-        q_b_n.rotate_inv(dipole_field_n(self.cfg.dipole_nt, pos))
+    /// The Earth's field (T) in NED at `pos`: the table's, else the dipole's.
+    pub fn field_n(&self, pos: &Geodetic) -> Result<Vec3, OutsideTable> {
+        match &self.cfg.table {
+            Some(t) => t.field_n(
+                pos.sin_lat.atan2(pos.cos_lat),
+                pos.sin_lon.atan2(pos.cos_lon),
+            ),
+            None => Ok(dipole_field_n(self.cfg.dipole_nt, pos)),
+        }
     }
 
-    /// The next measurement (T): S B^b + b_hard + noise.
-    pub fn sample(&mut self, pos: &Geodetic, q_b_n: Quat) -> Vec3 {
-        let b =
-            Mat3::from_row_slice(self.cfg.soft_iron.as_flattened()) * self.true_field_b(pos, q_b_n);
+    /// The true body-axis field (T) at `pos` with attitude C_b^n = `q_b_n`.
+    pub fn true_field_b(&self, pos: &Geodetic, q_b_n: Quat) -> Result<Vec3, OutsideTable> {
+        Ok(q_b_n.rotate_inv(self.field_n(pos)?))
+    }
+
+    /// The measurement (T) of true body field `b`: S b + b_hard + noise (draws the noise).
+    pub fn measure(&mut self, b: Vec3) -> Vec3 {
+        let b = Mat3::from_row_slice(self.cfg.soft_iron.as_flattened()) * b;
         let s = self.cfg.noise_t;
         let n = Vec3::from(std::array::from_fn(|i| {
             if s > 0.0 {
@@ -94,6 +162,12 @@ impl Magnetometer {
             }
         }));
         b + Vec3::from(self.cfg.hard_iron_t) + n
+    }
+
+    /// The next measurement (T) at `pos` with attitude `q_b_n`: S B^b + b_hard + noise.
+    pub fn sample(&mut self, pos: &Geodetic, q_b_n: Quat) -> Result<Vec3, OutsideTable> {
+        let b = self.true_field_b(pos, q_b_n)?;
+        Ok(self.measure(b))
     }
 }
 
@@ -136,13 +210,13 @@ mod tests {
             dipole_nt: AXIAL,
             hard_iron_t: [1e-6, -2e-6, 3e-6],
             soft_iron: [[1.1, 0.02, 0.0], [0.02, 0.9, 0.0], [0.0, 0.0, 1.0]],
-            noise_t: 0.0,
+            ..MagConfig::default()
         };
         let mut m = Magnetometer::new(cfg, 1);
         let q = quat_from_euler(0.0, 0.0, std::f64::consts::FRAC_PI_2);
-        let bb = m.true_field_b(&pos, q);
+        let bb = m.true_field_b(&pos, q).unwrap();
         assert!((bb - Vec3::new(0.0, -bn.x, bn.z)).amax() < 1e-20, "{bb:?}");
-        let s = m.sample(&pos, q);
+        let s = m.sample(&pos, q).unwrap();
         let expected = Vec3::new(
             1.1 * bb.x + 0.02 * bb.y + 1e-6,
             0.02 * bb.x + 0.9 * bb.y - 2e-6,

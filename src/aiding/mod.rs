@@ -3,6 +3,7 @@
 //! [`mavlink`]), chosen by [`stream::GnssFormat`]. Pure models and encoders, no I/O.
 
 pub mod baro;
+pub mod field_table;
 pub mod gnss;
 pub mod magnetometer;
 pub mod mavlink;

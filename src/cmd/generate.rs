@@ -40,6 +40,13 @@ pub struct GenerateArgs {
     /// Also write the odometer's samples here (CSV; scene file `[odometer]`, else the default).
     #[arg(long)]
     pub odometer: Option<PathBuf>,
+    /// Also write the barometer's samples here (CSV; scene file `[baro]`, else the default).
+    #[arg(long)]
+    pub baro: Option<PathBuf>,
+    /// Also write the magnetometer's samples here (CSV; scene file `[magnetometer]`, else the
+    /// default).
+    #[arg(long)]
+    pub magnetometer: Option<PathBuf>,
 }
 
 /// `FORMAT:FILE` of `--gnss`.
@@ -94,19 +101,18 @@ fn write_gnss(
     Ok(files)
 }
 
-/// Writes the odometer file of `a`, if asked, uncommitted.
-fn write_odometer(
-    sim: &imu_emu::sim::Simulation,
-    a: &GenerateArgs,
+/// Writes one CSV aiding stream to `path`, if asked, uncommitted.
+fn write_sensor(
+    path: Option<&Path>,
+    write: impl FnOnce(&mut dyn Write) -> Result<u64, imu_emu::sim::SimError>,
 ) -> Result<Option<(AtomicFile, PathBuf)>> {
-    let Some(path) = &a.odometer else {
+    let Some(path) = path else {
         return Ok(None);
     };
     let (mut f, p) = create(path)?;
     {
         let mut w = buffered(&mut f);
-        sim.write_odometer(&mut w)
-            .with_context(|| format!("writing {}", p.display()))?;
+        write(&mut w).with_context(|| format!("writing {}", p.display()))?;
         w.flush()?;
     }
     Ok(Some((f, p)))
@@ -141,7 +147,13 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
     };
     let faults = sim.faults().cloned();
     let mut gnss_files = write_gnss(&sim, &a)?;
-    gnss_files.extend(write_odometer(&sim, &a)?);
+    gnss_files.extend(write_sensor(a.odometer.as_deref(), |w| {
+        sim.write_odometer(w)
+    })?);
+    gnss_files.extend(write_sensor(a.baro.as_deref(), |w| sim.write_baro(w))?);
+    gnss_files.extend(write_sensor(a.magnetometer.as_deref(), |w| {
+        sim.write_magnetometer(w)
+    })?);
     let caught = imu_emu::realtime::signal::watch()?;
     let started = Instant::now();
     let mut truth_file = a.truth.as_deref().map(create).transpose()?;

@@ -1,8 +1,10 @@
 //! The reference strapdown navigator: free-inertial navigation on WGS-84 from our own
 //! increments (`strapdown`), the causal signal reconstruction and collocation tableau it uses
 //! (`poly`), closure runs on the built-in scenes (`closure`) and Monte Carlo comparison of
-//! IMU templates (`montecarlo`). Pure computation, no I/O.
+//! IMU templates (`montecarlo`), and the GNSS-aided error-state Kalman filter (`aided`). Pure
+//! computation, no I/O.
 
+pub mod aided;
 pub mod closure;
 pub mod montecarlo;
 pub mod poly;

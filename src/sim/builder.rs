@@ -1,6 +1,7 @@
 //! [`SimulationBuilder`]: a scene file (optional) and setters over it, resolved into a
 //! [`Simulation`]. Every value that came from the file and is refused names the file's key.
 
+mod aiding;
 mod rig;
 
 use std::path::{Path, PathBuf};
@@ -59,6 +60,8 @@ pub struct SimulationBuilder {
     units: Vec<crate::rig::config::UnitSpec>,
     gnss: Option<GnssConfig>,
     odometer: Option<OdometerConfig>,
+    baro: Option<crate::aiding::baro::BaroConfig>,
+    magnetometer: Option<crate::aiding::magnetometer::MagConfig>,
     default_imu: String,
     default_format: String,
     unbounded_duration: f64,
@@ -92,6 +95,8 @@ impl Default for SimulationBuilder {
             units: Vec::new(),
             gnss: None,
             odometer: None,
+            baro: None,
+            magnetometer: None,
             default_imu: "ideal".into(),
             default_format: "csv".into(),
             unbounded_duration: job::DEFAULT_UNBOUNDED_DURATION_S,
@@ -772,6 +777,7 @@ impl SimulationBuilder {
             &self.file.odometer,
             OdometerConfig::validate,
         )?;
+        let (baro, magnetometer) = self.baro_and_magnetometer()?;
         let mut warnings = Vec::new();
         let (chain, filtered) = self.chain(
             &imu,
@@ -794,6 +800,8 @@ impl SimulationBuilder {
             gps_time: self.gps_time,
             gnss,
             odometer,
+            baro,
+            magnetometer,
             output_path: self.file.output.path.clone(),
             warnings,
             timing,

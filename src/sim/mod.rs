@@ -18,6 +18,7 @@
 
 mod builder;
 mod gnss;
+mod sensors;
 
 use std::io::Write;
 use std::ops::ControlFlow;
@@ -123,6 +124,8 @@ pub struct Simulation {
     gps_time: Option<(u32, f64)>,
     gnss: Option<GnssConfig>,
     odometer: Option<crate::aiding::odometer::OdometerConfig>,
+    baro: Option<crate::aiding::baro::BaroConfig>,
+    magnetometer: Option<crate::aiding::magnetometer::MagConfig>,
     output_path: Option<PathBuf>,
     warnings: Vec<String>,
     timing: Option<crate::timing::TimedRun>,
