@@ -21,6 +21,7 @@ pub mod signal;
 pub mod sink;
 pub mod stats;
 pub mod timemark;
+pub mod trigger;
 pub mod udp;
 
 use crate::job::Producer;
