@@ -87,9 +87,9 @@ fn grid_edges_and_split_intervals_on_the_circle() {
         }
     }
     let mut split = Vec::new();
-    for k in 0..50 {
-        split.push(grid[k]);
-        split.push(grid[k] + 0.0037 + 0.0001 * (k % 7) as f64);
+    for (k, g) in grid[..50].iter().enumerate() {
+        split.push(*g);
+        split.push(g + 0.0037 + 0.0001 * (k % 7) as f64);
     }
     split.push(grid[50]);
     let p = producer("circle").with_trigger(Box::new(EdgeList::new(edges(&split), 2.0)));
