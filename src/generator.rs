@@ -106,39 +106,64 @@ impl<M: Motion> IdealImu<M> {
     /// Fills `out` with the rotation terms of records k_first, k_first+1, … (for sensors
     /// offset from the reference point; costs about one more evaluation per node).
     pub fn rotation_terms(&mut self, k_first: u64, out: &mut [RotationTerms]) {
-        let omega_at =
-            |s: &Self, t: f64| s.motion.sense(s.motion.piece_at(t, s.hint), t).omega_ib_b;
-        let mut w_prev = omega_at(self, self.time_of(k_first - 1));
+        let mut w_prev = self.omega_at(self.time_of(k_first - 1));
         for (i, o) in out.iter_mut().enumerate() {
             let k = k_first + i as u64;
             let (lo, hi) = (self.time_of(k - 1), self.time_of(k));
-            let w_end = omega_at(self, hi);
-            let mut outer = Mat3::zeros();
-            // Same splitting at breakpoints as the increments.
-            let mut piece = self.motion.piece_at(lo, self.hint);
-            let mut a = lo;
-            loop {
-                let b = self.motion.piece_end(piece).min(hi);
-                let len = b - a;
-                if len > 0.0 {
-                    for (x, wt) in self.rule.nodes.iter().zip(&self.rule.weights) {
-                        let w = self.motion.sense(piece, a + x * len).omega_ib_b;
-                        let f = wt * len / (hi - lo);
-                        outer += Mat3::from_fn(|i, j| f * w[i] * w[j]);
-                    }
+            *o = self.rotation_over(lo, hi, hi - lo, &mut w_prev);
+        }
+    }
+
+    /// Fills `out` with the rotation terms over the sensor's true intervals `bounds` (relative
+    /// to t₀; sample i covers (bounds[i], bounds[i+1]]), the mean of ω ωᵀ taken over the
+    /// *nominal* Δt — the same convention as [`IdealImu::fill_timed`]'s rates, so that the
+    /// lever-arm force [`crate::rig::geometry::force_at`] with 1/Δt gives the increment over
+    /// the true interval divided by the nominal Δt.
+    pub fn rotation_terms_timed(&mut self, bounds: &[f64], out: &mut [RotationTerms]) {
+        let dt = 1.0 / self.rate_hz;
+        let mut w_prev = self.omega_at(self.t0 + bounds[0]);
+        for (i, o) in out.iter_mut().enumerate() {
+            let (lo, hi) = (self.t0 + bounds[i], self.t0 + bounds[i + 1]);
+            *o = self.rotation_over(lo, hi, dt, &mut w_prev);
+        }
+    }
+
+    /// ω_ib^b at `t`.
+    fn omega_at(&self, t: f64) -> Vec3 {
+        self.motion
+            .sense(self.motion.piece_at(t, self.hint), t)
+            .omega_ib_b
+    }
+
+    /// The rotation terms over (lo, hi]: Δω from `w_prev` (ω at `lo`, updated to ω at `hi`)
+    /// and ∫ω ωᵀ dt / `norm`, split at the breakpoints as the increments are.
+    fn rotation_over(&mut self, lo: f64, hi: f64, norm: f64, w_prev: &mut Vec3) -> RotationTerms {
+        let w_end = self.omega_at(hi);
+        let mut outer = Mat3::zeros();
+        let mut piece = self.motion.piece_at(lo, self.hint);
+        let mut a = lo;
+        loop {
+            let b = self.motion.piece_end(piece).min(hi);
+            let len = b - a;
+            if len > 0.0 {
+                for (x, wt) in self.rule.nodes.iter().zip(&self.rule.weights) {
+                    let w = self.motion.sense(piece, a + x * len).omega_ib_b;
+                    let f = wt * len / norm;
+                    outer += Mat3::from_fn(|i, j| f * w[i] * w[j]);
                 }
-                if b >= hi {
-                    break;
-                }
-                piece += 1;
-                a = b;
             }
-            self.hint = piece;
-            *o = RotationTerms {
-                d_omega: w_end - w_prev,
-                omega_outer: outer,
-            };
-            w_prev = w_end;
+            if b >= hi {
+                break;
+            }
+            piece += 1;
+            a = b;
+        }
+        self.hint = piece;
+        let d_omega = w_end - *w_prev;
+        *w_prev = w_end;
+        RotationTerms {
+            d_omega,
+            omega_outer: outer,
         }
     }
 
@@ -209,6 +234,25 @@ impl<M: Motion> IdealImu<M> {
         let piece = self.motion.piece_at(lo, self.hint);
         let end = self.motion.piece_end(piece);
         self.weighted(lo, hi, piece, end, 1.0)
+    }
+
+    /// Fills `out` with records over the variable intervals `bounds` (relative to t₀; record
+    /// i covers (bounds[i], bounds[i+1]]), as an externally triggered unit samples: the time
+    /// tag is the interval's end; the rates are the increments over the nominal Δt, as in
+    /// [`IdealImu::fill_timed`] (the error chain turns rates back into increments with Δt).
+    pub fn fill_between(&mut self, bounds: &[f64], out: &mut [Record]) {
+        for (i, r) in out.iter_mut().enumerate() {
+            let (lo, hi) = (bounds[i], bounds[i + 1]);
+            let (dtheta, dv) = self.integral(lo, hi);
+            *r = Record {
+                t: self.t0 + hi,
+                gyro: dtheta * self.rate_hz,
+                accel: dv * self.rate_hz,
+                dtheta,
+                dv,
+                flags: 0,
+            };
+        }
     }
 
     /// Fills `out` with records k_first, k_first+1, … whose increments integrate over the
@@ -322,5 +366,78 @@ mod tests {
         // The last gyro bound is the clock's 150th tick, 1.5 s/(1 + 300 ppm), give or take
         // the jitter (6σ).
         assert!((timed.gyro[150] - 1.5 / (1.0 + 300e-6)).abs() < 120e-6);
+    }
+
+    /// The lever-arm terms over the accelerometers' true intervals: Δω = ω(b) − ω(a) and
+    /// ∫ω ωᵀ dt over (a, b] divided by the nominal Δt, in closed form (∫tⁿ = (bⁿ⁺¹ − aⁿ⁺¹)/(n+1);
+    /// ω ωᵀ has degree 6, exact for the 4-node rule). Over the nominal intervals instead they
+    /// would miss by the clock's 300 ppm and the 150 µs skew, far above the tolerance.
+    #[test]
+    fn rotation_terms_over_the_true_intervals() {
+        let rate = 100.0;
+        let model = TimingModel {
+            clock_offset: 300e-6,
+            jitter: 20e-6,
+            skew: 150e-6,
+            ..Default::default()
+        };
+        let mut timing = SensorTiming::new(model, rate, 1.5, 3, (0.0, 2.0)).unwrap();
+        let mut imu = IdealImu::new(Poly, rate, 0.0, 150, 4);
+        let mut timed = TimedBlock::default();
+        timing.fill(1, 150, &mut timed);
+        let mut rot = vec![RotationTerms::default(); 150];
+        imu.rotation_terms_timed(&timed.accel, &mut rot);
+        let w = |t: f64| [t * t, t * t * t, 1.0];
+        // ω_i ω_j = t^(p_i + p_j) with powers p = (2, 3, 0).
+        let pw = [2, 3, 0];
+        for (i, r) in rot.iter().enumerate() {
+            let (a, b) = (timed.accel[i], timed.accel[i + 1]);
+            for j in 0..3 {
+                let want = w(b)[j] - w(a)[j];
+                assert!(
+                    (r.d_omega[j] - want).abs() <= 1e-15 * w(b)[j].abs() + 1e-18,
+                    "{i} {j}"
+                );
+                for l in 0..3 {
+                    let n = pw[j] + pw[l] + 1;
+                    let want = (b.powi(n) - a.powi(n)) / n as f64 * rate;
+                    let tol = 1e-14 * b.powi(n) * rate + 1e-18;
+                    let got = r.omega_outer[(j, l)];
+                    assert!((got - want).abs() <= tol, "{i} ({j},{l}): {got} vs {want}");
+                }
+            }
+        }
+    }
+
+    /// Triggered samples at irregular instants (one crossing the 0.5 s breakpoint): each
+    /// record's increments are the closed-form integrals over its own interval, its time tag
+    /// the interval's end and its rates the increments over the nominal Δt. Sampling on the
+    /// nominal grid instead misses by whole intervals.
+    #[test]
+    fn triggered_intervals() {
+        let t0 = 0.25;
+        let mut imu = IdealImu::new(Poly, 100.0, t0, 0, 3);
+        let bounds = [0.0, 0.0031, 0.0197, 0.2804, 0.281, 0.9];
+        let mut out = vec![Record::default(); bounds.len() - 1];
+        imu.fill_between(&bounds, &mut out);
+        for (i, r) in out.iter().enumerate() {
+            let (a, b) = (t0 + bounds[i], t0 + bounds[i + 1]);
+            let p = |n: i32| (b.powi(n) - a.powi(n), 1e-15 * b.powi(n) + 1e-18);
+            let div = |(x, e): (f64, f64), k: f64| (x / k, e / k);
+            let want_g = [div(p(3), 3.0), div(p(4), 4.0), p(1)];
+            let want_a = [p(5), div(p(2), 2.0), p(1)];
+            for j in 0..3 {
+                assert!(
+                    (r.dtheta[j] - want_g[j].0).abs() <= want_g[j].1,
+                    "{i} gyro {j}"
+                );
+                assert!(
+                    (r.dv[j] - want_a[j].0).abs() <= want_a[j].1,
+                    "{i} accel {j}"
+                );
+                assert_eq!(r.gyro[j], r.dtheta[j] * 100.0);
+            }
+            assert_eq!(r.t, t0 + bounds[i + 1]);
+        }
     }
 }

@@ -110,6 +110,9 @@ pub enum JobError {
     /// The caller asked to stop (an interrupted run).
     #[error("stopped before the end of the run")]
     Stopped,
+    /// An external trigger edge that cannot close a sample interval.
+    #[error("{0}")]
+    Trigger(String),
     /// Writing failed (the cause is the error's `source()`, not repeated here).
     #[error("writing output")]
     Io(#[from] std::io::Error),
@@ -308,6 +311,10 @@ pub struct Producer {
     /// A unit with an output filter: replaces the generator and chain above for the records
     /// (the output-rate generator still gives the truth).
     filtered: Option<Box<crate::filtered_imu::FilteredImu>>,
+    /// The external trigger, when samples are taken at its edges.
+    trigger: Option<Box<dyn crate::timing::trigger::TriggerSource>>,
+    /// The last triggered sample's time of validity (= emission) after t₀ (s).
+    trigger_tov: [f64; 1],
 }
 
 /// One block of production: the corrupted records and, if asked for, the error-free ones.
@@ -376,6 +383,8 @@ impl Producer {
             error: None,
             timing: None,
             filtered: None,
+            trigger: None,
+            trigger_tov: [0.0],
         }
     }
 
@@ -416,9 +425,26 @@ impl Producer {
         self
     }
 
-    /// Whether the records carry times of validity and emission (timing errors).
+    /// Samples once per edge of `source` instead of on the clock (an external sample trigger),
+    /// each record integrating over the interval since the previous edge; the run ends when
+    /// the source does or after the grid's count. Replaces the IMU's own timing errors.
+    pub fn with_trigger(
+        mut self,
+        source: Box<dyn crate::timing::trigger::TriggerSource>,
+    ) -> Producer {
+        self.trigger = Some(source);
+        self.timing = None;
+        self
+    }
+
+    /// How far the motion reaches after t₀ (s): the last instant a trigger edge may close.
+    pub fn span_after_t0(&self) -> f64 {
+        self.imu.motion().end() - self.imu.time_of(0)
+    }
+
+    /// Whether the records carry times of validity and emission (timing errors, a trigger).
     pub fn is_timed(&self) -> bool {
-        self.timing.is_some()
+        self.timing.is_some() || self.trigger.is_some()
     }
 
     /// Frames with a temperature field carry `profile` at each record's time (the profile the
@@ -505,6 +531,9 @@ impl Producer {
         if self.k > self.count || max == 0 {
             return None;
         }
+        if self.trigger.is_some() {
+            return self.step_triggered();
+        }
         let n = ((self.count - self.k + 1) as usize).min(max);
         if self.block.len() < n {
             self.block.resize(n, Record::default());
@@ -532,7 +561,14 @@ impl Producer {
                 if self.rot.len() < n {
                     self.rot.resize(n, Default::default());
                 }
-                self.imu.rotation_terms(self.k, &mut self.rot[..n]);
+                // Under timing errors the accelerometers integrate over their true
+                // intervals, and so do the lever-arm terms.
+                match self.timing.as_ref() {
+                    Some(t) => self
+                        .imu
+                        .rotation_terms_timed(&t.block().accel, &mut self.rot[..n]),
+                    None => self.imu.rotation_terms(self.k, &mut self.rot[..n]),
+                }
                 c.apply_with(&mut self.block[..n], Some(&self.rot[..n]));
             } else {
                 c.apply(&mut self.block[..n]);
@@ -587,6 +623,41 @@ impl Producer {
         Some((first, n))
     }
 
+    /// One record over the interval the trigger's next edge closes.
+    fn step_triggered(&mut self) -> Option<(u64, usize)> {
+        let (lo, hi) = match self.trigger.as_mut()?.next_interval()? {
+            Ok(iv) => iv,
+            Err(e) => return self.fail(JobError::Trigger(e)),
+        };
+        let bounds = [lo, hi];
+        if self.block.is_empty() {
+            self.block.push(Record::default());
+        }
+        self.imu.fill_between(&bounds, &mut self.block[..1]);
+        if let Err(e) = Producer::check_finite(&self.block[..1], "in the error-free signal") {
+            return self.fail(e);
+        }
+        if self.keep_truth {
+            self.truth.clear();
+            self.truth.push(self.block[0]);
+        }
+        if let Some(c) = self.chain.as_mut() {
+            if c.needs_rotation_terms() {
+                self.rot.resize(1, Default::default());
+                self.imu.rotation_terms_timed(&bounds, &mut self.rot[..1]);
+                c.apply_with(&mut self.block[..1], Some(&self.rot[..1]));
+            } else {
+                c.apply(&mut self.block[..1]);
+            }
+            if let Err(e) = Producer::check_finite(&self.block[..1], "after the error chain") {
+                return self.fail(e);
+            }
+        }
+        self.trigger_tov = [hi];
+        self.k += 1;
+        Some((self.k - 2, 1))
+    }
+
     /// Ends production with `e` (kept for [`Producer::take_error`]).
     fn fail(&mut self, e: JobError) -> Option<(u64, usize)> {
         self.error = Some(e);
@@ -600,7 +671,17 @@ impl Producer {
             records: &self.block[..n],
             truth: &self.truth[..if self.keep_truth { n } else { 0 }],
             chain: self.chain.as_ref(),
-            times: self.timing.as_ref().map(|t| t.times()),
+            times: match (&self.timing, &self.trigger) {
+                (Some(t), _) => Some(t.times()),
+                (None, Some(_)) => Some(crate::timing::Times {
+                    t0: self.imu.time_of(0),
+                    tov: &self.trigger_tov,
+                    tov_accel: &self.trigger_tov,
+                    emit: &self.trigger_tov,
+                    gaps: &[0],
+                }),
+                (None, None) => None,
+            },
             motion: self.imu.motion(),
         }
     }

@@ -341,3 +341,73 @@ fn software_pps_pulls_the_phase() {
     assert!(num("phase error").abs() < 0.1, "{line}");
     assert!(num("frequency offset").abs() < 5.0, "{line}");
 }
+
+/// `run --trigger udp://…`: edges sent as UDP edge messages at irregular instants, each
+/// carrying its own CLOCK_REALTIME instant; one frame and one time mark per edge after the
+/// first, whose time of validity after t₀ is the edge's offset from the first edge, and no
+/// frame leaves before its edge. The offsets go through the emulator's conversion from
+/// CLOCK_REALTIME to CLOCK_MONOTONIC (two clock reads a few hundred ns apart, which a
+/// preemption on this loaded VM can stretch to a scheduler slice): within 2 ms.
+#[test]
+fn external_trigger_one_frame_per_edge() {
+    use std::io::{BufRead, BufReader};
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("marks.csv");
+    let port = UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap();
+    let (frames_to, frames) = receive(8.0);
+    let mut child = Command::new(BIN)
+        .args([
+            "run",
+            "--scene",
+            "static",
+            "--rate",
+            "100",
+            "--duration",
+            "0.05",
+        ])
+        .args(["--trigger", &format!("udp://{port}"), "--udp", &frames_to])
+        .args(["--time-marks", csv.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("waiting for the first trigger edge") {
+        line.clear();
+        assert!(err.read_line(&mut line).unwrap() > 0, "no wait message");
+    }
+    // Offsets (ms) of the 6 edges: irregular, 5 sample intervals = --duration 0.05 at 100 Hz.
+    let at_ms = [0.0, 7.0, 19.5, 23.0, 61.0, 70.0];
+    let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let t0 = utc_now_ns() + 20_000_000;
+    for ms in at_ms {
+        let edge = t0 + (ms * 1e6) as i128;
+        while utc_now_ns() < edge {
+            std::thread::sleep(Duration::from_micros(200));
+        }
+        tx.send_to(&(edge as i64).to_le_bytes(), port).unwrap();
+    }
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
+    assert!(child.wait().unwrap().success(), "{rest}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let marks: Vec<Vec<i64>> = (text.lines().skip(1))
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(marks.len(), 5, "{rest}");
+    assert_eq!(frames.join().unwrap().len(), 5, "{rest}");
+    for (k, m) in marks.iter().enumerate() {
+        assert_eq!(m[0], k as i64);
+        let want = (at_ms[k + 1] * 1e6) as i64;
+        assert!(
+            (m[1] - want).abs() < 2_000_000,
+            "mark {k}: tov {} ns, edge {want} ns",
+            m[1]
+        );
+        assert!(m[4] >= m[2], "frame {k} written before its edge");
+    }
+}

@@ -219,3 +219,125 @@ fn two_emulators_started_next_second_agree() {
         "record {k} arrived {past:.3} ms after its due instant"
     );
 }
+
+/// A number in the run's summary after `key` (`p99 208 µs` → 208 for `p99 `).
+fn summary_us(err: &str, key: &str) -> f64 {
+    let summary = &err[err.rfind("write lateness").expect("a summary")..];
+    let rest = &summary[summary.find(key).expect("the key") + key.len()..];
+    rest.split_whitespace().next().unwrap().parse().unwrap()
+}
+
+/// At a pty reader, `--time-base gps` iXCOM frames from an IMU with latency 400 µs ± 50 µs,
+/// matched by their GPS time to the run's time marks (`--time-marks`): each frame's GPS time is
+/// its mark's time of validity in GPS time, i.e. the host's
+/// GPS time at the frame's due instant minus the latency; the latency (due − ToV) is within
+/// 400 ± 50 µs; the pacer hands each frame over no earlier than due and at most its own
+/// reported maximum lateness later; and the reader sees no frame before its emission (less the
+/// 0.1 ms realtime-to-monotonic allowance). The reader's median delay after the due instant is
+/// the pacer's lateness plus the pty and the reader's wake-up: printed, bounded at 20 ms as over
+/// UDP. A frame sent at its ToV shows due − ToV = 0; a time base without leap seconds, 18 s.
+#[test]
+fn latency_and_gps_time_at_a_pty_reader() {
+    use std::io::Read;
+    let dir = tempfile::tempdir().unwrap();
+    let imu = dir.path().join("late.toml");
+    std::fs::write(
+        &imu,
+        "base = \"ln200\"\n[timing]\nlatency = \"400 us\"\nlatency_spread = \"50 us\"\n",
+    )
+    .unwrap();
+    let link = dir.path().join("imu");
+    let marks = dir.path().join("marks.csv");
+    let child = spawn(&[
+        "--time-base",
+        "gps",
+        "--protocol",
+        "imar-ixcom",
+        "--imu",
+        imu.to_str().unwrap(),
+        "--rate",
+        "200",
+        "--duration",
+        "3",
+        "--pty",
+        link.to_str().unwrap(),
+        "--time-marks",
+        marks.to_str().unwrap(),
+    ]);
+    let t = std::time::Instant::now();
+    while link.symlink_metadata().is_err() {
+        assert!(t.elapsed().as_secs() < 10, "no pty link");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let mut port = serialport::new(link.to_string_lossy(), 921_600)
+        .timeout(Duration::from_millis(50))
+        .open_native()
+        .expect("open the pty");
+    let (_, plan) = load("imar-ixcom").unwrap();
+    let mut dec = imu_emu::protocol::StreamDecoder::new(plan);
+    let mut got: Vec<(i128, i128)> = Vec::new(); // (arrival UTC ns, frame GPS ns)
+    let mut buf = [0u8; 4096];
+    while t.elapsed().as_secs_f64() < 5.0 {
+        match port.read(&mut buf) {
+            Ok(n) => {
+                let at = utc_now_ns();
+                dec.feed(&buf[..n], |d| {
+                    let week = d.get(Source::GpsWeek).unwrap();
+                    let sow = d.get(Source::GpsWholeSeconds).unwrap() * 1e9
+                        + d.get(Source::GpsMicros).unwrap() * 1e3;
+                    got.push((at, (week * 604_800e9 + sow).round() as i128));
+                });
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+            Err(_) => break,
+        }
+    }
+    drop(port);
+    let err = finish(child);
+    assert!(got.len() > 400, "{} frames at the reader; {err}", got.len());
+    // GPS = UTC + 18 s − the GPS epoch (1980-01-06), as docs/timing.md says.
+    let gps = |utc: i128| utc - 315_964_800_000_000_000 + 18_000_000_000;
+    let text = std::fs::read_to_string(&marks).unwrap();
+    let marks: Vec<Vec<i128>> = (text.lines().skip(1))
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    let max_late_ns = summary_us(&err, "max ") * 1e3;
+    let mut after_due = Vec::new();
+    for (at, frame) in &got {
+        // Marks are in ToV order, 5 ms apart: the nearest one is the frame's.
+        let i = marks.partition_point(|m| gps(m[2]) < *frame);
+        let m = [i.saturating_sub(1), i.min(marks.len() - 1)]
+            .map(|j| &marks[j])
+            .into_iter()
+            .min_by_key(|m| (gps(m[2]) - frame).abs())
+            .unwrap();
+        let (tov, due, emit) = (m[2], m[3], m[4]);
+        // The frame's µs field, and the marks' ToV converted from CLOCK_MONOTONIC at another
+        // moment than the start instant the frames count from: 0.1 ms allowance, as above.
+        assert!(
+            (gps(tov) - frame).abs() <= 100_000,
+            "GPS {frame} vs ToV {}",
+            gps(tov)
+        );
+        assert!(
+            (350_000..=450_000).contains(&(due - tov)),
+            "latency {} ns",
+            due - tov
+        );
+        let late = emit - due;
+        assert!(
+            late >= 0 && late as f64 <= max_late_ns + 1e3,
+            "lateness {late} ns; {err}"
+        );
+        assert!(*at >= emit - 100_000, "arrived before its emission");
+        after_due.push((at - due) as f64 / 1e6);
+    }
+    let p99 = summary_us(&err, "p99 ");
+    let m = median(after_due.clone());
+    let earliest = after_due.iter().copied().fold(f64::INFINITY, f64::min);
+    eprintln!(
+        "pty reader, 400 ± 50 µs latency: {} frames; arrival − due: earliest {earliest:.3} ms, median {m:.3} ms; pacer write lateness p99 {p99} µs",
+        got.len()
+    );
+    assert!(m < 20.0, "median {m:.3} ms after due; {err}");
+}

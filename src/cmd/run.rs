@@ -94,6 +94,11 @@ pub struct RunArgs {
     /// `udp://HOST:PORT` (edge datagrams); see docs/timing.md.
     #[arg(long, value_name = "SOURCE")]
     pub pps_in: Option<String>,
+    /// External sample trigger: one sample per edge, integrating over the interval since the
+    /// previous edge (the first edge is t₀): `udp://HOST:PORT` (edge datagrams), `dcd:DEV`,
+    /// `cts:DEV` or `/dev/ppsN`; see docs/timing.md.
+    #[arg(long, value_name = "SOURCE")]
+    pub trigger: Option<String>,
     /// Frames later than this are skipped and counted rather than sent in a burst (ms).
     #[arg(long, default_value_t = 100.0)]
     pub max_behind_ms: f64,
@@ -225,11 +230,28 @@ pub fn run(a: RunArgs) -> Result<()> {
         .collect();
 
     let extras = sync_extras(&a, paced, speed, grid.rate_hz, &stop)?;
+    let mut producer = sim.producer()?.with_extra_encodings(extra);
+    let mut first_edge = None;
+    if let Some(spec) = &a.trigger {
+        let (p, first) = triggered(
+            &a,
+            spec,
+            paced && speed == 1.0,
+            producer,
+            &stop,
+            &rt,
+            &mut signals,
+        )?;
+        producer = p;
+        first_edge = Some(first);
+    }
     let pacing = if paced {
-        let start_ns = start_at
-            .map(clock::start_at)
-            .transpose()
-            .map_err(|e| anyhow::anyhow!("--start-at {}: {e}", a.start_at.unwrap_or_default()))?;
+        let start_ns = match first_edge {
+            Some(f) => Some(f),
+            None => start_at.map(clock::start_at).transpose().map_err(|e| {
+                anyhow::anyhow!("--start-at {}: {e}", a.start_at.clone().unwrap_or_default())
+            })?,
+        };
         let mut c = Clocking::new(frames_per_s, start_ns, a.realtime)
             .map_err(|e| anyhow::anyhow!(e))?
             .with_speed(speed);
@@ -241,7 +263,6 @@ pub fn run(a: RunArgs) -> Result<()> {
     } else {
         Pacing::Unpaced
     };
-    let producer = sim.producer()?.with_extra_encodings(extra);
     let block = realtime::block_len(frames_per_s);
     tracing::info!(
         "{} records at {} Hz, {}; blocks of {block} frames, {} in flight",
@@ -568,6 +589,45 @@ fn sync_extras(
         extras.lock = Some((edges, PhaseLock::new(1_000_000_000)));
     }
     Ok(extras)
+}
+
+/// The producer sampling at the edges of `--trigger`, once the first edge (t₀, returned) came.
+fn triggered(
+    a: &RunArgs,
+    spec: &str,
+    real_time: bool,
+    producer: job::Producer,
+    stop: &Arc<AtomicBool>,
+    rt: &tokio::runtime::Runtime,
+    signals: &mut StopSignals,
+) -> Result<(job::Producer, i128)> {
+    use imu_emu::realtime::{pps, trigger::ChannelTrigger};
+    if !real_time {
+        bail!("--trigger samples at real edges: give --speed 1");
+    }
+    if a.pps_in.is_some() || a.start_at.is_some() {
+        bail!("--trigger sets t₀ at its first edge: drop --pps-in and --start-at");
+    }
+    let edges = pps::spawn(pps::open_for("--trigger", spec)?, stop.clone())?;
+    eprintln!("imu-emu: waiting for the first trigger edge on {spec}");
+    let wait = rt.spawn_blocking(move || {
+        let first = edges.recv().ok();
+        (edges, first)
+    });
+    let (edges, first) = rt.block_on(async {
+        tokio::select! {
+            r = wait => r.map_err(|e| anyhow::anyhow!("waiting for a trigger edge: {e}")),
+            sig = signals.recv() => {
+                stop.store(true, Ordering::Relaxed);
+                Err(Interrupted(sig).into())
+            }
+        }
+    })?;
+    let first =
+        first.ok_or_else(|| anyhow::anyhow!("--trigger {spec}: the edge source stopped"))?;
+    let span = producer.span_after_t0();
+    let source = ChannelTrigger::new(edges, first, span, stop.clone());
+    Ok((producer.with_trigger(Box::new(source)), first))
 }
 
 /// The end-of-run summary.

@@ -11,8 +11,8 @@
 pub mod clock;
 pub mod hook;
 pub mod hostclock;
-pub mod merge;
 pub mod lock;
+pub mod merge;
 pub mod pacer;
 pub mod pps;
 pub mod pty;
@@ -22,6 +22,7 @@ pub mod signal;
 pub mod sink;
 pub mod stats;
 pub mod timemark;
+pub mod trigger;
 pub mod udp;
 
 use crate::job::Producer;

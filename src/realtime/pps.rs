@@ -26,7 +26,12 @@ pub trait EdgeSource: Send {
 /// Opens the source named on the command line: `/dev/ppsN` (or any path without a prefix),
 /// `dcd:DEV`, `cts:DEV`, or `udp://HOST:PORT` (a socket bound there).
 pub fn open(spec: &str) -> io::Result<Box<dyn EdgeSource>> {
-    let named = |e: io::Error| io::Error::new(e.kind(), format!("--pps-in {spec}: {e}"));
+    open_for("--pps-in", spec)
+}
+
+/// [`open`] for the command-line flag `flag`, which its errors name.
+pub fn open_for(flag: &str, spec: &str) -> io::Result<Box<dyn EdgeSource>> {
+    let named = |e: io::Error| io::Error::new(e.kind(), format!("{flag} {spec}: {e}"));
     Ok(if let Some(addr) = spec.strip_prefix("udp://") {
         Box::new(UdpEdges::bind(addr).map_err(named)?)
     } else if let Some(dev) = spec.strip_prefix("dcd:") {

@@ -10,6 +10,7 @@
 pub mod merge;
 mod run;
 mod sensor;
+pub mod trigger;
 
 pub use run::{TimedRun, Times};
 pub use sensor::{SensorTiming, TimedBlock};

@@ -76,6 +76,11 @@ impl TimedRun {
         &self.block
     }
 
+    /// The instants [`TimedRun::instants`] last filled.
+    pub fn block(&self) -> &TimedBlock {
+        &self.block
+    }
+
     /// Drops the block's skipped samples from `records`, `truth` (empty when not kept) and
     /// `comps` (the injected errors, if captured), folding them into the next sample taken;
     /// returns the number of records kept, whose times [`TimedRun::times`] then gives.
