@@ -21,6 +21,7 @@ pub mod earth;
 pub mod errors;
 pub mod fit;
 pub mod generator;
+pub mod gnss_fixes;
 pub mod input;
 pub mod job;
 pub mod kinematics;
