@@ -23,6 +23,7 @@ pub mod errors;
 pub mod filtered_imu;
 pub mod fit;
 pub mod generator;
+pub mod gnss_fixes;
 pub mod input;
 pub mod job;
 pub mod kinematics;

@@ -6,9 +6,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
+use imu_emu::gnss_fixes::{FixEpoch, read_fixes};
 use imu_emu::input::RecordReader;
+use imu_emu::math::Vec3;
 use imu_emu::math::euler_from_quat;
 use imu_emu::motion::{Motion, Pose};
+use imu_emu::nav::aided::{AidedConfig, AidedNavigator};
 use imu_emu::nav::{NavState, Navigator, Settings, StateError};
 use imu_emu::output::{AtomicFile, Format};
 use imu_emu::record::Record;
@@ -40,6 +43,57 @@ pub struct NavigateArgs {
     /// Navigator collocation stages (1–4, order 2s) [default: 3].
     #[arg(long)]
     pub stages: Option<usize>,
+    /// GNSS fixes (`generate --gnss-truth` CSV): navigate GNSS-aided (15-state loosely coupled
+    /// filter), and report the free-inertial error next to the aided one.
+    #[arg(long)]
+    pub gnss: Option<PathBuf>,
+    /// The fixes' 1σ position (m) and velocity (m/s) errors the filter assumes, per axis.
+    #[arg(long, value_name = "POS,VEL", default_value = "1,0.1")]
+    pub gnss_sigma: String,
+    /// The GNSS antenna from the IMU reference point, body axes (m).
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        default_value = "0,0,0",
+        allow_hyphen_values = true
+    )]
+    pub gnss_lever_arm: String,
+}
+
+/// `N` comma-separated finite numbers of flag `flag`.
+fn numbers<const N: usize>(flag: &str, text: &str) -> Result<[f64; N]> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<_>>()
+        .with_context(|| format!("{flag} `{text}`: expected {N} comma-separated numbers"))?;
+    v.try_into()
+        .map_err(|_| anyhow::anyhow!("{flag} `{text}`: expected {N} comma-separated numbers"))
+}
+
+/// The aided navigator and the fixes still to apply, from `--gnss`.
+fn aided(
+    a: &NavigateArgs,
+    start: &Pose,
+    rate: f64,
+    settings: Settings,
+) -> Result<Option<(AidedNavigator, Vec<FixEpoch>)>> {
+    let Some(path) = &a.gnss else {
+        return Ok(None);
+    };
+    let [sp, sv] = numbers::<2>("--gnss-sigma", &a.gnss_sigma)?;
+    if !(sp > 0.0 && sv > 0.0) {
+        bail!("--gnss-sigma `{}`: both σ must be positive", a.gnss_sigma);
+    }
+    let lever_arm_m = numbers::<3>("--gnss-lever-arm", &a.gnss_lever_arm)?;
+    let mut fixes = read_fixes(path, Vec3::repeat(sp), Vec3::repeat(sv))?;
+    fixes.reverse();
+    let cfg = AidedConfig {
+        lever_arm_m,
+        ..AidedConfig::default()
+    };
+    let nav = AidedNavigator::new(NavState::from_pose(start), rate, settings, cfg)?;
+    Ok(Some((nav, fixes)))
 }
 
 /// Header of the error CSV.
@@ -134,6 +188,8 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
     }
     let start = motion.pose(t0);
     let mut nav = Navigator::new(NavState::from_pose(&start), rate, settings)?;
+    let mut aided = aided(&a, &start, rate, settings)?;
+    let (mut free_max, mut free_last, mut fixes_used) = (0.0f64, 0.0f64, 0u64);
 
     let mut traj = Sink::open(&a.output)?;
     let mut errs = Sink::open(&a.errors)?;
@@ -186,7 +242,26 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
             );
         }
         nav.step(rec.dtheta, rec.dv);
-        let s = nav.state();
+        let s = match aided.as_mut() {
+            None => nav.state(),
+            Some((an, fixes)) => {
+                let free = StateError::of(&nav.state(), &motion.pose(nav.state().t));
+                free_max = free_max.max(free.pos_ned.norm());
+                free_last = free.pos_ned.norm();
+                an.step(rec.dtheta, rec.dv);
+                // A fix applies at the first record at or after its time of validity.
+                while let Some(&(t, fix)) = fixes.last()
+                    && t <= rec.t + 1e-9
+                {
+                    fixes.pop();
+                    if let Some(f) = fix {
+                        an.update(&f);
+                        fixes_used += 1;
+                    }
+                }
+                an.state()
+            }
+        };
         if s.t > motion.end() + 1e-9 {
             bail!(
                 "{}: record {k} at t = {} s is past the end of the reference ({} s)",
@@ -196,6 +271,13 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
             );
         }
         let e = StateError::of(&s, &motion.pose(s.t));
+        if !(e.pos_ned.norm().is_finite() && e.vel_ned.norm().is_finite()) {
+            bail!(
+                "{}: record {k} at t = {} s: the navigated state is not finite (the GNSS-aided filter diverged)",
+                a.input.display(),
+                s.t
+            );
+        }
         max_pos = max_pos.max(e.pos_ned.norm());
         max_vel = max_vel.max(e.vel_ned.norm());
         max_att = max_att.max(e.att_ned.norm());
@@ -241,6 +323,13 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
         max_vel,
         max_att,
     );
+    let summary = match &aided {
+        None => summary,
+        Some(_) => format!(
+            "{summary}GNSS-aided with {fixes_used} fixes from {}; free-inertial: final position error {free_last:.3e} m, max {free_max:.3e} m\n",
+            a.gnss.as_deref().unwrap_or(Path::new("-")).display()
+        ),
+    };
     if to_stdout {
         eprint!("{summary}");
     } else {
