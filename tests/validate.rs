@@ -294,3 +294,48 @@ fn wrong_noise_scaling_fails() {
         "{r}"
     );
 }
+
+/// A template with an output filter (examples/filtered.toml, a Bartlett window 819.2 → 204.8
+/// Hz): its white noise at τ = Δt is 17/32 of N²/τ, so read there it failed every N and B row
+/// (12 rows before the check used only the octaves the filter no longer marks). Now every
+/// row passes or is not resolved, N and B pass on all six channels, read from τ ≥ 64 Δt
+/// (the first octave where 15/(32 m) ≤ 1 %); and the sabotaged generator still fails there.
+#[test]
+fn filtered_template_passes_and_can_fail() {
+    let example = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/filtered.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let o = validate(dir.path(), &["--imu", example]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = report(dir.path());
+    assert!(r.contains("**PASS**") && !r.contains("FAIL"), "{r}");
+    assert!(r.contains("is 0.5312 of N²/τ"), "{r}");
+    let t = tables(&r);
+    let rows = table(&t, "204.8 Hz (737280 records)");
+    let mut passed = 0;
+    for c in rows {
+        let verdict = c.last().unwrap();
+        assert!(verdict == "pass" || verdict == "not resolved", "{c:?}");
+        if c[2] == N || c[2] == B {
+            assert_eq!(verdict, "pass", "{c:?}");
+            let tau: f64 = c[6].parse().unwrap();
+            assert!(tau >= 64.0 / 204.8 - 1e-3, "{c:?}");
+            passed += 1;
+        }
+    }
+    assert_eq!(passed, 12, "{r}");
+
+    let bad = tempfile::tempdir().unwrap();
+    let o = validate(
+        bad.path(),
+        &["--imu", example, "--sabotage", "noise-scaling"],
+    );
+    assert!(!o.status.success());
+    let r = report(bad.path());
+    assert_eq!(
+        r.lines()
+            .filter(|l| l.starts_with('|') && l.contains(N) && l.contains("**FAIL**"))
+            .count(),
+        6,
+        "{r}"
+    );
+}

@@ -36,14 +36,32 @@
 //! still report a small value, which the caller can show. A term the record is too short to
 //! resolve (its band reaches below a tenth of the specified value) and that the fit left out
 //! gets no verdict either (`resolved = false`): "not seen" is not "wrong".
+//!
+//! A template with an output filter. The filter low-passes the internal-rate noise, so at
+//! τ ≈ Δt its white noise is not N²/τ ([`crate::errors::filter_allan`]: at τ = Δt the ratio
+//! is D·Σ h_i(h_i − h_{i+D}), 17/32 for a Bartlett window of 4 + 4 taps at D = 4), and read
+//! there the fit would lay the difference on Q, N and B. The check therefore uses only the
+//! octaves from the first one where the filtered white-noise Allan variance is within
+//! [`FILTER_TOLERANCE`] of its long-τ limit (and stays so), and the expected white noise is
+//! N·√r_∞, the density the output carries after the filter's aliasing (r_∞ = 1 for a moving
+//! average or CIC whose length is the decimation). Quantization, read at the shortest τ, then
+//! usually shows as not resolved; every slower term is read where the filter no longer
+//! matters.
 
 use super::analyzer::Analysis;
 #[cfg(test)]
 use super::confidence::NoiseType;
 use super::confidence::{chi2_quantile, edf};
 use super::fit::{TERMS, Term, fit_with_floor};
+use super::octave_adev::AdevPoint;
 use super::theory::{AxisTheory, triad};
+use crate::errors::filter_allan::WhiteAllan;
 use crate::errors::template::ImuModel;
+
+/// Relative departure of the filtered white-noise Allan variance from its long-τ limit
+/// below which an octave is used against a filtered template: 1 % of σ² is 0.5 % of N, a
+/// fraction of the N band at any record length `validate` runs.
+pub const FILTER_TOLERANCE: f64 = 0.01;
 
 /// Confidence of the pass/fail bands.
 pub const BAND_CONFIDENCE: f64 = 0.99;
@@ -90,26 +108,57 @@ impl TermRow {
     }
 }
 
-/// The template's theory of the six channels at the analysis's rate.
+/// The template's theory of the six channels at the analysis's rate; with an output filter
+/// the white noise is the density the output carries at long τ (N·√r_∞).
 pub fn channel_theory(model: &ImuModel, dt: f64) -> Vec<AxisTheory> {
     let mut v = triad(&model.gyro, model.quantization_mode, dt).to_vec();
     v.extend(triad(&model.accel, model.quantization_mode, dt));
+    if let Some(w) = white_allan(model, dt) {
+        let gain = w.long_tau().sqrt();
+        v.iter_mut().for_each(|a| a.white *= gain);
+    }
     v
+}
+
+/// The filtered white-noise Allan variance of a template with an output filter, at the
+/// output interval `dt`.
+pub fn white_allan(model: &ImuModel, dt: f64) -> Option<WhiteAllan> {
+    model.output_filter.as_ref().map(|f| {
+        let d = (f.internal_rate_hz * dt).round().max(1.0) as usize;
+        WhiteAllan::new(f, d)
+    })
+}
+
+/// The octave points a template is checked on: all of them, or with an output filter those
+/// from the first octave where the filter no longer marks white noise ([`FILTER_TOLERANCE`]).
+pub fn checked_points<'a>(points: &'a [AdevPoint], filter: Option<&WhiteAllan>) -> &'a [AdevPoint] {
+    let Some(w) = filter else {
+        return points;
+    };
+    let ms: Vec<usize> = points.iter().map(|p| p.m).collect();
+    let first = w
+        .settled_from(&ms, FILTER_TOLERANCE)
+        .and_then(|m| ms.iter().position(|&x| x == m))
+        .unwrap_or(points.len());
+    &points[first..]
 }
 
 /// The rows for every sensor, axis and term (30 rows), in channel then term order.
 pub fn term_rows(model: &ImuModel, analysis: &Analysis) -> Vec<TermRow> {
     let theory = channel_theory(model, analysis.dt);
+    let filter = white_allan(model, analysis.dt);
     let phases = analysis.samples as usize + 1;
     let mut rows = Vec::with_capacity(30);
     for (ch, (c, th)) in analysis.channels.iter().zip(&theory).enumerate() {
-        let ms: Vec<usize> = c.adev.iter().map(|p| p.m).collect();
+        let points = checked_points(&c.adev, filter.as_ref());
+        let ms: Vec<usize> = points.iter().map(|p| p.m).collect();
         let nu = term_edf(th, analysis.dt, &ms, phases);
         // Refit with the bank's exact shape for B when the template sets it.
         let fit = match th.flicker_shape(1.0) {
-            Some(_) => fit_with_floor(&c.adev, analysis.samples as usize, &|tau| {
+            Some(_) => fit_with_floor(points, analysis.samples as usize, &|tau| {
                 th.flicker_shape(tau).unwrap_or(0.0)
             }),
+            None if filter.is_some() => super::fit::fit(points, analysis.samples as usize),
             None => c.fit.clone(),
         };
         for (i, term) in TERMS.into_iter().enumerate() {

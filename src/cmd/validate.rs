@@ -234,6 +234,17 @@ fn perturbed(a: &ValidateArgs, model: &ImuModel, seed: u64) -> Result<Section> {
             .join(" and "),
         imu_emu::analysis::conformance::BAND_CONFIDENCE * 100.0
     );
+    if let Some(w) = imu_emu::analysis::conformance::white_allan(model, 1.0 / rates[0]) {
+        let _ = writeln!(
+            s.markdown,
+            "The template's output filter marks white noise at short τ (its Allan variance at τ = Δt is {:.4} of N²/τ), \
+             so the terms are fitted and checked on the octaves from the first where it is within {:.0} % of its long-τ \
+             value on; N is expected as N·√r∞ = N·{:.6} (the filter's aliasing). See docs/fidelity.md, \"Output filters\".\n",
+            w.ratio(1),
+            imu_emu::analysis::conformance::FILTER_TOLERANCE * 100.0,
+            w.long_tau().sqrt()
+        );
+    }
     if a.sabotage.is_some() {
         s.markdown.push_str(
             "**Sabotaged run** (`--sabotage noise-scaling`): white noise generated with σ·√Δt instead of σ/√Δt.\n\n",

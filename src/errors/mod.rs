@@ -7,6 +7,7 @@
 
 pub mod bounds;
 pub mod chain;
+pub mod filter_allan;
 pub mod filtered;
 pub mod model;
 pub mod output_filter;
