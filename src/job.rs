@@ -301,6 +301,8 @@ pub struct Producer {
     error: Option<JobError>,
     /// The IMU's timing errors, when it has any.
     timing: Option<Box<crate::timing::TimedRun>>,
+    /// Flags added to every record from now on ([`Producer::mark`]).
+    mark: u8,
 }
 
 /// One block of production: the corrupted records and, if asked for, the error-free ones.
@@ -366,6 +368,7 @@ impl Producer {
             temperature: None,
             error: None,
             timing: None,
+            mark: 0,
         }
     }
 
@@ -452,6 +455,12 @@ impl Producer {
         } else {
             String::new()
         }
+    }
+
+    /// Sets the flags (e.g. [`crate::record::FLAG_STALE`]) that every record of the following
+    /// [`Producer::next_block_multi`] blocks carries, on top of its own.
+    pub fn mark(&mut self, flags: u8) {
+        self.mark = flags;
     }
 
     /// Also encodes every record with each of `extra` (further wire formats of the same
@@ -560,6 +569,9 @@ impl Producer {
         outs: &mut [(Vec<u8>, Vec<usize>)],
     ) -> Option<Block<'_>> {
         let (first, n) = self.step(max)?;
+        for r in &mut self.block[..n] {
+            r.flags |= self.mark;
+        }
         let encodings = std::iter::once(&mut self.encoding).chain(self.extra.iter_mut());
         let gaps = self.timing.as_ref().map_or(&[][..], |t| t.times().gaps);
         for (e, (out, ends)) in encodings.zip(outs.iter_mut()) {
