@@ -315,6 +315,8 @@ pub struct Producer {
     trigger: Option<Box<dyn crate::timing::trigger::TriggerSource>>,
     /// The last triggered sample's time of validity (= emission) after t₀ (s).
     trigger_tov: [f64; 1],
+    /// Flags added to every record from now on ([`Producer::mark`]).
+    mark: u8,
 }
 
 /// One block of production: the corrupted records and, if asked for, the error-free ones.
@@ -385,6 +387,7 @@ impl Producer {
             filtered: None,
             trigger: None,
             trigger_tov: [0.0],
+            mark: 0,
         }
     }
 
@@ -517,6 +520,12 @@ impl Producer {
         } else {
             String::new()
         }
+    }
+
+    /// Sets the flags (e.g. [`crate::record::FLAG_STALE`]) that every record of the following
+    /// [`Producer::next_block_multi`] blocks carries, on top of its own.
+    pub fn mark(&mut self, flags: u8) {
+        self.mark = flags;
     }
 
     /// Also encodes every record with each of `extra` (further wire formats of the same
@@ -710,6 +719,9 @@ impl Producer {
         outs: &mut [(Vec<u8>, Vec<usize>)],
     ) -> Option<Block<'_>> {
         let (first, n) = self.step(max)?;
+        for r in &mut self.block[..n] {
+            r.flags |= self.mark;
+        }
         let encodings = std::iter::once(&mut self.encoding).chain(self.extra.iter_mut());
         let gaps = self.timing.as_ref().map_or(&[][..], |t| t.times().gaps);
         for (e, (out, ends)) in encodings.zip(outs.iter_mut()) {

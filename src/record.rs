@@ -27,6 +27,10 @@ pub const FLAG_ACCEL_SATURATED: u8 = 2;
 /// Record flag: a value of the record is not a measurement (not finite): a sensor failure, which
 /// frames with a status word report as their built-in-test failure.
 pub const FLAG_INVALID: u8 = 4;
+/// Record flag: the motion behind the record no longer follows its live input (stale or
+/// holding); frames with a status word report it as their built-in-test failure, frames
+/// without one are still sent.
+pub const FLAG_STALE: u8 = 8;
 
 /// Column names of the output contract, in order.
 pub const COLUMNS: [&str; 13] = [

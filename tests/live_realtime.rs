@@ -323,3 +323,82 @@ fn realtime_jitter_and_loss_are_bounded_and_reported() {
     assert!(dv <= 2.0 * big_a * tau + 1e-6, "{summary}");
     assert!(dtheta <= 2.0 * big_w * tau + 1e-7, "{summary}");
 }
+
+/// Stale input sets the status word's failure bits: 1.5 s of states, then silence; with
+/// `--on-timeout hold` the run keeps emitting kvh1750-b frames (status 0x77 healthy, its
+/// failure model clears every valid bit) to 3 s. Frames up to the newest state (t ≤ 1.5 s,
+/// interpolated: the 60 ms delay is always met) are healthy; from the end of the bounded
+/// extrapolation (1.5 s + `--max-extrapolation` 0.25 s) on, the motion holds and every frame
+/// is flagged; the flagged frames are one block at the end, and the project's decoder counts
+/// exactly them.
+#[test]
+fn stale_input_sets_the_status_failure_bits() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let (child, port, lines) = start(
+        dir.path(),
+        &[
+            "--format",
+            "kvh1750-b",
+            "--output-delay",
+            "0.06",
+            "--on-timeout",
+            "hold",
+            "--duration",
+            "3",
+            "--file",
+            "out.bin",
+        ],
+    );
+    send(&survey_states(1.5), port, 0.0, 0.0, 1);
+    let out = child.wait_with_output().unwrap();
+    let err: Vec<String> = lines.iter().collect();
+    let err = err.join("\n");
+    eprintln!("{err}");
+    assert!(out.status.success(), "{err}");
+    let dec = imu_emu()
+        .current_dir(dir.path())
+        .args([
+            "decode",
+            "--protocol",
+            "kvh1750-b",
+            "--rate",
+            "400",
+            "out.bin",
+        ])
+        .output()
+        .unwrap();
+    let dec_err = String::from_utf8_lossy(&dec.stderr);
+    assert!(dec.status.success(), "{dec_err}");
+    let text = String::from_utf8(dec.stdout).unwrap();
+    let mut rows = text.lines();
+    let col = rows
+        .next()
+        .unwrap()
+        .split(',')
+        .position(|c| c == "status")
+        .expect("a status column");
+    let status: Vec<f64> = rows
+        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
+        .collect();
+    let flagged: Vec<usize> = (0..status.len()).filter(|&i| status[i] != 119.0).collect();
+    assert!(!flagged.is_empty(), "{err}");
+    let first = flagged[0];
+    assert_eq!(
+        flagged,
+        (first..status.len()).collect::<Vec<_>>(),
+        "a block at the end"
+    );
+    // Frame i (0-based) is the record ending at t₀ + (i+1)/400 s, t₀ = 0.08 s.
+    let t = |i: usize| 0.08 + (i + 1) as f64 / 400.0;
+    assert!(t(first) > 1.5, "frame at {} s flagged", t(first));
+    // The record whose interval holds 1.75 s is the first one held (1e-9: t's rounding).
+    assert!(
+        t(first) <= 1.75 + 1.0 / 400.0 + 1e-9,
+        "first flagged at {} s",
+        t(first)
+    );
+    assert!(
+        dec_err.contains(&format!("{} status flagged", flagged.len())),
+        "{dec_err}"
+    );
+}

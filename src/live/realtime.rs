@@ -27,6 +27,7 @@ use crate::motion::chain::{ChainSettings, Corrections, Tail};
 use crate::protocol::Plan;
 use crate::realtime::FrameBlock;
 use crate::realtime::clock::{monotonic_ns, sleep_until};
+use crate::record::FLAG_STALE;
 use crate::sim::{SimError, SimulationBuilder};
 
 /// The emitter wakes this long before a frame's deadline to produce it (s): what it
@@ -296,6 +297,12 @@ impl Realtime {
                 n += 1;
             }
             let tail = self.model.prepare(time(k), time(k + n));
+            // Frames that no longer follow the input say so where their protocol can.
+            producer.mark(if input_ended || tail == Tail::Holding {
+                FLAG_STALE
+            } else {
+                0
+            });
             let mut b = out.recycle.try_recv().unwrap_or_default();
             b.streams.resize_with(streams, Default::default);
             for (bytes, ends) in b.streams.iter_mut() {

@@ -8,7 +8,7 @@ use super::faults::FrameFaults;
 use super::frame::{Channels, DecodeError, Decoded, EncoderState, GPS_WEEK_S};
 use super::spec::{BitEdit, ByteOrder, Source, WireType};
 use super::wire::{get_int, get_value, put_int, put_value};
-use crate::record::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED, FLAG_INVALID, Record};
+use crate::record::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED, FLAG_INVALID, FLAG_STALE, Record};
 
 /// One compiled field.
 #[derive(Clone, Debug)]
@@ -69,7 +69,7 @@ impl StatusModel {
             v = self.accel.apply(v);
         }
         // A value that is not a measurement is what a real unit's built-in test reports.
-        if (failure || flags & FLAG_INVALID != 0)
+        if (failure || flags & (FLAG_INVALID | FLAG_STALE) != 0)
             && let Some(e) = self.failure
         {
             v = e.apply(v);
