@@ -12,6 +12,7 @@ pub mod odometer;
 pub mod stream;
 pub mod time;
 pub mod ubx;
+pub mod window;
 
 pub use gnss::{Fix, GnssConfig, GnssEpoch, Receiver};
 pub use stream::{GnssEncoder, GnssFormat};

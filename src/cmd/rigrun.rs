@@ -6,6 +6,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 
+use imu_emu::aiding::GnssFormat;
 use imu_emu::protocol::Plan;
 use imu_emu::realtime::merge::{self, WindowSource};
 use imu_emu::realtime::pacer::{Clocking, Pacing, Routed, Status};
@@ -84,16 +85,40 @@ fn unit_sinks(a: &RunArgs, units: &[Unit]) -> Result<Vec<Vec<SinkAddr>>> {
     Ok(out)
 }
 
-/// Opens `addr` for `unit`, checking that the link or datagram can carry its frames.
+/// `FORMAT:SINK` of each `--gnss`.
+fn gnss_sinks(a: &RunArgs) -> Result<Vec<(GnssFormat, SinkAddr)>> {
+    (a.gnss.iter())
+        .map(|v| {
+            let (name, sink) = v.split_once(':').unwrap_or((v, ""));
+            let Some(f) = GnssFormat::from_name(name) else {
+                bail!(
+                    "--gnss {v}: unknown format `{name}` (expected FORMAT:SINK with FORMAT one of {})",
+                    GnssFormat::NAMES.join(", ")
+                );
+            };
+            let addr = SinkAddr::parse(sink).map_err(|e| anyhow::anyhow!("--gnss {v}: {e}"))?;
+            Ok((f, addr))
+        })
+        .collect()
+}
+
+/// A stream of the run: its name (a unit's, or `gnss-FORMAT`), rate and frame layout.
+struct Stream<'a> {
+    name: String,
+    rate_hz: f64,
+    plan: Option<&'a Plan>,
+}
+
+/// Opens `addr` for stream `unit`, checking that the link or datagram can carry its frames.
 fn open(
     a: &RunArgs,
-    unit: &Unit,
+    unit: &Stream,
     addr: &SinkAddr,
-    plan: Option<&Plan>,
     paced: bool,
     speed: f64,
 ) -> Result<Box<dyn Sink>> {
-    let what = format!("unit `{}`: {addr}", unit.name());
+    let plan = unit.plan;
+    let what = format!("`{}`: {addr}", unit.name);
     Ok(match addr {
         SinkAddr::Pty(link) => {
             let link = link.as_deref().map(Path::new);
@@ -103,17 +128,13 @@ fn open(
             } else {
                 String::new()
             };
-            eprintln!(
-                "imu-emu: unit `{}` on {}{slave}",
-                unit.name(),
-                s.path().display()
-            );
+            eprintln!("imu-emu: `{}` on {}{slave}", unit.name, s.path().display());
             Box::new(s)
         }
         SinkAddr::Serial(dev) => {
             let baud = (a.baud.or(plan.and_then(|p| p.baud).map(|b| b as u32))).unwrap_or(921_600);
             if let Some(p) = plan {
-                check_link(p.len(), unit.grid().rate_hz * speed, baud, a.framing)
+                check_link(p.len(), unit.rate_hz * speed, baud, a.framing)
                     .map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
             }
             Box::new(SerialSink::open(dev, baud, a.framing).with_context(|| what.clone())?)
@@ -139,9 +160,31 @@ pub fn run(a: RunArgs) -> Result<()> {
     for w in rig.warnings() {
         eprintln!("imu-emu: warning: {w}");
     }
+    let gnss = gnss_sinks(&a)?;
+    let windows: Vec<_> = gnss.iter().map(|g| rig.gnss_window(g.0)).collect();
+    let gnss_rate = rig.gnss_rate_hz();
+    let gnss_epochs = rig.gnss_epochs();
     let stream = rig.stream();
     let units = stream.units();
-    let addrs = unit_sinks(&a, units)?;
+    let mut addrs = unit_sinks(&a, units)?;
+    let n_units = units.len();
+    let mut streams: Vec<Stream> = (units.iter())
+        .map(|u| Stream {
+            name: u.name().to_string(),
+            rate_hz: u.grid().rate_hz,
+            plan: u.plan(),
+        })
+        .collect();
+    let mut planned: Vec<u64> = units.iter().map(|u| u.grid().count).collect();
+    for (f, addr) in &gnss {
+        streams.push(Stream {
+            name: format!("gnss-{}", GnssFormat::NAMES[*f as usize]),
+            rate_hz: gnss_rate,
+            plan: None,
+        });
+        addrs.push(vec![addr.clone()]);
+        planned.push(gnss_epochs);
+    }
     let speed = match a.speed.as_deref() {
         None if addrs.iter().flatten().all(SinkAddr::is_file) => f64::INFINITY,
         None => 1.0,
@@ -179,16 +222,15 @@ pub fn run(a: RunArgs) -> Result<()> {
         StopSignals::new()?
     };
     let mut sinks = Vec::new();
-    for (i, (u, list)) in units.iter().zip(&addrs).enumerate() {
+    for (i, (u, list)) in streams.iter().zip(&addrs).enumerate() {
         for addr in list {
-            let sink = open(&a, u, addr, u.plan(), paced, speed)?;
+            let sink = open(&a, u, addr, paced, speed)?;
             sinks.push(Routed { stream: i, sink });
         }
     }
     let owner: Vec<usize> = sinks.iter().map(|r| r.stream).collect();
-    let names: Vec<String> = units.iter().map(|u| u.name().to_string()).collect();
-    let planned: Vec<u64> = units.iter().map(|u| u.grid().count).collect();
-    let frames_per_s: f64 = units.iter().map(|u| u.grid().rate_hz).sum::<f64>() * speed;
+    let names: Vec<String> = streams.iter().map(|u| u.name.clone()).collect();
+    let frames_per_s: f64 = streams.iter().map(|u| u.rate_hz).sum::<f64>() * speed;
     let pacing = if paced {
         let start_ns = start_at
             .map(clock::start_at)
@@ -202,7 +244,12 @@ pub fn run(a: RunArgs) -> Result<()> {
     } else {
         Pacing::Unpaced
     };
-    let sources: Vec<Box<dyn WindowSource>> = vec![Box::new(stream)];
+    let mut sources: Vec<Box<dyn WindowSource>> = vec![Box::new(stream)];
+    sources.extend(
+        windows
+            .into_iter()
+            .map(|w| Box::new(w) as Box<dyn WindowSource>),
+    );
     let line_names = names.clone();
     let ended = drive(
         &rt,
@@ -218,7 +265,7 @@ pub fn run(a: RunArgs) -> Result<()> {
         ended
             .interrupted
             .map_or(String::new(), |i| format!("{i}: ")),
-        summary(&ended.status, &names, &planned, &owner, paced)
+        summary(&ended.status, &names, n_units, &planned, &owner, paced)
     );
     if let Some(e) = ended.failed {
         return Err(anyhow::Error::new(e).context("stopped: nothing non-finite was sent"));
@@ -242,9 +289,17 @@ fn status_line(s: &Status, names: &[String]) -> String {
     line + &format!(" | late {} | {dropped} dropped", s.lateness.summary())
 }
 
-/// The end-of-run summary: per unit its records, skipped frames and sinks.
-fn summary(s: &Status, names: &[String], planned: &[u64], owner: &[usize], paced: bool) -> String {
-    let mut out = format!("{} frames of {} units", s.frames, names.len());
+/// The end-of-run summary: per unit its records, per GNSS stream its epochs, skipped frames
+/// and sinks.
+fn summary(
+    s: &Status,
+    names: &[String],
+    units: usize,
+    planned: &[u64],
+    owner: &[usize],
+    paced: bool,
+) -> String {
+    let mut out = format!("{} frames of {} streams", s.frames, names.len());
     if paced {
         out += &format!(", write lateness {}", s.lateness.summary());
     }
@@ -258,8 +313,12 @@ fn summary(s: &Status, names: &[String], planned: &[u64], owner: &[usize], paced
     for (i, n) in names.iter().enumerate() {
         let c = s.streams.get(i).copied().unwrap_or_default();
         out += &format!(
-            "\n  unit {n}: {} of {} records, {} skipped (too late)",
-            c.frames, planned[i], c.skipped
+            "\n  {} {n}: {} of {} {}, {} skipped (too late)",
+            if i < units { "unit" } else { "stream" },
+            c.frames,
+            planned[i],
+            if i < units { "records" } else { "epochs" },
+            c.skipped
         );
         for ((label, st), _) in (s.sinks.iter().zip(owner)).filter(|x| *x.1 == i) {
             out += &format!(

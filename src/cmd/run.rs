@@ -57,6 +57,11 @@ pub struct RunArgs {
     /// `nav=udp:127.0.0.1:9001`); repeatable; replaces the scene file's `sink` of that unit.
     #[arg(long, value_name = "NAME=SINK")]
     pub unit_sink: Vec<String>,
+    /// A GNSS receiver's stream on the same pacer, FORMAT:SINK with FORMAT nmea, ubx or
+    /// mavlink and SINK as `--unit-sink`'s (e.g. `nmea:udp:127.0.0.1:9010`); repeatable;
+    /// rig runs (docs/aiding.md).
+    #[arg(long = "gnss", value_name = "FORMAT:SINK")]
+    pub gnss: Vec<String>,
     /// Frames per UDP datagram.
     #[arg(long, default_value_t = 1)]
     pub udp_batch: usize,
@@ -141,6 +146,11 @@ pub fn run(a: RunArgs) -> Result<()> {
     }
     if !a.unit_sink.is_empty() {
         bail!("--unit-sink names a unit of a rig: the scene file lists no `[[imu]]` units");
+    }
+    if let Some(g) = a.gnss.first() {
+        bail!(
+            "--gnss {g}: `run` streams GNSS next to a rig's units (a scene file with `[[imu]]`); for one IMU use `generate --gnss` (docs/aiding.md)"
+        );
     }
     // A live run in lockstep writes records as well as frames.
     if let Some(source) = &a.live.motion {

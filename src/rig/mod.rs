@@ -421,6 +421,12 @@ pub struct Rig {
     pub(crate) nodes: usize,
     pub(crate) units: Vec<Unit>,
     pub(crate) warnings: Vec<String>,
+    /// The GNSS receiver's settings (scene file `[gnss]`), when given.
+    pub(crate) gnss: Option<crate::aiding::GnssConfig>,
+    /// The rig's master seed (the receiver's errors draw from it).
+    pub(crate) seed: u64,
+    /// GPS week and second of record time 0, when given.
+    pub(crate) gps_time: Option<(u32, f64)>,
 }
 
 impl Rig {

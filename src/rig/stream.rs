@@ -5,6 +5,8 @@
 //! as in [`Rig::write`].
 
 use super::{Rig, Scratch, Unit};
+use crate::aiding::window::GnssWindow;
+use crate::aiding::{GnssConfig, GnssEncoder, GnssFormat, Receiver};
 use crate::emission::{Part, WindowSource};
 use crate::generator::{IdealImu, RotationTerms};
 use crate::job::{self, Grid, JobError, Producer};
@@ -56,7 +58,7 @@ impl Rig {
                 }
             })
             .collect();
-        let origin = (self.units.iter().map(|u| u.grid.t0)).fold(f64::INFINITY, f64::min);
+        let origin = self.span().0;
         RigStream {
             scratch: self.units.iter().map(|_| Scratch::default()).collect(),
             units: self.units,
@@ -65,6 +67,49 @@ impl Rig {
             reference: Vec::new(),
             rot: Vec::new(),
         }
+    }
+}
+
+impl Rig {
+    /// The run's t₀ and end (s): from the earliest unit's first instant to the latest unit's
+    /// last record.
+    pub fn span(&self) -> (f64, f64) {
+        let t0 = (self.units.iter().map(|u| u.grid.t0)).fold(f64::INFINITY, f64::min);
+        let t1 = (self.units.iter())
+            .map(|u| u.grid.t0 + u.grid.count as f64 / u.grid.rate_hz)
+            .fold(f64::NEG_INFINITY, f64::max);
+        (t0, t1)
+    }
+
+    /// The GNSS receiver (the scene file's `[gnss]`, else the default) as a frame source in
+    /// `format` on the rig's motion and clock: epochs over [`Rig::span`], emission times
+    /// counted from its start like the units' (see [`Rig::stream`]).
+    pub fn gnss_window(&self, format: GnssFormat) -> GnssWindow<AnyMotion> {
+        let cfg = self.gnss.clone().unwrap_or_default();
+        let leap = cfg.leap_seconds;
+        // The settings were checked when the rig was built; the default is valid.
+        let rx = Receiver::new(cfg, self.seed).expect("checked GNSS settings");
+        let (week, sow) = self.gps_time.unwrap_or((0, 0.0));
+        let span = self.span();
+        let enc = GnssEncoder::new(format, week, sow, leap);
+        GnssWindow::new(rx, self.motion.clone(), enc, span, span.0)
+    }
+}
+
+impl Rig {
+    /// The GNSS receiver's epochs per second.
+    pub fn gnss_rate_hz(&self) -> f64 {
+        self.gnss
+            .as_ref()
+            .map_or(GnssConfig::default().rate_hz, |g| g.rate_hz)
+    }
+
+    /// How many GNSS epochs fall in [`Rig::span`] (outages included: they are sent without
+    /// a fix).
+    pub fn gnss_epochs(&self) -> u64 {
+        let (t0, t1) = self.span();
+        let r = self.gnss_rate_hz();
+        ((t1 * r).floor() - (t0 * r).ceil() + 1.0).max(0.0) as u64
     }
 }
 

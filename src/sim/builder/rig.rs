@@ -2,6 +2,7 @@
 //! on the builder's motion, span, quadrature and master seed.
 
 use super::{Rate, SimulationBuilder};
+use crate::aiding::GnssConfig;
 use crate::errors::ErrorChain;
 use crate::job::Encoding;
 use crate::output::Format;
@@ -159,11 +160,15 @@ impl SimulationBuilder {
                 sinks: spec.sinks.clone(),
             });
         }
+        let gnss = self.resolve_aiding(&self.gnss, &self.file.gnss, GnssConfig::validate)?;
         Ok(Rig {
             motion,
             nodes,
             units,
             warnings: Vec::new(),
+            gnss,
+            seed: master,
+            gps_time: self.gps_time,
         })
     }
 }
