@@ -98,7 +98,13 @@ fn nmea_epochs_interleave_with_unit_frames_over_udp() {
     let mut got: Vec<String> = Vec::new();
     let mut buf = [0u8; 65536];
     while got.len() < 75 + 8 {
-        let n = rx.recv(&mut buf).expect("a datagram within 10 s");
+        // A signal to the test process (another test's child ending) may interrupt the wait.
+        let n = loop {
+            match rx.recv(&mut buf) {
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                r => break r.expect("a datagram within 10 s"),
+            }
+        };
         got.push(String::from_utf8(buf[..n].to_vec()).unwrap());
     }
     let out = child.wait_with_output().unwrap();

@@ -138,7 +138,13 @@ fn udp_units_merge_in_emission_order() {
     let mut got: Vec<Vec<u8>> = Vec::new();
     let mut buf = [0u8; 65536];
     while got.len() < planned.iter().sum() {
-        let n = rx.recv(&mut buf).expect("a datagram within 10 s");
+        // A signal to the test process (another test's child ending) may interrupt the wait.
+        let n = loop {
+            match rx.recv(&mut buf) {
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                r => break r.expect("a datagram within 10 s"),
+            }
+        };
         got.push(buf[..n].to_vec());
     }
     let err = ok(&child.wait_with_output().unwrap());
@@ -240,7 +246,13 @@ fn pty_and_udp_units_are_decoded() {
     let aft = load("kvh1750-b").unwrap().1;
     let mut buf = [0u8; 2048];
     for k in 1..=300 {
-        let n = rx.recv(&mut buf).expect("a KVH datagram");
+        // A signal to the test process (another test's child ending) may interrupt the wait.
+        let n = loop {
+            match rx.recv(&mut buf) {
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                r => break r.expect("a KVH datagram"),
+            }
+        };
         let tag = aft.decode(&buf[..n]).unwrap().contract(None)[0].unwrap();
         assert!(
             (tag - k as f64 / 100.0).abs() < 1e-6,
