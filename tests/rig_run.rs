@@ -276,7 +276,7 @@ fn pty_and_udp_units_are_decoded() {
         assert!(err.contains(line), "no `{line}` in {err}");
     }
     assert!(
-        err.contains(&format!("unit `nav` on {}", link.display())),
+        err.contains(&format!("`nav` on {}", link.display())),
         "{err}"
     );
 }
