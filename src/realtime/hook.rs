@@ -14,8 +14,8 @@ pub struct FrameTime {
     pub tov_ns: i128,
     /// Wall-clock instant the frame's first byte is due.
     pub due_ns: i128,
-    /// Wall-clock instant the pacer handed the frame to the sinks (equals `due_ns` until
-    /// written).
+    /// Wall-clock instant the pacer began handing the frame's batch to the sinks (equals
+    /// `due_ns` until written).
     pub written_ns: i128,
 }
 

@@ -347,6 +347,10 @@ pub fn run_with(
                 to += 1;
             }
             if to > from {
+                // The hand-over instant is read before the write: a reader may have the frame
+                // before the write call returns (or before a preempted pacer reads the clock
+                // again), so only the instant before can bound its arrival from below.
+                let handed = monotonic_ns();
                 write_all(&mut sinks, &block, from, to, &mut ends)?;
                 count_streams(&mut st.streams, &block, from, to, false);
                 let done = monotonic_ns();
@@ -355,7 +359,7 @@ pub fn run_with(
                     pending.push(done - due_ns);
                     if let Some(f) = times.get_mut(j) {
                         f.due_ns = due_ns;
-                        f.written_ns = done;
+                        f.written_ns = handed;
                         for h in extras.hooks.iter_mut() {
                             h.written(f)?;
                         }

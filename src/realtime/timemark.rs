@@ -6,7 +6,7 @@
 //! `u64 index`, `i64 tov_sim_ns` (time of validity after the run's t₀ on the records' own
 //! time axis, the truth's `tov`), `i64 tov_utc_ns`, `i64 due_utc_ns`, `i64 emit_utc_ns`
 //! (CLOCK_REALTIME, ns since the Unix epoch: the time of validity, when the frame's first byte
-//! was due, and when the pacer handed it to the sinks). CSV has the same columns in that
+//! was due, and when the pacer began writing it to the sinks). CSV has the same columns in that
 //! order, with the header [`CSV_HEADER`].
 
 use std::fs::File;
@@ -90,8 +90,16 @@ enum Out {
 pub struct TimeMarks {
     out: Out,
     label: String,
-    /// CLOCK_REALTIME − CLOCK_MONOTONIC (ns), read once so marks share one conversion.
+    /// CLOCK_REALTIME − CLOCK_MONOTONIC (ns), from [`utc_minus_mono`].
     utc_minus_mono: i128,
+}
+
+/// CLOCK_REALTIME − CLOCK_MONOTONIC (ns), read once per process: every mark of every
+/// `--time-marks` target uses the same conversion, so a UDP mark and the file's mark of the
+/// same frame are equal to the nanosecond (two reads differ by the tens of ns between them).
+fn utc_minus_mono() -> i128 {
+    static OFFSET: std::sync::OnceLock<i128> = std::sync::OnceLock::new();
+    *OFFSET.get_or_init(|| realtime_ns() - monotonic_ns())
 }
 
 impl TimeMarks {
@@ -121,7 +129,7 @@ impl TimeMarks {
         Ok(TimeMarks {
             out,
             label: target.to_string(),
-            utc_minus_mono: realtime_ns() - monotonic_ns(),
+            utc_minus_mono: utc_minus_mono(),
         })
     }
 
