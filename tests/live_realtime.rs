@@ -602,3 +602,149 @@ fn late_state_is_extrapolated_and_bridged_without_spike() {
         "outside {outside:?}"
     );
 }
+
+/// `--time-base gps`: the host clock is GPS time and the sender's tags are too (GPS week and
+/// seconds in the binary datagram), so the map is given, not estimated. The sender runs
+/// Δ = 0.3 s ahead of the host's GPS time (it sends the state of GPS time T at T − Δ); the
+/// frame whose time of validity is T must still leave at T + D (D = 50 ms), not at
+/// T − Δ + D as an estimated map (following arrivals) would put it.
+///
+/// Bound: the emitter hands each frame to the pacer 1 ms before its instant and the pacer
+/// writes it at the instant, never before; it is late by at most the pacer's reported worst
+/// write lateness. The test stamps each datagram when its own thread receives it, on the same
+/// host clock (GPS time read once, with the monotonic clock, as the run does: the two
+/// readings agree to microseconds): no frame may arrive more than 0.5 ms before its instant;
+/// the median must be within 2 ms after it (loopback delivery and this thread's wake-up);
+/// the worst within the pacer's worst lateness + 20 ms (this thread's own stalls on a
+/// loaded machine). An estimated map would be 300 ms early.
+#[test]
+fn gps_time_base_emits_at_the_tags_gps_instants() {
+    use imu_emu::realtime::hostclock::GpsClock;
+    use imu_emu::timebase::LeapTable;
+    let dir = tempfile::TempDir::new().unwrap();
+    let sink = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let sink_port = sink.local_addr().unwrap().port();
+    let host = GpsClock::new(LeapTable::builtin());
+    let (g0, i0) = (host.now_gps_ns(), Instant::now());
+    let gps_at = move |i: Instant| g0 + (i - i0).as_nanos() as i128;
+    let got = thread::spawn(move || {
+        sink.set_read_timeout(Some(Duration::from_secs(3))).unwrap();
+        let mut buf = [0u8; 2048];
+        let mut stamps = Vec::new();
+        while let Ok(n) = sink.recv(&mut buf) {
+            stamps.push((gps_at(Instant::now()), n));
+        }
+        stamps
+    });
+    let (child, port, lines) = start(
+        dir.path(),
+        &[
+            "--time-base",
+            "gps",
+            "--output-delay",
+            "0.05",
+            "--udp",
+            &format!("127.0.0.1:{sink_port}"),
+        ],
+    );
+    let lead = 0.3;
+    let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+    // The first state's GPS time: a whole 10 ms, 0.2 s from now plus the lead.
+    let first_ns =
+        (gps_at(Instant::now()) + ((lead + 0.2) * 1e9) as i128) / 10_000_000 * 10_000_000;
+    let week_ns = 604_800_000_000_000i128;
+    let week = first_ns / week_ns;
+    let states = survey_states(3.0);
+    for (i, p) in states.iter().enumerate() {
+        let tag_ns = first_ns + i as i128 * 10_000_000;
+        let send_at = i0 + Duration::from_nanos((tag_ns - g0 - (lead * 1e9) as i128) as u64);
+        if let Some(d) = send_at.checked_duration_since(Instant::now()) {
+            thread::sleep(d);
+        }
+        let d = binary::encode(&Datagram {
+            seq: i as u32,
+            week: week as u16,
+            time: (tag_ns - week * week_ns) as f64 / 1e9,
+            flags: 0,
+            pos: [p.lat.to_degrees(), p.lon.to_degrees(), p.h],
+            vel: p.v_n.into(),
+            acc: [0.0; 3],
+            quat: [p.q_b_n.w, p.q_b_n.i, p.q_b_n.j, p.q_b_n.k],
+            rate: [0.0; 3],
+        });
+        s.send_to(&d, ("127.0.0.1", port)).unwrap();
+    }
+    let out = child.wait_with_output().unwrap();
+    let err: Vec<String> = lines.iter().collect();
+    let err = err.join("\n");
+    eprintln!("{err}");
+    assert!(out.status.success(), "{err}");
+    let summary = err
+        .lines()
+        .find(|l| l.contains("frames at 400 Hz from t ="))
+        .expect("a summary");
+    assert!(summary.contains("clock +0.0 ppm"), "{summary}");
+    let pacer = err
+        .lines()
+        .find(|l| l.contains("write lateness"))
+        .expect("the pacer's figures");
+    let worst_late = number_after(pacer, "max") * 1e-6;
+    // Seconds of the week of the first frame's interval start.
+    let t0 = number_after(summary, "from t =");
+    let stamps = got.join().unwrap();
+    let frames = number_before(summary, "frames at 400 Hz") as usize;
+    assert_eq!(stamps.len(), frames);
+    let mut errs: Vec<f64> = stamps
+        .iter()
+        .enumerate()
+        .map(|(k, &(at, _))| {
+            let due = week * week_ns + ((t0 + (k + 1) as f64 / 400.0) * 1e9).round() as i128;
+            (at - due) as f64 / 1e9 - 0.05
+        })
+        .collect();
+    errs.sort_by(f64::total_cmp);
+    let (lo, med, hi) = (errs[0], errs[errs.len() / 2], errs[errs.len() - 1]);
+    eprintln!(
+        "frame arrival − (tag + delay): min {lo:.6} s, median {med:.6} s, max {hi:.6} s; pacer worst {worst_late:.6} s"
+    );
+    assert!(lo >= -0.0005, "a frame {lo} s early");
+    assert!(med <= 0.002, "median {med} s late");
+    assert!(hi <= worst_late + 0.02, "worst {hi} s late");
+}
+
+/// `--time-base gps` with tags in simulation seconds (no GPS week): they map decades away
+/// from the host's GPS time; the run says so and fails, and lockstep refuses the time base.
+#[test]
+fn gps_time_base_refuses_simulation_second_tags() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let (child, port, lines) = start(dir.path(), &["--time-base", "gps"]);
+    send(&survey_states(0.5), port, 0.0, 0.0, 1);
+    let out = child.wait_with_output().unwrap();
+    let err: Vec<String> = lines.iter().collect();
+    let err = err.join("\n");
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("the input's time tags must be GPS time"),
+        "{err}"
+    );
+    let lock = imu_emu()
+        .args([
+            "run",
+            "--motion",
+            "-",
+            "--time-mode",
+            "lockstep",
+            "--time-base",
+            "gps",
+        ])
+        .args(["--file", "-"])
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(!lock.status.success());
+    assert!(
+        String::from_utf8_lossy(&lock.stderr).contains("--time-base gps: lockstep"),
+        "{}",
+        String::from_utf8_lossy(&lock.stderr)
+    );
+}
