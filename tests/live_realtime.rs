@@ -123,13 +123,17 @@ fn start(dir: &std::path::Path, extra: &[&str]) -> (Child, u16, mpsc::Receiver<S
             &format!("udp://127.0.0.1:{port}"),
             "--input-format",
             "bin",
-            "--imu",
-            "ideal",
             "--rate",
             "400",
             "--input-timeout",
             "1",
         ])
+        // The ideal IMU unless `extra` names one.
+        .args(if extra.contains(&"--imu") {
+            &[][..]
+        } else {
+            &["--imu", "ideal"][..]
+        })
         .args(extra)
         .stderr(Stdio::piped())
         .spawn()
@@ -619,6 +623,33 @@ fn late_state_is_extrapolated_and_bridged_without_spike() {
 /// loaded machine). An estimated map would be 300 ms early.
 #[test]
 fn gps_time_base_emits_at_the_tags_gps_instants() {
+    gps_run(&[], |k| (k + 1) as f64 / 400.0);
+}
+
+/// An IMU template with timing errors in a live real-time run: a sensor clock 500 ppm fast
+/// and a 5 ms latency. Record k's time of validity is the true instant its clock reads
+/// k·Δt, (k·Δt)/(1 + 500e-6) after t₀ (docs/timing.md), and its frame leaves 5 ms later, plus
+/// the output delay. On the GPS time base the expected instants are exact, so the bounds of
+/// the test above apply; frames sent at the nominal instants would be 5 ms early (and by the
+/// end of the 3 s, 1.5 ms late for the clock), and fail.
+#[test]
+fn timing_errors_set_the_live_emission_instants() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let template = dir.path().join("timed.toml");
+    std::fs::write(
+        &template,
+        "base = \"ideal\"\n[timing]\nclock_offset = \"500 ppm\"\nlatency = \"5 ms\"\n",
+    )
+    .unwrap();
+    gps_run(&["--imu", template.to_str().unwrap()], |k| {
+        (k + 1) as f64 / 400.0 / (1.0 + 500e-6) + 0.005
+    });
+}
+
+/// Streams 3 s of survey states tagged with GPS time Δ = 0.3 s ahead of the host's, to a
+/// run on `--time-base gps` with 50 ms delay and `extra` flags, and checks that frame k
+/// (0-based) reaches a UDP sink at t₀ + `emission(k)` + the delay on the host's GPS clock.
+fn gps_run(extra: &[&str], emission: impl Fn(usize) -> f64) {
     use imu_emu::realtime::hostclock::GpsClock;
     use imu_emu::timebase::LeapTable;
     let dir = tempfile::TempDir::new().unwrap();
@@ -636,17 +667,17 @@ fn gps_time_base_emits_at_the_tags_gps_instants() {
         }
         stamps
     });
-    let (child, port, lines) = start(
-        dir.path(),
-        &[
-            "--time-base",
-            "gps",
-            "--output-delay",
-            "0.05",
-            "--udp",
-            &format!("127.0.0.1:{sink_port}"),
-        ],
-    );
+    let sink_arg = format!("127.0.0.1:{sink_port}");
+    let mut args = vec![
+        "--time-base",
+        "gps",
+        "--output-delay",
+        "0.05",
+        "--udp",
+        &sink_arg,
+    ];
+    args.extend_from_slice(extra);
+    let (child, port, lines) = start(dir.path(), &args);
     let lead = 0.3;
     let s = UdpSocket::bind("127.0.0.1:0").unwrap();
     // The first state's GPS time: a whole 10 ms, 0.2 s from now plus the lead.
@@ -698,7 +729,7 @@ fn gps_time_base_emits_at_the_tags_gps_instants() {
         .iter()
         .enumerate()
         .map(|(k, &(at, _))| {
-            let due = week * week_ns + ((t0 + (k + 1) as f64 / 400.0) * 1e9).round() as i128;
+            let due = week * week_ns + ((t0 + emission(k)) * 1e9).round() as i128;
             (at - due) as f64 / 1e9 - 0.05
         })
         .collect();

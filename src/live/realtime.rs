@@ -314,6 +314,10 @@ impl Realtime {
         };
         let mut k = 0u64;
         let mut held = false;
+        // How far (s) an IMU with timing errors emits ahead of the nominal grid (a sensor
+        // clock running fast): the emitter wakes that much earlier, so the pacer still
+        // writes each frame at its own emission instant.
+        let mut ahead = 0.0f64;
         let ended = loop {
             if stop.load(Ordering::Relaxed) {
                 break "interrupted";
@@ -321,7 +325,7 @@ impl Realtime {
             if producer.remaining() == 0 {
                 break "duration reached";
             }
-            let deadline = get().map.host_ns(time(k + 1)) + delay_ns;
+            let deadline = get().map.host_ns(time(k + 1) - ahead) + delay_ns;
             let wake = deadline - lead_ns;
             while monotonic_ns() < wake && !stop.load(Ordering::Relaxed) {
                 sleep_until(wake.min(monotonic_ns() + 100_000_000));
@@ -351,7 +355,7 @@ impl Realtime {
             let mut n = 1u64;
             while (n as usize) < block_max
                 && n < producer.remaining()
-                && map.host_ns(time(k + n + 1)) + delay_ns <= now + lead_ns
+                && map.host_ns(time(k + n + 1) - ahead) + delay_ns <= now + lead_ns
                 && !(input_ended
                     && self.settings.on_timeout == OnTimeout::Stop
                     && time(k + n + 1) > newest)
@@ -379,9 +383,20 @@ impl Realtime {
             };
             b.first = block.first;
             b.emit_ns.clear();
-            b.emit_ns.extend(
-                (1..=n).map(|i| (map.host_ns(time(k + i)) + delay_ns - out.anchor_ns) as i64),
-            );
+            b.tov_ns.clear();
+            let wall = |t: f64| (map.host_ns(t) + delay_ns - out.anchor_ns) as i64;
+            match &block.times {
+                // Each frame at its emission instant on the sensor's own clock and latency.
+                Some(times) => {
+                    b.emit_ns
+                        .extend(times.emit.iter().map(|e| wall(times.t0 + e)));
+                    let last = times.emit.len() as u64;
+                    if let Some(e) = times.emit.last() {
+                        ahead = (time(k + last) - times.t0 - e).max(0.0);
+                    }
+                }
+                None => b.emit_ns.extend((1..=n).map(|i| wall(time(k + i)))),
+            }
             k += n;
             st.tail = Some(tail);
             st.frames = k;
