@@ -83,6 +83,12 @@ pub fn run(a: &RunArgs, source: &str) -> Result<()> {
     if l.time_mode == "realtime" {
         return super::live_rt::run(a, &endpoint, format);
     }
+    if a.time_base != "sim" {
+        bail!(
+            "--time-base {}: lockstep follows the input alone; the GPS time base maps the tags to the host clock in --time-mode realtime",
+            a.time_base
+        );
+    }
     if !(a.pty.is_empty() && a.serial.is_empty() && a.udp.is_empty()) || a.file.len() != 1 {
         bail!(
             "--motion in lockstep writes to one --file (a path, a FIFO or - for stdout); the paced sinks (--pty, --serial, --udp) take --time-mode realtime"

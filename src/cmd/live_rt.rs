@@ -11,15 +11,17 @@ use anyhow::{Context, Result, bail};
 
 use imu_emu::live::InputFormat;
 use imu_emu::live::realtime::{
-    FrameOut, LiveStatus, OnTimeout, Realtime, RealtimeSettings, RealtimeSummary,
+    FrameOut, GpsBase, LiveStatus, OnTimeout, Realtime, RealtimeSettings, RealtimeSummary,
 };
 use imu_emu::live::transport::{Endpoint, Receiver};
 use imu_emu::motion::chain::ChainSettings;
 use imu_emu::motion::sampled::Degree;
 use imu_emu::output::AtomicFile;
+use imu_emu::realtime::hostclock::GpsClock;
 use imu_emu::realtime::pacer::{self, Clocking, Pacing, Status};
 use imu_emu::realtime::signal::{Interrupted, StopSignals};
 use imu_emu::realtime::{self, clock};
+use imu_emu::timebase::LeapTable;
 
 use super::run::{DEFAULT_IMU, DEFAULT_PROTOCOL, FOREVER_S, RunArgs, open_sinks, summary};
 use super::setup::require_frames;
@@ -50,11 +52,26 @@ pub fn run(a: &RunArgs, endpoint: &Endpoint, format: InputFormat) -> Result<()> 
         horizon: seconds("--correction-horizon", l.correction_horizon, 1e-3)?,
         max_extrapolation: seconds("--max-extrapolation", l.max_extrapolation, 0.0)?,
     };
-    if a.speed.is_some() || a.start_at.is_some() || a.time_base != "sim" {
+    if a.speed.is_some() || a.start_at.is_some() {
         bail!(
-            "--speed, --start-at and --time-base apply to scene runs; a --motion run follows the input's clock"
+            "--speed and --start-at apply to scene runs; a --motion run follows the input's clock"
         );
     }
+    let gps = match a.time_base.as_str() {
+        "sim" => None,
+        "gps" => {
+            let host = GpsClock::new(LeapTable::builtin());
+            let (gps_ns, mono_ns) = (host.now_gps_ns(), clock::monotonic_ns());
+            eprintln!(
+                "imu-emu: time base gps: the input's time tags are GPS time, mapped to {}",
+                host.describe(clock::realtime_ns())
+            );
+            Some(GpsBase::at(gps_ns, mono_ns))
+        }
+        other => bail!(
+            "--time-base {other}: a --motion run takes sim (the clock map is estimated from the arrivals) or gps (the tags and the host clock are both GPS time)"
+        ),
+    };
     let builder = (a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?).unbounded_duration(FOREVER_S);
     if builder.model_settings()?.degree != Degree::Quintic {
         bail!("--time-mode realtime needs the quintic motion model (--interp quintic)");
@@ -67,6 +84,7 @@ pub fn run(a: &RunArgs, endpoint: &Endpoint, format: InputFormat) -> Result<()> 
         delay,
         chain,
         on_timeout,
+        gps,
     };
     let live = Realtime::new(builder, format, settings)?;
 

@@ -45,6 +45,9 @@ pub enum LiveError {
         /// States needed.
         need: usize,
     },
+    /// The input's time tags do not fit the time base chosen.
+    #[error("{0}")]
+    TimeBase(String),
 }
 
 /// How a lockstep run ended.

@@ -16,7 +16,7 @@ use std::time::Duration;
 
 use tokio::sync::mpsc::{Receiver as BlockRx, Sender as BlockTx};
 
-use super::clockmap::ClockMap;
+use super::clockmap::{ClockMap, GivenMap};
 use super::lockstep::LiveError;
 use super::stats::InputStats;
 use super::transport::Receiver;
@@ -70,7 +70,44 @@ pub struct RealtimeSettings {
     pub chain: ChainSettings,
     /// What a silent input leads to.
     pub on_timeout: OnTimeout,
+    /// The host clock reads GPS time and the input's tags are GPS time: the map is given,
+    /// not estimated.
+    pub gps: Option<GpsBase>,
 }
+
+/// The host's GPS clock read once: the tags (GPS seconds since the GPS epoch) map to the
+/// host's monotonic clock directly. Tags are taken relative to the start of `week`, so the
+/// motion model works in seconds of that week (resolution 1e-10 s, where GPS seconds since
+/// 1980 have 2.4e-7 s), and the frames' GPS-time fields carry the tags.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GpsBase {
+    /// The GPS week the run's simulation time counts from.
+    pub week: u32,
+    /// The host instant (CLOCK_MONOTONIC ns) at which that week began.
+    pub host_at_week_ns: i128,
+}
+
+impl GpsBase {
+    /// The base for GPS time `gps_ns` (ns since the GPS epoch) read at host instant
+    /// `mono_ns`.
+    pub fn at(gps_ns: i128, mono_ns: i128) -> GpsBase {
+        let week_ns = 604_800 * 1_000_000_000i128;
+        let week = gps_ns.div_euclid(week_ns);
+        GpsBase {
+            week: week as u32,
+            host_at_week_ns: mono_ns - (gps_ns - week * week_ns),
+        }
+    }
+
+    /// GPS seconds since the epoch at the start of the week.
+    pub fn epoch_s(&self) -> f64 {
+        self.week as f64 * 604_800.0
+    }
+}
+
+/// Largest distance between a state's mapped instant and its arrival (s) before a given GPS
+/// map is refused: tags that are not GPS time (simulation seconds) land years away.
+pub const GPS_TAG_TOLERANCE_S: f64 = 60.0;
 
 /// Live figures of a real-time run (the CLI prints them once a second).
 #[derive(Clone, Debug, Default)]
@@ -83,6 +120,8 @@ pub struct LiveStatus {
     pub rate: f64,
     /// Arrival jitter over the window (s).
     pub jitter: f64,
+    /// The sender's clock against the host's (fitted or given; s per s).
+    pub clock_rate: f64,
     /// Output delay in use (s).
     pub delay: f64,
     /// What happened to the input.
@@ -107,9 +146,10 @@ impl LiveStatus {
         };
         let c = &self.corrections;
         format!(
-            "{state}; input {:.1} Hz, jitter {:.2} ms, {} missing, {} late; delay {:.2} ms; {} frames ({} extrapolated); {} corrections, max {:.3e} m, {:.3e} m/s, {:.3e} rad",
+            "{state}; input {:.1} Hz, jitter {:.2} ms, clock {:+.1} ppm, {} missing, {} late; delay {:.2} ms; {} frames ({} extrapolated); {} corrections, max {:.3e} m, {:.3e} m/s, {:.3e} rad",
             self.rate,
             self.jitter * 1e3,
+            self.clock_rate * 1e6,
             self.stats.missing,
             self.stats.reordered,
             self.delay * 1e3,
@@ -196,7 +236,14 @@ impl Realtime {
         let shared = Arc::new((
             Mutex::new(Input {
                 stats: InputStats::default(),
-                map: ClockMap::new(),
+                map: match self.settings.gps {
+                    Some(g) => ClockMap::given(GivenMap {
+                        t0: 0.0,
+                        host0_ns: g.host_at_week_ns,
+                        rate: 0.0,
+                    }),
+                    None => ClockMap::new(),
+                },
                 ended: false,
                 error: None,
             }),
@@ -206,9 +253,10 @@ impl Realtime {
         {
             let (shared, model, stop) = (shared.clone(), self.model.clone(), stop.clone());
             let format = self.format;
+            let epoch = self.settings.gps.map_or(0.0, |g| g.epoch_s());
             std::thread::Builder::new()
                 .name("imu-live-input".into())
-                .spawn(move || receive(&mut rx, format, &model, &record, &shared, &stop))
+                .spawn(move || receive(&mut rx, format, epoch, &model, &record, &shared, &stop))
                 .map_err(|source| LiveError::Io {
                     what: "starting the input thread".into(),
                     source,
@@ -238,9 +286,22 @@ impl Realtime {
             }
             drop(cv.wait_timeout(g, Duration::from_millis(50)));
         };
+        if self.settings.gps.is_some() {
+            let newest = self.model.newest();
+            let off = (get().map.host_ns(newest) - monotonic_ns()) as f64 / 1e9;
+            if off.abs() > GPS_TAG_TOLERANCE_S {
+                return Err(LiveError::TimeBase(format!(
+                    "{name}: the state at {newest} s of GPS week {} maps {off:+.3e} s from now on the host's GPS clock: with the GPS time base the input's time tags must be GPS time (binary: a GPS week; CSV: gps_week,gps_sow)",
+                    self.settings.gps.map_or(0, |g| g.week)
+                )));
+            }
+        }
         let delay_ns = (delay * 1e9).round() as i128;
         let lead_ns = (LEAD_S * 1e9) as i128;
-        let sim = self.builder.build()?;
+        let mut sim = self.builder.build()?;
+        if let Some(g) = self.settings.gps {
+            sim.set_gps_time(g.week, 0.0);
+        }
         let grid = sim.grid();
         let extra: Vec<_> = extra.into_iter().map(|p| sim.frames_encoding(p)).collect();
         let streams = 1 + extra.len();
@@ -253,6 +314,10 @@ impl Realtime {
         };
         let mut k = 0u64;
         let mut held = false;
+        // How far (s) an IMU with timing errors emits ahead of the nominal grid (a sensor
+        // clock running fast): the emitter wakes that much earlier, so the pacer still
+        // writes each frame at its own emission instant.
+        let mut ahead = 0.0f64;
         let ended = loop {
             if stop.load(Ordering::Relaxed) {
                 break "interrupted";
@@ -260,7 +325,7 @@ impl Realtime {
             if producer.remaining() == 0 {
                 break "duration reached";
             }
-            let deadline = get().map.host_ns(time(k + 1)) + delay_ns;
+            let deadline = get().map.host_ns(time(k + 1) - ahead) + delay_ns;
             let wake = deadline - lead_ns;
             while monotonic_ns() < wake && !stop.load(Ordering::Relaxed) {
                 sleep_until(wake.min(monotonic_ns() + 100_000_000));
@@ -271,6 +336,7 @@ impl Realtime {
                 st.stats = g.stats.clone();
                 st.rate = g.map.rate();
                 st.jitter = g.map.jitter();
+                st.clock_rate = g.map.clock_rate();
                 (g.map.clone(), g.ended)
             };
             st.stale = input_ended;
@@ -289,7 +355,7 @@ impl Realtime {
             let mut n = 1u64;
             while (n as usize) < block_max
                 && n < producer.remaining()
-                && map.host_ns(time(k + n + 1)) + delay_ns <= now + lead_ns
+                && map.host_ns(time(k + n + 1) - ahead) + delay_ns <= now + lead_ns
                 && !(input_ended
                     && self.settings.on_timeout == OnTimeout::Stop
                     && time(k + n + 1) > newest)
@@ -317,9 +383,20 @@ impl Realtime {
             };
             b.first = block.first;
             b.emit_ns.clear();
-            b.emit_ns.extend(
-                (1..=n).map(|i| (map.host_ns(time(k + i)) + delay_ns - out.anchor_ns) as i64),
-            );
+            b.tov_ns.clear();
+            let wall = |t: f64| (map.host_ns(t) + delay_ns - out.anchor_ns) as i64;
+            match &block.times {
+                // Each frame at its emission instant on the sensor's own clock and latency.
+                Some(times) => {
+                    b.emit_ns
+                        .extend(times.emit.iter().map(|e| wall(times.t0 + e)));
+                    let last = times.emit.len() as u64;
+                    if let Some(e) = times.emit.last() {
+                        ahead = (time(k + last) - times.t0 - e).max(0.0);
+                    }
+                }
+                None => b.emit_ns.extend((1..=n).map(|i| wall(time(k + i)))),
+            }
             k += n;
             st.tail = Some(tail);
             st.frames = k;
@@ -357,10 +434,12 @@ fn get_error(mut g: std::sync::MutexGuard<'_, Input>) -> Option<std::io::Error> 
     g.error.take()
 }
 
-/// The input thread: receives, records, decodes, feeds the model and the clock map.
+/// The input thread: receives, records, decodes, feeds the model and the clock map; tags
+/// are taken relative to `epoch` (s).
 fn receive<W: Write>(
     rx: &mut Receiver,
     format: InputFormat,
+    epoch: f64,
     model: &CausalMotion,
     record: &Mutex<Option<W>>,
     shared: &(Mutex<Input>, Condvar),
@@ -397,7 +476,8 @@ fn receive<W: Write>(
         let mut g = lock.lock().unwrap_or_else(|e| e.into_inner());
         g.stats.messages += 1;
         match decoded {
-            Ok(Some(d)) => {
+            Ok(Some(mut d)) => {
+                d.state.sample.t -= epoch;
                 let outcome = model.push(&d.state);
                 let place = format!("{name}: {}", m.place);
                 g.stats.state(&d, &outcome, modulo, &place);
