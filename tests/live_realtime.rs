@@ -159,14 +159,21 @@ fn start(dir: &std::path::Path, extra: &[&str]) -> (Child, u16, mpsc::Receiver<S
     (child, port, rx)
 }
 
-/// Collects the datagrams a UDP sink sends until it is quiet for 3 s.
+/// Collects the datagrams a UDP sink sends until it is quiet for 3 s after the first.
 fn collect(sock: UdpSocket) -> thread::JoinHandle<Vec<u8>> {
     thread::spawn(move || {
         sock.set_read_timeout(Some(Duration::from_secs(3))).unwrap();
         let mut all = Vec::new();
         let mut buf = vec![0u8; 65536];
-        while let Ok(n) = sock.recv(&mut buf) {
-            all.extend_from_slice(&buf[..n]);
+        // Quiet for 3 s ends it once something came; a loaded machine may take longer than
+        // that to start the emulator, so the first datagram has 60 s.
+        let give_up = Instant::now() + Duration::from_secs(60);
+        loop {
+            match sock.recv(&mut buf) {
+                Ok(n) => all.extend_from_slice(&buf[..n]),
+                Err(_) if all.is_empty() && Instant::now() < give_up => continue,
+                Err(_) => break,
+            }
         }
         all
     })
@@ -662,8 +669,15 @@ fn gps_run(extra: &[&str], emission: impl Fn(usize) -> f64) {
         sink.set_read_timeout(Some(Duration::from_secs(3))).unwrap();
         let mut buf = [0u8; 2048];
         let mut stamps = Vec::new();
-        while let Ok(n) = sink.recv(&mut buf) {
-            stamps.push((gps_at(Instant::now()), n));
+        // The run ends 3 s after its last frame; before its first, a loaded machine may take
+        // longer than that to start the emulator, so waiting for the first has its own 60 s.
+        let give_up = Instant::now() + Duration::from_secs(60);
+        loop {
+            match sink.recv(&mut buf) {
+                Ok(n) => stamps.push((gps_at(Instant::now()), n)),
+                Err(_) if stamps.is_empty() && Instant::now() < give_up => continue,
+                Err(_) => break,
+            }
         }
         stamps
     });

@@ -108,6 +108,13 @@ fn vec_at(b: &[u8], at: usize) -> Vec3 {
 /// Decodes one datagram, checking length, magic, version, CRC, finiteness and the quaternion's
 /// norm; an error names the byte offset of the field at fault.
 pub fn decode(b: &[u8]) -> Result<Decoded, Malformed> {
+    decode_since(b, 0)
+}
+
+/// [`decode`], with a GPS time tag taken as seconds since the start of GPS week
+/// `epoch_week`: the week difference is an exact integer and seconds of week keep 1e-10 s, where
+/// GPS seconds since 1980 (≈ 1.4e9) only resolve 2.4e-7 s in an f64.
+pub fn decode_since(b: &[u8], epoch_week: u32) -> Result<Decoded, Malformed> {
     if b.len() != LEN {
         return Err(Malformed::at(
             0,
@@ -143,7 +150,7 @@ pub fn decode(b: &[u8]) -> Result<Decoded, Malformed> {
     let t = if week == NO_WEEK {
         time
     } else {
-        f64::from(week) * WEEK_S + time
+        (f64::from(week) - f64::from(epoch_week)) * WEEK_S + time
     };
     let q = Quat::new(
         f64_at(b, QUAT),
@@ -257,6 +264,22 @@ mod tests {
         let s = decode(&encode(&w)).unwrap();
         assert_eq!(s.state.sample.t, 2400.0 * 604_800.0 + 12.25);
         assert_eq!((s.state.accel_n, s.state.omega_ib_b), (None, None));
+    }
+
+    /// Seconds of week with sub-µs digits survive only when counted from a week start: from
+    /// the GPS epoch the sum (≈ 1.45e9 s) is rounded to its 2.4e-7 s ulp.
+    #[test]
+    fn gps_tags_keep_their_precision_from_a_week_start() {
+        let mut w = geodetic();
+        (w.week, w.time) = (2400, 345_600.123_456_789);
+        let b = encode(&w);
+        assert_eq!(decode_since(&b, 2400).unwrap().state.sample.t, w.time);
+        assert_eq!(
+            decode_since(&b, 2399).unwrap().state.sample.t,
+            604_800.0 + w.time
+        );
+        let from_epoch = decode(&b).unwrap().state.sample.t - 2400.0 * 604_800.0;
+        assert!((from_epoch - w.time).abs() > 1e-9, "{from_epoch}");
     }
 
     /// The same state sent in ECEF decodes to the geodetic one (to the round-off of the

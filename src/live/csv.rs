@@ -34,6 +34,8 @@ pub struct CsvDecoder {
     /// File column of each known column (`None`: absent).
     at: [Option<usize>; KNOWN],
     width: usize,
+    /// GPS time tags count from the start of this GPS week (see [`super::binary::decode_since`]).
+    pub epoch_week: u32,
 }
 
 impl Default for CsvDecoder {
@@ -45,6 +47,7 @@ impl Default for CsvDecoder {
         CsvDecoder {
             at,
             width: COLUMNS.len(),
+            epoch_week: 0,
         }
     }
 }
@@ -199,7 +202,7 @@ impl CsvDecoder {
                 .then(|| Vec3::new(v[g], v[g + 1], v[g + 2]))
         };
         let t = match self.at[GPS] {
-            Some(_) => v[GPS] * WEEK_S + v[GPS + 1],
+            Some(_) => (v[GPS] - f64::from(self.epoch_week)) * WEEK_S + v[GPS + 1],
             None => v[0],
         };
         let sample = Sample {

@@ -196,7 +196,7 @@ impl Lockstep {
         mut tick: impl FnMut(&Lockstep),
     ) -> Result<LiveSummary, LiveError> {
         let name = rx.name().to_string();
-        let csv = matches!(self.decoder, Decoder::Csv(_));
+        let csv = self.decoder.is_csv();
         while !self.complete() {
             let m = rx.next_message().map_err(|source| LiveError::Io {
                 what: format!("reading {name}"),

@@ -70,32 +70,51 @@ impl Malformed {
 }
 
 /// Decodes messages of one format; the CSV decoder remembers the last header.
-pub enum Decoder {
-    /// CSV lines.
+pub struct Decoder {
+    kind: Kind,
+    epoch_week: u32,
+}
+
+enum Kind {
     Csv(Box<csv::CsvDecoder>),
-    /// Binary datagrams.
     Binary,
-    /// MAVLink frames.
     Mavlink,
 }
 
 impl Decoder {
-    /// A decoder for `format`.
+    /// A decoder for `format`; GPS time tags become GPS seconds since the GPS epoch.
     pub fn new(format: InputFormat) -> Decoder {
-        match format {
-            InputFormat::Csv => Decoder::Csv(Box::default()),
-            InputFormat::Binary => Decoder::Binary,
-            InputFormat::Mavlink => Decoder::Mavlink,
-        }
+        Decoder::since_week(format, 0)
+    }
+
+    /// A decoder for `format` whose GPS time tags (binary week + seconds, CSV
+    /// `gps_week,gps_sow`) become seconds since the start of GPS week `epoch_week`: exact to
+    /// 1e-10 s, where seconds since 1980 in an f64 resolve only 2.4e-7 s.
+    pub fn since_week(format: InputFormat, epoch_week: u32) -> Decoder {
+        let kind = match format {
+            InputFormat::Csv => {
+                let mut d = csv::CsvDecoder::default();
+                d.epoch_week = epoch_week;
+                Kind::Csv(Box::new(d))
+            }
+            InputFormat::Binary => Kind::Binary,
+            InputFormat::Mavlink => Kind::Mavlink,
+        };
+        Decoder { kind, epoch_week }
+    }
+
+    /// True for CSV text (messages are lines).
+    pub fn is_csv(&self) -> bool {
+        matches!(self.kind, Kind::Csv(_))
     }
 
     /// The state in one message (one CSV line, datagram or frame); `None` for a message that
     /// carries none (a CSV header, comment or blank line; another MAVLink message).
     pub fn decode(&mut self, msg: &[u8]) -> Result<Option<Decoded>, Malformed> {
-        match self {
-            Decoder::Csv(d) => d.decode(msg),
-            Decoder::Binary => binary::decode(msg).map(Some),
-            Decoder::Mavlink => mavlink::decode(msg),
+        match &mut self.kind {
+            Kind::Csv(d) => d.decode(msg),
+            Kind::Binary => binary::decode_since(msg, self.epoch_week).map(Some),
+            Kind::Mavlink => mavlink::decode(msg),
         }
     }
 }

@@ -253,7 +253,7 @@ impl Realtime {
         {
             let (shared, model, stop) = (shared.clone(), self.model.clone(), stop.clone());
             let format = self.format;
-            let epoch = self.settings.gps.map_or(0.0, |g| g.epoch_s());
+            let epoch = self.settings.gps.map_or(0, |g| g.week);
             std::thread::Builder::new()
                 .name("imu-live-input".into())
                 .spawn(move || receive(&mut rx, format, epoch, &model, &record, &shared, &stop))
@@ -435,17 +435,17 @@ fn get_error(mut g: std::sync::MutexGuard<'_, Input>) -> Option<std::io::Error> 
 }
 
 /// The input thread: receives, records, decodes, feeds the model and the clock map; tags
-/// are taken relative to `epoch` (s).
+/// are taken from the start of GPS week `epoch` (0: as they are).
 fn receive<W: Write>(
     rx: &mut Receiver,
     format: InputFormat,
-    epoch: f64,
+    epoch: u32,
     model: &CausalMotion,
     record: &Mutex<Option<W>>,
     shared: &(Mutex<Input>, Condvar),
     stop: &AtomicBool,
 ) {
-    let mut decoder = Decoder::new(format);
+    let mut decoder = Decoder::since_week(format, epoch);
     let modulo = match format {
         InputFormat::Mavlink => 256,
         _ => 1 << 32,
@@ -476,8 +476,7 @@ fn receive<W: Write>(
         let mut g = lock.lock().unwrap_or_else(|e| e.into_inner());
         g.stats.messages += 1;
         match decoded {
-            Ok(Some(mut d)) => {
-                d.state.sample.t -= epoch;
+            Ok(Some(d)) => {
                 let outcome = model.push(&d.state);
                 let place = format!("{name}: {}", m.place);
                 g.stats.state(&d, &outcome, modulo, &place);
