@@ -266,6 +266,7 @@ pub fn run(a: RunArgs) -> Result<()> {
             .map_err(|e| anyhow::anyhow!(e))?
             .with_speed(speed);
         c.max_behind_ns = (a.max_behind_ms * 1e6) as i128;
+        c.on_edges = first_edge.is_some();
         if c.batch > 1 {
             tracing::info!("{frames_per_s} frames/s: {} frames per wake-up", c.batch);
         }
@@ -537,6 +538,9 @@ fn status_line(s: &Status) -> String {
         s.frames,
         s.lateness.summary()
     );
+    if let Some(e) = &s.edge_latency {
+        line += &format!(", edge to frame {}", e.summary());
+    }
     if s.skipped > 0 {
         line += &format!(", {} skipped", s.skipped);
     }
@@ -646,6 +650,9 @@ pub(super) fn summary(s: &Status, planned: u64, paced: bool) -> String {
     if paced {
         out += &format!(", write lateness {}", s.lateness.summary());
         out += &format!(", {} skipped (too late)", s.skipped);
+    }
+    if let Some(e) = &s.edge_latency {
+        out += &format!(", trigger edge to frame {}", e.summary());
     }
     if let Some(l) = &s.lock {
         out += &format!(", {}", lock_text(l));
