@@ -184,31 +184,11 @@ pub fn run(a: RunArgs) -> Result<()> {
     let mut sim = (a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?)
         .unbounded_duration(FOREVER_S)
         .build()?;
-    if a.time_base != "sim" {
-        if a.sim.gps_time.is_some() {
-            bail!("--gps-time sets the GPS reference of --time-base sim only");
-        }
-        // Record time t₀ falls on the start instant: a whole second unless given.
-        let utc0 =
-            *start_at.get_or_insert((clock::realtime_ns() / 1_000_000_000 + 1) * 1_000_000_000);
-        let base = if a.time_base == "gps" {
-            host.utc_to_gps_ns(utc0)
-        } else {
-            utc0 - imu_emu::timebase::GPS_EPOCH_UNIX_S as i128 * 1_000_000_000
-        };
-        let (week, sow) = imu_emu::timebase::week_sow(base);
+    if a.time_base != "sim" && a.sim.gps_time.is_some() {
+        bail!("--gps-time sets the GPS reference of --time-base sim only");
+    }
+    if let Some((week, sow)) = time_base_start(&a, &host, &leap, &mut start_at) {
         sim.set_gps_time(week, sow - sim.grid().t0);
-        eprintln!(
-            "imu-emu: time base {}: t₀ at week {week}, {sow} s; {}",
-            a.time_base,
-            host.describe(utc0)
-        );
-        if a.time_base == "gps" && utc0 / 1_000_000_000 > leap.valid_until as i128 {
-            eprintln!(
-                "imu-emu: warning: the leap-second table is only known valid until Unix time {}; update src/timebase/leap-seconds.txt (docs/timing.md)",
-                leap.valid_until
-            );
-        }
     }
     announce(&sim);
     let plan = require_frames(&sim, "run")?;
@@ -603,6 +583,40 @@ fn sync_extras(
         extras.lock = Some((edges, PhaseLock::new(1_000_000_000)));
     }
     Ok(extras)
+}
+
+/// On `--time-base gps|utc` (`None` on `sim`): the GPS week and seconds of the run's start
+/// instant — `start_at` (UTC ns), set to the next whole second unless `--start-at` gave one —
+/// in the time base, printed with the host clock's source and error.
+pub(super) fn time_base_start(
+    a: &RunArgs,
+    host: &GpsClock,
+    leap: &imu_emu::timebase::LeapTable,
+    start_at: &mut Option<i128>,
+) -> Option<(u32, f64)> {
+    if a.time_base == "sim" {
+        return None;
+    }
+    // Record time t₀ falls on the start instant: a whole second unless given.
+    let utc0 = *start_at.get_or_insert((clock::realtime_ns() / 1_000_000_000 + 1) * 1_000_000_000);
+    let base = if a.time_base == "gps" {
+        host.utc_to_gps_ns(utc0)
+    } else {
+        utc0 - imu_emu::timebase::GPS_EPOCH_UNIX_S as i128 * 1_000_000_000
+    };
+    let (week, sow) = imu_emu::timebase::week_sow(base);
+    eprintln!(
+        "imu-emu: time base {}: t₀ at week {week}, {sow} s; {}",
+        a.time_base,
+        host.describe(utc0)
+    );
+    if a.time_base == "gps" && utc0 / 1_000_000_000 > leap.valid_until as i128 {
+        eprintln!(
+            "imu-emu: warning: the leap-second table is only known valid until Unix time {}; update src/timebase/leap-seconds.txt (docs/timing.md)",
+            leap.valid_until
+        );
+    }
+    Some((week, sow))
 }
 
 /// The producer sampling at the edges of `--trigger`, once the first edge (t₀, returned) came.
