@@ -316,6 +316,7 @@ pub fn run_with(
                     index: block.first + j as u64,
                     tov_sim_ns,
                     tov_ns: sched.at(tov),
+                    tov_nominal_ns: tov,
                     due_ns,
                     written_ns: due_ns,
                 }
@@ -334,9 +335,20 @@ pub fn run_with(
                 }
                 let now = monotonic_ns();
                 if let Some((edges, pll)) = &mut extras.lock {
+                    let mut slewed = false;
                     while let Ok(edge) = edges.try_recv() {
                         pll.edge(sched, edge, now);
                         st.lock = Some(pll.state);
+                        slewed = true;
+                    }
+                    if slewed {
+                        // The frames not yet written (and their pulses) follow the new rate.
+                        for f in times.iter_mut().skip(i) {
+                            f.tov_ns = sched.at(f.tov_nominal_ns);
+                        }
+                        for h in extras.hooks.iter_mut() {
+                            h.rescheduled(sched);
+                        }
                     }
                 }
                 let wake = due(sched, last - 1);
