@@ -199,10 +199,10 @@ fn white_noise_over_the_actual_interval() {
     m.accel.noise = [n[1]; 3];
     let (edges, iv) = alternating(PAIRS);
     let e = increment_errors(m, &edges);
-    for c in 0..2 {
+    for (c, t) in iv[..2].iter().enumerate() {
         let ms = class_mean_square(&e, c);
         for s in 0..2 {
-            let ratio = ms[s] / (n[s] * n[s] * iv[c]);
+            let ratio = ms[s] / (n[s] * n[s] * t);
             assert!((ratio - 1.0).abs() < TOL, "class {c} sensor {s}: {ratio}");
         }
     }
@@ -230,10 +230,10 @@ fn random_walk_over_the_actual_interval() {
         rate.windows(2)
             .map(|w| [0, 1].map(|s| [0, 1, 2].map(|j| w[1][s][j] - w[0][s][j]))),
     );
-    for c in 0..2 {
+    for (c, t) in iv[..2].iter().enumerate() {
         let ms = class_mean_square(&steps, c);
         for s in 0..2 {
-            let ratio = ms[s] / (k[s] * k[s] * iv[c]);
+            let ratio = ms[s] / (k[s] * k[s] * t);
             assert!((ratio - 1.0).abs() < TOL, "class {c} sensor {s}: {ratio}");
         }
     }
