@@ -238,16 +238,18 @@ impl<M: Motion> IdealImu<M> {
 
     /// Fills `out` with records over the variable intervals `bounds` (relative to t₀; record
     /// i covers (bounds[i], bounds[i+1]]), as an externally triggered unit samples: the time
-    /// tag is the interval's end; the rates are the increments over the nominal Δt, as in
-    /// [`IdealImu::fill_timed`] (the error chain turns rates back into increments with Δt).
+    /// tag is the interval's end; the rates are the means over the interval itself (the
+    /// error chain's [`crate::errors::ErrorChain::apply_over`] turns them back into
+    /// increments with the same interval).
     pub fn fill_between(&mut self, bounds: &[f64], out: &mut [Record]) {
         for (i, r) in out.iter_mut().enumerate() {
             let (lo, hi) = (bounds[i], bounds[i + 1]);
             let (dtheta, dv) = self.integral(lo, hi);
+            let inv = 1.0 / (hi - lo);
             *r = Record {
                 t: self.t0 + hi,
-                gyro: dtheta * self.rate_hz,
-                accel: dv * self.rate_hz,
+                gyro: dtheta * inv,
+                accel: dv * inv,
                 dtheta,
                 dv,
                 flags: 0,
@@ -411,7 +413,7 @@ mod tests {
 
     /// Triggered samples at irregular instants (one crossing the 0.5 s breakpoint): each
     /// record's increments are the closed-form integrals over its own interval, its time tag
-    /// the interval's end and its rates the increments over the nominal Δt. Sampling on the
+    /// the interval's end and its rates the means over that interval. Sampling on the
     /// nominal grid instead misses by whole intervals.
     #[test]
     fn triggered_intervals() {
@@ -435,7 +437,8 @@ mod tests {
                     (r.dv[j] - want_a[j].0).abs() <= want_a[j].1,
                     "{i} accel {j}"
                 );
-                assert_eq!(r.gyro[j], r.dtheta[j] * 100.0);
+                let inv = 1.0 / (bounds[i + 1] - bounds[i]);
+                assert_eq!((r.gyro[j], r.accel[j]), (r.dtheta[j] * inv, r.dv[j] * inv));
             }
             assert_eq!(r.t, t0 + bounds[i + 1]);
         }

@@ -651,13 +651,15 @@ impl Producer {
             self.truth.push(self.block[0]);
         }
         if let Some(c) = self.chain.as_mut() {
-            if c.needs_rotation_terms() {
+            // The errors act over the interval since the previous edge, not the nominal step.
+            let rot = if c.needs_rotation_terms() {
                 self.rot.resize(1, Default::default());
                 self.imu.rotation_terms_timed(&bounds, &mut self.rot[..1]);
-                c.apply_with(&mut self.block[..1], Some(&self.rot[..1]));
+                Some(&self.rot[..1])
             } else {
-                c.apply(&mut self.block[..1]);
-            }
+                None
+            };
+            c.apply_over(&mut self.block[..1], rot, hi - lo);
             if let Err(e) = Producer::check_finite(&self.block[..1], "after the error chain") {
                 return self.fail(e);
             }

@@ -313,7 +313,6 @@ fn bad_sinks_are_refused() {
             vec!["--udp", "127.0.0.1:9"],
             "--udp does not apply to a rig",
         ),
-        (vec!["--time-base", "gps"], "--time-base gps"),
     ] {
         let out = imu_emu(&[&["run", s2], &args[..]].concat(), d);
         let err = String::from_utf8_lossy(&out.stderr);

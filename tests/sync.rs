@@ -11,6 +11,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use imu_emu::realtime::FrameBlock;
 use imu_emu::realtime::clock::monotonic_ns;
+use imu_emu::realtime::lock::{PhaseLock, Schedule};
 use imu_emu::realtime::pacer::{self, Clocking, Extras, Pacing, Routed, Status};
 use imu_emu::realtime::pulse::{Line, Pulse, PulseSpec};
 use imu_emu::realtime::sink::{Sink, SinkStats};
@@ -160,13 +161,15 @@ impl Sink for Null {
 }
 
 /// Runs the pacer over `n` frames at 200 Hz whose times of validity are `tov(k)` and emission
-/// 2 ms later, with a ToV pulse `spec`; returns the recorded edges and the frames' nominal
-/// ToVs as CLOCK_MONOTONIC instants.
-fn pulsed(
+/// 2 ms later, with a ToV pulse `spec` (and, given `pps_at`, a phase lock fed one PPS edge at
+/// that offset from the start); returns the recorded edges, the frames' nominal ToVs as
+/// CLOCK_MONOTONIC instants and the instant the pacer was started.
+fn pulsed_locked(
     spec: &str,
     n: usize,
     tov: impl Fn(usize) -> i64,
-) -> (Vec<(i128, bool)>, Vec<i128>, Status) {
+    pps_at: Option<i128>,
+) -> (Vec<(i128, bool)>, Vec<i128>, Status, i128) {
     let rec = Recorder::default();
     let spec: PulseSpec = spec.parse().unwrap();
     let hook = Pulse::new(spec, Box::new(rec.clone())).unwrap();
@@ -183,6 +186,12 @@ fn pulsed(
     .unwrap();
     drop(tx);
     let c = Clocking::new(200.0, Some(start), false).unwrap();
+    let lock = pps_at.map(|at| {
+        let (etx, erx) = std::sync::mpsc::channel();
+        etx.send(start + at).unwrap();
+        (erx, PhaseLock::new(1_000_000_000))
+    });
+    let called = monotonic_ns();
     let st = pacer::run_with(
         rx,
         rtx,
@@ -192,12 +201,59 @@ fn pulsed(
         Arc::new(Mutex::new(Status::default())),
         Extras {
             hooks: vec![Box::new(hook)],
-            lock: None,
+            lock,
         },
     )
     .unwrap();
     let edges = rec.0.lock().unwrap().clone();
-    (edges, tovs.iter().map(|t| start + *t as i128).collect(), st)
+    let nominal = tovs.iter().map(|t| start + *t as i128).collect();
+    (edges, nominal, st, called)
+}
+
+/// [`pulsed_locked`] without a lock.
+fn pulsed(
+    spec: &str,
+    n: usize,
+    tov: impl Fn(usize) -> i64,
+) -> (Vec<(i128, bool)>, Vec<i128>, Status) {
+    let (e, t, st, _) = pulsed_locked(spec, n, tov, None);
+    (e, t, st)
+}
+
+/// A PPS edge 3 ms before the run's first whole second, taken before the first frame: the
+/// lock slews the schedule (rate 1 − 1.2·3 ms/1 s, src/realtime/lock.rs), and the ToV pulses
+/// of frames already queued follow it. Each rising edge is compared with the slewed schedule
+/// as the test computes it, taking the edge when the pacer was called rather than at the
+/// pacer's first wake-up a little later: that shifts the schedule by (1 − rate) times the
+/// delay, 3.6 µs per ms of it, so 50 µs early allows a 14 ms delay. None is earlier; the
+/// median is within 1 ms late (the wake-up delay). Pulses left on the unslewed schedule fall
+/// behind by 3.6 µs per ms: 1.8 ms at the median frame of this 1 s run.
+#[test]
+fn pulses_follow_a_slewed_schedule() {
+    let n = 200;
+    let pps_at = 1_000_000_000 - 3_000_000;
+    let (edges, nominal, st, called) =
+        pulsed_locked("rts:tov", n, |k| (k as i64 + 1) * 5_000_000, Some(pps_at));
+    assert_eq!(st.lock.map(|l| l.edges), Some(1));
+    // The nominal ToVs are start + (k+1)·5 ms.
+    let start = nominal[0] - 5_000_000;
+    let mut sched = Schedule::new(start);
+    PhaseLock::new(1_000_000_000).edge(&mut sched, start + pps_at, called);
+    let rises: Vec<i128> = edges.iter().filter(|e| e.1).map(|e| e.0).collect();
+    assert_eq!(rises.len(), n);
+    let mut late = Vec::new();
+    for (k, r) in rises.iter().enumerate() {
+        let want = sched.at((k as i128 + 1) * 5_000_000);
+        assert!(
+            *r >= want - 50_000,
+            "pulse {k} {} µs early",
+            (want - r) / 1000
+        );
+        late.push((r - want) as f64 / 1e3);
+    }
+    let m = median(late);
+    eprintln!("pulses on a slewed schedule: median {m:.1} µs late");
+    assert!(m < 1000.0, "median {m} µs");
 }
 
 /// A ToV pulse 1 ms after the ToV: one rising edge per frame, each at ToV + 1 ms
@@ -230,6 +286,56 @@ fn tov_pulse_edges_follow_validity() {
         st.lateness.summary()
     );
     assert!(m < 1000.0, "median {m} µs");
+}
+
+/// Frames on trigger edges ([`Clocking::on_edges`]) are due at their edge, which has passed by
+/// the time the frame exists: here the edges lie 1–1.2 s before the blocks reach the pacer
+/// (far past the default 100 ms catch-up limit). Every frame is written, none skipped as too
+/// late; the write lateness counts from each block's arrival (bounded by 0.5 s: a write on
+/// this VM takes µs, its stalls last milliseconds), while the edge-to-frame time, ≥ 1 s, is
+/// reported apart. A pacer counting lateness from the edge would report ≥ 1 s and skip all.
+#[test]
+fn frames_on_edges_are_not_late() {
+    let n = 20;
+    let (tx, rx) = tokio::sync::mpsc::channel(n);
+    let (rtx, _rrx) = tokio::sync::mpsc::channel(n);
+    let start = monotonic_ns() - 1_200_000_000;
+    for k in 0..n {
+        // Irregular edges 7–13 ms apart, in blocks of one frame as a triggered producer sends.
+        let at = (k as i64 + 1) * 10_000_000 + if k % 2 == 0 { 3_000_000 } else { -3_000_000 };
+        tx.try_send(FrameBlock {
+            first: k as u64,
+            streams: vec![(vec![0; 1], vec![1])],
+            emit_ns: vec![at],
+            tov_ns: vec![at],
+        })
+        .unwrap();
+    }
+    drop(tx);
+    let c = Clocking::new(100.0, Some(start), false)
+        .unwrap()
+        .with_edges();
+    let st = pacer::run(
+        rx,
+        rtx,
+        vec![Routed::main(Box::new(Null(SinkStats::default())))],
+        Pacing::Paced(c),
+        Arc::new(AtomicBool::new(false)),
+        Arc::new(Mutex::new(Status::default())),
+    )
+    .unwrap();
+    assert_eq!((st.frames, st.skipped), (n as u64, 0));
+    assert_eq!(st.lateness.count(), n as u64);
+    assert!(
+        st.lateness.max_us() < 500_000.0,
+        "{}",
+        st.lateness.summary()
+    );
+    let e = st.edge_latency.expect("edge latency");
+    assert_eq!(e.count(), n as u64);
+    // The histogram's last bin holds everything over 100 ms: every frame is there.
+    assert_eq!(e.quantile_us(0.0), Some(100_000.0), "{}", e.summary());
+    assert!(e.max_us() >= 1_000_000.0, "{}", e.summary());
 }
 
 /// A PPS pulse: one edge per whole second of the records' axis (here frames at 200 Hz over
@@ -410,4 +516,19 @@ fn external_trigger_one_frame_per_edge() {
         );
         assert!(m[4] >= m[2], "frame {k} written before its edge");
     }
+    // The summary: nothing skipped as too late, and the edge-to-frame time reported apart
+    // from the write lateness, which counts from when each frame existed (so its p99 cannot
+    // exceed the edge-to-frame p99).
+    assert!(rest.contains(", 0 skipped (too late)"), "{rest}");
+    let p99 = |after: &str| -> f64 {
+        let tail = &rest[rest
+            .find(after)
+            .unwrap_or_else(|| panic!("{after}: {rest}"))..];
+        let at = tail.find("p99 ").unwrap() + 4;
+        tail[at..].split(' ').next().unwrap().parse().unwrap()
+    };
+    assert!(
+        p99("write lateness") <= p99("trigger edge to frame"),
+        "{rest}"
+    );
 }

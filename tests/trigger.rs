@@ -120,3 +120,146 @@ fn edge_past_the_motion_is_an_error() {
     let e = err.expect("an error").to_string();
     assert!(e.contains("edge 3") && e.contains("past the end"), "{e}");
 }
+
+/// A producer on the static scene at 100 Hz, long enough for 4000 triggered records (the
+/// run stops after the grid's count), with `model` and seed 5.
+fn model_producer(model: imu_emu::errors::ImuModel) -> Producer {
+    Simulation::builder()
+        .scene("static")
+        .imu_model(model)
+        .rate(100.0)
+        .duration(45.0)
+        .seed(5)
+        .build()
+        .unwrap()
+        .producer()
+        .unwrap()
+}
+
+/// A model with no error terms, to set fields of in SI units.
+fn blank() -> imu_emu::errors::ImuModel {
+    imu_emu::errors::template::parse("name = \"t\"\n", std::path::Path::new("t.toml")).unwrap()
+}
+
+/// Edges alternating 2 ms and 8 ms apart, `pairs` of each, and the intervals (s).
+fn alternating(pairs: usize) -> (Vec<i128>, Vec<f64>) {
+    let mut ns = vec![7_000_000_000i128];
+    for i in 0..2 * pairs {
+        let step = if i % 2 == 0 { 2_000_000 } else { 8_000_000 };
+        ns.push(ns[i] + step);
+    }
+    let iv = ns.windows(2).map(|w| (w[1] - w[0]) as f64 * 1e-9).collect();
+    (ns, iv)
+}
+
+/// Each triggered record's injected error (record − ideal record over the same edges):
+/// gyro and accelerometer increments.
+fn increment_errors(model: imu_emu::errors::ImuModel, edges: &[i128]) -> Vec<[[f64; 3]; 2]> {
+    let span = 45.0;
+    let run = |p: Producer| {
+        let p = p.with_trigger(Box::new(EdgeList::new(edges.to_vec(), span)));
+        let (recs, _, err) = drain(p);
+        assert!(err.is_none(), "{err:?}");
+        assert_eq!(recs.len(), edges.len() - 1);
+        recs
+    };
+    let (noisy, ideal) = (run(model_producer(model)), run(model_producer(blank())));
+    noisy
+        .iter()
+        .zip(&ideal)
+        .map(|(n, i)| {
+            let d = |a: imu_emu::math::Vec3, b: imu_emu::math::Vec3| [0, 1, 2].map(|j| a[j] - b[j]);
+            [d(n.dtheta, i.dtheta), d(n.dv, i.dv)]
+        })
+        .collect()
+}
+
+/// Mean over the three axes and the records of interval class `c` (0: 2 ms, 1: 8 ms) of
+/// `x(record)²`, per sensor.
+fn class_mean_square(x: &[[[f64; 3]; 2]], c: usize) -> [f64; 2] {
+    let picked: Vec<_> = x.iter().skip(c).step_by(2).collect();
+    let n = (3 * picked.len()) as f64;
+    [0, 1].map(|s| picked.iter().flat_map(|r| r[s]).map(|v| v * v).sum::<f64>() / n)
+}
+
+/// 2000 samples per class and axis, three axes: the mean of 6000 squared N(0, v) draws
+/// estimates v with relative standard deviation √(2/6000) = 1.83 %, so 4σ is 7.3 %. A unit
+/// that scales its errors for the nominal 10 ms instead would be off by 5× (2 ms) and 1.25×
+/// (8 ms).
+const PAIRS: usize = 2000;
+const TOL: f64 = 4.0 * 0.018_257_418_583_505_54;
+
+/// Triggered at intervals alternating 2 ms and 8 ms, white noise of density N gives
+/// increment errors of variance N²·T for each interval class T (σ ∝ √T), not N²·Δt_nominal.
+#[test]
+fn white_noise_over_the_actual_interval() {
+    let mut m = blank();
+    let n = [2e-3, 3e-2]; // rad/√s, m/s/√s
+    m.gyro.noise = [n[0]; 3];
+    m.accel.noise = [n[1]; 3];
+    let (edges, iv) = alternating(PAIRS);
+    let e = increment_errors(m, &edges);
+    for (c, t) in iv[..2].iter().enumerate() {
+        let ms = class_mean_square(&e, c);
+        for s in 0..2 {
+            let ratio = ms[s] / (n[s] * n[s] * t);
+            assert!((ratio - 1.0).abs() < TOL, "class {c} sensor {s}: {ratio}");
+        }
+    }
+}
+
+/// A bias random walk of density K steps by N(0, K²·T) over each interval T: the rate error
+/// e/T of consecutive records differs by that step, so its variance per class of the
+/// closing interval is K²·T.
+#[test]
+fn random_walk_over_the_actual_interval() {
+    let mut m = blank();
+    let k = [1e-2, 1e-1]; // rad/s/√s, m/s²/√s
+    m.gyro.random_walk = [k[0]; 3];
+    m.accel.random_walk = [k[1]; 3];
+    let (edges, iv) = alternating(PAIRS);
+    let e = increment_errors(m, &edges);
+    let rate: Vec<[[f64; 3]; 2]> = e
+        .iter()
+        .zip(iv.iter().cycle())
+        .map(|(r, t)| r.map(|a| a.map(|v| v / t)))
+        .collect();
+    // Step i (closing interval i) for i ≥ 1; the first record's step comes from 0.
+    let mut steps = vec![rate[0]];
+    steps.extend(
+        rate.windows(2)
+            .map(|w| [0, 1].map(|s| [0, 1, 2].map(|j| w[1][s][j] - w[0][s][j]))),
+    );
+    for (c, t) in iv[..2].iter().enumerate() {
+        let ms = class_mean_square(&steps, c);
+        for s in 0..2 {
+            let ratio = ms[s] / (k[s] * k[s] * t);
+            assert!((ratio - 1.0).abs() < TOL, "class {c} sensor {s}: {ratio}");
+        }
+    }
+}
+
+/// A constant bias b and a ramp R add (b + R·(s + T/2))·T to the increment of a record over
+/// (s, s + T] after the first edge — the exact integral, to round-off.
+#[test]
+fn bias_and_ramp_over_the_actual_interval() {
+    let mut m = blank();
+    let (b, r) = ([0.02, -0.5], [1e-3, 2e-2]); // rad/s, m/s²; per second
+    m.gyro.bias = [b[0]; 3];
+    m.accel.bias = [b[1]; 3];
+    m.gyro.ramp = [r[0]; 3];
+    m.accel.ramp = [r[1]; 3];
+    let (edges, iv) = alternating(200);
+    let e = increment_errors(m, &edges);
+    let mut start = 0.0;
+    for (i, (x, t)) in e.iter().zip(iv.iter().cycle()).enumerate() {
+        for s in 0..2 {
+            let want = (b[s] + r[s] * (start + 0.5 * t)) * t;
+            // The error is a difference of increments of up to ~0.1 (gravity over 8 ms).
+            for v in x[s] {
+                assert!((v - want).abs() < 1e-15, "{i} sensor {s}: {v} vs {want}");
+            }
+        }
+        start += t;
+    }
+}

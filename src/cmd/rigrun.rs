@@ -18,7 +18,7 @@ use imu_emu::realtime::{clock, pty::PtySink};
 use imu_emu::rig::SinkAddr;
 use imu_emu::rig::Unit;
 
-use super::run::{FOREVER_S, RunArgs, drive, file_sink};
+use super::run::{FOREVER_S, RunArgs, drive, file_sink, time_base_start};
 
 /// Simulated time the producer merges at a time (ns): short enough that the first frames
 /// are ready at once and the look-ahead stays small, long enough that channel traffic is
@@ -45,12 +45,6 @@ fn refuse_single_imu_flags(a: &RunArgs) -> Result<()> {
         bail!(
             "{flag} does not apply to a rig ({} lists `[[imu]]` units): give each unit its `model`, `format` and `sink` in the scene file, or `--unit-sink NAME=SINK`",
             file.display()
-        );
-    }
-    if a.time_base != "sim" {
-        bail!(
-            "--time-base {}: a rig runs on --time-base sim only (frames carry the simulation's time)",
-            a.time_base
         );
     }
     Ok(())
@@ -154,11 +148,23 @@ fn open(
 /// Streams every unit of the rig in `a`'s scene file until the end of the span or a signal.
 pub fn run(a: RunArgs) -> Result<()> {
     refuse_single_imu_flags(&a)?;
-    let rig = (a.sim.builder("ideal", "csv")?)
+    let mut rig = (a.sim.builder("ideal", "csv")?)
         .unbounded_duration(FOREVER_S)
         .build_rig()?;
     for w in rig.warnings() {
         eprintln!("imu-emu: warning: {w}");
+    }
+    let leap = imu_emu::timebase::LeapTable::builtin();
+    let mut start_at = (a.start_at.as_deref())
+        .map(|s| {
+            imu_emu::timebase::parse_start(s, clock::realtime_ns(), &leap)
+                .map_err(|e| anyhow::anyhow!("--start-at {e}"))
+        })
+        .transpose()?;
+    // Frames and GNSS epochs carry the time base's GPS time from the rig's t₀ on.
+    let host = imu_emu::realtime::hostclock::GpsClock::new(leap.clone());
+    if let Some((week, sow)) = time_base_start(&a, &host, &leap, &mut start_at) {
+        rig.set_gps_time(week, sow - rig.span().0);
     }
     let gnss = gnss_sinks(&a)?;
     let windows: Vec<_> = gnss.iter().map(|g| rig.gnss_window(g.0)).collect();
@@ -195,13 +201,6 @@ pub fn run(a: RunArgs) -> Result<()> {
         },
     };
     let paced = speed.is_finite();
-    let start_at = (a.start_at.as_deref())
-        .map(|s| {
-            let leap = imu_emu::timebase::LeapTable::builtin();
-            imu_emu::timebase::parse_start(s, clock::realtime_ns(), &leap)
-                .map_err(|e| anyhow::anyhow!("--start-at {e}"))
-        })
-        .transpose()?;
     for u in units {
         eprintln!(
             "imu-emu: unit `{}`: {} at {} Hz, {} records, seed {}",

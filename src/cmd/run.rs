@@ -185,31 +185,11 @@ pub fn run(a: RunArgs) -> Result<()> {
     let mut sim = (a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?)
         .unbounded_duration(FOREVER_S)
         .build()?;
-    if a.time_base != "sim" {
-        if a.sim.gps_time.is_some() {
-            bail!("--gps-time sets the GPS reference of --time-base sim only");
-        }
-        // Record time t₀ falls on the start instant: a whole second unless given.
-        let utc0 =
-            *start_at.get_or_insert((clock::realtime_ns() / 1_000_000_000 + 1) * 1_000_000_000);
-        let base = if a.time_base == "gps" {
-            host.utc_to_gps_ns(utc0)
-        } else {
-            utc0 - imu_emu::timebase::GPS_EPOCH_UNIX_S as i128 * 1_000_000_000
-        };
-        let (week, sow) = imu_emu::timebase::week_sow(base);
+    if a.time_base != "sim" && a.sim.gps_time.is_some() {
+        bail!("--gps-time sets the GPS reference of --time-base sim only");
+    }
+    if let Some((week, sow)) = time_base_start(&a, &host, &leap, &mut start_at) {
         sim.set_gps_time(week, sow - sim.grid().t0);
-        eprintln!(
-            "imu-emu: time base {}: t₀ at week {week}, {sow} s; {}",
-            a.time_base,
-            host.describe(utc0)
-        );
-        if a.time_base == "gps" && utc0 / 1_000_000_000 > leap.valid_until as i128 {
-            eprintln!(
-                "imu-emu: warning: the leap-second table is only known valid until Unix time {}; update src/timebase/leap-seconds.txt (docs/timing.md)",
-                leap.valid_until
-            );
-        }
     }
     announce(&sim);
     let plan = require_frames(&sim, "run")?;
@@ -267,6 +247,7 @@ pub fn run(a: RunArgs) -> Result<()> {
             .map_err(|e| anyhow::anyhow!(e))?
             .with_speed(speed);
         c.max_behind_ns = (a.max_behind_ms * 1e6) as i128;
+        c.on_edges = first_edge.is_some();
         if c.batch > 1 {
             tracing::info!("{frames_per_s} frames/s: {} frames per wake-up", c.batch);
         }
@@ -538,6 +519,9 @@ fn status_line(s: &Status) -> String {
         s.frames,
         s.lateness.summary()
     );
+    if let Some(e) = &s.edge_latency {
+        line += &format!(", edge to frame {}", e.summary());
+    }
     if s.skipped > 0 {
         line += &format!(", {} skipped", s.skipped);
     }
@@ -602,6 +586,40 @@ fn sync_extras(
     Ok(extras)
 }
 
+/// On `--time-base gps|utc` (`None` on `sim`): the GPS week and seconds of the run's start
+/// instant — `start_at` (UTC ns), set to the next whole second unless `--start-at` gave one —
+/// in the time base, printed with the host clock's source and error.
+pub(super) fn time_base_start(
+    a: &RunArgs,
+    host: &GpsClock,
+    leap: &imu_emu::timebase::LeapTable,
+    start_at: &mut Option<i128>,
+) -> Option<(u32, f64)> {
+    if a.time_base == "sim" {
+        return None;
+    }
+    // Record time t₀ falls on the start instant: a whole second unless given.
+    let utc0 = *start_at.get_or_insert((clock::realtime_ns() / 1_000_000_000 + 1) * 1_000_000_000);
+    let base = if a.time_base == "gps" {
+        host.utc_to_gps_ns(utc0)
+    } else {
+        utc0 - imu_emu::timebase::GPS_EPOCH_UNIX_S as i128 * 1_000_000_000
+    };
+    let (week, sow) = imu_emu::timebase::week_sow(base);
+    eprintln!(
+        "imu-emu: time base {}: t₀ at week {week}, {sow} s; {}",
+        a.time_base,
+        host.describe(utc0)
+    );
+    if a.time_base == "gps" && utc0 / 1_000_000_000 > leap.valid_until as i128 {
+        eprintln!(
+            "imu-emu: warning: the leap-second table is only known valid until Unix time {}; update src/timebase/leap-seconds.txt (docs/timing.md)",
+            leap.valid_until
+        );
+    }
+    Some((week, sow))
+}
+
 /// The producer sampling at the edges of `--trigger`, once the first edge (t₀, returned) came.
 fn triggered(
     a: &RunArgs,
@@ -647,6 +665,9 @@ pub(super) fn summary(s: &Status, planned: u64, paced: bool) -> String {
     if paced {
         out += &format!(", write lateness {}", s.lateness.summary());
         out += &format!(", {} skipped (too late)", s.skipped);
+    }
+    if let Some(e) = &s.edge_latency {
+        out += &format!(", trigger edge to frame {}", e.summary());
     }
     if let Some(l) = &s.lock {
         out += &format!(", {}", lock_text(l));

@@ -247,6 +247,21 @@ impl ErrorChain {
     /// [`ErrorChain::apply`] with the generator's rotation terms of the same records, which
     /// the size effect and lever arm need (see `stages/size_effect.rs`).
     pub fn apply_with(&mut self, records: &mut [Record], rotation: Option<&[RotationTerms]>) {
+        self.apply_over(records, rotation, self.dt)
+    }
+
+    /// [`ErrorChain::apply_with`] for records whose interval is `dt` rather than the chain's
+    /// nominal step — an externally triggered unit's sample since the previous edge: the
+    /// records carry their interval-mean rates over `dt`, white noise has σ = N/√`dt`, the
+    /// random processes step over `dt` and the increments are the rates times `dt`. The
+    /// quantization step stays the same. Vibration keeps the nominal step (its filters are
+    /// designed for one sample rate).
+    pub fn apply_over(
+        &mut self,
+        records: &mut [Record],
+        rotation: Option<&[RotationTerms]>,
+        dt: f64,
+    ) {
         if let Some((comps, _)) = self.capture.as_mut() {
             comps.clear();
             comps.resize(records.len(), Components::default());
@@ -270,7 +285,7 @@ impl ErrorChain {
             mounting: self.mounting.as_ref(),
             f_true: &[],
             dtemp: &[],
-            dt: self.dt,
+            dt,
             exact: [false; 2],
         };
         run(true_stages, &mut block, &mut self.capture);
@@ -298,10 +313,10 @@ impl ErrorChain {
         };
         for r in block.records.iter_mut() {
             if !exact[0] {
-                r.dtheta = r.gyro * self.dt;
+                r.dtheta = r.gyro * dt;
             }
             if !exact[1] {
-                r.dv = r.accel * self.dt;
+                r.dv = r.accel * dt;
             }
         }
     }

@@ -9,6 +9,10 @@ use crate::rng::NormalStream;
 pub struct GaussMarkov {
     phi: f64,
     q: f64,
+    /// The step Δt that `phi` and `q` are for, and σ, τ to form them for another step.
+    dt: f64,
+    sigma: f64,
+    tau: f64,
     state: f64,
     rng: NormalStream,
 }
@@ -16,16 +20,39 @@ pub struct GaussMarkov {
 impl GaussMarkov {
     /// Stationary σ, correlation time τ, step Δt, and the process's stream.
     pub fn new(sigma: f64, tau: f64, dt: f64, mut rng: NormalStream) -> GaussMarkov {
-        let phi = (-dt / tau).exp();
+        let (phi, q) = GaussMarkov::transition(sigma, tau, dt);
+        let state = sigma * rng.draw();
+        GaussMarkov {
+            phi,
+            q,
+            dt,
+            sigma,
+            tau,
+            state,
+            rng,
+        }
+    }
+    /// The exact one-step factors over `dt`: e^{−Δt/τ} and the innovation's σ.
+    fn transition(sigma: f64, tau: f64, dt: f64) -> (f64, f64) {
         // 1 − e^{−2x} without cancellation for small x.
         let q = sigma * (-(-2.0 * dt / tau).exp_m1()).sqrt();
-        let state = sigma * rng.draw();
-        GaussMarkov { phi, q, state, rng }
+        ((-dt / tau).exp(), q)
     }
     /// Advances one step and returns the new state.
     #[inline]
     pub fn step(&mut self) -> f64 {
         self.state = self.phi * self.state + self.q * self.rng.draw();
+        self.state
+    }
+    /// Advances over `dt` (an externally triggered unit's own interval) with the exact
+    /// discretisation for that step; the step given at construction costs no `exp`.
+    #[inline]
+    pub fn step_over(&mut self, dt: f64) -> f64 {
+        if dt == self.dt {
+            return self.step();
+        }
+        let (phi, q) = GaussMarkov::transition(self.sigma, self.tau, dt);
+        self.state = phi * self.state + q * self.rng.draw();
         self.state
     }
     /// The current state.
@@ -38,6 +65,9 @@ impl GaussMarkov {
 #[derive(Clone, Debug)]
 pub struct RandomWalk {
     step_sigma: f64,
+    /// Density K (unit/√s) and the step `step_sigma` is for.
+    k: f64,
+    dt: f64,
     state: f64,
     rng: NormalStream,
 }
@@ -47,6 +77,8 @@ impl RandomWalk {
     pub fn new(k: f64, dt: f64, rng: NormalStream) -> RandomWalk {
         RandomWalk {
             step_sigma: k * dt.sqrt(),
+            k,
+            dt,
             state: 0.0,
             rng,
         }
@@ -55,6 +87,17 @@ impl RandomWalk {
     #[inline]
     pub fn step(&mut self) -> f64 {
         self.state += self.step_sigma * self.rng.draw();
+        self.state
+    }
+    /// Advances over `dt` (an externally triggered unit's own interval): a step of σ K√Δt.
+    #[inline]
+    pub fn step_over(&mut self, dt: f64) -> f64 {
+        let s = if dt == self.dt {
+            self.step_sigma
+        } else {
+            self.k * dt.sqrt()
+        };
+        self.state += s * self.rng.draw();
         self.state
     }
 }
@@ -75,6 +118,12 @@ pub struct Flicker {
     bank: Vec<HeldGm>,
     sum: f64,
     k: u64,
+    /// Time since the start (s), summed over the samples' intervals.
+    t: f64,
+    /// The nominal sample step (s), and whether a sample of another interval came: from then
+    /// on the components step over the elapsed time rather than their fixed period.
+    dt: f64,
+    irregular: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -82,6 +131,9 @@ struct HeldGm {
     gm: GaussMarkov,
     /// Update period in samples, a power of two.
     period: u64,
+    /// [`Flicker::t`] at the component's last update: an irregular unit steps it over the
+    /// time actually elapsed since.
+    last: f64,
 }
 
 /// Correlation-time spacing of the bank (two per decade).
@@ -104,21 +156,45 @@ impl Flicker {
             .map(|(j, c)| HeldGm {
                 gm: GaussMarkov::new(c.sigma, c.tau, c.period as f64 * dt, stream(j)),
                 period: c.period,
+                last: 0.0,
             })
             .collect();
         let sum = bank.iter().map(|c| c.gm.value()).sum();
-        Flicker { bank, sum, k: 0 }
+        Flicker {
+            bank,
+            sum,
+            k: 0,
+            t: 0.0,
+            dt,
+            irregular: false,
+        }
     }
     /// Advances one sample and returns the sum of the components.
     #[inline]
     pub fn step(&mut self) -> f64 {
+        self.step_over(self.dt)
+    }
+    /// Advances one sample of interval `dt` (an externally triggered unit's own interval):
+    /// each component due is stepped exactly over the time elapsed since its last update.
+    /// The variance scaling of components faster than the sampling stays the nominal step's.
+    #[inline]
+    pub fn step_over(&mut self, dt: f64) -> f64 {
         self.k += 1;
+        self.t += dt;
+        self.irregular |= dt != self.dt;
+        let nominal = !self.irregular;
         for c in self.bank.iter_mut() {
             if self.k & (c.period - 1) != 0 {
                 break;
             }
             let old = c.gm.value();
-            self.sum += c.gm.step() - old;
+            let new = if nominal {
+                c.gm.step()
+            } else {
+                c.gm.step_over(self.t - c.last)
+            };
+            c.last = self.t;
+            self.sum += new - old;
         }
         if self.k & 0xffff == 0 {
             // Re-sum now and then so the running sum's rounding cannot accumulate.

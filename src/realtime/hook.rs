@@ -3,6 +3,8 @@
 
 use std::io;
 
+use super::lock::Schedule;
+
 /// When one frame was valid, due and written. Instants are CLOCK_MONOTONIC ns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FrameTime {
@@ -12,6 +14,10 @@ pub struct FrameTime {
     pub tov_sim_ns: i64,
     /// Wall-clock instant of the time of validity.
     pub tov_ns: i128,
+    /// The time of validity as a nominal offset from the start (ns, at the run's speed): what
+    /// the pacer's schedule maps to `tov_ns`, so a hook can map it again after a phase lock
+    /// slewed the schedule.
+    pub tov_nominal_ns: i128,
     /// Wall-clock instant the frame's first byte is due.
     pub due_ns: i128,
     /// Wall-clock instant the pacer began handing the frame's batch to the sinks (equals
@@ -24,6 +30,9 @@ pub struct FrameTime {
 pub trait FrameHook: Send {
     /// A block of frames arrived, ahead of their deadlines (`written_ns` not yet known).
     fn ahead(&mut self, _frames: &[FrameTime]) {}
+    /// A phase lock slewed the schedule: frames not yet written are due at `sched.at(…)` of
+    /// their nominal offsets from now on.
+    fn rescheduled(&mut self, _sched: &Schedule) {}
     /// Frame `f` was handed to the sinks at `f.written_ns`.
     fn written(&mut self, f: &FrameTime) -> io::Result<()>;
     /// End of the run: flush what is buffered, stop threads.

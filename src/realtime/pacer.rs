@@ -59,6 +59,11 @@ pub struct Clocking {
     /// Wall-clock seconds per simulated second (1/speed), for frames that carry their own
     /// emission times ([`FrameBlock::emit_ns`]).
     pub wall_per_sim: f64,
+    /// Frames follow external trigger edges (`run --trigger`): a frame cannot exist before
+    /// its edge came and was integrated, so its write lateness counts from when its block
+    /// reached the pacer, if that is after the edge; the edge-to-write time is kept apart
+    /// ([`Status::edge_latency`]).
+    pub on_edges: bool,
 }
 
 impl Clocking {
@@ -84,7 +89,14 @@ impl Clocking {
             max_behind_ns: DEFAULT_MAX_BEHIND_NS,
             realtime,
             wall_per_sim: 1.0,
+            on_edges: false,
         })
+    }
+
+    /// Frames written on external trigger edges ([`Clocking::on_edges`]).
+    pub fn with_edges(mut self) -> Clocking {
+        self.on_edges = true;
+        self
     }
 
     /// Emission times scaled by `speed` (simulated seconds per wall-clock second).
@@ -154,6 +166,9 @@ pub struct Status {
     pub skipped: u64,
     /// Write lateness of every frame handed to the sinks.
     pub lateness: Lateness,
+    /// On trigger edges ([`Clocking::on_edges`]): each frame's time from its edge to its
+    /// hand-over to the sinks (integration, the channel and the write together).
+    pub edge_latency: Option<Lateness>,
     /// Per sink: label and counts.
     pub sinks: Vec<(String, SinkStats)>,
     /// Whether `SCHED_FIFO` was granted (`None`: not asked).
@@ -267,7 +282,9 @@ pub fn run_with(
     let mut ends = Vec::new();
     let mut times: Vec<FrameTime> = Vec::new();
     let mut sched: Option<Schedule> = None;
+    let mut pending_edge: Vec<i128> = Vec::new();
     'blocks: while let Some(block) = rx.blocking_recv() {
+        let arrived = monotonic_ns();
         let n = block.len();
         let Some(c) = &clocking else {
             write_all(&mut sinks, &block, 0, n, &mut ends)?;
@@ -284,6 +301,12 @@ pub fn run_with(
         let sched = sched.get_or_insert_with(|| Schedule::new(t0));
         // Deadlines through the schedule, which a phase lock may slew.
         let due = |s: &Schedule, j: usize| s.at(c.deadline_in(0, &block, j));
+        // When the pacer could first write frame j: its deadline, or for a frame on a trigger
+        // edge (due at the edge itself) the block's arrival if later.
+        let ready = |s: &Schedule, j: usize| {
+            let d = due(s, j);
+            if c.on_edges { d.max(arrived) } else { d }
+        };
         if !extras.hooks.is_empty() {
             times.clear();
             times.extend((0..n).map(|j| {
@@ -293,6 +316,7 @@ pub fn run_with(
                     index: block.first + j as u64,
                     tov_sim_ns,
                     tov_ns: sched.at(tov),
+                    tov_nominal_ns: tov,
                     due_ns,
                     written_ns: due_ns,
                 }
@@ -311,9 +335,20 @@ pub fn run_with(
                 }
                 let now = monotonic_ns();
                 if let Some((edges, pll)) = &mut extras.lock {
+                    let mut slewed = false;
                     while let Ok(edge) = edges.try_recv() {
                         pll.edge(sched, edge, now);
                         st.lock = Some(pll.state);
+                        slewed = true;
+                    }
+                    if slewed {
+                        // The frames not yet written (and their pulses) follow the new rate.
+                        for f in times.iter_mut().skip(i) {
+                            f.tov_ns = sched.at(f.tov_nominal_ns);
+                        }
+                        for h in extras.hooks.iter_mut() {
+                            h.rescheduled(sched);
+                        }
                     }
                 }
                 let wake = due(sched, last - 1);
@@ -327,7 +362,7 @@ pub fn run_with(
             let now = monotonic_ns();
             // Skip what is too late to be worth sending; send at once what is due.
             let mut from = i;
-            while from < n && due(sched, from) + c.max_behind_ns < now {
+            while from < n && ready(sched, from) + c.max_behind_ns < now {
                 from += 1;
             }
             if from > i {
@@ -356,7 +391,10 @@ pub fn run_with(
                 let done = monotonic_ns();
                 for j in from..to {
                     let due_ns = due(sched, j);
-                    pending.push(done - due_ns);
+                    pending.push(done - ready(sched, j));
+                    if c.on_edges {
+                        pending_edge.push(done - due_ns);
+                    }
                     if let Some(f) = times.get_mut(j) {
                         f.due_ns = due_ns;
                         f.written_ns = handed;
@@ -369,7 +407,7 @@ pub fn run_with(
             }
             i = to;
             if done_publish(&mut last_publish) {
-                publish(&status, &mut st, &mut pending, &sinks);
+                publish(&status, &mut st, [&mut pending, &mut pending_edge], &sinks);
             }
         }
         let _ = recycle.try_send(block);
@@ -381,9 +419,7 @@ pub fn run_with(
         h.finish()?;
     }
     let mut guard = status.lock().unwrap_or_else(|e| e.into_inner());
-    for l in pending.drain(..) {
-        guard.lateness.add(l);
-    }
+    add_pending(&mut guard, [&mut pending, &mut pending_edge]);
     guard.start_ns = st.start_ns;
     guard.frames = st.frames;
     guard.skipped = st.skipped;
@@ -440,12 +476,28 @@ fn done_publish(last: &mut i128) -> bool {
     }
 }
 
-/// Moves the counts to the shared status without ever waiting for the lock.
-fn publish(status: &Mutex<Status>, st: &mut Status, pending: &mut Vec<i128>, sinks: &[Routed]) {
-    if let Ok(mut g) = status.try_lock() {
-        for l in pending.drain(..) {
-            g.lateness.add(l);
+/// Moves the lateness and edge latency samples (ns) gathered since the last time into `g`.
+fn add_pending(g: &mut Status, [pending, edge]: [&mut Vec<i128>; 2]) {
+    for l in pending.drain(..) {
+        g.lateness.add(l);
+    }
+    if !edge.is_empty() {
+        let h = g.edge_latency.get_or_insert_with(Lateness::default);
+        for l in edge.drain(..) {
+            h.add(l);
         }
+    }
+}
+
+/// Moves the counts to the shared status without ever waiting for the lock.
+fn publish(
+    status: &Mutex<Status>,
+    st: &mut Status,
+    pending: [&mut Vec<i128>; 2],
+    sinks: &[Routed],
+) {
+    if let Ok(mut g) = status.try_lock() {
+        add_pending(&mut g, pending);
         g.start_ns = st.start_ns;
         g.frames = st.frames;
         g.skipped = st.skipped;

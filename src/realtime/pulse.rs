@@ -8,10 +8,12 @@
 use std::io;
 use std::os::fd::{AsRawFd, OwnedFd};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
+use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 
 use super::clock::{monotonic_ns, sleep_until};
 use super::hook::{FrameHook, FrameTime};
+use super::lock::Schedule;
 
 /// A modem control line that can be raised and lowered.
 pub trait Line: Send {
@@ -189,12 +191,23 @@ impl Line for ModemLine {
 /// Rising edges waiting for the pulse thread; frames beyond it are not pulsed (counted).
 const QUEUE: usize = 1 << 14;
 
+/// How long before a rising edge the pulse thread stops waiting for a new schedule and sleeps
+/// to the edge itself: the edge can then be off by the rate change times this at most (≤ 10 µs
+/// at the lock's 1 % slew limit).
+const FINAL_APPROACH_NS: i128 = 1_000_000;
+
+/// The pacer's latest schedule after a phase lock slewed it (`None`: never), and the signal
+/// that it changed.
+type Shared = Arc<(Mutex<Option<Schedule>>, Condvar)>;
+
 /// The pulse hook: computes each frame's rising edge as its block arrives and hands it to a
 /// thread that sleeps to it, raises the line, and lowers it `width` later.
 pub struct Pulse {
     spec: PulseSpec,
     prev_tov: Option<i64>,
-    tx: Option<SyncSender<i128>>,
+    /// (rising edge as the schedule gave it when the block came, the ToV's nominal offset).
+    tx: Option<SyncSender<(i128, i128)>>,
+    sched: Shared,
     thread: Option<JoinHandle<io::Result<u64>>>,
     /// Edges not queued because the thread was behind.
     pub missed: u64,
@@ -204,13 +217,16 @@ impl Pulse {
     /// Pulses per `spec` on `line`.
     pub fn new(spec: PulseSpec, line: Box<dyn Line>) -> io::Result<Pulse> {
         let (tx, rx) = sync_channel(QUEUE);
+        let sched: Shared = Arc::new((Mutex::new(None), Condvar::new()));
+        let shared = sched.clone();
         let thread = std::thread::Builder::new()
             .name("imu-pulse".into())
-            .spawn(move || drive(rx, line, spec.width_ns as i128))?;
+            .spawn(move || drive(rx, line, spec, &shared))?;
         Ok(Pulse {
             spec,
             prev_tov: None,
             tx: Some(tx),
+            sched,
             thread: Some(thread),
             missed: 0,
         })
@@ -220,9 +236,34 @@ impl Pulse {
 /// The pulse thread: each rising edge at its instant (at once when already past), the
 /// falling edge `width` after it really rose; returns the pulses sent. The width is checked
 /// shorter than the interval between pulses, so a pulse ends before the next one is due.
-fn drive(rx: Receiver<i128>, mut line: Box<dyn Line>, width: i128) -> io::Result<u64> {
+///
+/// An edge is queued up to a block ahead; when a phase lock slews the schedule meanwhile, the
+/// edge moves with it: the thread maps the ToV's nominal offset through the latest schedule,
+/// waiting for changes until [`FINAL_APPROACH_NS`] before the edge.
+fn drive(
+    rx: Receiver<(i128, i128)>,
+    mut line: Box<dyn Line>,
+    spec: PulseSpec,
+    shared: &Shared,
+) -> io::Result<u64> {
+    let (width, offset) = (spec.width_ns as i128, spec.offset_ns as i128);
+    let (lock, changed) = &**shared;
     let mut sent = 0;
-    while let Ok(rise) = rx.recv() {
+    while let Ok((queued, tov_nominal)) = rx.recv() {
+        let mut guard = lock.lock().unwrap_or_else(|e| e.into_inner());
+        let rise = loop {
+            let rise = guard.map_or(queued, |s| s.at(tov_nominal) + offset);
+            let ahead = rise - FINAL_APPROACH_NS - monotonic_ns();
+            if ahead <= 0 {
+                break rise;
+            }
+            let wait = std::time::Duration::from_nanos(ahead as u64);
+            guard = changed
+                .wait_timeout(guard, wait)
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
+        };
+        drop(guard);
         sleep_until(rise);
         line.set(true)?;
         sent += 1;
@@ -238,12 +279,18 @@ impl FrameHook for Pulse {
             let edge = self.spec.edge(f, self.prev_tov);
             self.prev_tov = Some(f.tov_sim_ns);
             if let (Some(e), Some(tx)) = (edge, &self.tx) {
-                match tx.try_send(e) {
+                match tx.try_send((e, f.tov_nominal_ns)) {
                     Ok(()) => {}
                     Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) => self.missed += 1,
                 }
             }
         }
+    }
+
+    fn rescheduled(&mut self, sched: &Schedule) {
+        let (lock, changed) = &*self.sched;
+        *lock.lock().unwrap_or_else(|e| e.into_inner()) = Some(*sched);
+        changed.notify_all();
     }
 
     fn written(&mut self, _f: &FrameTime) -> io::Result<()> {
@@ -307,6 +354,7 @@ mod tests {
             index: 0,
             tov_sim_ns,
             tov_ns: 1_000 + tov_sim_ns as i128,
+            tov_nominal_ns: tov_sim_ns as i128,
             due_ns: 0,
             written_ns: 0,
         }

@@ -430,6 +430,26 @@ pub struct Rig {
 }
 
 impl Rig {
+    /// Sets the GPS time of record time t = 0 (week, seconds of week) for every unit's frames
+    /// and the GNSS streams (a time base chosen after building, as
+    /// [`crate::sim::Simulation::set_gps_time`] for one IMU).
+    pub fn set_gps_time(&mut self, week: u32, seconds_of_week: f64) {
+        self.gps_time = Some((week, seconds_of_week));
+        for u in self.units.iter_mut() {
+            let state = match &mut u.body {
+                Body::Triad { encoding, .. } => match &mut **encoding {
+                    Encoding::Frames { state, .. } => Some(state),
+                    Encoding::Records(_) => None,
+                },
+                Body::Skew { frames, .. } => frames.as_deref_mut().map(|f| &mut f.1),
+            };
+            if let Some(st) = state {
+                st.gps_week0 = week;
+                st.gps_sow0 = seconds_of_week;
+            }
+        }
+    }
+
     /// The units, in the order given.
     pub fn units(&self) -> &[Unit] {
         &self.units

@@ -25,9 +25,11 @@ pub(crate) struct Bias {
     axes: Option<[Axis; 3]>,
     /// Gyro g-sensitivity, (rad/s)/(m/s²), row-major.
     g_sens: Option<Mat3>,
-    /// Record interval (s) and records done: the ramp's clock.
+    /// Record interval (s) and records done at it, plus the time of the records done at
+    /// other intervals (an externally triggered unit): the ramp's clock.
     dt: f64,
     done: u64,
+    off_grid: f64,
 }
 
 impl Bias {
@@ -70,6 +72,7 @@ impl Bias {
             g_sens,
             dt,
             done: 0,
+            off_grid: 0.0,
         })
     }
 }
@@ -82,31 +85,41 @@ impl Stage for Bias {
         self.g_sens.is_some()
     }
     fn apply(&mut self, b: &mut Block<'_>) {
-        let s = self.sensor;
+        let (s, dt) = (self.sensor, b.dt);
+        let nominal = dt == self.dt;
         for (i, a) in self.axes.iter_mut().flatten().enumerate() {
             if a.ramp != 0.0 {
                 // Record k covers ((k−1)Δt, kΔt] from the start: the ramp's exact mean there
-                // is R·(k − ½)Δt. A loop of its own, so a template without a ramp pays nothing
-                // per record.
+                // is R·(k − ½)Δt; a record of another interval T starting at s, R·(s + T/2).
+                // A loop of its own, so a template without a ramp pays nothing per record.
+                let start = self.done as f64 * self.dt + self.off_grid;
                 for (j, r) in b.records.iter_mut().enumerate() {
-                    s.rate(r)[i] += a.ramp * ((self.done + j as u64) as f64 + 0.5) * self.dt;
+                    s.rate(r)[i] += if self.off_grid == 0.0 && nominal {
+                        a.ramp * ((self.done + j as u64) as f64 + 0.5) * self.dt
+                    } else {
+                        a.ramp * (start + (j as f64 + 0.5) * dt)
+                    };
                 }
             }
             for r in b.records.iter_mut() {
                 let v = &mut s.rate(r)[i];
                 *v += a.fixed;
                 if let Some(gm) = a.gm.as_mut() {
-                    *v += gm.step();
+                    *v += gm.step_over(dt);
                 }
                 if let Some(rw) = a.rw.as_mut() {
-                    *v += rw.step();
+                    *v += rw.step_over(dt);
                 }
                 if let Some(f) = a.flicker.as_mut() {
-                    *v += f.step();
+                    *v += f.step_over(dt);
                 }
             }
         }
-        self.done += b.records.len() as u64;
+        if nominal {
+            self.done += b.records.len() as u64;
+        } else {
+            self.off_grid += b.records.len() as f64 * dt;
+        }
         if let Some(m) = &self.g_sens {
             for (r, f) in b.records.iter_mut().zip(b.f_true) {
                 *s.rate(r) += m * f;

@@ -1,4 +1,6 @@
 //! White-noise stage: σ = N/√Δt per record and axis, optionally correlated across the axes.
+//! Δt is the block's own step, so an externally triggered record of interval T carries an
+//! increment noise of variance N²·T.
 
 use super::{AXES, Block, Stage, any, stream};
 use crate::errors::model::{Sensor, StageKind, TriadModel};
@@ -11,6 +13,9 @@ use nalgebra::Cholesky;
 pub(crate) struct Noise {
     sensor: Sensor,
     sigma: [f64; 3],
+    /// The step `sigma` is for, and the densities N to form σ for another step.
+    dt: f64,
+    density: [f64; 3],
     rng: [NormalStream; 3],
     /// Lower Cholesky factor of the noise correlation across axes, when not the identity.
     chol: Option<Mat3>,
@@ -22,6 +27,8 @@ impl Noise {
         any(&m.noise).then(|| Noise {
             sensor,
             sigma: std::array::from_fn(|i| m.noise[i] / dt.sqrt()),
+            dt,
+            density: m.noise,
             rng: std::array::from_fn(|i| stream(seed, sensor, AXES[i], "noise")),
             // The template loader refuses matrices that are not positive definite
             // (errors::template); from code, one that is not yields NaN factors.
@@ -37,7 +44,14 @@ impl Stage for Noise {
         StageKind::Noise
     }
     fn apply(&mut self, b: &mut Block<'_>) {
-        let (s, sigma, rng) = (self.sensor, &self.sigma, &mut self.rng);
+        let other: [f64; 3];
+        let sigma = if b.dt == self.dt {
+            &self.sigma
+        } else {
+            other = self.density.map(|n| n / b.dt.sqrt());
+            &other
+        };
+        let (s, rng) = (self.sensor, &mut self.rng);
         if let Some(l) = &self.chol {
             // Correlated across axes: n = diag(σ)·L·z with z the three axes' own draws.
             for r in b.records.iter_mut() {

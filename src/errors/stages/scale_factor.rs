@@ -73,16 +73,16 @@ impl Stage for ScaleFactor {
         StageKind::ScaleFactor
     }
     fn apply(&mut self, b: &mut Block<'_>) {
-        let s = self.sensor;
+        let (s, dt) = (self.sensor, b.dt);
         for (i, a) in self.axes.iter_mut().enumerate() {
             for r in b.records.iter_mut() {
                 let v = &mut s.rate(r)[i];
                 let mut k = a.fixed + if *v >= 0.0 { a.asym_half } else { -a.asym_half };
                 if let Some(gm) = a.gm.as_mut() {
-                    k += gm.step();
+                    k += gm.step_over(dt);
                 }
                 if let Some(rw) = a.rw.as_mut() {
-                    k += rw.step();
+                    k += rw.step_over(dt);
                 }
                 *v = *v * (1.0 + k) + a.quad * *v * *v;
             }
