@@ -258,3 +258,50 @@ impl<M: Motion + Send> Emitter for SensorRows<M> {
         t
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenes::{self, SceneParams};
+    use crate::source::AnyMotion;
+
+    /// The barometer's instants are every whole multiple of 1/rate in [t0, t1], found on
+    /// the quotients k/rate themselves (spans whose ends are such quotients, or an ulp off
+    /// them, included); the odometer's are the ends of whole intervals after t0.
+    #[test]
+    fn samples_fall_on_their_instants() {
+        let scene = scenes::build("circle", &SceneParams::defaults_for("circle")).unwrap();
+        let motion = AnyMotion::Scene(scene.unwrap());
+        for (rate, t0, t1) in [
+            (10.0, 0.1, 0.3),
+            (8.0, 0.0, 2.0),
+            (3.0, 0.2, 1.0),
+            (10.0, 0.7, 0.7),
+        ] {
+            let want: Vec<f64> = (0..100)
+                .map(|k| k as f64 / rate)
+                .filter(|t| (t0..=t1).contains(t))
+                .collect();
+            let set = SensorSet {
+                baro: Some(BaroConfig {
+                    rate_hz: rate,
+                    ..Default::default()
+                }),
+                ..Default::default()
+            };
+            let mut rows = SensorRows::new(SensorKind::Baro, &set, motion.clone(), 1, (t0, t1));
+            assert_eq!(rows.count(), want.len() as u64, "{rate} Hz in [{t0}, {t1}]");
+            let mut row = String::new();
+            for t in &want {
+                assert_eq!(rows.next_row(&mut row).unwrap(), Some(*t));
+                assert!(row.starts_with(&format!("{t},")) && row.ends_with('\n'));
+            }
+            assert_eq!(rows.next_row(&mut row).unwrap(), None);
+        }
+        let set = SensorSet::default();
+        let mut odo = SensorRows::new(SensorKind::Odometer, &set, motion, 1, (0.25, 1.0));
+        assert_eq!(odo.count(), 7, "10 Hz over 0.75 s: 7 whole intervals");
+        let mut row = String::new();
+        assert_eq!(odo.next_row(&mut row).unwrap(), Some(0.35));
+    }
+}
