@@ -43,3 +43,105 @@ pub trait WindowSource: Send {
     /// True once every frame has been given.
     fn done(&self) -> bool;
 }
+
+/// A single stream's frames one at a time, each with its emission time: a GNSS receiver's
+/// epochs, an odometer's samples. [`EmitWindow`] turns it into a [`WindowSource`].
+pub trait Emitter: Send {
+    /// Appends the next frame to `out` and returns its emission time (s of record time);
+    /// `None` after the last frame.
+    fn next_frame(&mut self, out: &mut Vec<u8>) -> Result<Option<f64>, JobError>;
+}
+
+/// An [`Emitter`] as a one-stream [`WindowSource`], its emission times counted from `origin`.
+pub struct EmitWindow<E> {
+    src: E,
+    origin: f64,
+    /// The next frame (in `bytes`), made but not yet due, and its emission time (ns).
+    pending: Option<i64>,
+    bytes: Vec<u8>,
+    done: bool,
+}
+
+impl<E: Emitter> EmitWindow<E> {
+    /// The frames of `src`, emission times in ns after `origin` (the run's t₀, s).
+    pub fn new(src: E, origin: f64) -> EmitWindow<E> {
+        EmitWindow {
+            src,
+            origin,
+            pending: None,
+            bytes: Vec::new(),
+            done: false,
+        }
+    }
+}
+
+impl<E: Emitter> WindowSource for EmitWindow<E> {
+    fn streams(&self) -> usize {
+        1
+    }
+
+    fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), JobError> {
+        while !self.done {
+            let at = match self.pending {
+                Some(at) => at,
+                None => {
+                    self.bytes.clear();
+                    match self.src.next_frame(&mut self.bytes)? {
+                        Some(t) => ((t - self.origin) * 1e9).round() as i64,
+                        None => {
+                            self.done = true;
+                            break;
+                        }
+                    }
+                }
+            };
+            if at > until_ns {
+                self.pending = Some(at);
+                break;
+            }
+            self.pending = None;
+            parts[0].push(&self.bytes, at);
+        }
+        Ok(())
+    }
+
+    fn done(&self) -> bool {
+        self.done
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Frames every 0.3 s from t = 10 s, counted from origin 10 s.
+    struct Every(u32);
+    impl Emitter for Every {
+        fn next_frame(&mut self, out: &mut Vec<u8>) -> Result<Option<f64>, JobError> {
+            if self.0 == 5 {
+                return Ok(None);
+            }
+            self.0 += 1;
+            out.push(self.0 as u8);
+            Ok(Some(10.0 + 0.3 * self.0 as f64))
+        }
+    }
+
+    /// A frame due after the window waits for the next one (not lost, not early); a window
+    /// ending exactly at an emission time takes that frame.
+    #[test]
+    fn frames_wait_for_their_window() {
+        let mut w = EmitWindow::new(Every(0), 10.0);
+        let mut parts = vec![Part::default()];
+        w.fill(600_000_000, &mut parts).unwrap();
+        assert_eq!(parts[0].bytes, [1, 2]);
+        assert_eq!(parts[0].emit_ns, [300_000_000, 600_000_000]);
+        parts[0].clear();
+        w.fill(899_999_999, &mut parts).unwrap();
+        assert!(parts[0].ends.is_empty() && !w.done());
+        w.fill(10_000_000_000, &mut parts).unwrap();
+        assert_eq!(parts[0].bytes, [3, 4, 5]);
+        assert_eq!(parts[0].ends, [1, 2, 3]);
+        assert!(w.done());
+    }
+}

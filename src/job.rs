@@ -113,6 +113,9 @@ pub enum JobError {
     /// An external trigger edge that cannot close a sample interval.
     #[error("{0}")]
     Trigger(String),
+    /// An aiding sensor cannot give a sample (outside its field table, not finite).
+    #[error("{0}")]
+    Sensor(String),
     /// Writing failed (the cause is the error's `source()`, not repeated here).
     #[error("writing output")]
     Io(#[from] std::io::Error),

@@ -157,8 +157,8 @@ fn nmea_epochs_interleave_with_unit_frames_over_udp() {
     assert_eq!((rows, epochs), (75, 8));
 }
 
-/// A bad `--gnss` names the flag, the value and what is expected; on a single IMU the flag
-/// is refused with where it works.
+/// A bad `--gnss` names the flag, the value and what is expected (a single IMU's run with
+/// `--gnss`: tests/aiding_run.rs).
 #[test]
 fn bad_gnss_flags_are_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
@@ -168,7 +168,6 @@ fn bad_gnss_flags_are_refused_clearly() {
         "rig.toml",
         "[[imu]]\nname = \"a\"\nmodel = \"ideal\"\nsink = \"file:a.csv\"\n",
     );
-    let single = scene(d, "one.toml", "");
     for (file, flag, want) in [
         (
             &rig,
@@ -177,7 +176,6 @@ fn bad_gnss_flags_are_refused_clearly() {
         ),
         (&rig, "nmea:tcp:x", "--gnss nmea:tcp:x:"),
         (&rig, "nmea", "--gnss nmea:"),
-        (&single, "nmea:file:g.nmea", "next to a rig's units"),
     ] {
         let out = Command::new(BIN)
             .args(["run", file.to_str().unwrap(), "--gnss", flag])

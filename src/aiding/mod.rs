@@ -9,6 +9,7 @@ pub mod magnetometer;
 pub mod mavlink;
 pub mod nmea;
 pub mod odometer;
+pub mod sensors;
 pub mod stream;
 pub mod time;
 pub mod ubx;

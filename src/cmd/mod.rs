@@ -1,5 +1,6 @@
 //! The subcommands, one module each; `setup` holds the simulation flags they share.
 
+pub mod aiding_run;
 pub mod analyze;
 pub mod compare;
 pub mod decode;

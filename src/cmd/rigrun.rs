@@ -6,7 +6,6 @@ use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 
-use imu_emu::aiding::GnssFormat;
 use imu_emu::protocol::Plan;
 use imu_emu::realtime::merge::{self, WindowSource};
 use imu_emu::realtime::pacer::{Clocking, Pacing, Routed, Status};
@@ -18,12 +17,13 @@ use imu_emu::realtime::{clock, pty::PtySink};
 use imu_emu::rig::SinkAddr;
 use imu_emu::rig::Unit;
 
+use super::aiding_run;
 use super::run::{FOREVER_S, RunArgs, drive, file_sink, time_base_start};
 
 /// Simulated time the producer merges at a time (ns): short enough that the first frames
 /// are ready at once and the look-ahead stays small, long enough that channel traffic is
 /// negligible.
-const WINDOW_NS: i64 = 100_000_000;
+pub(super) const WINDOW_NS: i64 = 100_000_000;
 
 /// Flags that describe one IMU or its sinks, which each `[[imu]]` entry gives for itself.
 fn refuse_single_imu_flags(a: &RunArgs) -> Result<()> {
@@ -79,32 +79,15 @@ fn unit_sinks(a: &RunArgs, units: &[Unit]) -> Result<Vec<Vec<SinkAddr>>> {
     Ok(out)
 }
 
-/// `FORMAT:SINK` of each `--gnss`.
-fn gnss_sinks(a: &RunArgs) -> Result<Vec<(GnssFormat, SinkAddr)>> {
-    (a.gnss.iter())
-        .map(|v| {
-            let (name, sink) = v.split_once(':').unwrap_or((v, ""));
-            let Some(f) = GnssFormat::from_name(name) else {
-                bail!(
-                    "--gnss {v}: unknown format `{name}` (expected FORMAT:SINK with FORMAT one of {})",
-                    GnssFormat::NAMES.join(", ")
-                );
-            };
-            let addr = SinkAddr::parse(sink).map_err(|e| anyhow::anyhow!("--gnss {v}: {e}"))?;
-            Ok((f, addr))
-        })
-        .collect()
-}
-
 /// A stream of the run: its name (a unit's, or `gnss-FORMAT`), rate and frame layout.
-struct Stream<'a> {
-    name: String,
-    rate_hz: f64,
-    plan: Option<&'a Plan>,
+pub(super) struct Stream<'a> {
+    pub name: String,
+    pub rate_hz: f64,
+    pub plan: Option<&'a Plan>,
 }
 
 /// Opens `addr` for stream `unit`, checking that the link or datagram can carry its frames.
-fn open(
+pub(super) fn open(
     a: &RunArgs,
     unit: &Stream,
     addr: &SinkAddr,
@@ -166,10 +149,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     if let Some((week, sow)) = time_base_start(&a, &host, &leap, &mut start_at) {
         rig.set_gps_time(week, sow - rig.span().0);
     }
-    let gnss = gnss_sinks(&a)?;
-    let windows: Vec<_> = gnss.iter().map(|g| rig.gnss_window(g.0)).collect();
-    let gnss_rate = rig.gnss_rate_hz();
-    let gnss_epochs = rig.gnss_epochs();
+    let aiding = aiding_run::build(aiding_run::requests(&a)?, &rig);
     let stream = rig.stream();
     let units = stream.units();
     let mut addrs = unit_sinks(&a, units)?;
@@ -182,14 +162,18 @@ pub fn run(a: RunArgs) -> Result<()> {
         })
         .collect();
     let mut planned: Vec<u64> = units.iter().map(|u| u.grid().count).collect();
-    for (f, addr) in &gnss {
+    let mut kinds: Vec<&str> = vec!["records"; n_units];
+    let mut sources: Vec<Box<dyn WindowSource>> = Vec::new();
+    for s in aiding {
         streams.push(Stream {
-            name: format!("gnss-{}", GnssFormat::NAMES[*f as usize]),
-            rate_hz: gnss_rate,
+            name: s.what.name(),
+            rate_hz: s.rate_hz,
             plan: None,
         });
-        addrs.push(vec![addr.clone()]);
-        planned.push(gnss_epochs);
+        addrs.push(s.sinks);
+        planned.push(s.planned);
+        kinds.push(s.what.unit());
+        sources.push(s.source);
     }
     let speed = match a.speed.as_deref() {
         None if addrs.iter().flatten().all(SinkAddr::is_file) => f64::INFINITY,
@@ -243,12 +227,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     } else {
         Pacing::Unpaced
     };
-    let mut sources: Vec<Box<dyn WindowSource>> = vec![Box::new(stream)];
-    sources.extend(
-        windows
-            .into_iter()
-            .map(|w| Box::new(w) as Box<dyn WindowSource>),
-    );
+    sources.insert(0, Box::new(stream));
     let line_names = names.clone();
     let ended = drive(
         &rt,
@@ -264,7 +243,14 @@ pub fn run(a: RunArgs) -> Result<()> {
         ended
             .interrupted
             .map_or(String::new(), |i| format!("{i}: ")),
-        summary(&ended.status, &names, n_units, &planned, &owner, paced)
+        summary(
+            &ended.status,
+            &names,
+            (n_units, &kinds),
+            &planned,
+            &owner,
+            paced
+        )
     );
     if let Some(e) = ended.failed {
         return Err(anyhow::Error::new(e).context("stopped: nothing non-finite was sent"));
@@ -288,12 +274,12 @@ fn status_line(s: &Status, names: &[String]) -> String {
     line + &format!(" | late {} | {dropped} dropped", s.lateness.summary())
 }
 
-/// The end-of-run summary: per unit its records, per GNSS stream its epochs, skipped frames
-/// and sinks.
+/// The end-of-run summary: per unit its records, per aiding stream its epochs or samples
+/// (`kinds`), skipped frames and sinks.
 fn summary(
     s: &Status,
     names: &[String],
-    units: usize,
+    (units, kinds): (usize, &[&str]),
     planned: &[u64],
     owner: &[usize],
     paced: bool,
@@ -316,7 +302,7 @@ fn summary(
             if i < units { "unit" } else { "stream" },
             c.frames,
             planned[i],
-            if i < units { "records" } else { "epochs" },
+            kinds[i],
             c.skipped
         );
         for ((label, st), _) in (s.sinks.iter().zip(owner)).filter(|x| *x.1 == i) {

@@ -18,6 +18,11 @@ use imu_emu::realtime::sink::FileSink;
 use imu_emu::realtime::udp::{self, UdpSink};
 use imu_emu::realtime::{self, FrameBlock, clock, pty::PtySink};
 
+use imu_emu::realtime::merge::{self, ProducerWindow, WindowSource};
+use imu_emu::rig::SinkAddr;
+
+use super::aiding_run;
+use super::rigrun::{Stream, WINDOW_NS};
 use super::setup::{SimArgs, announce, require_frames};
 
 /// The protocol `run` speaks by default: LN-200-style frames.
@@ -58,10 +63,19 @@ pub struct RunArgs {
     #[arg(long, value_name = "NAME=SINK")]
     pub unit_sink: Vec<String>,
     /// A GNSS receiver's stream on the same pacer, FORMAT:SINK with FORMAT nmea, ubx or
-    /// mavlink and SINK as `--unit-sink`'s (e.g. `nmea:udp:127.0.0.1:9010`); repeatable;
-    /// rig runs (docs/aiding.md).
+    /// mavlink and SINK as `--unit-sink`'s (e.g. `nmea:udp:127.0.0.1:9010`); repeatable
+    /// (docs/aiding.md).
     #[arg(long = "gnss", value_name = "FORMAT:SINK")]
     pub gnss: Vec<String>,
+    /// The odometer's CSV rows on the same pacer, to SINK (as `--unit-sink`'s); repeatable.
+    #[arg(long, value_name = "SINK")]
+    pub odometer: Vec<String>,
+    /// The barometer's CSV rows on the same pacer, to SINK; repeatable.
+    #[arg(long, value_name = "SINK")]
+    pub baro: Vec<String>,
+    /// The magnetometer's CSV rows on the same pacer, to SINK; repeatable.
+    #[arg(long, value_name = "SINK")]
+    pub magnetometer: Vec<String>,
     /// Frames per UDP datagram.
     #[arg(long, default_value_t = 1)]
     pub udp_batch: usize,
@@ -148,11 +162,8 @@ pub fn run(a: RunArgs) -> Result<()> {
     if !a.unit_sink.is_empty() {
         bail!("--unit-sink names a unit of a rig: the scene file lists no `[[imu]]` units");
     }
-    if let Some(g) = a.gnss.first() {
-        bail!(
-            "--gnss {g}: `run` streams GNSS next to a rig's units (a scene file with `[[imu]]`); for one IMU use `generate --gnss` (docs/aiding.md)"
-        );
-    }
+    let asked = aiding_run::requests(&a)?;
+    aiding_run::refuse_with_aiding(&a, &asked)?;
     // A live run in lockstep writes records as well as frames.
     if let Some(source) = &a.live.motion {
         return super::live::run(&a, source);
@@ -194,7 +205,11 @@ pub fn run(a: RunArgs) -> Result<()> {
     announce(&sim);
     let plan = require_frames(&sim, "run")?;
     let grid = sim.grid();
-    let only_files = a.pty.is_empty() && a.serial.is_empty() && a.udp.is_empty();
+    let aiding = aiding_run::build(asked, &sim);
+    let only_files = a.pty.is_empty()
+        && a.serial.is_empty()
+        && a.udp.is_empty()
+        && aiding.iter().flat_map(|s| &s.sinks).all(SinkAddr::is_file);
     let speed = speed.unwrap_or(if only_files && !a.file.is_empty() {
         f64::INFINITY
     } else {
@@ -214,8 +229,33 @@ pub fn run(a: RunArgs) -> Result<()> {
     };
 
     let stop = Arc::new(AtomicBool::new(false));
-    let (sinks, plans) = open_sinks(&a, plan.clone(), grid.rate_hz, frames_per_s, paced)?;
+    let mut aiding_lines = Vec::new();
+    let (mut sinks, plans) = open_sinks(&a, plan.clone(), grid.rate_hz, frames_per_s, paced)?;
     let n_streams = plans.len();
+    // Aiding streams follow the IMU's: merged, every frame carries its emission time.
+    let merged = !aiding.is_empty();
+    let mut sources: Vec<Box<dyn WindowSource>> = Vec::new();
+    let mut frames_per_s = frames_per_s;
+    if merged {
+        frames_per_s *= n_streams as f64;
+        for (j, s) in aiding.into_iter().enumerate() {
+            let stream = Stream {
+                name: s.what.name(),
+                rate_hz: s.rate_hz,
+                plan: None,
+            };
+            for addr in &s.sinks {
+                let sink = super::rigrun::open(&a, &stream, addr, paced, speed)?;
+                sinks.push(Routed {
+                    stream: n_streams + j,
+                    sink,
+                });
+            }
+            frames_per_s += s.rate_hz * if paced { speed } else { 1.0 };
+            aiding_lines.push((stream.name, s.what.unit(), s.planned));
+            sources.push(s.source);
+        }
+    }
     let extra: Vec<job::Encoding> = (plans.into_iter().skip(1))
         .map(|p| sim.frames_encoding(p))
         .collect();
@@ -268,20 +308,27 @@ pub fn run(a: RunArgs) -> Result<()> {
         realtime::CHANNEL_BLOCKS
     );
 
+    let produce: Produce = if merged {
+        let imu = ProducerWindow::new(producer, grid.rate_hz, n_streams, block);
+        sources.insert(0, Box::new(imu));
+        Box::new(move |tx, rx| merge::produce_merged(sources, WINDOW_NS, tx, rx))
+    } else {
+        Box::new(move |tx, rx| realtime::produce(producer, block, n_streams, tx, rx))
+    };
     let ended = drive(
         &rt,
         &mut signals,
         sinks,
         pacing,
         (stop, extras),
-        move |tx, recycle_rx| realtime::produce(producer, block, n_streams, tx, recycle_rx),
+        produce,
         |s| format!("{} | {}", status_line(s), host.brief()),
     )?;
     let (final_status, interrupted, failed) = (ended.status, ended.interrupted, ended.failed);
     eprintln!(
         "imu-emu: {}{}",
         interrupted.map_or(String::new(), |i| format!("{i}: ")),
-        summary(&final_status, grid.count, paced)
+        merged_summary(&final_status, grid.count, paced, n_streams, &aiding_lines)
     );
     if paced {
         eprintln!("imu-emu: host clock: {}", host.brief());
@@ -683,6 +730,45 @@ pub(super) fn summary(s: &Status, planned: u64, paced: bool) -> String {
         out += &format!(
             "\n  {label}: {} sent, {} dropped (slow consumer), {} dropped (no reader), {} bytes",
             st.sent, st.dropped, st.no_reader, st.bytes
+        );
+    }
+    out
+}
+
+/// The producer side of [`drive`]: frames into the pacer's channel.
+type Produce = Box<
+    dyn FnOnce(
+            tokio::sync::mpsc::Sender<FrameBlock>,
+            tokio::sync::mpsc::Receiver<FrameBlock>,
+        ) -> Option<imu_emu::job::JobError>
+        + Send,
+>;
+
+/// [`summary`] of a run whose IMU frames (`imu_streams` protocols) shared the pacer with
+/// aiding streams (name, what its frames are, how many were planned): the IMU's records and
+/// skips counted on its main stream, then each aiding stream's.
+fn merged_summary(
+    s: &Status,
+    planned: u64,
+    paced: bool,
+    imu_streams: usize,
+    aiding: &[(String, &str, u64)],
+) -> String {
+    if aiding.is_empty() {
+        return summary(s, planned, paced);
+    }
+    let main = s.streams.first().copied().unwrap_or_default();
+    let imu = Status {
+        frames: main.frames,
+        skipped: main.skipped,
+        ..s.clone()
+    };
+    let mut out = summary(&imu, planned, paced);
+    for (i, (name, unit, n)) in aiding.iter().enumerate() {
+        let c = s.streams.get(imu_streams + i).copied().unwrap_or_default();
+        out += &format!(
+            "\n  stream {name}: {} of {n} {unit}, {} skipped (too late)",
+            c.frames, c.skipped
         );
     }
     out

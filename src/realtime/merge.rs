@@ -6,7 +6,7 @@
 //!
 //! The interface is deliberately small: a stream is a sequence of (emission time, bytes).
 
-use crate::job::JobError;
+use crate::job::{JobError, Producer};
 
 pub use crate::emission::{Part, WindowSource};
 
@@ -78,6 +78,88 @@ pub fn produce_merged(
         }
     }
     None
+}
+
+/// One IMU's frames as a window source: a stream per encoding of its producer (the main
+/// protocol, then the extra ones), record k emitted at the end of its interval, k/rate after
+/// t₀, or when the IMU's timing model says. Lets aiding streams share the IMU's pacer.
+pub struct ProducerWindow {
+    producer: Producer,
+    block: usize,
+    rate_hz: f64,
+    /// A block made but not all due yet: per stream its bytes and frame ends, the emission
+    /// time of each frame (ns after t₀), and the next frame to give.
+    held: Vec<(Vec<u8>, Vec<usize>)>,
+    emit: Vec<i64>,
+    next: usize,
+    done: bool,
+}
+
+impl ProducerWindow {
+    /// `producer`'s records at `rate_hz` in `streams` encodings, made `block` records at a
+    /// time.
+    pub fn new(producer: Producer, rate_hz: f64, streams: usize, block: usize) -> Self {
+        ProducerWindow {
+            producer,
+            block,
+            rate_hz,
+            held: vec![Default::default(); streams],
+            emit: Vec::new(),
+            next: 0,
+            done: false,
+        }
+    }
+
+    /// Makes the next block; false at the end of the run (or on a producer error).
+    fn refill(&mut self) -> Result<bool, JobError> {
+        for (bytes, ends) in self.held.iter_mut() {
+            bytes.clear();
+            ends.clear();
+        }
+        self.emit.clear();
+        self.next = 0;
+        let Some(out) = self.producer.next_block_multi(self.block, &mut self.held) else {
+            return self.producer.take_error().map_or(Ok(false), Err);
+        };
+        match &out.times {
+            Some(t) => (self.emit).extend(t.emit.iter().map(|e| (e * 1e9).round() as i64)),
+            None => {
+                let (first, n) = (out.first, out.records.len() as u64);
+                let rate = self.rate_hz;
+                (self.emit)
+                    .extend((first + 1..=first + n).map(|k| (k as f64 / rate * 1e9).round() as i64))
+            }
+        }
+        Ok(true)
+    }
+}
+
+impl WindowSource for ProducerWindow {
+    fn streams(&self) -> usize {
+        self.held.len()
+    }
+
+    fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), JobError> {
+        while !self.done {
+            while self.next < self.emit.len() && self.emit[self.next] <= until_ns {
+                let i = self.next;
+                for ((bytes, ends), p) in self.held.iter().zip(parts.iter_mut()) {
+                    let from = if i == 0 { 0 } else { ends[i - 1] };
+                    p.push(&bytes[from..ends[i]], self.emit[i]);
+                }
+                self.next += 1;
+            }
+            if self.next < self.emit.len() {
+                break;
+            }
+            self.done = !self.refill()?;
+        }
+        Ok(())
+    }
+
+    fn done(&self) -> bool {
+        self.done
+    }
 }
 
 #[cfg(test)]

@@ -423,7 +423,9 @@ pub struct Rig {
     pub(crate) warnings: Vec<String>,
     /// The GNSS receiver's settings (scene file `[gnss]`), when given.
     pub(crate) gnss: Option<crate::aiding::GnssConfig>,
-    /// The rig's master seed (the receiver's errors draw from it).
+    /// The odometer, barometer and magnetometer settings (scene file), when given.
+    pub(crate) sensors: crate::aiding::sensors::SensorSet,
+    /// The rig's master seed (the receiver's and sensors' errors draw from it).
     pub(crate) seed: u64,
     /// GPS week and second of record time 0, when given.
     pub(crate) gps_time: Option<(u32, f64)>,

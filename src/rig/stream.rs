@@ -5,7 +5,8 @@
 //! as in [`Rig::write`].
 
 use super::{Rig, Scratch, Unit};
-use crate::aiding::window::GnssWindow;
+use crate::aiding::sensors::{SensorKind, SensorRows};
+use crate::aiding::window::{GnssFrames, GnssWindow};
 use crate::aiding::{GnssConfig, GnssEncoder, GnssFormat, Receiver};
 use crate::emission::{Part, WindowSource};
 use crate::generator::{IdealImu, RotationTerms};
@@ -92,7 +93,7 @@ impl Rig {
         let (week, sow) = self.gps_time.unwrap_or((0, 0.0));
         let span = self.span();
         let enc = GnssEncoder::new(format, week, sow, leap);
-        GnssWindow::new(rx, self.motion.clone(), enc, span, span.0)
+        GnssFrames::new(rx, self.motion.clone(), enc, span).window(span.0)
     }
 }
 
@@ -107,9 +108,16 @@ impl Rig {
     /// How many GNSS epochs fall in [`Rig::span`] (outages included: they are sent without
     /// a fix).
     pub fn gnss_epochs(&self) -> u64 {
-        let (t0, t1) = self.span();
-        let r = self.gnss_rate_hz();
-        ((t1 * r).floor() - (t0 * r).ceil() + 1.0).max(0.0) as u64
+        crate::aiding::window::epoch_count(self.gnss_rate_hz(), self.span())
+    }
+}
+
+impl Rig {
+    /// Sensor `kind`'s rows over [`Rig::span`] (the scene file's table, else the default),
+    /// its errors from the rig's master seed.
+    pub fn sensor_rows(&self, kind: SensorKind) -> SensorRows<AnyMotion> {
+        let span = self.span();
+        SensorRows::new(kind, &self.sensors, self.motion.clone(), self.seed, span)
     }
 }
 

@@ -10,6 +10,7 @@ use super::{Output, SimError, Simulation};
 use crate::aiding::GnssConfig;
 use crate::aiding::gnss::ConfigError as AidingConfigError;
 use crate::aiding::odometer::OdometerConfig;
+use crate::aiding::sensors::SensorSet;
 use crate::config::{self, SceneFile};
 use crate::errors::ErrorChain;
 use crate::errors::filtered::FilteredChain;
@@ -772,12 +773,11 @@ impl SimulationBuilder {
         }
         let faults = self.faults(&output, grid.rate_hz, seed)?;
         let gnss = self.resolve_aiding(&self.gnss, &self.file.gnss, GnssConfig::validate)?;
-        let odometer = self.resolve_aiding(
-            &self.odometer,
-            &self.file.odometer,
-            OdometerConfig::validate,
-        )?;
-        let (baro, magnetometer) = self.baro_and_magnetometer()?;
+        let SensorSet {
+            odometer,
+            baro,
+            magnetometer,
+        } = self.sensor_set()?;
         let mut warnings = Vec::new();
         let (chain, filtered) = self.chain(
             &imu,

@@ -1,15 +1,15 @@
 //! The aiding streams of a simulation: GNSS epochs of its receiver over the run's span, on the
 //! same motion and GPS time reference as the IMU records, written in a wire format with their
-//! truth; and the odometer's samples.
+//! truth, or as streams for the real-time merger.
 
-use std::fmt::Write as _;
 use std::io::Write;
 
 use super::{SimError, Simulation};
 use crate::aiding::gnss::Receiver;
-use crate::aiding::odometer::Odometer;
 use crate::aiding::stream::{TRUTH_HEADER, truth_row};
+use crate::aiding::window::{GnssFrames, GnssWindow};
 use crate::aiding::{GnssConfig, GnssEncoder, GnssFormat};
+use crate::source::AnyMotion;
 
 impl Simulation {
     /// The GNSS receiver's settings, when the simulation has one (scene file `[gnss]` or
@@ -42,6 +42,30 @@ impl Simulation {
         GnssEncoder::new(format, week, sow, leap)
     }
 
+    /// The receiver's epochs in `format` as a stream for the merger, emitted at their
+    /// emission times counted from the run's t₀ (as the IMU's frames).
+    pub fn gnss_window(&self, format: GnssFormat) -> GnssWindow<AnyMotion> {
+        GnssFrames::new(
+            self.gnss_receiver(),
+            self.motion.clone(),
+            self.gnss_encoder(format),
+            self.span(),
+        )
+        .window(self.grid.t0)
+    }
+
+    /// The receiver's epochs per second.
+    pub fn gnss_rate_hz(&self) -> f64 {
+        self.gnss
+            .as_ref()
+            .map_or(GnssConfig::default().rate_hz, |g| g.rate_hz)
+    }
+
+    /// How many GNSS epochs fall in the run (outages included).
+    pub fn gnss_epochs(&self) -> u64 {
+        crate::aiding::window::epoch_count(self.gnss_rate_hz(), self.span())
+    }
+
     /// Writes the GNSS epochs of the run in each of `outputs`' formats and, if `truth` is
     /// given, their truth CSV; returns the number of epochs.
     pub fn write_gnss(
@@ -70,36 +94,6 @@ impl Simulation {
             n += 1;
         }
         Ok(n)
-    }
-}
-
-/// Header of the odometer CSV.
-pub const ODOMETER_HEADER: &str = "t,ticks,delta_ticks,speed_m_s,true_distance_m\n";
-
-impl Simulation {
-    /// Writes the odometer's samples over the run (CSV, one row per sample at the end of each
-    /// interval of 1/rate s from the start); the configured odometer, else the default.
-    /// Returns the number of samples.
-    pub fn write_odometer(&self, out: &mut dyn Write) -> Result<u64, SimError> {
-        let cfg = self.odometer.clone().unwrap_or_default();
-        let rate = cfg.rate_hz;
-        let mut odo = Odometer::new(cfg);
-        let (t0, t1) = self.span();
-        out.write_all(ODOMETER_HEADER.as_bytes()).map_err(io)?;
-        let count = ((t1 - t0) * rate + 1e-9).floor() as u64;
-        let mut row = String::new();
-        for k in 1..=count {
-            let (a, b) = (t0 + (k - 1) as f64 / rate, t0 + k as f64 / rate);
-            let s = odo.sample(&self.motion, a, b);
-            row.clear();
-            let _ = writeln!(
-                row,
-                "{},{},{},{},{}",
-                s.t, s.ticks, s.delta_ticks, s.speed_m_s, s.true_distance_m
-            );
-            out.write_all(row.as_bytes()).map_err(io)?;
-        }
-        Ok(count)
     }
 }
 

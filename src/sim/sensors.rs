@@ -1,88 +1,60 @@
-//! The barometer's and the magnetometer's samples over a simulation's span, from the same
-//! motion and seed as the IMU records, written as CSV with their truth.
+//! The odometer's, the barometer's and the magnetometer's samples over a simulation's span,
+//! from the same motion and seed as the IMU records: written as CSV with their truth
+//! (`generate`), or as streams for the real-time merger (`run`), the same rows either way.
 
-use std::fmt::Write as _;
 use std::io::Write;
 
 use super::{SimError, Simulation};
-use crate::aiding::baro::Barometer;
-use crate::aiding::magnetometer::Magnetometer;
-use crate::earth::Geodetic;
-use crate::math::QuatExt;
-use crate::motion::Motion;
-
-/// Header of the barometer CSV.
-pub const BARO_HEADER: &str = "t,pressure_pa,altitude_m,true_pressure_pa,true_h_m,bias_pa\n";
-
-/// Header of the magnetometer CSV (tesla; body axes, then the Earth's field in NED).
-pub const MAG_HEADER: &str = "t,mag_x,mag_y,mag_z,true_x,true_y,true_z,field_n,field_e,field_d\n";
-
-/// The sample instants at whole multiples of 1/`rate` s of record time in [t0, t1], as the
-/// GNSS epochs are placed.
-fn instants(rate: f64, t0: f64, t1: f64) -> impl Iterator<Item = f64> {
-    let mut k = (t0 * rate).ceil() as i64;
-    // The quotient k/rate can round below t0 by an ulp.
-    if (k as f64) / rate < t0 {
-        k += 1;
-    }
-    (k..)
-        .map(move |k| k as f64 / rate)
-        .take_while(move |t| *t <= t1)
-}
+use crate::aiding::sensors::{SensorKind, SensorRows, SensorSet};
+use crate::source::AnyMotion;
 
 impl Simulation {
-    /// Writes the barometer's samples over the run (CSV, [`BARO_HEADER`]); the configured
-    /// barometer (scene file `[baro]`), else the default. Returns the number of samples.
-    pub fn write_baro(&self, out: &mut dyn Write) -> Result<u64, SimError> {
-        let cfg = self.baro.clone().unwrap_or_default();
-        let rate = cfg.rate_hz;
-        let mut baro = Barometer::new(cfg, 1.0 / rate, self.seed);
-        let (t0, t1) = self.span();
-        out.write_all(BARO_HEADER.as_bytes()).map_err(io)?;
-        let (mut row, mut n) = (String::new(), 0);
-        for t in instants(rate, t0, t1) {
-            let h = self.motion.pose(t).h;
-            let s = baro.sample(h);
-            row.clear();
-            let _ = writeln!(
-                row,
-                "{t},{},{},{},{h},{}",
-                s.pa, s.altitude_m, s.true_pa, s.bias_pa
-            );
-            out.write_all(row.as_bytes()).map_err(io)?;
-            n += 1;
+    /// The configured aiding sensors (scene file `[odometer]`, `[baro]`, `[magnetometer]`).
+    pub fn sensors(&self) -> SensorSet {
+        SensorSet {
+            odometer: self.odometer.clone(),
+            baro: self.baro.clone(),
+            magnetometer: self.magnetometer.clone(),
         }
-        Ok(n)
     }
 
-    /// Writes the magnetometer's samples over the run (CSV, [`MAG_HEADER`]); the configured
-    /// magnetometer (scene file `[magnetometer]`), else the default. Returns the number of
-    /// samples; a position outside the field table is an error naming the time.
+    /// Sensor `kind`'s rows over the run (the configured sensor, else the default).
+    pub fn sensor_rows(&self, kind: SensorKind) -> SensorRows<AnyMotion> {
+        SensorRows::new(
+            kind,
+            &self.sensors(),
+            self.motion.clone(),
+            self.seed,
+            self.span(),
+        )
+    }
+
+    /// Writes sensor `kind`'s samples over the run as CSV (header, then a row per sample);
+    /// returns the number of samples.
+    pub fn write_sensor(&self, kind: SensorKind, out: &mut dyn Write) -> Result<u64, SimError> {
+        write_rows(self.sensor_rows(kind), out)
+    }
+
+    /// Writes the odometer's samples over the run (CSV, one row per sample at the end of each
+    /// interval of 1/rate s from the start); the configured odometer, else the default.
+    /// Returns the number of samples.
+    pub fn write_odometer(&self, out: &mut dyn Write) -> Result<u64, SimError> {
+        self.write_sensor(SensorKind::Odometer, out)
+    }
+
+    /// Writes the barometer's samples over the run (CSV,
+    /// [`crate::aiding::sensors::BARO_HEADER`]); the configured barometer (scene file
+    /// `[baro]`), else the default. Returns the number of samples.
+    pub fn write_baro(&self, out: &mut dyn Write) -> Result<u64, SimError> {
+        self.write_sensor(SensorKind::Baro, out)
+    }
+
+    /// Writes the magnetometer's samples over the run (CSV,
+    /// [`crate::aiding::sensors::MAG_HEADER`]); the configured magnetometer (scene file
+    /// `[magnetometer]`), else the default. Returns the number of samples; a position outside
+    /// the field table is an error naming the time.
     pub fn write_magnetometer(&self, out: &mut dyn Write) -> Result<u64, SimError> {
-        let cfg = self.magnetometer.clone().unwrap_or_default();
-        let rate = cfg.rate_hz;
-        let mut mag = Magnetometer::new(cfg, self.seed);
-        let (t0, t1) = self.span();
-        out.write_all(MAG_HEADER.as_bytes()).map_err(io)?;
-        let (mut row, mut n) = (String::new(), 0);
-        for t in instants(rate, t0, t1) {
-            let p = self.motion.pose(t);
-            let pos = Geodetic::from_radians(p.lat, p.lon, p.h);
-            let field = mag
-                .field_n(&pos)
-                .map_err(|e| SimError::Invalid(format!("magnetometer at t = {t} s: {e}")))?;
-            let b = p.q_b_n.rotate_inv(field);
-            let m = mag.measure(b);
-            row.clear();
-            let _ = write!(row, "{t}");
-            for v in m.iter().chain(b.iter()).chain(field.iter()) {
-                let _ = write!(row, ",{v}");
-            }
-            row.push('\n');
-            out.write_all(row.as_bytes()).map_err(io)?;
-            n += 1;
-        }
-        Ok(n)
+        self.write_sensor(SensorKind::Magnetometer, out)
     }
 
     /// The magnetometer's settings, when the simulation has one.
@@ -91,6 +63,17 @@ impl Simulation {
     }
 }
 
-fn io(e: std::io::Error) -> SimError {
-    SimError::Job(crate::job::JobError::Io(e))
+/// Writes the header and every row of `rows` to `out`; returns the number of rows.
+pub(crate) fn write_rows(
+    mut rows: SensorRows<AnyMotion>,
+    out: &mut dyn Write,
+) -> Result<u64, SimError> {
+    let io = |e| SimError::Job(crate::job::JobError::Io(e));
+    out.write_all(rows.kind().header().as_bytes()).map_err(io)?;
+    let (mut row, mut n) = (String::new(), 0);
+    while rows.next_row(&mut row)?.is_some() {
+        out.write_all(row.as_bytes()).map_err(io)?;
+        n += 1;
+    }
+    Ok(n)
 }

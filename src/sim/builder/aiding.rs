@@ -7,6 +7,8 @@ use super::{SimError, SimulationBuilder};
 use crate::aiding::baro::BaroConfig;
 use crate::aiding::field_table::FieldTable;
 use crate::aiding::magnetometer::MagConfig;
+use crate::aiding::odometer::OdometerConfig;
+use crate::aiding::sensors::SensorSet;
 
 type Sensors = (Option<BaroConfig>, Option<MagConfig>);
 
@@ -23,6 +25,21 @@ impl SimulationBuilder {
     pub fn magnetometer(mut self, cfg: MagConfig) -> SimulationBuilder {
         self.magnetometer = Some(cfg);
         self
+    }
+
+    /// The checked odometer, barometer and magnetometer settings, the field table read.
+    pub(super) fn sensor_set(&self) -> Result<SensorSet, SimError> {
+        let odometer = self.resolve_aiding(
+            &self.odometer,
+            &self.file.odometer,
+            OdometerConfig::validate,
+        )?;
+        let (baro, magnetometer) = self.baro_and_magnetometer()?;
+        Ok(SensorSet {
+            odometer,
+            baro,
+            magnetometer,
+        })
     }
 
     /// The checked barometer and magnetometer settings, the field table read.

@@ -161,12 +161,14 @@ impl SimulationBuilder {
             });
         }
         let gnss = self.resolve_aiding(&self.gnss, &self.file.gnss, GnssConfig::validate)?;
+        let sensors = self.sensor_set()?;
         Ok(Rig {
             motion,
             nodes,
             units,
             warnings: Vec::new(),
             gnss,
+            sensors,
             seed: master,
             gps_time: self.gps_time,
         })
