@@ -394,6 +394,11 @@ impl Producer {
         }
     }
 
+    /// True when the records come through an output filter at an internal rate.
+    pub fn is_filtered(&self) -> bool {
+        self.filtered.is_some()
+    }
+
     /// Produces the records of a unit with an output filter (`None`: none): the motion at the
     /// filter's internal rate through `filtered`, instead of the output-rate generator and the
     /// producer's own chain (give it none). The truth stays the exact increments over the

@@ -100,7 +100,10 @@ fn gps_time_base_reaches_units_and_gnss() {
 }
 
 /// `--time-base utc`: the frames' "GPS" fields carry UTC (GPS week and seconds counted
-/// without leap seconds): 18 s less than on the GPS time base.
+/// without leap seconds): 18 s less than on the GPS time base. The GNSS stream keeps true
+/// time: its ZDA sentences read the same UTC as on the GPS time base (a receiver's UTC does
+/// not depend on the IMU's time scale; taking the frames' reference for GPS time put them
+/// 18 s early).
 #[test]
 fn utc_time_base_on_a_rig() {
     let dir = tempfile::tempdir().unwrap();
@@ -111,4 +114,11 @@ fn utc_time_base_on_a_rig() {
     let (week, sow) = frames[0];
     assert_eq!(week, WEEK);
     assert!((sow - (SOW - 18.0 + 0.01)).abs() < 1.5e-6, "{sow}");
+    let epochs = zda(d);
+    assert_eq!(epochs.len(), 8, "{err}");
+    for (i, (day, month, year, sod)) in epochs.iter().enumerate() {
+        assert_eq!((*day, *month, *year), (1, 3, 2026), "epoch {i}");
+        let want = 12.0 * 3600.0 + 0.2 * i as f64;
+        assert!((sod - want).abs() < 0.006, "epoch {i}: {sod} vs {want}");
+    }
 }

@@ -146,8 +146,9 @@ pub fn run(a: RunArgs) -> Result<()> {
         .transpose()?;
     // Frames and GNSS epochs carry the time base's GPS time from the rig's t₀ on.
     let host = imu_emu::realtime::hostclock::GpsClock::new(leap.clone());
-    if let Some((week, sow)) = time_base_start(&a, &host, &leap, &mut start_at) {
+    if let Some(((week, sow), (gw, gs))) = time_base_start(&a, &host, &leap, &mut start_at) {
         rig.set_gps_time(week, sow - rig.span().0);
+        rig.set_gnss_gps_time(gw, gs - rig.span().0);
     }
     let aiding = aiding_run::build(aiding_run::requests(&a)?, &rig);
     let stream = rig.stream();

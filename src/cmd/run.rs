@@ -199,8 +199,9 @@ pub fn run(a: RunArgs) -> Result<()> {
     if a.time_base != "sim" && a.sim.gps_time.is_some() {
         bail!("--gps-time sets the GPS reference of --time-base sim only");
     }
-    if let Some((week, sow)) = time_base_start(&a, &host, &leap, &mut start_at) {
+    if let Some(((week, sow), (gw, gs))) = time_base_start(&a, &host, &leap, &mut start_at) {
         sim.set_gps_time(week, sow - sim.grid().t0);
+        sim.set_gnss_gps_time(gw, gs - sim.grid().t0);
     }
     announce(&sim);
     let plan = require_frames(&sim, "run")?;
@@ -641,7 +642,7 @@ pub(super) fn time_base_start(
     host: &GpsClock,
     leap: &imu_emu::timebase::LeapTable,
     start_at: &mut Option<i128>,
-) -> Option<(u32, f64)> {
+) -> Option<((u32, f64), (u32, f64))> {
     if a.time_base == "sim" {
         return None;
     }
@@ -653,6 +654,8 @@ pub(super) fn time_base_start(
         utc0 - imu_emu::timebase::GPS_EPOCH_UNIX_S as i128 * 1_000_000_000
     };
     let (week, sow) = imu_emu::timebase::week_sow(base);
+    // GNSS streams carry true GPS time whatever the frames' scale.
+    let gps = imu_emu::timebase::week_sow(host.utc_to_gps_ns(utc0));
     eprintln!(
         "imu-emu: time base {}: t₀ at week {week}, {sow} s; {}",
         a.time_base,
@@ -664,7 +667,7 @@ pub(super) fn time_base_start(
             leap.valid_until
         );
     }
-    Some((week, sow))
+    Some(((week, sow), gps))
 }
 
 /// The producer sampling at the edges of `--trigger`, once the first edge (t₀, returned) came.
@@ -680,6 +683,13 @@ fn triggered(
     use imu_emu::realtime::{pps, trigger::ChannelTrigger};
     if !real_time {
         bail!("--trigger samples at real edges: give --speed 1");
+    }
+    if producer.is_filtered() {
+        // A filtered unit samples on its own internal clock and decimates; one sample per
+        // external edge would need the filter run over each irregular interval.
+        bail!(
+            "--trigger: the IMU template has an [output_filter]; a triggered unit with an output filter is not supported"
+        );
     }
     if a.pps_in.is_some() || a.start_at.is_some() {
         bail!("--trigger sets t₀ at its first edge: drop --pps-in and --start-at");

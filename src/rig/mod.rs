@@ -429,6 +429,8 @@ pub struct Rig {
     pub(crate) seed: u64,
     /// GPS week and second of record time 0, when given.
     pub(crate) gps_time: Option<(u32, f64)>,
+    /// True GPS time of record time 0 for the GNSS streams when the units' reference is UTC.
+    pub(crate) gnss_time: Option<(u32, f64)>,
 }
 
 impl Rig {
@@ -450,6 +452,12 @@ impl Rig {
                 st.gps_sow0 = seconds_of_week;
             }
         }
+    }
+
+    /// Sets the true GPS time of record time t = 0 for the GNSS streams only (see
+    /// [`crate::sim::Simulation::set_gnss_gps_time`]).
+    pub fn set_gnss_gps_time(&mut self, week: u32, seconds_of_week: f64) {
+        self.gnss_time = Some((week, seconds_of_week));
     }
 
     /// The units, in the order given.

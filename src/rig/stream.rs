@@ -90,7 +90,7 @@ impl Rig {
         let leap = cfg.leap_seconds;
         // The settings were checked when the rig was built; the default is valid.
         let rx = Receiver::new(cfg, self.seed).expect("checked GNSS settings");
-        let (week, sow) = self.gps_time.unwrap_or((0, 0.0));
+        let (week, sow) = self.gnss_time.or(self.gps_time).unwrap_or((0, 0.0));
         let span = self.span();
         let enc = GnssEncoder::new(format, week, sow, leap);
         GnssFrames::new(rx, self.motion.clone(), enc, span).window(span.0)

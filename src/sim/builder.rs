@@ -798,6 +798,7 @@ impl SimulationBuilder {
             temperature,
             faults,
             gps_time: self.gps_time,
+            gnss_time: None,
             gnss,
             odometer,
             baro,

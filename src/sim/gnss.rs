@@ -37,7 +37,7 @@ impl Simulation {
 
     /// An encoder of `format` on this run's GPS time reference.
     pub fn gnss_encoder(&self, format: GnssFormat) -> GnssEncoder {
-        let (week, sow) = self.gps_time.unwrap_or((0, 0.0));
+        let (week, sow) = self.gnss_time.or(self.gps_time).unwrap_or((0, 0.0));
         let leap = self.gnss.as_ref().map_or(18, |g| g.leap_seconds);
         GnssEncoder::new(format, week, sow, leap)
     }

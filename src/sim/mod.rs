@@ -122,6 +122,9 @@ pub struct Simulation {
     temperature: Option<TemperatureProfile>,
     faults: Option<FaultInjector>,
     gps_time: Option<(u32, f64)>,
+    /// True GPS time of record time 0 for the GNSS streams, when the frames' reference is not
+    /// GPS time (`--time-base utc`); else the GNSS streams use `gps_time`.
+    gnss_time: Option<(u32, f64)>,
     gnss: Option<GnssConfig>,
     odometer: Option<crate::aiding::odometer::OdometerConfig>,
     baro: Option<crate::aiding::baro::BaroConfig>,
@@ -195,6 +198,13 @@ impl Simulation {
     /// fields carry it plus the record's time tag (a time base chosen after building).
     pub fn set_gps_time(&mut self, week: u32, seconds_of_week: f64) {
         self.gps_time = Some((week, seconds_of_week));
+    }
+
+    /// Sets the true GPS time of record time t = 0 for the GNSS streams only, when the frames'
+    /// reference ([`Simulation::set_gps_time`]) is another scale (UTC): a receiver's NMEA UTC
+    /// and UBX GPS time of week come from GPS time whatever the IMU's frames carry.
+    pub fn set_gnss_gps_time(&mut self, week: u32, seconds_of_week: f64) {
+        self.gnss_time = Some((week, seconds_of_week));
     }
 
     /// The scene file's `output.path`, if it gives one.

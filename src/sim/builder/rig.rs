@@ -171,6 +171,7 @@ impl SimulationBuilder {
             sensors,
             seed: master,
             gps_time: self.gps_time,
+            gnss_time: None,
         })
     }
 }
