@@ -38,8 +38,8 @@
 //! with their neighbours: each interval is the union over the bands whose fit is within
 //! χ²₃(99 %) of the best.
 //!
-//! What a template can hold ([`fit_triad`]): one band per triad; a rate ramp (template key
-//! `ramp`) is a term like the others, kept where it gains more than its χ²₁ penalty.
+//! What a template can hold ([`fit_triad`]): no ramp (it has no key; a better fit with one
+//! is reported beside the template's) and one band per triad.
 
 use crate::analysis::confidence::{NoiseType, edf};
 use crate::analysis::conformance::{band as chi2_band, model_allowance, term_edf};
@@ -239,6 +239,9 @@ pub struct AxisFit {
     pub chi2: f64,
     /// χ² plus the penalties of the kept components (what the search minimises).
     pub cost: f64,
+    /// When the ramp was left out ([`Options::ramp`] false) but a fit with it is better:
+    /// the ramp that fit finds and its χ² gain.
+    pub ramp_alternative: Option<Estimate>,
     /// Octave points used.
     pub points: usize,
 }
@@ -456,10 +459,15 @@ pub fn fit_axis(points: &[AdevPoint], samples: usize, dt: f64) -> Option<AxisFit
     fit_axis_with(points, samples, dt, &Options::default())
 }
 
-/// The three axes of a triad as the template can hold them: one bias-instability band for
-/// the triad — of the bands the axes choose alone, the one with the least total cost.
+/// The three axes of a triad as the template can hold them: no ramp (reported as an
+/// alternative where a fit with it is better) and one bias-instability band for the triad —
+/// of the bands the axes choose alone, the one with the least total cost.
 pub fn fit_triad(points: [&[AdevPoint]; 3], samples: usize, dt: f64) -> [Option<AxisFit>; 3] {
-    let alone = points.map(|p| fit_axis(p, samples, dt));
+    let no_ramp = Options {
+        ramp: false,
+        band: None,
+    };
+    let alone = points.map(|p| fit_axis_with(p, samples, dt, &no_ramp));
     let mut bands: Vec<(f64, f64)> = alone
         .iter()
         .flatten()
@@ -467,20 +475,34 @@ pub fn fit_triad(points: [&[AdevPoint]; 3], samples: usize, dt: f64) -> [Option<
         .map(|f| f.model.band)
         .collect();
     bands.dedup();
-    if bands.len() <= 1 {
-        return alone;
+    let mut fits = if bands.len() <= 1 {
+        alone
+    } else {
+        bands
+            .iter()
+            .map(|&b| {
+                let o = Options {
+                    ramp: false,
+                    band: Some(b),
+                };
+                points.map(|p| fit_axis_with(p, samples, dt, &o))
+            })
+            .min_by(|a, b| total_cost(a).total_cmp(&total_cost(b)))
+            .expect("two or more bands")
+    };
+    for (f, p) in fits.iter_mut().zip(points) {
+        let Some(f) = f else { continue };
+        let with = Options {
+            ramp: true,
+            band: (f.model.c[2] > 0.0).then_some(f.model.band),
+        };
+        if let Some(r) = fit_axis_with(p, samples, dt, &with)
+            && r.cost < f.cost
+        {
+            f.ramp_alternative = r.estimate(Component::Ramp);
+        }
     }
-    bands
-        .iter()
-        .map(|&b| {
-            let o = Options {
-                ramp: true,
-                band: Some(b),
-            };
-            points.map(|p| fit_axis_with(p, samples, dt, &o))
-        })
-        .min_by(|a, b| total_cost(a).total_cmp(&total_cost(b)))
-        .expect("two or more bands")
+    fits
 }
 
 fn total_cost(fits: &[Option<AxisFit>; 3]) -> f64 {
@@ -584,6 +606,7 @@ pub fn fit_axis_with(
         gm_tau_interval,
         chi2: found.chi2,
         cost: found.cost,
+        ramp_alternative: None,
         points: d.y.len(),
     })
 }

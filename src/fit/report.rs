@@ -49,15 +49,21 @@ pub fn markdown(
             continue;
         };
         let gyro = ch < 3;
+        let ramp = fit.ramp_alternative.map(|e| (Component::Ramp, e));
         let kept = COMPONENTS
             .iter()
             .filter_map(|&k| fit.estimate(k).map(|e| (k, e)));
-        for (k, e) in kept {
+        for (k, e) in kept.chain(ramp) {
             let (u, f) = super::template::unit(gyro, k);
             let mut name = k.name().to_string();
             if k == Component::BiasInstability {
                 let b = fit.model.band;
                 name = format!("{name} (band {}–{} s)", sig4(b.0), sig4(b.1));
+            }
+            if k == Component::Ramp {
+                name = format!(
+                    "{name} (not in the template: the other figures are the fit without it)"
+                );
             }
             if k == Component::GaussMarkov {
                 let (lo, hi) = fit

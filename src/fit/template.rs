@@ -233,6 +233,29 @@ fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
             values(Component::Ramp, f, u)
         );
     }
+    let alternative = |a: usize| axes[a].and_then(|f| f.ramp_alternative);
+    if (0..3).any(|a| alternative(a).is_some()) {
+        for a in 0..3 {
+            if let Some(e) = alternative(a) {
+                s.push_str(&describe(a, Component::Ramp, &e, gyro, ""));
+            }
+        }
+        let v: Vec<String> = (0..3)
+            .map(|a| {
+                format!(
+                    "\"{} {u}\"",
+                    sig4(alternative(a).map_or(0.0, |e| e.value) * f)
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "#    a rate ramp (a slow drift such as warm-up) fits better than the figures above, which were\n\
+             #    fitted without it; to simulate the drift instead, uncomment (sign not observable from the ADEV):\n\
+             # ramp = [{}]",
+            v.join(", ")
+        );
+    }
 }
 
 /// The lines as `[[vibration.sine]]` entries of a scene file on the static scene, so that
