@@ -131,6 +131,16 @@ pub fn filtered_avar(t: &AxisTheory, filter: Option<&WhiteAllan>, m: usize, dt: 
     })
 }
 
+/// One-sided PSD at frequency f of a channel whose theory is `t`, through the output filter
+/// when there is one: the white term 2N²r_∞ takes the filter's folded shape
+/// ([`WhiteAllan::psd_ratio`]); the slower terms are left as they are, as in [`filtered_avar`].
+pub fn filtered_psd(t: &AxisTheory, filter: Option<&WhiteAllan>, f: f64, dt: f64) -> f64 {
+    let psd = t.psd(f, dt);
+    filter.map_or(psd, |w| {
+        psd + 2.0 * t.white.powi(2) * (w.psd_ratio(f, dt) - 1.0)
+    })
+}
+
 /// The filtered white-noise Allan variance of a template with an output filter, at the
 /// output interval `dt`.
 pub fn white_allan(model: &ImuModel, dt: f64) -> Option<WhiteAllan> {
@@ -347,6 +357,17 @@ mod tests {
                 );
             }
             assert_eq!(filtered_avar(t, None, 1, dt), t.avar(1, dt));
+            // PSD: (44 + 20 cos 2πfΔt)/64 on the white term (filter_allan's closed form).
+            for f in [0.1, 51.2, 102.4] {
+                let shape = (44.0 + 20.0 * (2.0 * std::f64::consts::PI * f * dt).cos()) / 64.0;
+                let want = t.psd(f, dt) + 2.0 * n2 * (shape - 1.0);
+                let got = filtered_psd(t, Some(&w), f, dt);
+                assert!(
+                    (got / want - 1.0).abs() < 1e-12,
+                    "{f} Hz: {got:e} vs {want:e}"
+                );
+            }
+            assert_eq!(filtered_psd(t, None, 1.0, dt), t.psd(1.0, dt));
         }
     }
 

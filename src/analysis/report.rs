@@ -6,7 +6,7 @@ use std::f64::consts::PI;
 use std::fmt::Write;
 
 use super::analyzer::{Analysis, CHANNELS};
-use super::conformance::{TermRow, filtered_avar};
+use super::conformance::{TermRow, filtered_avar, filtered_psd};
 use super::fit::{TERMS, Term};
 use super::octave_adev::CONFIDENCE;
 use super::psd_band::{BandedPsd, banded};
@@ -149,8 +149,8 @@ pub fn panels(a: &Analysis, theory: Option<&[AxisTheory]>, title: &str) -> Vec<P
     panels_filtered(a, theory, None, title)
 }
 
-/// [`panels`] for a template with an output filter: its theory ADEV is the filtered one
-/// ([`filtered_avar`]).
+/// [`panels`] for a template with an output filter: its theory ADEV and PSD are the filtered
+/// ones ([`filtered_avar`], [`filtered_psd`]).
 pub fn panels_filtered(
     a: &Analysis,
     theory: Option<&[AxisTheory]>,
@@ -233,7 +233,9 @@ pub fn panels_filtered(
             theory_series(&th[base..base + 3], &mut series, |t| {
                 (
                     freq.clone(),
-                    freq.iter().map(|&f| t.psd(f, a.dt) * k * k).collect(),
+                    freq.iter()
+                        .map(|&f| filtered_psd(t, filter, f, a.dt) * k * k)
+                        .collect(),
                 )
             });
         }
