@@ -120,6 +120,27 @@ pub fn channel_theory(model: &ImuModel, dt: f64) -> Vec<AxisTheory> {
     v
 }
 
+/// Allan variance at cluster size m of a channel whose theory is `t` (from
+/// [`channel_theory`]), through the output filter when there is one: the white term
+/// N²r_∞/τ becomes N²·r(m)/τ, the filtered white noise of [`WhiteAllan`]; the slower terms
+/// are left as they are (the filter's mark on them at τ ≈ Δt is below the white noise's).
+pub fn filtered_avar(t: &AxisTheory, filter: Option<&WhiteAllan>, m: usize, dt: f64) -> f64 {
+    let avar = t.avar(m, dt);
+    filter.map_or(avar, |w| {
+        avar + t.white.powi(2) / (m as f64 * dt) * (w.ratio(m) / w.long_tau() - 1.0)
+    })
+}
+
+/// One-sided PSD at frequency f of a channel whose theory is `t`, through the output filter
+/// when there is one: the white term 2N²r_∞ takes the filter's folded shape
+/// ([`WhiteAllan::psd_ratio`]); the slower terms are left as they are, as in [`filtered_avar`].
+pub fn filtered_psd(t: &AxisTheory, filter: Option<&WhiteAllan>, f: f64, dt: f64) -> f64 {
+    let psd = t.psd(f, dt);
+    filter.map_or(psd, |w| {
+        psd + 2.0 * t.white.powi(2) * (w.psd_ratio(f, dt) - 1.0)
+    })
+}
+
 /// The filtered white-noise Allan variance of a template with an output filter, at the
 /// output interval `dt`.
 pub fn white_allan(model: &ImuModel, dt: f64) -> Option<WhiteAllan> {
@@ -311,6 +332,43 @@ mod tests {
         let nu = term_edf(&th, 0.01, &ms, 100_001);
         assert_eq!(nu[1], Some(edf(NoiseType::WhiteRate, 100_001, 1)));
         assert!(nu[0].is_none() && nu[2].is_none());
+    }
+
+    /// examples/filtered.toml (Bartlett window of 4 + 4 taps, 819.2 → 204.8 Hz, r_∞ = 1):
+    /// the plotted theory's white term at τ = Δt is 17/32 of N²/τ, the slower terms unchanged,
+    /// and beyond the filter's lag it is N²/τ·(1 − 15/(32m)); without a filter nothing changes.
+    #[test]
+    fn filtered_theory_follows_the_closed_form() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/filtered.toml");
+        let m = crate::errors::template::load(path).unwrap();
+        let dt = 1.0 / 204.8;
+        let th = channel_theory(&m, dt);
+        let w = white_allan(&m, dt).unwrap();
+        for t in &th {
+            let n2 = t.white.powi(2);
+            assert!(n2 > 0.0);
+            for (k, r) in [(1usize, 17.0 / 32.0), (64, 1.0 - 15.0 / 2048.0)] {
+                let tau = k as f64 * dt;
+                let want = t.avar(k, dt) - n2 / tau + n2 * r / tau;
+                let got = filtered_avar(t, Some(&w), k, dt);
+                assert!(
+                    (got / want - 1.0).abs() < 1e-12,
+                    "m = {k}: {got:e} vs {want:e}"
+                );
+            }
+            assert_eq!(filtered_avar(t, None, 1, dt), t.avar(1, dt));
+            // PSD: (44 + 20 cos 2πfΔt)/64 on the white term (filter_allan's closed form).
+            for f in [0.1, 51.2, 102.4] {
+                let shape = (44.0 + 20.0 * (2.0 * std::f64::consts::PI * f * dt).cos()) / 64.0;
+                let want = t.psd(f, dt) + 2.0 * n2 * (shape - 1.0);
+                let got = filtered_psd(t, Some(&w), f, dt);
+                assert!(
+                    (got / want - 1.0).abs() < 1e-12,
+                    "{f} Hz: {got:e} vs {want:e}"
+                );
+            }
+            assert_eq!(filtered_psd(t, None, 1.0, dt), t.psd(1.0, dt));
+        }
     }
 
     /// The quantization allowance vanishes once the noise spans the LSB and is large below it.

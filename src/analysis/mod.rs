@@ -11,6 +11,7 @@ pub mod error_plot;
 pub mod fit;
 pub mod octave_adev;
 pub mod psd;
+pub mod psd_band;
 pub mod reader;
 pub mod report;
 pub mod stats;

@@ -95,7 +95,7 @@ fn prev_pow2(n: usize) -> usize {
 }
 
 /// Periodic Hann window of length n.
-fn hann(n: usize) -> Vec<f64> {
+pub(crate) fn hann(n: usize) -> Vec<f64> {
     (0..n)
         .map(|i| 0.5 * (1.0 - (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos()))
         .collect()

@@ -6,9 +6,12 @@ use std::f64::consts::PI;
 use std::fmt::Write;
 
 use super::analyzer::{Analysis, CHANNELS};
-use super::conformance::TermRow;
+use super::conformance::{TermRow, filtered_avar, filtered_psd};
 use super::fit::{TERMS, Term};
+use super::octave_adev::CONFIDENCE;
+use super::psd_band::{BandedPsd, banded};
 use super::theory::AxisTheory;
+use crate::errors::filter_allan::WhiteAllan;
 use crate::plot::{Panel, Series};
 use crate::units::G0;
 
@@ -143,6 +146,17 @@ pub fn term_table(a: &Analysis, rows: Option<&[TermRow]>) -> String {
 /// Four panels: ADEV gyro, ADEV accel, PSD gyro, PSD accel, three axes each with 68 % bands,
 /// the template's exact theory dashed (and its nominal IEEE curve dotted when it sets B).
 pub fn panels(a: &Analysis, theory: Option<&[AxisTheory]>, title: &str) -> Vec<Panel> {
+    panels_filtered(a, theory, None, title)
+}
+
+/// [`panels`] for a template with an output filter: its theory ADEV and PSD are the filtered
+/// ones ([`filtered_avar`], [`filtered_psd`]).
+pub fn panels_filtered(
+    a: &Analysis,
+    theory: Option<&[AxisTheory]>,
+    filter: Option<&WhiteAllan>,
+    title: &str,
+) -> Vec<Panel> {
     let mut out = Vec::new();
     for gyro in [true, false] {
         let (unit, k) = adev_unit(gyro);
@@ -167,7 +181,10 @@ pub fn panels(a: &Analysis, theory: Option<&[AxisTheory]>, title: &str) -> Vec<P
             let ms: Vec<usize> = a.channels[base].adev.iter().map(|p| p.m).collect();
             theory_series(&th[base..base + 3], &mut series, |t| {
                 ms.iter()
-                    .map(|&m| (m as f64 * a.dt, t.avar(m, a.dt).sqrt() * k))
+                    .map(|&m| {
+                        let avar = filtered_avar(t, filter, m, a.dt);
+                        (m as f64 * a.dt, avar.sqrt() * k)
+                    })
                     .unzip()
             });
             let t0 = &th[base];
@@ -200,13 +217,12 @@ pub fn panels(a: &Analysis, theory: Option<&[AxisTheory]>, title: &str) -> Vec<P
         let sensor = if gyro { "gyro" } else { "accel" };
         let mut series = Vec::new();
         for axis in 0..3 {
-            let p = &a.channels[base + axis].psd;
-            let (x, y) = log_bins(plotted(&p.freq), &p.density, PSD_BINS_PER_DECADE);
+            let p = banded_psd(&a.channels[base + axis].psd, k);
             series.push(Series {
                 label: ["x", "y", "z"][axis].into(),
-                x,
-                y: y.iter().map(|d| d * k * k).collect(),
-                band: None,
+                x: p.freq,
+                y: p.density,
+                band: Some((p.lo, p.hi)),
                 color: axis,
                 dashed: false,
             });
@@ -217,7 +233,9 @@ pub fn panels(a: &Analysis, theory: Option<&[AxisTheory]>, title: &str) -> Vec<P
             theory_series(&th[base..base + 3], &mut series, |t| {
                 (
                     freq.clone(),
-                    freq.iter().map(|&f| t.psd(f, a.dt) * k * k).collect(),
+                    freq.iter()
+                        .map(|&f| filtered_psd(t, filter, f, a.dt) * k * k)
+                        .collect(),
                 )
             });
         }
@@ -239,39 +257,25 @@ fn plotted(freq: &[f64]) -> &[f64] {
     &freq[..freq.len().saturating_sub(1)]
 }
 
+/// A PSD as plotted: log bands with their 68 % χ² interval, densities scaled by `k²`.
+pub fn banded_psd(p: &super::psd::Psd, k: f64) -> BandedPsd {
+    let mut b = banded(p, PSD_BINS_PER_DECADE, CONFIDENCE);
+    for v in [&mut b.density, &mut b.lo, &mut b.hi] {
+        v.iter_mut().for_each(|d| *d *= k * k);
+    }
+    b
+}
+
 /// Plotted PSDs are averaged over log-spaced frequency bands (the CSV keeps every bin).
 pub const PSD_BINS_PER_DECADE: f64 = 25.0;
 
 /// Averages (f, P) over bands of 1/`per_decade` decade (f = 0 left out): a readable log-log
 /// curve whose scatter shrinks with frequency as more Welch bins fall in each band.
 pub fn log_bins(freq: &[f64], density: &[f64], per_decade: f64) -> (Vec<f64>, Vec<f64>) {
-    let mut out: (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
-    let mut cur: Option<(i64, f64, f64, f64)> = None; // (band, Σf, ΣP, count)
-    for (&f, &p) in freq.iter().zip(density) {
-        if f <= 0.0 {
-            continue;
-        }
-        let band = (f.log10() * per_decade).floor() as i64;
-        match &mut cur {
-            Some(c) if c.0 == band => {
-                c.1 += f;
-                c.2 += p;
-                c.3 += 1.0;
-            }
-            _ => {
-                if let Some(c) = cur {
-                    out.0.push(c.1 / c.3);
-                    out.1.push(c.2 / c.3);
-                }
-                cur = Some((band, f, p, 1.0));
-            }
-        }
-    }
-    if let Some(c) = cur {
-        out.0.push(c.1 / c.3);
-        out.1.push(c.2 / c.3);
-    }
-    out
+    super::psd_band::log_groups(freq, density, per_decade)
+        .into_iter()
+        .map(|(f, p, _)| (f, p))
+        .unzip()
 }
 
 /// Adds the theory curves: one black dashed curve when the three axes share the same model,

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 
 use imu_emu::analysis::analyzer::DEFAULT_SEGMENT;
-use imu_emu::analysis::conformance::{channel_theory, term_rows};
+use imu_emu::analysis::conformance::{channel_theory, term_rows, white_allan};
 use imu_emu::analysis::report;
 use imu_emu::fit::compare;
 
@@ -136,7 +136,8 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
             eprintln!("imu-emu analyze: plot written to {}", p.display());
         }
     } else if let Some(p) = &a.plot {
-        let panels = report::panels(&res, theory.as_deref(), &title);
+        let filter = model.as_ref().and_then(|m| white_allan(m, dt));
+        let panels = report::panels_filtered(&res, theory.as_deref(), filter.as_ref(), &title);
         imu_emu::plot::render(p, &panels, 2, (1600, 1200))?;
         eprintln!("imu-emu analyze: plot written to {}", p.display());
     }

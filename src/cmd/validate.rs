@@ -289,9 +289,11 @@ fn perturbed(a: &ValidateArgs, model: &ImuModel, seed: u64) -> Result<Section> {
         }
         let theory = channel_theory(model, 1.0 / r);
         let file = format!("adev-psd-{r}hz.png");
-        let panels = report::panels(
+        let filter = imu_emu::analysis::conformance::white_allan(model, 1.0 / r);
+        let panels = report::panels_filtered(
             &res,
             Some(&theory),
+            filter.as_ref(),
             &format!("{} static, {r} Hz", model.name),
         );
         imu_emu::plot::render(&a.out.join(&file), &panels, 2, (1600, 1200))?;

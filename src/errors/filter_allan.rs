@@ -63,6 +63,22 @@ impl WhiteAllan {
         self.decimation * (self.r[0] + 2.0 * self.r[1..].iter().sum::<f64>())
     }
 
+    /// The output's white-noise PSD at frequency `f` over its value at f → 0, for output
+    /// interval `dt`: the Wiener–Khinchin sum of the output autocorrelation,
+    /// (R_0 + 2 Σ R_l cos 2πf l Δt)/(R_0 + 2 Σ R_l) — the filter's |H|² with the bands above
+    /// the output Nyquist folded back by the decimation.
+    pub fn psd_ratio(&self, f: f64, dt: f64) -> f64 {
+        let w = 2.0 * std::f64::consts::PI * f * dt;
+        let folded: f64 = self.r[0]
+            + 2.0
+                * self.r[1..]
+                    .iter()
+                    .enumerate()
+                    .map(|(l, r)| r * (w * (l + 1) as f64).cos())
+                    .sum::<f64>();
+        folded * self.decimation / self.long_tau()
+    }
+
     /// The smallest m (of `ms`, ascending) from which on every r(m) is within `tolerance`
     /// (relative) of r_∞; None when none is.
     pub fn settled_from(&self, ms: &[usize], tolerance: f64) -> Option<usize> {
@@ -111,6 +127,30 @@ mod tests {
             assert!((w.ratio(m) - 1.0).abs() < 1e-15, "{m}: {}", w.ratio(m));
         }
         assert_eq!(w.settled_from(&[1, 2, 4], 1e-9), Some(1));
+    }
+
+    /// The folded PSD shape: the Bartlett window at D = 4 has R_0 = 44/256, R_1 = 10/256 and
+    /// nothing beyond, so S(f)/S(0) = (44 + 20 cos 2πfΔt)/64: 3/8 at the output Nyquist (100 Hz),
+    /// 11/16 at a quarter of the output rate. A moving average of D decimated by D is flat. Lags
+    /// counted from 0 in the cosine (an off-by-one) or the unfolded |H|² (lags at the internal
+    /// rate) fail it.
+    #[test]
+    fn psd_ratio_closed_form() {
+        let w = WhiteAllan::new(&spec(FilterKind::Cic { order: 2, taps: 4 }), 4);
+        let dt = 4.0 / 800.0;
+        for (f, want) in [
+            (0.0, 1.0),
+            (50.0, 11.0 / 16.0),
+            (100.0, 3.0 / 8.0),
+            (100.0 / 3.0, 27.0 / 32.0),
+        ] {
+            let got = w.psd_ratio(f, dt);
+            assert!((got - want).abs() < 1e-14, "{f} Hz: {got} vs {want}");
+        }
+        let flat = WhiteAllan::new(&spec(FilterKind::MovingAverage { taps: 4 }), 4);
+        for f in [0.0, 10.0, 50.0] {
+            assert!((flat.psd_ratio(f, dt) - 1.0).abs() < 1e-15);
+        }
     }
 
     /// The Bartlett window (CIC 2 × 4) at D = 4: h = (1 2 3 4 3 2 1)/16, R_0 = 44/256,

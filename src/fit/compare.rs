@@ -8,7 +8,7 @@ use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, fit_triad};
 use super::template::{sig4, unit};
 use crate::analysis::analyzer::{Analysis, CHANNELS};
 use crate::analysis::octave_adev::AdevPoint;
-use crate::analysis::report::{PSD_BINS_PER_DECADE, adev_unit, log_bins};
+use crate::analysis::report::{adev_unit, banded_psd};
 use crate::plot::{Panel, Series};
 
 /// The fits of the six channels (gyro x y z, accel x y z; None where a channel has no
@@ -224,7 +224,7 @@ fn adev_series(pts: &[AdevPoint], k: f64, label: String, color: usize, dashed: b
 
 /// The overlay: per channel every Allan deviation with its band (a recording's 68 % χ²
 /// band; a table's stated range, else the band of its record length), and per sensor every
-/// PSD that exists (three axes in one colour). `curves` is (analysis, label), this run
+/// PSD that exists (three axes in one colour, each with its 68 % χ² band). `curves` is (analysis, label), this run
 /// first (solid), then the references (dashed). Rows gyro then accel, the PSD last in each.
 pub fn panels(curves: &[(&Analysis, String)]) -> Vec<Panel> {
     let psd = curves
@@ -258,17 +258,16 @@ pub fn panels(curves: &[(&Analysis, String)]) -> Vec<Panel> {
                     if p.segments == 0 {
                         continue;
                     }
-                    let end = p.freq.len().saturating_sub(1);
-                    let (x, y) = log_bins(&p.freq[..end], &p.density, PSD_BINS_PER_DECADE);
+                    let b = banded_psd(p, k);
                     series.push(Series {
                         label: if axis == 0 {
                             format!("{name} (x y z)")
                         } else {
                             String::new()
                         },
-                        x,
-                        y: y.iter().map(|d| d * k * k).collect(),
-                        band: None,
+                        x: b.freq,
+                        y: b.density,
+                        band: Some((b.lo, b.hi)),
                         color: i % 6,
                         dashed: i > 0,
                     });
