@@ -802,6 +802,7 @@ impl SimulationBuilder {
             odometer,
             baro,
             magnetometer,
+            case_rotation: self.case_rotation(),
             output_path: self.file.output.path.clone(),
             warnings,
             timing,

@@ -6,9 +6,7 @@ use std::io::Write;
 
 use super::{SimError, Simulation};
 use crate::aiding::baro::Barometer;
-use crate::aiding::magnetometer::Magnetometer;
-use crate::earth::Geodetic;
-use crate::math::QuatExt;
+use crate::aiding::mag_samples::{MagSampler, first_index};
 use crate::motion::Motion;
 
 /// Header of the barometer CSV.
@@ -20,12 +18,7 @@ pub const MAG_HEADER: &str = "t,mag_x,mag_y,mag_z,true_x,true_y,true_z,field_n,f
 /// The sample instants at whole multiples of 1/`rate` s of record time in [t0, t1], as the
 /// GNSS epochs are placed.
 fn instants(rate: f64, t0: f64, t1: f64) -> impl Iterator<Item = f64> {
-    let mut k = (t0 * rate).ceil() as i64;
-    // The quotient k/rate can round below t0 by an ulp.
-    if (k as f64) / rate < t0 {
-        k += 1;
-    }
-    (k..)
+    (first_index(rate, t0)..)
         .map(move |k| k as f64 / rate)
         .take_while(move |t| *t <= t1)
 }
@@ -60,22 +53,16 @@ impl Simulation {
     /// samples; a position outside the field table is an error naming the time.
     pub fn write_magnetometer(&self, out: &mut dyn Write) -> Result<u64, SimError> {
         let cfg = self.magnetometer.clone().unwrap_or_default();
-        let rate = cfg.rate_hz;
-        let mut mag = Magnetometer::new(cfg, self.seed);
         let (t0, t1) = self.span();
+        let mut sampler = MagSampler::new(cfg, self.seed, t0);
         out.write_all(MAG_HEADER.as_bytes()).map_err(io)?;
         let (mut row, mut n) = (String::new(), 0);
-        for t in instants(rate, t0, t1) {
-            let p = self.motion.pose(t);
-            let pos = Geodetic::from_radians(p.lat, p.lon, p.h);
-            let field = mag
-                .field_n(&pos)
-                .map_err(|e| SimError::Invalid(format!("magnetometer at t = {t} s: {e}")))?;
-            let b = p.q_b_n.rotate_inv(field);
-            let m = mag.measure(b);
+        while sampler.next_time() <= t1 {
+            let s = (sampler.next_sample(&self.motion))
+                .map_err(|e| SimError::Invalid(e.to_string()))?;
             row.clear();
-            let _ = write!(row, "{t}");
-            for v in m.iter().chain(b.iter()).chain(field.iter()) {
+            let _ = write!(row, "{}", s.t);
+            for v in s.measured.iter().chain(&s.true_b).chain(&s.field_n) {
                 let _ = write!(row, ",{v}");
             }
             row.push('\n');
