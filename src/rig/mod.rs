@@ -423,6 +423,11 @@ pub struct Rig {
     pub(crate) warnings: Vec<String>,
     /// The GNSS receiver's settings (scene file `[gnss]`), when given.
     pub(crate) gnss: Option<crate::aiding::GnssConfig>,
+    /// The odometer's, barometer's and magnetometer's settings (scene file `[odometer]`,
+    /// `[baro]`, `[magnetometer]`), when given.
+    pub(crate) odometer: Option<crate::aiding::odometer::OdometerConfig>,
+    pub(crate) baro: Option<crate::aiding::baro::BaroConfig>,
+    pub(crate) magnetometer: Option<crate::aiding::magnetometer::MagConfig>,
     /// The rig's master seed (the receiver's errors draw from it).
     pub(crate) seed: u64,
     /// GPS week and second of record time 0, when given.

@@ -1,27 +1,22 @@
-//! The aiding streams of a simulation: GNSS epochs of its receiver over the run's span, on the
-//! same motion and GPS time reference as the IMU records, written in a wire format with their
-//! truth; and the odometer's samples.
+//! The GNSS epochs of a run's receiver over its span, on the same motion and GPS time
+//! reference as the IMU records, written in a wire format with their truth; and the
+//! odometer's samples.
 
 use std::fmt::Write as _;
 use std::io::Write;
 
-use super::{SimError, Simulation};
+use super::SimError;
+use super::streams::AidingStreams;
 use crate::aiding::gnss::Receiver;
 use crate::aiding::odometer::Odometer;
 use crate::aiding::stream::{TRUTH_HEADER, truth_row};
-use crate::aiding::{GnssConfig, GnssEncoder, GnssFormat};
+use crate::aiding::{GnssEncoder, GnssFormat};
 
-impl Simulation {
-    /// The GNSS receiver's settings, when the simulation has one (scene file `[gnss]` or
-    /// [`super::SimulationBuilder::gnss`]).
-    pub fn gnss(&self) -> Option<&GnssConfig> {
-        self.gnss.as_ref()
-    }
-
+impl AidingStreams<'_> {
     /// The receiver (the configured one, else the default) with this run's seed; a motion
     /// definition's spans without GNSS visibility are further outages.
     pub fn gnss_receiver(&self) -> Receiver {
-        let mut cfg = self.gnss.clone().unwrap_or_default();
+        let mut cfg = self.gnss.cloned().unwrap_or_default();
         if let Some(m) = self.motion.defined() {
             cfg.outages_s.extend(m.gnss_outages());
         }
@@ -29,16 +24,10 @@ impl Simulation {
         Receiver::new(cfg, self.seed).expect("checked GNSS settings")
     }
 
-    /// First and last instants of the run (s): GNSS epochs fall inside.
-    pub fn span(&self) -> (f64, f64) {
-        let g = self.grid;
-        (g.t0, g.t0 + g.count as f64 / g.rate_hz)
-    }
-
     /// An encoder of `format` on this run's GPS time reference.
     pub fn gnss_encoder(&self, format: GnssFormat) -> GnssEncoder {
         let (week, sow) = self.gps_time.unwrap_or((0, 0.0));
-        let leap = self.gnss.as_ref().map_or(18, |g| g.leap_seconds);
+        let leap = self.gnss.map_or(18, |g| g.leap_seconds);
         GnssEncoder::new(format, week, sow, leap)
     }
 
@@ -50,13 +39,13 @@ impl Simulation {
         mut truth: Option<&mut dyn Write>,
     ) -> Result<u64, SimError> {
         let mut rx = self.gnss_receiver();
-        let (t0, t1) = self.span();
+        let (t0, t1) = self.span;
         let mut enc: Vec<GnssEncoder> = outputs.iter().map(|o| self.gnss_encoder(o.0)).collect();
         if let Some(w) = truth.as_mut() {
             w.write_all(TRUTH_HEADER.as_bytes()).map_err(io)?;
         }
         let (mut bytes, mut row, mut n) = (Vec::new(), String::new(), 0);
-        while let Some(e) = rx.next_epoch(&self.motion, t0, t1) {
+        while let Some(e) = rx.next_epoch(self.motion, t0, t1) {
             for (enc, (_, w)) in enc.iter_mut().zip(outputs.iter_mut()) {
                 bytes.clear();
                 enc.encode(&e, &mut bytes);
@@ -76,21 +65,21 @@ impl Simulation {
 /// Header of the odometer CSV.
 pub const ODOMETER_HEADER: &str = "t,ticks,delta_ticks,speed_m_s,true_distance_m\n";
 
-impl Simulation {
+impl AidingStreams<'_> {
     /// Writes the odometer's samples over the run (CSV, one row per sample at the end of each
     /// interval of 1/rate s from the start); the configured odometer, else the default.
     /// Returns the number of samples.
     pub fn write_odometer(&self, out: &mut dyn Write) -> Result<u64, SimError> {
-        let cfg = self.odometer.clone().unwrap_or_default();
+        let cfg = self.odometer.cloned().unwrap_or_default();
         let rate = cfg.rate_hz;
         let mut odo = Odometer::new(cfg);
-        let (t0, t1) = self.span();
+        let (t0, t1) = self.span;
         out.write_all(ODOMETER_HEADER.as_bytes()).map_err(io)?;
         let count = ((t1 - t0) * rate + 1e-9).floor() as u64;
         let mut row = String::new();
         for k in 1..=count {
             let (a, b) = (t0 + (k - 1) as f64 / rate, t0 + k as f64 / rate);
-            let s = odo.sample(&self.motion, a, b);
+            let s = odo.sample(self.motion, a, b);
             row.clear();
             let _ = writeln!(
                 row,
@@ -103,6 +92,6 @@ impl Simulation {
     }
 }
 
-fn io(e: std::io::Error) -> SimError {
+pub(super) fn io(e: std::io::Error) -> SimError {
     SimError::Job(crate::job::JobError::Io(e))
 }

@@ -19,12 +19,14 @@
 mod builder;
 mod gnss;
 mod sensors;
+mod streams;
 
 use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 pub use builder::SimulationBuilder;
+pub use streams::AidingStreams;
 
 use crate::aiding::GnssConfig;
 use crate::aiding::mag_samples::MagHold;

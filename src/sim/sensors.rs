@@ -1,10 +1,12 @@
-//! The barometer's and the magnetometer's samples over a simulation's span, from the same
-//! motion and seed as the IMU records, written as CSV with their truth.
+//! The barometer's and the magnetometer's samples over a run's span, from the same motion and
+//! seed as the IMU records, written as CSV with their truth.
 
 use std::fmt::Write as _;
 use std::io::Write;
 
-use super::{SimError, Simulation};
+use super::SimError;
+use super::gnss::io;
+use super::streams::AidingStreams;
 use crate::aiding::baro::Barometer;
 use crate::aiding::mag_samples::{MagSampler, first_index};
 use crate::motion::Motion;
@@ -23,14 +25,14 @@ fn instants(rate: f64, t0: f64, t1: f64) -> impl Iterator<Item = f64> {
         .take_while(move |t| *t <= t1)
 }
 
-impl Simulation {
+impl AidingStreams<'_> {
     /// Writes the barometer's samples over the run (CSV, [`BARO_HEADER`]); the configured
     /// barometer (scene file `[baro]`), else the default. Returns the number of samples.
     pub fn write_baro(&self, out: &mut dyn Write) -> Result<u64, SimError> {
-        let cfg = self.baro.clone().unwrap_or_default();
+        let cfg = self.baro.cloned().unwrap_or_default();
         let rate = cfg.rate_hz;
         let mut baro = Barometer::new(cfg, 1.0 / rate, self.seed);
-        let (t0, t1) = self.span();
+        let (t0, t1) = self.span;
         out.write_all(BARO_HEADER.as_bytes()).map_err(io)?;
         let (mut row, mut n) = (String::new(), 0);
         for t in instants(rate, t0, t1) {
@@ -52,14 +54,14 @@ impl Simulation {
     /// magnetometer (scene file `[magnetometer]`), else the default. Returns the number of
     /// samples; a position outside the field table is an error naming the time.
     pub fn write_magnetometer(&self, out: &mut dyn Write) -> Result<u64, SimError> {
-        let cfg = self.magnetometer.clone().unwrap_or_default();
-        let (t0, t1) = self.span();
+        let cfg = self.magnetometer.cloned().unwrap_or_default();
+        let (t0, t1) = self.span;
         let mut sampler = MagSampler::new(cfg, self.seed, t0);
         out.write_all(MAG_HEADER.as_bytes()).map_err(io)?;
         let (mut row, mut n) = (String::new(), 0);
         while sampler.next_time() <= t1 {
-            let s = (sampler.next_sample(&self.motion))
-                .map_err(|e| SimError::Invalid(e.to_string()))?;
+            let s =
+                (sampler.next_sample(self.motion)).map_err(|e| SimError::Invalid(e.to_string()))?;
             row.clear();
             let _ = write!(row, "{}", s.t);
             for v in s.measured.iter().chain(&s.true_b).chain(&s.field_n) {
@@ -71,13 +73,4 @@ impl Simulation {
         }
         Ok(n)
     }
-
-    /// The magnetometer's settings, when the simulation has one.
-    pub fn magnetometer(&self) -> Option<&crate::aiding::magnetometer::MagConfig> {
-        self.magnetometer.as_ref()
-    }
-}
-
-fn io(e: std::io::Error) -> SimError {
-    SimError::Job(crate::job::JobError::Io(e))
 }

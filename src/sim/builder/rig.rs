@@ -3,6 +3,7 @@
 
 use super::{Rate, SimulationBuilder};
 use crate::aiding::GnssConfig;
+use crate::aiding::odometer::OdometerConfig;
 use crate::errors::ErrorChain;
 use crate::job::Encoding;
 use crate::output::Format;
@@ -161,12 +162,21 @@ impl SimulationBuilder {
             });
         }
         let gnss = self.resolve_aiding(&self.gnss, &self.file.gnss, GnssConfig::validate)?;
+        let odometer = self.resolve_aiding(
+            &self.odometer,
+            &self.file.odometer,
+            OdometerConfig::validate,
+        )?;
+        let (baro, magnetometer) = self.baro_and_magnetometer()?;
         Ok(Rig {
             motion,
             nodes,
             units,
             warnings: Vec::new(),
             gnss,
+            odometer,
+            baro,
+            magnetometer,
             seed: master,
             gps_time: self.gps_time,
         })
