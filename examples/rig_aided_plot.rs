@@ -15,6 +15,11 @@ use imu_emu::plot::{Panel, Series};
 use imu_emu::rig::UnitOutputs;
 use imu_emu::sim::Simulation;
 
+type Res<T> = Result<T, Box<dyn std::error::Error>>;
+
+/// A time and the six channels' errors (gyro x, y, z in rad/s, accel x, y, z in m/s²).
+type Errors = Vec<(f64, [f64; 6])>;
+
 const RAD_S_TO_DEG_H: f64 = 180.0 / std::f64::consts::PI * 3600.0;
 const M_S2_TO_MG: f64 = 1000.0 / 9.80665;
 
@@ -111,7 +116,7 @@ fn series(
     }
 }
 
-fn rows(csv: &[u8]) -> Result<Vec<Vec<String>>, Box<dyn std::error::Error>> {
+fn rows(csv: &[u8]) -> Res<Vec<Vec<String>>> {
     let text = std::str::from_utf8(csv)?;
     Ok((text.lines().skip(1))
         .map(|l| l.split(',').map(String::from).collect())
@@ -119,10 +124,7 @@ fn rows(csv: &[u8]) -> Result<Vec<Vec<String>>, Box<dyn std::error::Error>> {
 }
 
 /// Output − truth of gyro x, y, z (rad/s) and accel x, y, z (m/s²), averaged over 1 s.
-fn unit_errors(
-    main: &[u8],
-    truth: &[u8],
-) -> Result<Vec<(f64, [f64; 6])>, Box<dyn std::error::Error>> {
+fn unit_errors(main: &[u8], truth: &[u8]) -> Res<Errors> {
     let (m, t) = (rows(main)?, rows(truth)?);
     let mut out = Vec::new();
     let (mut sum, mut count, mut second) = ([0.0; 6], 0.0, 1.0);
@@ -142,7 +144,7 @@ fn unit_errors(
 
 /// Horizontal and vertical position error of each epoch with a fix (m); an outage breaks
 /// the curves.
-fn gnss_errors(truth: &[u8]) -> Result<Vec<Series>, Box<dyn std::error::Error>> {
+fn gnss_errors(truth: &[u8]) -> Res<Vec<Series>> {
     let mut out: Vec<Series> = Vec::new();
     let mut in_fix = false;
     for r in rows(truth)? {
@@ -179,7 +181,7 @@ fn gnss_errors(truth: &[u8]) -> Result<Vec<Series>, Box<dyn std::error::Error>> 
 /// Reported speed minus the true distance over the interval's length (m/s), averaged over
 /// 1 s: a single sample's error is mostly the ±1 tick quantization, whose 1 s mean is
 /// bounded by one tick per second, so the scale factor shows.
-fn odometer_errors(csv: &[u8]) -> Result<Vec<Series>, Box<dyn std::error::Error>> {
+fn odometer_errors(csv: &[u8]) -> Res<Vec<Series>> {
     let mut s = Series {
         label: "speed error".into(),
         color: 2,
