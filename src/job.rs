@@ -5,6 +5,7 @@ use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::PathBuf;
 
+use crate::aiding::mag_samples::{FrameMag, MagHold};
 use crate::errors::ErrorChain;
 use crate::errors::temperature::TemperatureProfile;
 use crate::generator::IdealImu;
@@ -116,6 +117,9 @@ pub enum JobError {
     /// An aiding sensor cannot give a sample (outside its field table, not finite).
     #[error("{0}")]
     Sensor(String),
+    /// A magnetometer sample for the frames cannot be taken (outside its field table).
+    #[error(transparent)]
+    Magnetometer(#[from] crate::aiding::mag_samples::MagError),
     /// Writing failed (the cause is the error's `source()`, not repeated here).
     #[error("writing output")]
     Io(#[from] std::io::Error),
@@ -257,6 +261,20 @@ impl Encoding {
         buf: &mut Vec<u8>,
         ends: &mut Vec<usize>,
     ) {
+        self.encode_with_mag(records, gaps, profile, &[], buf, ends);
+    }
+
+    /// [`Encoding::encode`] with the magnetic field the frame of record i carries in `mag[i]`
+    /// (empty: 0, no magnetometer).
+    pub fn encode_with_mag(
+        &mut self,
+        records: &[Record],
+        gaps: &[u32],
+        profile: Option<&TemperatureProfile>,
+        mag: &[FrameMag],
+        buf: &mut Vec<u8>,
+        ends: &mut Vec<usize>,
+    ) {
         match self {
             Encoding::Records(f) => {
                 // One call per block (as fast as before records had ends); each record is one
@@ -282,6 +300,9 @@ impl Encoding {
                     state.frames += gaps.get(i).copied().unwrap_or(0) as u64;
                     // The sensor temperature the error chain used for this record.
                     let celsius = profile.map_or(*temperature, |p| p.at(r.t));
+                    if let Some(m) = mag.get(i) {
+                        (state.mag, state.mag_fresh) = (m.field, m.fresh);
+                    }
                     plan.encode(r, celsius, state, buf);
                     ends.push(buf.len());
                 }
@@ -320,6 +341,10 @@ pub struct Producer {
     trigger_tov: [f64; 1],
     /// Flags added to every record from now on ([`Producer::mark`]).
     mark: u8,
+    /// The magnetometer whose latest sample frames carry, if any.
+    mag: Option<Box<MagHold>>,
+    /// The field of each record of the block, for the frames.
+    mag_block: Vec<FrameMag>,
 }
 
 /// One block of production: the corrupted records and, if asked for, the error-free ones.
@@ -391,6 +416,8 @@ impl Producer {
             trigger: None,
             trigger_tov: [0.0],
             mark: 0,
+            mag: None,
+            mag_block: Vec::new(),
         }
     }
 
@@ -456,6 +483,34 @@ impl Producer {
     /// Whether the records carry times of validity and emission (timing errors, a trigger).
     pub fn is_timed(&self) -> bool {
         self.timing.is_some() || self.trigger.is_some()
+    }
+
+    /// Frames with magnetic-field fields carry the latest sample of `hold` at each record's
+    /// time (`None`: 0).
+    pub fn with_magnetometer(mut self, hold: Option<MagHold>) -> Producer {
+        self.mag = hold.map(Box::new);
+        self
+    }
+
+    /// The field each of the block's first `n` records' frames carry; `false` (production
+    /// ended with the error) when a sample cannot be taken.
+    fn fill_mag(&mut self, n: usize) -> bool {
+        self.mag_block.clear();
+        let Some(hold) = self.mag.as_mut() else {
+            return true;
+        };
+        let motion = self.imu.motion();
+        let mut error = None;
+        for r in &self.block[..n] {
+            match hold.at(r.t, motion) {
+                Ok(m) => self.mag_block.push(m),
+                Err(e) => {
+                    error = Some(e);
+                    break;
+                }
+            }
+        }
+        error.map(|e| self.fail(e.into())).is_none()
     }
 
     /// Frames with a temperature field carry `profile` at each record's time (the profile the
@@ -714,10 +769,13 @@ impl Producer {
         ends: &mut Vec<usize>,
     ) -> Option<Block<'_>> {
         let (first, n) = self.step(max)?;
+        if !self.fill_mag(n) {
+            return None;
+        }
         let profile = self.temperature.as_ref();
         let gaps = self.timing.as_ref().map_or(&[][..], |t| t.times().gaps);
-        self.encoding
-            .encode(&self.block[..n], gaps, profile, out, ends);
+        let mag = &self.mag_block[..];
+        (self.encoding).encode_with_mag(&self.block[..n], gaps, profile, mag, out, ends);
         Some(self.view(first, n))
     }
 
@@ -732,10 +790,14 @@ impl Producer {
         for r in &mut self.block[..n] {
             r.flags |= self.mark;
         }
+        if !self.fill_mag(n) {
+            return None;
+        }
         let encodings = std::iter::once(&mut self.encoding).chain(self.extra.iter_mut());
         let gaps = self.timing.as_ref().map_or(&[][..], |t| t.times().gaps);
+        let (profile, mag) = (self.temperature.as_ref(), &self.mag_block[..]);
         for (e, (out, ends)) in encodings.zip(outs.iter_mut()) {
-            e.encode(&self.block[..n], gaps, self.temperature.as_ref(), out, ends);
+            e.encode_with_mag(&self.block[..n], gaps, profile, mag, out, ends);
         }
         Some(self.view(first, n))
     }

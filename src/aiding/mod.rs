@@ -5,6 +5,7 @@
 pub mod baro;
 pub mod field_table;
 pub mod gnss;
+pub mod mag_samples;
 pub mod magnetometer;
 pub mod mavlink;
 pub mod nmea;

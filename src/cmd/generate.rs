@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 
 use imu_emu::aiding::GnssFormat;
 use imu_emu::output::AtomicFile;
-use imu_emu::sim::SideOutputs;
+use imu_emu::sim::{AidingStreams, SideOutputs};
 
 use super::setup::{SimArgs, announce};
 use imu_emu::realtime::signal::Interrupted;
@@ -67,10 +67,7 @@ fn parse_gnss_output(s: &str) -> Result<(GnssFormat, PathBuf), String> {
 }
 
 /// Writes the GNSS files of `a` into uncommitted files (committed with the others).
-fn write_gnss(
-    sim: &imu_emu::sim::Simulation,
-    a: &GenerateArgs,
-) -> Result<Vec<(AtomicFile, PathBuf)>> {
+fn write_gnss(sim: &AidingStreams<'_>, a: &GenerateArgs) -> Result<Vec<(AtomicFile, PathBuf)>> {
     let mut files = Vec::new();
     if a.gnss.is_empty() && a.gnss_truth.is_none() {
         return Ok(files);
@@ -98,6 +95,24 @@ fn write_gnss(
         }
     }
     files.extend(truth);
+    Ok(files)
+}
+
+/// Writes every aiding file `a` asks for (GNSS, odometer, barometer, magnetometer) into
+/// uncommitted files: a single IMU's and a rig's `generate` share it, so a rig scene writes
+/// the same streams as one IMU on its motion and seed.
+pub(super) fn write_aiding(
+    aid: &AidingStreams<'_>,
+    a: &GenerateArgs,
+) -> Result<Vec<(AtomicFile, PathBuf)>> {
+    let mut files = write_gnss(aid, a)?;
+    files.extend(write_sensor(a.odometer.as_deref(), |w| {
+        aid.write_odometer(w)
+    })?);
+    files.extend(write_sensor(a.baro.as_deref(), |w| aid.write_baro(w))?);
+    files.extend(write_sensor(a.magnetometer.as_deref(), |w| {
+        aid.write_magnetometer(w)
+    })?);
     Ok(files)
 }
 
@@ -146,14 +161,7 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
         indicatif::ProgressBar::hidden()
     };
     let faults = sim.faults().cloned();
-    let mut gnss_files = write_gnss(&sim, &a)?;
-    gnss_files.extend(write_sensor(a.odometer.as_deref(), |w| {
-        sim.write_odometer(w)
-    })?);
-    gnss_files.extend(write_sensor(a.baro.as_deref(), |w| sim.write_baro(w))?);
-    gnss_files.extend(write_sensor(a.magnetometer.as_deref(), |w| {
-        sim.write_magnetometer(w)
-    })?);
+    let gnss_files = write_aiding(&sim.aiding(), &a)?;
     let caught = imu_emu::realtime::signal::watch()?;
     let started = Instant::now();
     let mut truth_file = a.truth.as_deref().map(create).transpose()?;

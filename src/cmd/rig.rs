@@ -91,6 +91,7 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
             u.seed()
         );
     }
+    let aiding_files = super::generate::write_aiding(&rig.aiding(), &a)?;
     let caught = imu_emu::realtime::signal::watch()?;
     let result = {
         let mut writers: Vec<_> = files
@@ -128,7 +129,8 @@ pub fn generate(a: GenerateArgs) -> Result<()> {
         return Err(e.into());
     }
     result.context("writing the rig's outputs")?;
-    for (m, s) in files {
+    let aiding = aiding_files.into_iter().map(|f| (f, None));
+    for (m, s) in files.into_iter().chain(aiding) {
         let mut all = vec![m];
         if let Some((t, f)) = s {
             all.extend([t, f]);

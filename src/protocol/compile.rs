@@ -45,6 +45,7 @@ pub(super) fn compile_layout(
                 accel: st.accel_overrange.unwrap_or_default(),
                 failure: st.failure,
                 channels_at: st.failed_channels,
+                mag: st.mag_updated,
             })
         })
     };

@@ -31,6 +31,11 @@ pub struct EncoderState {
     /// split so that seconds of week stay exact to the record's own time resolution. With
     /// both 0, record times are GPS seconds since the epoch (1980-01-06).
     pub gps_sow0: f64,
+    /// The magnetic field (T, the IMU's axes) the next frame's `mag.*` fields carry: the
+    /// latest magnetometer sample, 0 without a magnetometer (set by the caller per record).
+    pub mag: Vec3,
+    /// The next frame carries a magnetometer sample no earlier frame carried.
+    pub mag_fresh: bool,
 }
 
 /// The single-axis channels of an N-channel unit (a skew-redundant one) for one frame, next

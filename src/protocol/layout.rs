@@ -54,11 +54,16 @@ pub(super) struct StatusModel {
     pub(super) failure: Option<BitEdit>,
     /// Bit of channel 0's failure flag (channel i at this + i).
     pub(super) channels_at: Option<u32>,
+    /// Edit of a frame with a new magnetometer sample.
+    pub(super) mag: Option<BitEdit>,
 }
 
 impl StatusModel {
-    fn value(&self, flags: u8, failure: bool, failed: u64) -> i64 {
+    fn value(&self, flags: u8, failure: bool, failed: u64, mag_fresh: bool) -> i64 {
         let mut v = self.ok;
+        if mag_fresh && let Some(e) = self.mag {
+            v = e.apply(v);
+        }
         if let Some(at) = self.channels_at {
             v |= (failed << at) as i64;
         }
@@ -75,6 +80,12 @@ impl StatusModel {
             v = e.apply(v);
         }
         v
+    }
+
+    /// Whether a received word `v` reports all well: the healthy value, with or without the
+    /// new-magnetometer-sample edit.
+    fn healthy(&self, v: i64) -> bool {
+        v == self.ok || self.mag.is_some_and(|e| v == e.apply(self.ok))
     }
 }
 
@@ -203,7 +214,8 @@ impl Layout {
                     dst,
                     op.ty,
                     op.order,
-                    m.value(flags, faults.status, failed).into(),
+                    m.value(flags, faults.status, failed, state.mag_fresh)
+                        .into(),
                 ),
                 What::Counter {
                     modulo,
@@ -211,7 +223,8 @@ impl Layout {
                     status: Some(m),
                     ..
                 } => {
-                    let v = m.value(flags, faults.status, failed) as u64 | counter(*modulo, *step);
+                    let v = m.value(flags, faults.status, failed, state.mag_fresh) as u64
+                        | counter(*modulo, *step);
                     put_int(dst, op.ty, op.order, v as i128)
                 }
                 _ => {}
@@ -350,7 +363,7 @@ impl Layout {
                     let raw = get_int(src, op.ty, op.order) as u64;
                     let c = raw % modulo;
                     if let Some(m) = status {
-                        out.flagged |= (raw - c) as i64 != m.ok;
+                        out.flagged |= !m.healthy((raw - c) as i64);
                     }
                     out.values.push((Source::Counter, c as f64));
                 }
@@ -359,7 +372,7 @@ impl Layout {
                     .push((*source, get_value(src, op.ty, op.order) / scale + 0.0)),
                 What::Status(m) => {
                     let v = get_int(src, op.ty, op.order) as i64;
-                    out.flagged |= v != m.ok;
+                    out.flagged |= !m.healthy(v);
                     out.values.push((Source::Status, v as f64));
                 }
             }
@@ -401,8 +414,7 @@ fn quantity(r: &Record, temperature: f64, st: &EncoderState, s: Source) -> f64 {
         Source::Dv(i) => r.dv[i],
         Source::Time => r.t,
         Source::Temperature => temperature,
-        // The magnetometer is not simulated.
-        Source::Mag(_) => 0.0,
+        Source::Mag(i) => st.mag[i],
         // No IMU output carries a vehicle's state.
         Source::State(_) => f64::NAN,
         Source::Counter | Source::Status | Source::Channel(..) | Source::Raw => 0.0,

@@ -113,8 +113,9 @@ pub enum Source {
     Counter,
     /// Sensor temperature (°C).
     Temperature,
-    /// Magnetic field, axis 0–2 (T). Not simulated: encoders send 0; decoders read what a
-    /// real unit sends (KVH Format C).
+    /// Magnetic field, axis 0–2 (T), in the IMU's axes: the latest sample of the
+    /// simulation's magnetometer (scene file `[magnetometer]`), 0 without one; decoders read
+    /// what a real unit sends (KVH Format C, MAVLink HIL_SENSOR).
     Mag(usize),
     /// GPS week number of the record's time tag.
     GpsWeek,
@@ -332,6 +333,9 @@ pub struct StatusSpec {
     /// Per-channel failure bits of an N-channel unit: bit `failed_channels + i` is set while
     /// channel i (gyros, then accelerometers) has an active failure.
     pub failed_channels: Option<u32>,
+    /// Edit of a frame that carries a magnetometer sample no earlier frame carried (MAVLink's
+    /// `fields_updated` mag bits); a healthy word either way.
+    pub mag_updated: Option<BitEdit>,
 }
 
 /// Bits a condition sets and clears in a status word (clear first, then set).

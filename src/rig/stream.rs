@@ -7,11 +7,12 @@
 use super::{Rig, Scratch, Unit};
 use crate::aiding::sensors::{SensorKind, SensorRows};
 use crate::aiding::window::{GnssFrames, GnssWindow};
-use crate::aiding::{GnssConfig, GnssEncoder, GnssFormat, Receiver};
+use crate::aiding::{GnssConfig, GnssFormat};
 use crate::emission::{Part, WindowSource};
 use crate::generator::{IdealImu, RotationTerms};
 use crate::job::{self, Grid, JobError, Producer};
 use crate::record::Record;
+use crate::sim::AidingStreams;
 use crate::source::AnyMotion;
 
 /// The units that share a time grid, and where their motion evaluation has got to.
@@ -82,18 +83,32 @@ impl Rig {
         (t0, t1)
     }
 
+    /// The rig's aiding sensors on its motion, [`Rig::span`], master seed and GPS time: the
+    /// same streams a single IMU's simulation of the scene writes.
+    pub fn aiding(&self) -> AidingStreams<'_> {
+        AidingStreams {
+            motion: &self.motion,
+            span: self.span(),
+            seed: self.seed,
+            gps_time: self.gnss_time.or(self.gps_time),
+            gnss: self.gnss.as_ref(),
+            sensors: self.sensors.clone(),
+        }
+    }
+
     /// The GNSS receiver (the scene file's `[gnss]`, else the default) as a frame source in
     /// `format` on the rig's motion and clock: epochs over [`Rig::span`], emission times
     /// counted from its start like the units' (see [`Rig::stream`]).
     pub fn gnss_window(&self, format: GnssFormat) -> GnssWindow<AnyMotion> {
-        let cfg = self.gnss.clone().unwrap_or_default();
-        let leap = cfg.leap_seconds;
-        // The settings were checked when the rig was built; the default is valid.
-        let rx = Receiver::new(cfg, self.seed).expect("checked GNSS settings");
-        let (week, sow) = self.gnss_time.or(self.gps_time).unwrap_or((0, 0.0));
-        let span = self.span();
-        let enc = GnssEncoder::new(format, week, sow, leap);
-        GnssFrames::new(rx, self.motion.clone(), enc, span).window(span.0)
+        let aid = self.aiding();
+        let span = aid.span;
+        GnssFrames::new(
+            aid.gnss_receiver(),
+            self.motion.clone(),
+            aid.gnss_encoder(format),
+            span,
+        )
+        .window(span.0)
     }
 }
 

@@ -803,6 +803,7 @@ impl SimulationBuilder {
             odometer,
             baro,
             magnetometer,
+            case_rotation: self.case_rotation(),
             output_path: self.file.output.path.clone(),
             warnings,
             timing,

@@ -19,14 +19,17 @@
 mod builder;
 mod gnss;
 mod sensors;
+mod streams;
 
 use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 pub use builder::SimulationBuilder;
+pub use streams::AidingStreams;
 
 use crate::aiding::GnssConfig;
+use crate::aiding::mag_samples::MagHold;
 use crate::config::ConfigError;
 use crate::errors::filtered::FilteredChain;
 use crate::errors::temperature::TemperatureProfile;
@@ -129,6 +132,8 @@ pub struct Simulation {
     odometer: Option<crate::aiding::odometer::OdometerConfig>,
     baro: Option<crate::aiding::baro::BaroConfig>,
     magnetometer: Option<crate::aiding::magnetometer::MagConfig>,
+    /// C_b^c of the IMU's case (its mounting), the axes of the frames' magnetic field.
+    case_rotation: Option<crate::math::Quat>,
     output_path: Option<PathBuf>,
     warnings: Vec<String>,
     timing: Option<crate::timing::TimedRun>,
@@ -246,6 +251,8 @@ impl Simulation {
     /// real-time emulator drives it.
     pub fn producer(self) -> Result<Producer, SimError> {
         let encoding = self.encoding();
+        let mag = (self.magnetometer.clone())
+            .map(|cfg| MagHold::new(cfg, self.seed, self.grid.t0, self.case_rotation));
         let filtered = match self.filtered {
             Some(c) => Some(
                 FilteredImu::new(self.motion.clone(), self.grid, self.nodes, c)
@@ -263,7 +270,8 @@ impl Simulation {
         )?;
         Ok(p.with_temperature(self.temperature)
             .with_timing(self.timing)
-            .with_filter(filtered))
+            .with_filter(filtered)
+            .with_magnetometer(mag))
     }
 
     /// The records, block by block, without any wire encoding.

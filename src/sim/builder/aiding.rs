@@ -9,6 +9,7 @@ use crate::aiding::field_table::FieldTable;
 use crate::aiding::magnetometer::MagConfig;
 use crate::aiding::odometer::OdometerConfig;
 use crate::aiding::sensors::SensorSet;
+use crate::math::{Quat, quat_from_euler};
 
 type Sensors = (Option<BaroConfig>, Option<MagConfig>);
 
@@ -40,6 +41,13 @@ impl SimulationBuilder {
             baro,
             magnetometer,
         })
+    }
+
+    /// C_b^c of the IMU's case (`imu.mounting_deg`): the axes of the frames' magnetic field.
+    pub(super) fn case_rotation(&self) -> Option<Quat> {
+        let [roll, pitch, yaw] = self.mounting_deg.or(self.file.imu.mounting_deg)?;
+        let q_c_b = quat_from_euler(roll.to_radians(), pitch.to_radians(), yaw.to_radians());
+        Some(q_c_b.conjugate())
     }
 
     /// The checked barometer and magnetometer settings, the field table read.
