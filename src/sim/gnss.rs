@@ -4,8 +4,8 @@
 
 use std::io::Write;
 
-use super::{SimError, Simulation};
 use super::streams::AidingStreams;
+use super::{SimError, Simulation};
 use crate::aiding::gnss::Receiver;
 use crate::aiding::stream::{TRUTH_HEADER, truth_row};
 use crate::aiding::window::{GnssFrames, GnssWindow};

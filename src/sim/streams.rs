@@ -86,8 +86,6 @@ impl Simulation {
         (g.t0, g.t0 + g.count as f64 / g.rate_hz)
     }
 
-
-
     /// The receiver with this run's seed ([`AidingStreams::gnss_receiver`]).
     pub fn gnss_receiver(&self) -> Receiver {
         self.aiding().gnss_receiver()
@@ -106,6 +104,4 @@ impl Simulation {
     ) -> Result<u64, SimError> {
         self.aiding().write_gnss(outputs, truth)
     }
-
-
 }
