@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, channel};
 use std::time::Duration;
 
-use super::clock::{monotonic_ns, realtime_ns};
+use super::clock::{monotonic_ns, utc_to_monotonic};
 
 /// How long a source waits for an edge before checking whether the run stopped.
 pub const POLL: Duration = Duration::from_millis(200);
@@ -96,7 +96,7 @@ impl EdgeSource for UdpEdges {
         match self.sock.recv(&mut self.buf) {
             Ok(8) => {
                 let utc = i64::from_le_bytes(self.buf[..8].try_into().expect("8 bytes"));
-                Ok(Some(monotonic_ns() + (utc as i128 - realtime_ns())))
+                Ok(Some(utc_to_monotonic(utc as i128)))
             }
             Ok(_) => Ok(Some(monotonic_ns())),
             Err(e)
@@ -190,7 +190,7 @@ impl EdgeSource for PpsDevice {
         self.last_seq = Some(seq);
         let t = &d.info.assert_tu;
         let utc = t.sec as i128 * 1_000_000_000 + t.nsec as i128;
-        Ok(Some(monotonic_ns() + (utc - realtime_ns())))
+        Ok(Some(utc_to_monotonic(utc)))
     }
 }
 
@@ -243,6 +243,7 @@ impl EdgeSource for ModemEdges {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::realtime::clock::realtime_ns;
 
     /// The ioctl structures have the sizes of `<linux/pps.h>` on 64-bit Linux, and PPS_FETCH
     /// the number the header gives (0xc00870a4: read-write, 8-byte argument, 'p', 0xa4).

@@ -13,7 +13,6 @@ use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::net::UdpSocket;
 
-use super::clock::{monotonic_ns, realtime_ns};
 use super::hook::{FrameHook, FrameTime};
 
 /// Bytes of one binary time mark.
@@ -99,7 +98,7 @@ pub struct TimeMarks {
 /// same frame are equal to the nanosecond (two reads differ by the tens of ns between them).
 fn utc_minus_mono() -> i128 {
     static OFFSET: std::sync::OnceLock<i128> = std::sync::OnceLock::new();
-    *OFFSET.get_or_init(|| realtime_ns() - monotonic_ns())
+    *OFFSET.get_or_init(super::clock::utc_minus_monotonic)
 }
 
 impl TimeMarks {
