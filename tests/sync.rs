@@ -7,7 +7,7 @@ use std::net::UdpSocket;
 use std::process::{Command, Stdio};
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 use imu_emu::realtime::FrameBlock;
 use imu_emu::realtime::clock::monotonic_ns;
@@ -17,37 +17,11 @@ use imu_emu::realtime::pulse::{Line, Pulse, PulseSpec};
 use imu_emu::realtime::sink::{Sink, SinkStats};
 use imu_emu::realtime::timemark::{MARK_LEN, Mark};
 
+#[path = "common/loopback.rs"]
+mod loopback;
+use loopback::{median, receive, utc_now_ns};
+
 const BIN: &str = env!("CARGO_BIN_EXE_imu-emu");
-
-fn utc_now_ns() -> i128 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .unwrap()
-        .as_nanos() as i128
-}
-
-/// A datagram: CLOCK_REALTIME when `recv` returned (ns), and its bytes.
-type Arrival = (i128, Vec<u8>);
-
-/// A loopback UDP receiver on its own thread until `secs` have passed: each datagram with
-/// CLOCK_REALTIME at its arrival.
-fn receive(secs: f64) -> (String, std::thread::JoinHandle<Vec<Arrival>>) {
-    let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
-    rx.set_read_timeout(Some(Duration::from_millis(100)))
-        .unwrap();
-    let dest = rx.local_addr().unwrap().to_string();
-    let end = utc_now_ns() + (secs * 1e9) as i128;
-    let h = std::thread::spawn(move || {
-        let (mut got, mut buf) = (Vec::new(), [0u8; 2048]);
-        while utc_now_ns() < end {
-            if let Ok(n) = rx.recv(&mut buf) {
-                got.push((utc_now_ns(), buf[..n].to_vec()));
-            }
-        }
-        got
-    });
-    (dest, h)
-}
 
 fn run(args: &[&str]) -> String {
     let out = Command::new(BIN)
@@ -61,11 +35,6 @@ fn run(args: &[&str]) -> String {
     err
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// Time marks over UDP and to a CSV file in one run with 400 µs ± 50 µs latency at 200 Hz:
 /// one mark per frame the frame reader got, indices 0, 1, 2, … each once; the time of validity
 /// on the records' axis is (k+1)·5 ms exactly (the nominal grid: no clock error configured);
@@ -77,12 +46,10 @@ fn median(mut v: Vec<f64>) -> f64 {
 #[test]
 fn time_marks_over_udp_and_file() {
     let dir = tempfile::tempdir().unwrap();
-    let imu = dir.path().join("late.toml");
-    std::fs::write(
-        &imu,
-        "base = \"ln200\"\n[timing]\nlatency = \"400 us\"\nlatency_spread = \"50 us\"\n",
-    )
-    .unwrap();
+    let imu = loopback::timed_ln200(
+        dir.path(),
+        "latency = \"400 us\"\nlatency_spread = \"50 us\"\n",
+    );
     let csv = dir.path().join("marks.csv");
     let (frames_to, frames) = receive(5.0);
     let (marks_to, marks) = receive(5.0);

@@ -6,43 +6,16 @@
 
 use std::net::UdpSocket;
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 use imu_emu::protocol::load;
 use imu_emu::protocol::spec::Source;
 
+#[path = "common/loopback.rs"]
+mod loopback;
+use loopback::{Arrival, median, quantile, receive, utc_now_ns};
+
 const BIN: &str = env!("CARGO_BIN_EXE_imu-emu");
-
-/// CLOCK_REALTIME now (ns since the Unix epoch).
-fn utc_now_ns() -> i128 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .unwrap()
-        .as_nanos() as i128
-}
-
-/// A datagram: CLOCK_REALTIME when `recv` returned (ns), and its bytes.
-type Arrival = (i128, Vec<u8>);
-
-/// A loopback UDP receiver on its own thread, timestamping each datagram as `recv` returns,
-/// until `secs` have passed.
-fn receive(secs: f64) -> (String, std::thread::JoinHandle<Vec<Arrival>>) {
-    let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
-    rx.set_read_timeout(Some(Duration::from_millis(100)))
-        .unwrap();
-    let dest = rx.local_addr().unwrap().to_string();
-    let end = utc_now_ns() + (secs * 1e9) as i128;
-    let h = std::thread::spawn(move || {
-        let (mut got, mut buf) = (Vec::new(), [0u8; 2048]);
-        while utc_now_ns() < end {
-            if let Ok(n) = rx.recv(&mut buf) {
-                got.push((utc_now_ns(), buf[..n].to_vec()));
-            }
-        }
-        got
-    });
-    (dest, h)
-}
 
 fn spawn(args: &[&str]) -> Child {
     Command::new(BIN)
@@ -61,18 +34,12 @@ fn finish(c: Child) -> String {
     err
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// Runs `--time-base gps` iXCOM frames at 200 Hz for 2 s from an IMU with `timing`, and
 /// returns for each frame received the host's GPS time at arrival (the test's own UTC + 18 s
 /// − the GPS epoch) minus the frame's GPS time (ms), and the run's stderr.
 fn gps_delays(timing: &str) -> (Vec<f64>, String) {
     let dir = tempfile::tempdir().unwrap();
-    let imu = dir.path().join("late.toml");
-    std::fs::write(&imu, format!("base = \"ln200\"\n[timing]\n{timing}")).unwrap();
+    let imu = loopback::timed_ln200(dir.path(), timing);
     let (dest, rx) = receive(5.0);
     let err = finish(spawn(&[
         "--time-base",
@@ -306,12 +273,10 @@ fn summary_us(err: &str, key: &str) -> f64 {
 fn latency_and_gps_time_at_a_pty_reader() {
     use std::io::Read;
     let dir = tempfile::tempdir().unwrap();
-    let imu = dir.path().join("late.toml");
-    std::fs::write(
-        &imu,
-        "base = \"ln200\"\n[timing]\nlatency = \"400 us\"\nlatency_spread = \"50 us\"\n",
-    )
-    .unwrap();
+    let imu = loopback::timed_ln200(
+        dir.path(),
+        "latency = \"400 us\"\nlatency_spread = \"50 us\"\n",
+    );
     let link = dir.path().join("imu");
     let marks = dir.path().join("marks.csv");
     let probe = pty_slack_probe(6.0);
@@ -426,11 +391,6 @@ fn latency_and_gps_time_at_a_pty_reader() {
 }
 
 /// The q-quantile of `v` (sorted in place).
-fn quantile(v: &mut [f64], q: f64) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[((q * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1]
-}
-
 /// For `secs`, a thread writes its CLOCK_REALTIME instant every 5 ms into a pty pair's master
 /// and another, blocked in `read` on the slave, takes each arrival: the transit plus the
 /// reader's wake-up delay (µs) of a pty on this machine, under the same load as the frames.
@@ -478,12 +438,7 @@ fn pty_slack_probe(secs: f64) -> std::thread::JoinHandle<Vec<f64>> {
 #[test]
 fn clock_offset_from_the_counter_against_the_wall_clock() {
     let dir = tempfile::tempdir().unwrap();
-    let imu = dir.path().join("fast.toml");
-    std::fs::write(
-        &imu,
-        "base = \"ln200\"\n[timing]\nclock_offset = \"50 ppm\"\n",
-    )
-    .unwrap();
+    let imu = loopback::timed_ln200(dir.path(), "clock_offset = \"50 ppm\"\n");
     let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
     rx.set_read_timeout(Some(Duration::from_millis(100)))
         .unwrap();
