@@ -242,6 +242,8 @@ pub struct AxisFit {
     /// When the ramp was left out ([`Options::ramp`] false) but a fit with it is better:
     /// the ramp that fit finds and its χ² gain.
     pub ramp_alternative: Option<Estimate>,
+    /// The time-domain ramp test of a recording ([`super::ramp`]; None for a table).
+    pub ramp: Option<super::ramp::RampTest>,
     /// Octave points used.
     pub points: usize,
 }
@@ -463,6 +465,17 @@ pub fn fit_axis(points: &[AdevPoint], samples: usize, dt: f64) -> Option<AxisFit
 /// alternative where a fit with it is better) and one bias-instability band for the triad —
 /// of the bands the axes choose alone, the one with the least total cost.
 pub fn fit_triad(points: [&[AdevPoint]; 3], samples: usize, dt: f64) -> [Option<AxisFit>; 3] {
+    fit_triad_with(points, samples, dt, true)
+}
+
+/// [`fit_triad`], the Allan-variance ramp alternative sought only when `alternative` (a
+/// recording's ramp is tested on its time series instead, [`super::ramp`]).
+pub fn fit_triad_with(
+    points: [&[AdevPoint]; 3],
+    samples: usize,
+    dt: f64,
+    alternative: bool,
+) -> [Option<AxisFit>; 3] {
     let no_ramp = Options {
         ramp: false,
         band: None,
@@ -491,7 +504,9 @@ pub fn fit_triad(points: [&[AdevPoint]; 3], samples: usize, dt: f64) -> [Option<
             .expect("two or more bands")
     };
     for (f, p) in fits.iter_mut().zip(points) {
-        let Some(f) = f else { continue };
+        let Some(f) = f.as_mut().filter(|_| alternative) else {
+            continue;
+        };
         let with = Options {
             ramp: true,
             band: (f.model.c[2] > 0.0).then_some(f.model.band),
@@ -607,6 +622,7 @@ pub fn fit_axis_with(
         chi2: found.chi2,
         cost: found.cost,
         ramp_alternative: None,
+        ramp: None,
         points: d.y.len(),
     })
 }
