@@ -265,6 +265,8 @@ struct Design {
     fixed: [Vec<f64>; 4],
     bands: Vec<((f64, f64), Vec<f64>)>,
     gms: Vec<(f64, Vec<f64>)>,
+    /// The random walk must be in every model searched ([`Options::walk`]).
+    walk: bool,
 }
 
 /// The fixed components in the order of `Design::fixed`.
@@ -324,6 +326,7 @@ impl Design {
             fixed,
             bands,
             gms,
+            walk: false,
         }
     }
 
@@ -351,7 +354,8 @@ impl Design {
                         .iter()
                         .enumerate()
                         .any(|(i, k)| mask & (1 << i) != 0 && exclude.contains(k));
-                    if excluded {
+                    // FIXED[2] is the random walk.
+                    if excluded || (self.walk && mask & (1 << 2) == 0) {
                         continue;
                     }
                     let mut cols: Vec<Vec<f64>> = Vec::with_capacity(6);
@@ -444,6 +448,9 @@ pub struct Options {
     pub ramp: bool,
     /// The bias-instability band, when fixed (it must lie on the search grid).
     pub band: Option<(f64, f64)>,
+    /// Whether the random walk must be in the model (the least favourable null of the
+    /// time-domain ramp test, [`super::ramp`]).
+    pub walk: bool,
 }
 
 impl Default for Options {
@@ -451,6 +458,7 @@ impl Default for Options {
         Options {
             ramp: true,
             band: None,
+            walk: false,
         }
     }
 }
@@ -479,6 +487,7 @@ pub fn fit_triad_with(
     let no_ramp = Options {
         ramp: false,
         band: None,
+        walk: false,
     };
     let alone = points.map(|p| fit_axis_with(p, samples, dt, &no_ramp));
     let mut bands: Vec<(f64, f64)> = alone
@@ -497,6 +506,7 @@ pub fn fit_triad_with(
                 let o = Options {
                     ramp: false,
                     band: Some(b),
+                    walk: false,
                 };
                 points.map(|p| fit_axis_with(p, samples, dt, &o))
             })
@@ -510,6 +520,7 @@ pub fn fit_triad_with(
         let with = Options {
             ramp: true,
             band: (f.model.c[2] > 0.0).then_some(f.model.band),
+            walk: false,
         };
         if let Some(r) = fit_axis_with(p, samples, dt, &with)
             && r.cost < f.cost
@@ -531,7 +542,8 @@ pub fn fit_axis_with(
     dt: f64,
     opts: &Options,
 ) -> Option<AxisFit> {
-    let d = Design::new(points, dt);
+    let mut d = Design::new(points, dt);
+    d.walk = opts.walk;
     if d.y.is_empty() {
         return None;
     }

@@ -28,9 +28,10 @@
 //!   Cov = σ²φ^{|j−k|}, φ = e^{−Δt/T}): Σ_j Σ_k w_j w_k φ^{|j−k|}/Δt², in O(n) by the
 //!   recursion h_k = φ(h_{k−1} + w_{k−1}), Σ = Σw² + 2Σ w_k h_k.
 
-use super::gmwm::{AxisFit, Component, Model, fit_triad_with};
+use super::gmwm::{AxisFit, Component, GM_PENALTY, Model, Options, fit_axis_with, fit_triad_with};
 use crate::analysis::analyzer::Analysis;
 use crate::analysis::confidence::chi2_quantile;
+use crate::analysis::octave_adev::AdevPoint;
 use crate::errors::process::flicker_bank;
 
 /// Two-sided confidence of the gate per channel.
@@ -135,6 +136,25 @@ pub fn slope_variance(model: &Model, n: usize) -> f64 {
     v
 }
 
+/// The slope variance under the least favourable of the models the octaves accept: the fit,
+/// or the best fit with a random walk in it when its χ² is within χ²₂(99 %) of the fit's.
+/// Why: a Gauss–Markov component with T of a few per cent of the record takes a random walk's
+/// rise over the measured octaves about as well, but beyond T it is flat where the walk
+/// keeps rising — and the slope is set by the longest scale, which the octaves barely see
+/// (in the sweep of `tests/fit_ramp.rs` such a swap gave z = 9 on a record without a ramp).
+pub fn null_variance(points: &[AdevPoint], n: usize, fit: &AxisFit) -> f64 {
+    let v = slope_variance(&fit.model, n);
+    let opts = Options {
+        ramp: false,
+        band: (fit.model.c[Component::BiasInstability as usize] > 0.0).then_some(fit.model.band),
+        walk: true,
+    };
+    match fit_axis_with(points, n, fit.model.dt, &opts) {
+        Some(w) if w.chi2 <= fit.chi2 + GM_PENALTY => v.max(slope_variance(&w.model, n)),
+        _ => v,
+    }
+}
+
 /// Applies the ramp test to the fits of the six channels of a recording (gyro x y z, accel
 /// x y z) fitted without ramps: every channel gets its [`RampTest`]; a triad with a kept ramp
 /// is refitted with those axes' detrended Allan variance, and the kept ramp enters the
@@ -150,7 +170,7 @@ pub fn apply(a: &Analysis, fits: &mut [Option<AxisFit>]) {
             let (Some(trend), Some(fit)) = (&a.channels[ch].trend, &fits[ch]) else {
                 continue;
             };
-            let sigma = slope_variance(&fit.model, n).sqrt();
+            let sigma = null_variance(&a.channels[ch].adev, n, fit).sqrt();
             let z = trend.slope / sigma;
             *t = Some(RampTest {
                 slope: trend.slope,
@@ -179,7 +199,12 @@ pub fn apply(a: &Analysis, fits: &mut [Option<AxisFit>]) {
                 continue;
             };
             if t.kept {
-                let sigma = slope_variance(&fit.model, n).sqrt();
+                let points = &a.channels[base + axis]
+                    .trend
+                    .as_ref()
+                    .expect("tested")
+                    .detrended;
+                let sigma = null_variance(points, n, fit).sqrt();
                 t.interval = Some((t.slope - z99 * sigma, t.slope + z99 * sigma));
                 fit.model.c[Component::Ramp as usize] = t.slope * t.slope;
             }
@@ -245,7 +270,9 @@ mod tests {
     fn ar1_recursion_matches_the_double_sum_and_its_limits() {
         for (n, phi) in [(5usize, 0.3), (200, 0.97), (333, 0.999_9)] {
             let got = ar1_quadratic(n, phi, slope_w(n));
-            let direct = brute(n, &slope_w(n), &|j, k| phi.powi((j as i32 - k as i32).abs()));
+            let direct = brute(n, &slope_w(n), &|j, k| {
+                phi.powi((j as i32 - k as i32).abs())
+            });
             assert!((got / direct - 1.0).abs() < 1e-11, "n {n}: {got} {direct}");
             let ga = ar1_quadratic(2 * (n / 2), phi, allan_w(n / 2));
             let da = brute(2 * (n / 2), &allan_w(n / 2), &|j, k| {
