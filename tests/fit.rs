@@ -4,10 +4,12 @@
 //! every octave from Δt to T/8. And the command end to end: template that loads, report, plot,
 //! spectral lines as vibration sines, bad input named.
 
+mod common;
+
 use std::ffi::OsStr;
 use std::path::Path;
-use std::process::{Command, Output};
 
+use common::cli::{err, imu_emu, ok};
 use imu_emu::errors::template::{self, ImuModel};
 use imu_emu::fit::closure;
 use imu_emu::fit::compare::fit_all;
@@ -168,27 +170,6 @@ fn closure_catches_a_wrong_template() {
         rec.samples as usize,
     );
     assert!(!pts[1].inside() && !pts[2].inside(), "{pts:?}");
-}
-
-fn imu_emu<I: IntoIterator<Item = S>, S: AsRef<OsStr>>(args: I) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_imu-emu"))
-        .args(args)
-        .output()
-        .expect("run imu-emu")
-}
-
-fn ok(out: Output) -> String {
-    assert!(
-        out.status.success(),
-        "stderr:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn err(out: Output) -> String {
-    assert!(!out.status.success(), "expected failure");
-    String::from_utf8(out.stderr).unwrap()
 }
 
 /// A CSV recording with a 0.5 Hz line on gyro x: `fit` writes a template that loads and
