@@ -5,9 +5,6 @@
 
 mod common;
 
-use std::ffi::OsStr;
-use std::path::Path;
-
 use common::cli::{err, imu_emu, ok, p};
 use imu_emu::analysis::analyzer::Analyzer;
 use imu_emu::analysis::confidence::{NoiseType, edf};
