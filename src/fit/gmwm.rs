@@ -38,8 +38,10 @@
 //! with their neighbours: each interval is the union over the bands whose fit is within
 //! χ²₃(99 %) of the best.
 //!
-//! What a template can hold ([`fit_triad`]): no ramp (it has no key; a better fit with one
-//! is reported beside the template's) and one band per triad.
+//! What a template can hold ([`fit_triad`]): one band per triad, and no ramp from the Allan
+//! variance — its χ² cannot tell a ramp from a random walk's last octaves, so a better fit
+//! with one is only reported beside the template's; a recording's ramp is tested on its time
+//! series instead ([`super::ramp`]).
 
 use crate::analysis::confidence::{NoiseType, edf};
 use crate::analysis::conformance::{band as chi2_band, model_allowance, term_edf};
