@@ -218,8 +218,15 @@ fn fit_command_end_to_end() {
     assert_eq!(m.name, "unit");
     // No ramp simulated: the time-domain test ran on every channel and kept none.
     let text = std::fs::read_to_string(&unit).unwrap();
-    assert_eq!(text.matches("# rate ramp: not kept on any axis").count(), 2, "{text}");
-    assert!(out.contains("## Rate ramp") && !out.contains("| yes |"), "{out}");
+    assert_eq!(
+        text.matches("# rate ramp: not kept on any axis").count(),
+        2,
+        "{text}"
+    );
+    assert!(
+        out.contains("## Rate ramp") && !out.contains("| yes |"),
+        "{out}"
+    );
     // Gyro y (gyro x carries the line, which the Allan-variance fit sees as noise near
     // τ = 1/(2f)): N within 2 % (its 99 % interval here is ±1.5 %).
     let n = m.gyro.noise[1] / (0.15f64.to_radians() / 60.0);
