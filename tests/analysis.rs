@@ -3,10 +3,9 @@
 //! synthetic terms, and `imu-emu analyze` end to end: LN-200 terms within their bands, a
 //! wrong template caught, plots valid, foreign CSV columns and units, bad input named.
 
-use std::ffi::OsStr;
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
+use common::cli::{err, imu_emu, ok, p};
 use imu_emu::analysis::analyzer::Analyzer;
 use imu_emu::analysis::confidence::{NoiseType, edf};
 use imu_emu::analysis::conformance::term_rows;
@@ -223,31 +222,6 @@ fn fit_recovers_n_b_k_within_length_bands() {
 
 // ---------------------------------------------------------------------------------------------
 // The command.
-
-fn imu_emu<I: IntoIterator<Item = S>, S: AsRef<OsStr>>(args: I) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_imu-emu"))
-        .args(args)
-        .output()
-        .expect("run imu-emu")
-}
-
-fn ok(out: Output) -> String {
-    assert!(
-        out.status.success(),
-        "stderr:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn err(out: Output) -> String {
-    assert!(!out.status.success(), "expected failure");
-    String::from_utf8(out.stderr).unwrap()
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
 
 /// The LN-200 (white noise and carried LSB quantization, 400 Hz) for 600 s, static: every
 /// specified term (Q and N of six channels) within its 99 % band. Over 20 seeds one of the

@@ -1,11 +1,13 @@
 //! ADEV tables as input: `fit` on a published Allan deviation table, and `analyze
 //! --reference` comparing a recording with another recording or a table.
 
+mod common;
+
 use std::ffi::OsStr;
 use std::fmt::Write as _;
 use std::path::Path;
-use std::process::{Command, Output};
 
+use common::cli::{err, imu_emu, ok};
 use imu_emu::analysis::adev_table::{self, TableOptions};
 use imu_emu::errors::template;
 use imu_emu::fit::closure;
@@ -146,27 +148,6 @@ fn noisy_table_fits_as_its_recording() {
     // reads gyro y's 28 % low against a ±13 % interval (a Gauss–Markov component takes part
     // of the rise; docs/fit.md, "Not done yet").
     assert!(missed.is_empty(), "{}", missed.join("\n"));
-}
-
-fn imu_emu<I: IntoIterator<Item = S>, S: AsRef<OsStr>>(args: I) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_imu-emu"))
-        .args(args)
-        .output()
-        .expect("run imu-emu")
-}
-
-fn ok(out: Output) -> String {
-    assert!(
-        out.status.success(),
-        "stderr:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn err(out: Output) -> String {
-    assert!(!out.status.success(), "expected failure");
-    String::from_utf8(out.stderr).unwrap()
 }
 
 /// `fit` on per-sensor table files writes a template of both sensors; a bad table is named

@@ -407,6 +407,7 @@ impl AdevTable {
                         segments: 0,
                     },
                     fit: f,
+                    trend: None,
                 }
             })
             .collect();

@@ -40,6 +40,17 @@ pub struct ChannelAnalysis {
     pub psd: Psd,
     /// The fitted IEEE terms.
     pub fit: Fit,
+    /// The record's linear trend (None without a time series, e.g. a published table).
+    pub trend: Option<Trend>,
+}
+
+/// The least-squares line of a channel and the Allan deviation of what is left around it.
+#[derive(Clone, Debug)]
+pub struct Trend {
+    /// Least-squares slope of the rate (unit of the rate per second).
+    pub slope: f64,
+    /// The octave Allan deviation of the record minus that line (68 % intervals as `adev`).
+    pub detrended: Vec<AdevPoint>,
 }
 
 /// The analysis of a record.
@@ -119,6 +130,10 @@ impl Analyzer {
                     stats: self.stats[i],
                     adev: self.adev[i].points(dt, |tau| fit.dominant(tau)),
                     psd: self.psd[i].finish(dt),
+                    trend: Some(Trend {
+                        slope: self.adev[i].slope() / dt,
+                        detrended: self.adev[i].detrended_points(dt, |tau| fit.dominant(tau)),
+                    }),
                     fit,
                 }
             })

@@ -57,6 +57,9 @@ struct Octave {
     head: usize,
     filled: usize,
     sum_sq: f64,
+    /// Σ of the second differences: with Σd² it gives the curve of the record with any
+    /// linear trend removed ([`OctaveAdev::detrended_points`]).
+    sum_d: f64,
     terms: u64,
 }
 
@@ -69,6 +72,10 @@ pub struct OctaveAdev {
     comp: f64,
     /// Phase index of the next phase point (= samples pushed).
     k: u64,
+    /// Running mean of the (offset) rate and its co-moment with the sample index, for the
+    /// least-squares slope (Welford's update, stable whatever the bias).
+    mean_x: f64,
+    co_kx: f64,
 }
 
 impl Default for OctaveAdev {
@@ -91,6 +98,7 @@ impl OctaveAdev {
                     head: 0,
                     filled: 0,
                     sum_sq: 0.0,
+                    sum_d: 0.0,
                     terms: 0,
                 }
             })
@@ -101,6 +109,8 @@ impl OctaveAdev {
             sum: 0.0,
             comp: 0.0,
             k: 0,
+            mean_x: 0.0,
+            co_kx: 0.0,
         };
         a.visit(0.0); // θ_0 = 0
         a
@@ -118,6 +128,10 @@ impl OctaveAdev {
             (x - t) + self.sum
         };
         self.sum = t;
+        // Index k joins: the index mean moves from (k−1)/2 to k/2, so k − mean_old = (k+1)/2.
+        let dx = x - self.mean_x;
+        self.mean_x += dx / (self.k + 1) as f64;
+        self.co_kx += 0.5 * (self.k + 1) as f64 * (x - self.mean_x);
         self.k += 1;
         self.visit(self.sum + self.comp);
     }
@@ -153,21 +167,47 @@ impl OctaveAdev {
                 let old = o.ring[(o.head + 1) % len];
                 let d = theta - 2.0 * mid + old;
                 o.sum_sq += d * d;
+                o.sum_d += d;
                 o.terms += 1;
             }
         }
     }
 
+    /// Least-squares slope of the rate against the sample index (rate per sample; 0 for
+    /// fewer than two samples): Σ(k − k̄)x_k / Σ(k − k̄)², the denominator n(n² − 1)/12.
+    pub fn slope(&self) -> f64 {
+        let n = self.k as f64;
+        if self.k < 2 {
+            return 0.0;
+        }
+        self.co_kx / (n * (n * n - 1.0) / 12.0)
+    }
+
     /// The curve at sampling interval `dt`, one point per octave with at least one second
     /// difference; `noise(τ)` names the noise type that dominates at τ (it sets the edf).
     pub fn points(&self, dt: f64, noise: impl Fn(f64) -> NoiseType) -> Vec<AdevPoint> {
+        self.points_less(0.0, dt, noise)
+    }
+
+    /// [`OctaveAdev::points`] of the record with its least-squares line removed. Why exact:
+    /// the phase of a rate b·k is b·k(k − 1)/2, whose second difference at lag m is b·m²
+    /// for every k, so each difference d becomes d − b·m² and Σ(d − bm²)² = Σd² − 2bm²Σd +
+    /// terms·b²m⁴ needs only the running Σd.
+    pub fn detrended_points(&self, dt: f64, noise: impl Fn(f64) -> NoiseType) -> Vec<AdevPoint> {
+        self.points_less(self.slope(), dt, noise)
+    }
+
+    fn points_less(&self, slope: f64, dt: f64, noise: impl Fn(f64) -> NoiseType) -> Vec<AdevPoint> {
         let phases = self.k as usize + 1;
         self.octaves
             .iter()
             .filter(|o| o.terms > 0)
             .map(|o| {
                 let m = o.m as f64;
-                let adev = (o.sum_sq / (2.0 * m * m * o.terms as f64)).sqrt();
+                let bm2 = slope * m * m;
+                let terms = o.terms as f64;
+                let sum_sq = o.sum_sq - 2.0 * bm2 * o.sum_d + terms * bm2 * bm2;
+                let adev = (sum_sq.max(0.0) / (2.0 * m * m * terms)).sqrt();
                 let tau = m * dt;
                 let edf = edf(noise(tau), phases, o.m);
                 let (lo, hi) = adev_interval(adev, edf, CONFIDENCE);
@@ -212,6 +252,56 @@ mod tests {
                 assert!((p.adev - b.adev).abs() < (p.hi - p.lo) / 2.0, "m {}", p.m);
             }
         }
+    }
+
+    /// The streamed slope is the batch least-squares slope, and the detrended curve equals the
+    /// batch overlapping estimator of the record minus that line (m ≤ 16, where the stream is
+    /// fully overlapping), to round-off, on a record with a bias and a trend 10⁴× its noise
+    /// at the end. Without the Σd term the m = 16 point would carry the trend (b·m²/√2 = 23× the noise there).
+    #[test]
+    fn detrended_curve_is_the_curve_of_the_residual() {
+        let mut s = NormalStream::new(12, "octave/trend");
+        let n = 20_000usize;
+        let y: Vec<f64> = (0..n).map(|k| 9.8 + 0.5 * k as f64 + s.draw()).collect();
+        let mut acc = OctaveAdev::new();
+        y.iter().for_each(|&v| acc.push(v));
+        let kbar = (n as f64 - 1.0) / 2.0;
+        let ybar = y.iter().sum::<f64>() / n as f64;
+        let num: f64 = y
+            .iter()
+            .enumerate()
+            .map(|(k, v)| (k as f64 - kbar) * (v - ybar))
+            .sum();
+        let den: f64 = (0..n).map(|k| (k as f64 - kbar).powi(2)).sum();
+        let b = num / den;
+        assert!(
+            (acc.slope() / b - 1.0).abs() < 1e-12,
+            "{} vs {b}",
+            acc.slope()
+        );
+        let r: Vec<f64> = y
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v - b * k as f64)
+            .collect();
+        let dt = 0.01;
+        let batch = super::super::allan::overlapping(&r, dt);
+        let stream = acc.detrended_points(dt, |_| NoiseType::WhiteRate);
+        for (bp, p) in batch
+            .iter()
+            .zip(&stream)
+            .filter(|(b, _)| b.m <= STRIDE_DIVISOR)
+        {
+            assert!(
+                (p.adev / bp.adev - 1.0).abs() < 1e-7,
+                "m {}: {} vs {}",
+                p.m,
+                p.adev,
+                bp.adev
+            );
+        }
+        let raw = acc.points(dt, |_| NoiseType::WhiteRate);
+        assert!(raw[4].adev > 10.0 * stream[4].adev);
     }
 
     /// Memory does not grow with the record: the rings are fixed at construction.

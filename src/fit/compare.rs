@@ -4,7 +4,7 @@
 
 use std::fmt::Write as _;
 
-use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, fit_triad};
+use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, fit_triad_with};
 use super::template::{sig4, unit};
 use crate::analysis::analyzer::{Analysis, CHANNELS};
 use crate::analysis::octave_adev::AdevPoint;
@@ -12,23 +12,31 @@ use crate::analysis::report::{adev_unit, banded_psd};
 use crate::plot::{Panel, Series};
 
 /// The fits of the six channels (gyro x y z, accel x y z; None where a channel has no
-/// usable Allan deviation), one band per triad as a template holds it.
+/// usable Allan deviation), one band per triad as a template holds it. A recording's ramp is
+/// tested on its time series ([`super::ramp`]); a table's is sought as an Allan-variance
+/// alternative.
 pub fn fit_all(a: &Analysis) -> Vec<Option<AxisFit>> {
     let samples = a.samples as usize;
+    let series = a.channels.iter().all(|c| c.trend.is_some());
     let triad = |base: usize| {
         let c = &a.channels;
-        fit_triad(
+        fit_triad_with(
             [&c[base].adev, &c[base + 1].adev, &c[base + 2].adev],
             samples,
             a.dt,
+            !series,
         )
     };
-    std::thread::scope(|s| {
+    let mut fits = std::thread::scope(|s| {
         let accel = s.spawn(|| triad(3));
         let mut v = triad(0).to_vec();
         v.extend(accel.join().expect("fit thread"));
         v
-    })
+    });
+    if series {
+        super::ramp::apply(a, &mut fits);
+    }
+    fits
 }
 
 /// What the two intervals of a term say.

@@ -38,8 +38,10 @@
 //! with their neighbours: each interval is the union over the bands whose fit is within
 //! χ²₃(99 %) of the best.
 //!
-//! What a template can hold ([`fit_triad`]): no ramp (it has no key; a better fit with one
-//! is reported beside the template's) and one band per triad.
+//! What a template can hold ([`fit_triad`]): one band per triad, and no ramp from the Allan
+//! variance — its χ² cannot tell a ramp from a random walk's last octaves, so a better fit
+//! with one is only reported beside the template's; a recording's ramp is tested on its time
+//! series instead ([`super::ramp`]).
 
 use crate::analysis::confidence::{NoiseType, edf};
 use crate::analysis::conformance::{band as chi2_band, model_allowance, term_edf};
@@ -242,6 +244,8 @@ pub struct AxisFit {
     /// When the ramp was left out ([`Options::ramp`] false) but a fit with it is better:
     /// the ramp that fit finds and its χ² gain.
     pub ramp_alternative: Option<Estimate>,
+    /// The time-domain ramp test of a recording ([`super::ramp`]; None for a table).
+    pub ramp: Option<super::ramp::RampTest>,
     /// Octave points used.
     pub points: usize,
 }
@@ -263,6 +267,8 @@ struct Design {
     fixed: [Vec<f64>; 4],
     bands: Vec<((f64, f64), Vec<f64>)>,
     gms: Vec<(f64, Vec<f64>)>,
+    /// The random walk must be in every model searched ([`Options::walk`]).
+    walk: bool,
 }
 
 /// The fixed components in the order of `Design::fixed`.
@@ -322,6 +328,7 @@ impl Design {
             fixed,
             bands,
             gms,
+            walk: false,
         }
     }
 
@@ -349,7 +356,8 @@ impl Design {
                         .iter()
                         .enumerate()
                         .any(|(i, k)| mask & (1 << i) != 0 && exclude.contains(k));
-                    if excluded {
+                    // FIXED[2] is the random walk.
+                    if excluded || (self.walk && mask & (1 << 2) == 0) {
                         continue;
                     }
                     let mut cols: Vec<Vec<f64>> = Vec::with_capacity(6);
@@ -442,6 +450,9 @@ pub struct Options {
     pub ramp: bool,
     /// The bias-instability band, when fixed (it must lie on the search grid).
     pub band: Option<(f64, f64)>,
+    /// Whether the random walk must be in the model (the least favourable null of the
+    /// time-domain ramp test, [`super::ramp`]).
+    pub walk: bool,
 }
 
 impl Default for Options {
@@ -449,6 +460,7 @@ impl Default for Options {
         Options {
             ramp: true,
             band: None,
+            walk: false,
         }
     }
 }
@@ -463,9 +475,21 @@ pub fn fit_axis(points: &[AdevPoint], samples: usize, dt: f64) -> Option<AxisFit
 /// alternative where a fit with it is better) and one bias-instability band for the triad —
 /// of the bands the axes choose alone, the one with the least total cost.
 pub fn fit_triad(points: [&[AdevPoint]; 3], samples: usize, dt: f64) -> [Option<AxisFit>; 3] {
+    fit_triad_with(points, samples, dt, true)
+}
+
+/// [`fit_triad`], the Allan-variance ramp alternative sought only when `alternative` (a
+/// recording's ramp is tested on its time series instead, [`super::ramp`]).
+pub fn fit_triad_with(
+    points: [&[AdevPoint]; 3],
+    samples: usize,
+    dt: f64,
+    alternative: bool,
+) -> [Option<AxisFit>; 3] {
     let no_ramp = Options {
         ramp: false,
         band: None,
+        walk: false,
     };
     let alone = points.map(|p| fit_axis_with(p, samples, dt, &no_ramp));
     let mut bands: Vec<(f64, f64)> = alone
@@ -484,6 +508,7 @@ pub fn fit_triad(points: [&[AdevPoint]; 3], samples: usize, dt: f64) -> [Option<
                 let o = Options {
                     ramp: false,
                     band: Some(b),
+                    walk: false,
                 };
                 points.map(|p| fit_axis_with(p, samples, dt, &o))
             })
@@ -491,10 +516,13 @@ pub fn fit_triad(points: [&[AdevPoint]; 3], samples: usize, dt: f64) -> [Option<
             .expect("two or more bands")
     };
     for (f, p) in fits.iter_mut().zip(points) {
-        let Some(f) = f else { continue };
+        let Some(f) = f.as_mut().filter(|_| alternative) else {
+            continue;
+        };
         let with = Options {
             ramp: true,
             band: (f.model.c[2] > 0.0).then_some(f.model.band),
+            walk: false,
         };
         if let Some(r) = fit_axis_with(p, samples, dt, &with)
             && r.cost < f.cost
@@ -516,7 +544,8 @@ pub fn fit_axis_with(
     dt: f64,
     opts: &Options,
 ) -> Option<AxisFit> {
-    let d = Design::new(points, dt);
+    let mut d = Design::new(points, dt);
+    d.walk = opts.walk;
     if d.y.is_empty() {
         return None;
     }
@@ -607,6 +636,7 @@ pub fn fit_axis_with(
         chi2: found.chi2,
         cost: found.cost,
         ramp_alternative: None,
+        ramp: None,
         points: d.y.len(),
     })
 }

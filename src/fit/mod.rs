@@ -9,5 +9,6 @@ pub mod closure;
 pub mod compare;
 pub mod gmwm;
 pub mod lines;
+pub mod ramp;
 pub mod report;
 pub mod template;

@@ -7,6 +7,7 @@ use std::fmt::Write;
 use super::closure::ClosurePoint;
 use super::gmwm::{AxisFit, COMPONENTS, Component};
 use super::lines::Line;
+use super::ramp::{GATE_CONFIDENCE, RampTest, normal_point};
 use super::template::{Provenance, sig4};
 use crate::analysis::analyzer::{Analysis, CHANNELS};
 use crate::analysis::report::adev_unit;
@@ -89,6 +90,7 @@ pub fn markdown(
             );
         }
     }
+    ramp_rows(&mut s, fits);
     let any_line = lines.iter().any(|l| !l.is_empty());
     let _ = writeln!(s, "\n## Spectral lines\n");
     if !any_line {
@@ -133,6 +135,38 @@ pub fn markdown(
         );
     }
     s
+}
+
+/// The time-domain ramp of each channel of a recording: kept ones with their interval, the
+/// others with their z.
+fn ramp_rows(s: &mut String, fits: &[Option<AxisFit>]) {
+    let gate = normal_point(GATE_CONFIDENCE);
+    let tests: Vec<(usize, RampTest)> = fits
+        .iter()
+        .enumerate()
+        .filter_map(|(ch, f)| Some((ch, f.as_ref()?.ramp?)))
+        .collect();
+    if tests.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\n## Rate ramp\n\nLeast-squares slope of each channel against its σ under the model fitted without a ramp;\nkept when |z| > {gate:.2} (99.9 % two-sided), then the other terms are fitted around the line.\n\n| channel | slope | z | kept | 99 % interval |\n| --- | --- | --- | --- | --- |"
+    );
+    for (ch, t) in tests {
+        let (u, f) = super::template::unit(ch < 3, Component::Ramp);
+        let iv = t.interval.map_or(String::new(), |(lo, hi)| {
+            format!("[{}, {}] {u}", sig4(lo * f), sig4(hi * f))
+        });
+        let _ = writeln!(
+            s,
+            "| {} | {} {u} | {:.2} | {} | {iv} |",
+            CHANNELS[ch],
+            sig4(t.slope * f),
+            t.z,
+            if t.kept { "yes" } else { "no" }
+        );
+    }
 }
 
 /// One ADEV panel per channel (gyro x y z, accel x y z): the recording with its 68 % band,

@@ -6,6 +6,7 @@ use std::fmt::Write;
 
 use super::gmwm::{AxisFit, Component, Estimate};
 use super::lines::Line;
+use super::ramp::{GATE_CONFIDENCE, RampTest, normal_point};
 use crate::analysis::fit::Term;
 use crate::analysis::report::{adev_unit, term_unit};
 
@@ -233,6 +234,7 @@ fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
             values(Component::Ramp, f, u)
         );
     }
+    ramp_toml(s, gyro, axes);
     let alternative = |a: usize| axes[a].and_then(|f| f.ramp_alternative);
     if (0..3).any(|a| alternative(a).is_some()) {
         for a in 0..3 {
@@ -256,6 +258,61 @@ fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
             v.join(", ")
         );
     }
+}
+
+/// The time-domain ramp test of a recording (docs/fit.md): the slope of each axis with its z,
+/// and the kept ramps as a `ramp` key (signed: the slope sees the sign).
+fn ramp_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
+    let tests: Vec<Option<RampTest>> = axes.iter().map(|f| f.and_then(|f| f.ramp)).collect();
+    if tests.iter().all(Option::is_none) {
+        return;
+    }
+    let gate = normal_point(GATE_CONFIDENCE);
+    let (u, f) = unit(gyro, Component::Ramp);
+    if !tests.iter().flatten().any(|t| t.kept) {
+        let z: Vec<String> = tests
+            .iter()
+            .map(|t| t.map_or("-".into(), |t| format!("{:.2}", t.z)))
+            .collect();
+        let _ = writeln!(
+            s,
+            "# rate ramp: not kept on any axis; z = slope/σ(slope) of x, y, z: {} (|z| > {gate:.2} to be kept)",
+            z.join(", ")
+        );
+        return;
+    }
+    for (a, t) in tests.iter().enumerate() {
+        let Some(t) = t else { continue };
+        let axis = ["x", "y", "z"][a];
+        match t.interval {
+            Some((lo, hi)) if t.kept => {
+                let _ = writeln!(
+                    s,
+                    "# {axis}: R = {} {u}, 99 % interval [{}, {}]; least-squares slope of the record, z = {} (|z| > {gate:.2} to be kept), the other figures fitted around it",
+                    sig4(t.slope * f),
+                    sig4(lo * f),
+                    sig4(hi * f),
+                    sig4(t.z)
+                );
+            }
+            _ => {
+                let _ = writeln!(
+                    s,
+                    "# {axis}: slope {} {u}, z = {:.2}: no ramp (|z| ≤ {gate:.2})",
+                    sig4(t.slope * f),
+                    t.z
+                );
+            }
+        }
+    }
+    let v: Vec<String> = tests
+        .iter()
+        .map(|t| {
+            let r = t.filter(|t| t.kept).map_or(0.0, |t| t.slope);
+            format!("\"{} {u}\"", sig4(r * f))
+        })
+        .collect();
+    let _ = writeln!(s, "ramp = [{}]", v.join(", "));
 }
 
 /// The lines as `[[vibration.sine]]` entries of a scene file on the static scene, so that

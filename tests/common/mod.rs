@@ -3,6 +3,8 @@
 // Each test target uses only some of these.
 #![allow(dead_code)]
 
+pub mod cli;
+
 use std::path::Path;
 
 use imu_emu::errors::{ErrorChain, ImuModel, template};
