@@ -180,6 +180,28 @@ fn start(dir: &std::path::Path, extra: &[&str]) -> (Child, u16, mpsc::Receiver<S
     (child, port, rx)
 }
 
+/// Waits for the run to end: whether it succeeded, and its stderr.
+fn stderr_of(child: Child, lines: &mpsc::Receiver<String>) -> (bool, String) {
+    let out = child.wait_with_output().unwrap();
+    let err: Vec<String> = lines.iter().collect();
+    (out.status.success(), err.join("\n"))
+}
+
+/// Waits for the run to end and its success; its stderr, echoed after `note`.
+fn finish(child: Child, lines: &mpsc::Receiver<String>, note: &str) -> String {
+    let (ok, err) = stderr_of(child, lines);
+    eprintln!("{note}{err}");
+    assert!(ok, "{err}");
+    err
+}
+
+/// The run's summary line.
+fn summary(err: &str) -> &str {
+    err.lines()
+        .find(|l| l.contains("frames at 400 Hz from t ="))
+        .expect("a summary")
+}
+
 /// Collects the datagrams a UDP sink sends until it is quiet for 3 s after the first.
 fn collect(sock: UdpSocket) -> thread::JoinHandle<Vec<u8>> {
     thread::spawn(move || {
@@ -251,15 +273,8 @@ fn realtime_in_time_is_lockstep_of_its_recorded_input() {
     );
     let states = survey_states(3.0);
     assert_eq!(send(&states, port, 0.0, 0.0, 1), 0);
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    eprintln!("{err}");
-    assert!(out.status.success(), "{err}");
-    let summary = err
-        .lines()
-        .find(|l| l.contains("frames at 400 Hz from t ="))
-        .expect("a summary");
+    let err = finish(child, &lines, "");
+    let summary = summary(&err);
     assert!(summary.contains("(input ended)"), "{summary}");
     assert!(summary.contains("0 corrections"), "{summary}");
     assert!(summary.contains("delay 60.00 ms"), "{summary}");
@@ -328,15 +343,8 @@ fn realtime_jitter_and_loss_are_bounded_and_reported() {
     let (child, port, lines) = start(dir.path(), &["--file", "out.bin"]);
     let states = survey_states(4.0);
     let lost = send(&states, port, 0.003, 0.01, 7);
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    eprintln!("{lost} states not sent\n{err}");
-    assert!(out.status.success(), "{err}");
-    let summary = err
-        .lines()
-        .find(|l| l.contains("frames at 400 Hz from t ="))
-        .expect("a summary");
+    let err = finish(child, &lines, &format!("{lost} states not sent\n"));
+    let summary = summary(&err);
     assert_eq!(
         number_before(summary, "missing in") as u64,
         lost,
@@ -399,11 +407,7 @@ fn stale_input_sets_the_status_failure_bits() {
         ],
     );
     send(&survey_states(1.5), port, 0.0, 0.0, 1);
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    eprintln!("{err}");
-    assert!(out.status.success(), "{err}");
+    let err = finish(child, &lines, "");
     let dec = imu_emu()
         .current_dir(dir.path())
         .args([
@@ -543,15 +547,8 @@ fn late_state_is_extrapolated_and_bridged_without_spike() {
     let (hold_at, hold) = (152.0, 0.06);
     let states = survey_span(149.5, 153.5);
     send_held(&states, port, 0.0, 0.0, 1, (hold_at, hold));
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    eprintln!("{err}");
-    assert!(out.status.success(), "{err}");
-    let summary = err
-        .lines()
-        .find(|l| l.contains("frames at 400 Hz from t ="))
-        .expect("a summary");
+    let err = finish(child, &lines, "");
+    let summary = summary(&err);
     let t0 = number_after(summary, "from t =");
     assert_eq!(t0, 149.58, "the ninth state");
     assert!(number_before(summary, "extrapolated)") > 400.0, "{summary}");
@@ -754,15 +751,8 @@ fn gps_run(extra: &[&str], emission: impl Fn(usize) -> f64) {
         };
         s.send_to(&d, ("127.0.0.1", port)).unwrap();
     }
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    eprintln!("{err}");
-    assert!(out.status.success(), "{err}");
-    let summary = err
-        .lines()
-        .find(|l| l.contains("frames at 400 Hz from t ="))
-        .expect("a summary");
+    let err = finish(child, &lines, "");
+    let summary = summary(&err);
     assert!(summary.contains("clock +0.0 ppm"), "{summary}");
     let pacer = err
         .lines()
@@ -800,10 +790,8 @@ fn gps_time_base_refuses_simulation_second_tags() {
     let dir = tempfile::TempDir::new().unwrap();
     let (child, port, lines) = start(dir.path(), &["--time-base", "gps"]);
     send(&survey_states(0.5), port, 0.0, 0.0, 1);
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    assert!(!out.status.success(), "{err}");
+    let (ok, err) = stderr_of(child, &lines);
+    assert!(!ok, "{err}");
     assert!(
         err.contains("datagram 1, byte 6: the time tag 0 is in simulation seconds"),
         "{err}"
