@@ -13,7 +13,7 @@
 //! Timing bounds are loose on purpose (a loaded 2-core machine); timing figures belong in
 //! benches/live_latency.rs.
 
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Write};
 use std::net::UdpSocket;
 use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
@@ -21,6 +21,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use imu_emu::live::binary::{self, Datagram};
+use imu_emu::live::mavlink;
 use imu_emu::motion::{Motion, Pose};
 use imu_emu::sim::Simulation;
 
@@ -43,8 +44,8 @@ fn survey_span(from: f64, to: f64) -> Vec<Pose> {
         .collect()
 }
 
-fn datagram(p: &Pose, seq: u32) -> [u8; binary::LEN] {
-    binary::encode(&Datagram {
+fn datagram(p: &Pose, seq: u32) -> Datagram {
+    Datagram {
         seq,
         week: binary::NO_WEEK,
         time: p.t,
@@ -54,7 +55,24 @@ fn datagram(p: &Pose, seq: u32) -> [u8; binary::LEN] {
         acc: [0.0; 3],
         quat: [p.q_b_n.w, p.q_b_n.i, p.q_b_n.j, p.q_b_n.k],
         rate: [0.0; 3],
-    })
+    }
+}
+
+/// A HIL_STATE_QUATERNION frame of pose `p` at `time_usec`, in the message's units.
+fn mavlink_frame(p: &Pose, seq: u8, time_usec: u64) -> Vec<u8> {
+    let q = p.q_b_n;
+    let (deg7, cm) = (
+        |x: f64| (x.to_degrees() * 1e7).round() as i32,
+        |v: f64| (v * 100.0).round() as i16,
+    );
+    mavlink::encode(
+        seq,
+        time_usec,
+        [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
+        [0.0; 3],
+        [deg7(p.lat), deg7(p.lon), (p.h * 1000.0).round() as i32],
+        [cm(p.v_n.x), cm(p.v_n.y), cm(p.v_n.z)],
+    )
 }
 
 /// A small fixed-seed generator (xorshift64*) for the sender's jitter and loss.
@@ -97,7 +115,7 @@ fn send_held(states: &[Pose], to: u16, jitter: f64, loss: f64, seed: u64, held: 
             lost += 1;
             continue;
         }
-        s.send_to(&datagram(p, i as u32), ("127.0.0.1", to))
+        s.send_to(&binary::encode(&datagram(p, i as u32)), ("127.0.0.1", to))
             .unwrap();
     }
     lost
@@ -121,18 +139,21 @@ fn start(dir: &std::path::Path, extra: &[&str]) -> (Child, u16, mpsc::Receiver<S
             "run",
             "--motion",
             &format!("udp://127.0.0.1:{port}"),
-            "--input-format",
-            "bin",
             "--rate",
             "400",
             "--input-timeout",
             "1",
         ])
-        // The ideal IMU unless `extra` names one.
+        // The ideal IMU and binary datagrams unless `extra` names others.
         .args(if extra.contains(&"--imu") {
             &[][..]
         } else {
             &["--imu", "ideal"][..]
+        })
+        .args(if extra.contains(&"--input-format") {
+            &[][..]
+        } else {
+            &["--input-format", "bin"][..]
         })
         .args(extra)
         .stderr(Stdio::piped())
@@ -157,6 +178,28 @@ fn start(dir: &std::path::Path, extra: &[&str]) -> (Child, u16, mpsc::Receiver<S
         }
     }
     (child, port, rx)
+}
+
+/// Waits for the run to end: whether it succeeded, and its stderr.
+fn stderr_of(child: Child, lines: &mpsc::Receiver<String>) -> (bool, String) {
+    let out = child.wait_with_output().unwrap();
+    let err: Vec<String> = lines.iter().collect();
+    (out.status.success(), err.join("\n"))
+}
+
+/// Waits for the run to end and its success; its stderr, echoed after `note`.
+fn finish(child: Child, lines: &mpsc::Receiver<String>, note: &str) -> String {
+    let (ok, err) = stderr_of(child, lines);
+    eprintln!("{note}{err}");
+    assert!(ok, "{err}");
+    err
+}
+
+/// The run's summary line.
+fn summary(err: &str) -> &str {
+    err.lines()
+        .find(|l| l.contains("frames at 400 Hz from t ="))
+        .expect("a summary")
 }
 
 /// Collects the datagrams a UDP sink sends until it is quiet for 3 s after the first.
@@ -230,15 +273,8 @@ fn realtime_in_time_is_lockstep_of_its_recorded_input() {
     );
     let states = survey_states(3.0);
     assert_eq!(send(&states, port, 0.0, 0.0, 1), 0);
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    eprintln!("{err}");
-    assert!(out.status.success(), "{err}");
-    let summary = err
-        .lines()
-        .find(|l| l.contains("frames at 400 Hz from t ="))
-        .expect("a summary");
+    let err = finish(child, &lines, "");
+    let summary = summary(&err);
     assert!(summary.contains("(input ended)"), "{summary}");
     assert!(summary.contains("0 corrections"), "{summary}");
     assert!(summary.contains("delay 60.00 ms"), "{summary}");
@@ -307,15 +343,8 @@ fn realtime_jitter_and_loss_are_bounded_and_reported() {
     let (child, port, lines) = start(dir.path(), &["--file", "out.bin"]);
     let states = survey_states(4.0);
     let lost = send(&states, port, 0.003, 0.01, 7);
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    eprintln!("{lost} states not sent\n{err}");
-    assert!(out.status.success(), "{err}");
-    let summary = err
-        .lines()
-        .find(|l| l.contains("frames at 400 Hz from t ="))
-        .expect("a summary");
+    let err = finish(child, &lines, &format!("{lost} states not sent\n"));
+    let summary = summary(&err);
     assert_eq!(
         number_before(summary, "missing in") as u64,
         lost,
@@ -378,11 +407,7 @@ fn stale_input_sets_the_status_failure_bits() {
         ],
     );
     send(&survey_states(1.5), port, 0.0, 0.0, 1);
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    eprintln!("{err}");
-    assert!(out.status.success(), "{err}");
+    let err = finish(child, &lines, "");
     let dec = imu_emu()
         .current_dir(dir.path())
         .args([
@@ -522,15 +547,8 @@ fn late_state_is_extrapolated_and_bridged_without_spike() {
     let (hold_at, hold) = (152.0, 0.06);
     let states = survey_span(149.5, 153.5);
     send_held(&states, port, 0.0, 0.0, 1, (hold_at, hold));
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    eprintln!("{err}");
-    assert!(out.status.success(), "{err}");
-    let summary = err
-        .lines()
-        .find(|l| l.contains("frames at 400 Hz from t ="))
-        .expect("a summary");
+    let err = finish(child, &lines, "");
+    let summary = summary(&err);
     let t0 = number_after(summary, "from t =");
     assert_eq!(t0, 149.58, "the ninth state");
     assert!(number_before(summary, "extrapolated)") > 400.0, "{summary}");
@@ -633,6 +651,15 @@ fn gps_time_base_emits_at_the_tags_gps_instants() {
     gps_run(&[], |k| (k + 1) as f64 / 400.0);
 }
 
+/// The same with MAVLink HIL_STATE_QUATERNION frames whose `time_usec` is the host's Unix
+/// time of the state (GPS time − the leap seconds): converted to GPS time, they leave at the
+/// same instants. Taken as seconds they would map decades from now and the run would refuse
+/// them; without the leap seconds every frame would be due 18 s off and fail the bounds.
+#[test]
+fn gps_time_base_takes_mavlink_unix_time() {
+    gps_run(&["--input-format", "mavlink"], |k| (k + 1) as f64 / 400.0);
+}
+
 /// An IMU template with timing errors in a live real-time run: a sensor clock 500 ppm fast
 /// and a 5 ms latency. Record k's time of validity is the true instant its clock reads
 /// k·Δt, (k·Δt)/(1 + 500e-6) after t₀ (docs/timing.md), and its frame leaves 5 ms later, plus
@@ -653,16 +680,20 @@ fn timing_errors_set_the_live_emission_instants() {
     });
 }
 
-/// Streams 3 s of survey states tagged with GPS time Δ = 0.3 s ahead of the host's, to a
-/// run on `--time-base gps` with 50 ms delay and `extra` flags, and checks that frame k
-/// (0-based) reaches a UDP sink at t₀ + `emission(k)` + the delay on the host's GPS clock.
+/// Streams 3 s of survey states tagged with GPS time Δ = 0.3 s ahead of the host's (binary
+/// datagrams, or MAVLink frames tagged with the Unix time of that instant when `extra` says
+/// `mavlink`), to a run on `--time-base gps` with 50 ms delay and `extra` flags, and checks
+/// that frame k (0-based) reaches a UDP sink at t₀ + `emission(k)` + the delay on the host's
+/// GPS clock.
 fn gps_run(extra: &[&str], emission: impl Fn(usize) -> f64) {
     use imu_emu::realtime::hostclock::GpsClock;
     use imu_emu::timebase::LeapTable;
     let dir = tempfile::TempDir::new().unwrap();
     let sink = UdpSocket::bind("127.0.0.1:0").unwrap();
     let sink_port = sink.local_addr().unwrap().port();
-    let host = GpsClock::new(LeapTable::builtin());
+    let leap = LeapTable::builtin();
+    let mavlink = extra.contains(&"mavlink");
+    let host = GpsClock::new(leap.clone());
     let (g0, i0) = (host.now_gps_ns(), Instant::now());
     let gps_at = move |i: Instant| g0 + (i - i0).as_nanos() as i128;
     let got = thread::spawn(move || {
@@ -706,28 +737,22 @@ fn gps_run(extra: &[&str], emission: impl Fn(usize) -> f64) {
         if let Some(d) = send_at.checked_duration_since(Instant::now()) {
             thread::sleep(d);
         }
-        let d = binary::encode(&Datagram {
-            seq: i as u32,
-            week: week as u16,
-            time: (tag_ns - week * week_ns) as f64 / 1e9,
-            flags: 0,
-            pos: [p.lat.to_degrees(), p.lon.to_degrees(), p.h],
-            vel: p.v_n.into(),
-            acc: [0.0; 3],
-            quat: [p.q_b_n.w, p.q_b_n.i, p.q_b_n.j, p.q_b_n.k],
-            rate: [0.0; 3],
-        });
+        let d = if mavlink {
+            let unix_us = leap.gps_to_utc_ns(tag_ns) / 1000;
+            mavlink_frame(p, i as u8, unix_us as u64)
+        } else {
+            binary::encode(&Datagram {
+                seq: i as u32,
+                week: week as u16,
+                time: (tag_ns - week * week_ns) as f64 / 1e9,
+                ..datagram(p, 0)
+            })
+            .to_vec()
+        };
         s.send_to(&d, ("127.0.0.1", port)).unwrap();
     }
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    eprintln!("{err}");
-    assert!(out.status.success(), "{err}");
-    let summary = err
-        .lines()
-        .find(|l| l.contains("frames at 400 Hz from t ="))
-        .expect("a summary");
+    let err = finish(child, &lines, "");
+    let summary = summary(&err);
     assert!(summary.contains("clock +0.0 ppm"), "{summary}");
     let pacer = err
         .lines()
@@ -757,39 +782,58 @@ fn gps_run(extra: &[&str], emission: impl Fn(usize) -> f64) {
     assert!(hi <= worst_late + 0.02, "worst {hi} s late");
 }
 
-/// `--time-base gps` with tags in simulation seconds (no GPS week): they map decades away
-/// from the host's GPS time; the run says so and fails, and lockstep refuses the time base.
+/// `--time-base gps` with tags in simulation seconds (no GPS week): the run says the tags
+/// must be GPS time and fails, in real time and in lockstep; so does MAVLink time since boot,
+/// naming the frame's place and sequence number and asking for Unix time.
 #[test]
 fn gps_time_base_refuses_simulation_second_tags() {
     let dir = tempfile::TempDir::new().unwrap();
     let (child, port, lines) = start(dir.path(), &["--time-base", "gps"]);
     send(&survey_states(0.5), port, 0.0, 0.0, 1);
-    let out = child.wait_with_output().unwrap();
-    let err: Vec<String> = lines.iter().collect();
-    let err = err.join("\n");
-    assert!(!out.status.success(), "{err}");
+    let (ok, err) = stderr_of(child, &lines);
+    assert!(!ok, "{err}");
+    assert!(
+        err.contains("datagram 1, byte 6: the time tag 0 is in simulation seconds"),
+        "{err}"
+    );
     assert!(
         err.contains("the input's time tags must be GPS time"),
         "{err}"
     );
-    let lock = imu_emu()
-        .args([
-            "run",
-            "--motion",
-            "-",
-            "--time-mode",
-            "lockstep",
-            "--time-base",
-            "gps",
-        ])
-        .args(["--file", "-"])
-        .stdin(Stdio::null())
-        .output()
-        .unwrap();
-    assert!(!lock.status.success());
+    let lockstep = |format: &str, input: Vec<u8>| {
+        let mut child = imu_emu()
+            .args(["run", "--motion", "-", "--input-format", format])
+            .args([
+                "--time-mode",
+                "lockstep",
+                "--time-base",
+                "gps",
+                "--file",
+                "-",
+            ])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The run may stop before reading it all.
+        let _ = child.stdin.take().unwrap().write_all(&input);
+        let out = child.wait_with_output().unwrap();
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let e = lockstep("csv", b"0.5,45,7,100,0,0,0,0,0,0\n".to_vec());
+    assert!(e.contains("stdin: line 1, byte 0: the time tag 0.5"), "{e}");
+    assert!(e.contains("must be GPS time (CSV: gps_week,gps_sow"), "{e}");
+    let boot: Vec<u8> = survey_states(0.2)
+        .iter()
+        .enumerate()
+        .flat_map(|(i, p)| mavlink_frame(p, i as u8 + 5, 1_000_000 + 10_000 * i as u64))
+        .collect();
+    let e = lockstep("mavlink", boot);
     assert!(
-        String::from_utf8_lossy(&lock.stderr).contains("--time-base gps: lockstep"),
-        "{}",
-        String::from_utf8_lossy(&lock.stderr)
+        e.contains("byte 10: time_usec 1000000 µs (sequence 5) is time since boot"),
+        "{e}"
     );
+    assert!(e.contains("must carry Unix time"), "{e}");
 }

@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 
-use imu_emu::live::InputFormat;
 use imu_emu::live::lockstep::Lockstep;
 use imu_emu::live::transport::{Endpoint, Receiver};
+use imu_emu::live::{InputFormat, TimeBase};
 use imu_emu::output::AtomicFile;
 
 use super::run::{DEFAULT_IMU, DEFAULT_PROTOCOL, FOREVER_S, RunArgs};
@@ -83,19 +83,20 @@ pub fn run(a: &RunArgs, source: &str) -> Result<()> {
     if l.time_mode == "realtime" {
         return super::live_rt::run(a, &endpoint, format);
     }
-    if a.time_base != "sim" {
-        bail!(
-            "--time-base {}: lockstep follows the input alone; the GPS time base maps the tags to the host clock in --time-mode realtime",
-            a.time_base
-        );
-    }
+    let base = match a.time_base.as_str() {
+        "sim" => TimeBase::Sim,
+        "gps" => TimeBase::Gps,
+        other => bail!(
+            "--time-base {other}: a --motion run takes sim (the tags as sent) or gps (GPS time tags; MAVLink's Unix time_usec converted to GPS time)"
+        ),
+    };
     if !(a.pty.is_empty() && a.serial.is_empty() && a.udp.is_empty()) || a.file.len() != 1 {
         bail!(
             "--motion in lockstep writes to one --file (a path, a FIFO or - for stdout); the paced sinks (--pty, --serial, --udp) take --time-mode realtime"
         );
     }
     let builder = (a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?).unbounded_duration(FOREVER_S);
-    let run = Lockstep::new(builder, format)?;
+    let run = Lockstep::with_time_base(builder, format, base)?;
     let idle = Some(Duration::from_secs_f64(l.input_timeout));
     let mut rx = Receiver::open(&endpoint, format, idle)
         .with_context(|| format!("--motion {source}: opening"))?;

@@ -94,8 +94,9 @@ pub struct RunArgs {
     pub start_at: Option<String>,
     /// What the frames' GPS-time fields carry: `gps` (GPS time of each record from the host
     /// clock, leap seconds applied), `utc` (UTC, no leap seconds) or `sim` (the simulation's
-    /// own time, offset by --gps-time). With --motion in real time: `gps` says the input's
-    /// time tags are GPS time and the host clock is too, so they map to it directly.
+    /// own time, offset by --gps-time). With --motion: `gps` says the input's time tags are
+    /// GPS time (MAVLink: Unix time, converted), and in real time that the host clock is too,
+    /// so they map to it directly.
     #[arg(long, default_value = "sim", value_parser = ["gps", "utc", "sim"])]
     pub time_base: String,
     /// Time-mark side channel: per frame its index, time of validity, due and emission

@@ -17,8 +17,6 @@ pub const VERSION: u8 = 1;
 pub const LEN: usize = 152;
 /// `week` value meaning "the time tag is simulation seconds, not GPS time".
 pub const NO_WEEK: u16 = 0xFFFF;
-/// Seconds in a GPS week.
-const WEEK_S: f64 = 604_800.0;
 
 /// Flag bit: position, velocity, acceleration and attitude are Earth-fixed (ECEF, C_b^e)
 /// instead of geodetic, NED and C_b^n.
@@ -28,7 +26,9 @@ pub const FLAG_ACCEL: u8 = 2;
 /// Flag bit: the body-rate field is valid.
 pub const FLAG_RATE: u8 = 4;
 
-/// Offsets of the fields (docs/live-input.md has the table).
+/// Offset of the GPS week field.
+pub const WEEK: usize = 6;
+/// Offsets of the other fields (docs/live-input.md has the table).
 const SEQ: usize = 8;
 const TIME: usize = 12;
 const POS: usize = 20;
@@ -112,9 +112,18 @@ pub fn decode(b: &[u8]) -> Result<Decoded, Malformed> {
 }
 
 /// [`decode`], with a GPS time tag taken as seconds since the start of GPS week
-/// `epoch_week`: the week difference is an exact integer and seconds of week keep 1e-10 s, where
-/// GPS seconds since 1980 (≈ 1.4e9) only resolve 2.4e-7 s in an f64.
+/// `epoch_week` ([`super::since_week`]).
 pub fn decode_since(b: &[u8], epoch_week: u32) -> Result<Decoded, Malformed> {
+    let (mut d, week) = decode_tag(b)?;
+    if let Some(w) = week {
+        d.state.sample.t = super::since_week(w, epoch_week, d.state.sample.t);
+    }
+    Ok(d)
+}
+
+/// [`decode`], with the time tag as sent: the state's time is the seconds of the GPS week
+/// returned, or simulation seconds when there is none.
+pub fn decode_tag(b: &[u8]) -> Result<(Decoded, Option<u32>), Malformed> {
     if b.len() != LEN {
         return Err(Malformed::at(
             0,
@@ -145,13 +154,9 @@ pub fn decode_since(b: &[u8], epoch_week: u32) -> Result<Decoded, Malformed> {
     if let Some(i) = (TIME..CRC).step_by(8).find(|&i| !f64_at(b, i).is_finite()) {
         return Err(Malformed::at(i, "value is not finite"));
     }
-    let week = u16::from_le_bytes([b[6], b[7]]);
-    let time = f64_at(b, TIME);
-    let t = if week == NO_WEEK {
-        time
-    } else {
-        (f64::from(week) - f64::from(epoch_week)) * WEEK_S + time
-    };
+    let week = u16::from_le_bytes([b[WEEK], b[WEEK + 1]]);
+    let week = (week != NO_WEEK).then_some(u32::from(week));
+    let t = f64_at(b, TIME);
     let q = Quat::new(
         f64_at(b, QUAT),
         f64_at(b, QUAT + 8),
@@ -202,14 +207,15 @@ pub fn decode_since(b: &[u8], epoch_week: u32) -> Result<Decoded, Malformed> {
         (s, acc)
     };
     let seq = u32::from_le_bytes(b[SEQ..SEQ + 4].try_into().expect("4 bytes"));
-    Ok(Decoded {
+    let d = Decoded {
         seq: Some(u64::from(seq)),
         state: LiveSample {
             sample,
             omega_ib_b: (flags & FLAG_RATE != 0).then(|| vec_at(b, RATE)),
             accel_n: (flags & FLAG_ACCEL != 0).then_some(accel_n),
         },
-    })
+    };
+    Ok((d, week))
 }
 
 #[cfg(test)]

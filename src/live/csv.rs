@@ -65,6 +65,18 @@ fn name_of(k: usize) -> &'static str {
 impl CsvDecoder {
     /// Decodes one line (without or with its line end).
     pub fn decode(&mut self, line: &[u8]) -> Result<Option<Decoded>, Malformed> {
+        let decoded = self.decode_tag(line)?;
+        Ok(decoded.map(|(mut d, week)| {
+            if let Some(w) = week {
+                d.state.sample.t = super::since_week(w, self.epoch_week, d.state.sample.t);
+            }
+            d
+        }))
+    }
+
+    /// [`CsvDecoder::decode`], with the time tag as sent: the state's time is `gps_sow` with
+    /// the `gps_week` returned, or `t` when there is none.
+    pub fn decode_tag(&mut self, line: &[u8]) -> Result<Option<(Decoded, Option<u32>)>, Malformed> {
         let text = std::str::from_utf8(line)
             .map_err(|e| Malformed::at(e.valid_up_to(), "not UTF-8 text"))?;
         let text = text.trim_end_matches(['\n', '\r']);
@@ -143,7 +155,7 @@ impl CsvDecoder {
         Ok(())
     }
 
-    fn data(&self, text: &str, fields: &[&str]) -> Result<Decoded, Malformed> {
+    fn data(&self, text: &str, fields: &[&str]) -> Result<(Decoded, Option<u32>), Malformed> {
         if fields.len() != self.width {
             return Err(Malformed::at(
                 0,
@@ -201,9 +213,10 @@ impl CsvDecoder {
                 .is_some()
                 .then(|| Vec3::new(v[g], v[g + 1], v[g + 2]))
         };
-        let t = match self.at[GPS] {
-            Some(_) => (v[GPS] - f64::from(self.epoch_week)) * WEEK_S + v[GPS + 1],
-            None => v[0],
+        // The week was checked to be a whole number in [0, 65536).
+        let (t, week) = match self.at[GPS] {
+            Some(_) => (v[GPS + 1], Some(v[GPS] as u32)),
+            None => (v[0], None),
         };
         let sample = Sample {
             t,
@@ -213,14 +226,15 @@ impl CsvDecoder {
             v_n: Vec3::new(v[4], v[5], v[6]),
             q_b_n: quat_from_euler(v[7].to_radians(), v[8].to_radians(), v[9].to_radians()),
         };
-        Ok(Decoded {
+        let d = Decoded {
             seq: None,
             state: LiveSample {
                 sample,
                 omega_ib_b: group(10).map(|w| w * (std::f64::consts::PI / 180.0)),
                 accel_n: group(13),
             },
-        })
+        };
+        Ok((d, week))
     }
 }
 

@@ -8,7 +8,7 @@ use std::io::Write;
 
 use super::stats::InputStats;
 use super::transport::{Message, Receiver};
-use super::{Decoded, Decoder, InputFormat};
+use super::{Decoded, Decoder, InputFormat, TimeBase};
 use crate::job::{Grid, JobError, Producer};
 use crate::motion::causal::CausalMotion;
 use crate::sim::{SimError, SimulationBuilder};
@@ -82,6 +82,16 @@ impl Lockstep {
     /// motion comes from messages of `format`. Starts at the builder's start time, else at the
     /// model's first knot.
     pub fn new(builder: SimulationBuilder, format: InputFormat) -> Result<Lockstep, SimError> {
+        Lockstep::with_time_base(builder, format, TimeBase::Sim)
+    }
+
+    /// [`Lockstep::new`], with the input's time tags taken on `base`. GPS-tagged states count
+    /// from the first GPS week seen, and the frames' GPS time fields carry their GPS time.
+    pub fn with_time_base(
+        builder: SimulationBuilder,
+        format: InputFormat,
+        base: TimeBase,
+    ) -> Result<Lockstep, SimError> {
         let settings = builder.model_settings()?;
         // Every other setting (IMU, rate, encoding, faults…) is checked now, on a stand-in
         // motion, rather than when the first states have arrived.
@@ -91,7 +101,7 @@ impl Lockstep {
             builder: Some(builder.live_motion(model.clone())),
             model,
             need: settings.stencil.max(3),
-            decoder: Decoder::new(format),
+            decoder: Decoder::with_base(format, base, None),
             modulo: match format {
                 InputFormat::Mavlink => 256,
                 _ => 1 << 32,
@@ -133,6 +143,10 @@ impl Lockstep {
         match self.decoder.decode(&m.bytes) {
             Ok(Some(d)) => self.state(&d, &format!("{input}: {}", m.place), out),
             Ok(None) => Ok(()),
+            Err(e) if e.fatal => Err(LiveError::TimeBase(format!(
+                "{input}: {}, byte {}: {}",
+                m.place, e.offset, e.message
+            ))),
             Err(e) => {
                 let at = format!("{input}: {}, byte {}", m.place, e.offset);
                 self.stats.malformed(&at, &e.message);
@@ -155,7 +169,10 @@ impl Lockstep {
         }
         if self.producer.is_none() {
             let builder = self.builder.take().expect("built once");
-            let sim = builder.build()?;
+            let mut sim = builder.build()?;
+            if let Some(week) = self.decoder.epoch_week() {
+                sim.set_gps_time(week, 0.0);
+            }
             let grid = sim.grid();
             let p = sim.producer()?;
             let pre = p.preamble();

@@ -149,6 +149,17 @@ pub fn decode(b: &[u8]) -> Result<Option<Decoded>, Malformed> {
     }))
 }
 
+/// The raw `time_usec` of a frame [`decode`] took (the first payload field; a truncated
+/// payload's missing bytes are zeros): the decoded time in seconds rounds it to a double.
+pub fn time_usec(b: &[u8]) -> u64 {
+    let n = b.get(1).map_or(0, |&n| usize::from(n)).min(8);
+    let mut t = [0u8; 8];
+    if let Some(p) = b.get(HEADER..HEADER + n) {
+        t[..n].copy_from_slice(p);
+    }
+    u64::from_le_bytes(t)
+}
+
 /// Encodes a HIL_STATE_QUATERNION frame (system 1, component 1), trailing zeros dropped as
 /// MAVLink 2 senders do: for tests and replays. Written by hand, independently of the
 /// specification the decoder runs, so that each checks the other.

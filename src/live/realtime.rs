@@ -20,7 +20,7 @@ use super::clockmap::{ClockMap, GivenMap};
 use super::lockstep::LiveError;
 use super::stats::InputStats;
 use super::transport::Receiver;
-use super::{Decoder, InputFormat};
+use super::{Decoder, InputFormat, TimeBase};
 use crate::job::Grid;
 use crate::motion::causal::CausalMotion;
 use crate::motion::chain::{ChainSettings, Corrections, Tail};
@@ -190,6 +190,8 @@ struct Input {
     map: ClockMap,
     ended: bool,
     error: Option<std::io::Error>,
+    /// The GPS week the states' times count from, once a GPS tag has come.
+    week: Option<u32>,
 }
 
 /// A real-time run, ready to follow an input.
@@ -246,6 +248,7 @@ impl Realtime {
                 },
                 ended: false,
                 error: None,
+                week: None,
             }),
             Condvar::new(),
         ));
@@ -253,7 +256,7 @@ impl Realtime {
         {
             let (shared, model, stop) = (shared.clone(), self.model.clone(), stop.clone());
             let format = self.format;
-            let epoch = self.settings.gps.map_or(0, |g| g.week);
+            let epoch = self.settings.gps.map(|g| g.week);
             std::thread::Builder::new()
                 .name("imu-live-input".into())
                 .spawn(move || receive(&mut rx, format, epoch, &model, &record, &shared, &stop))
@@ -299,8 +302,9 @@ impl Realtime {
         let delay_ns = (delay * 1e9).round() as i128;
         let lead_ns = (LEAD_S * 1e9) as i128;
         let mut sim = self.builder.build()?;
-        if let Some(g) = self.settings.gps {
-            sim.set_gps_time(g.week, 0.0);
+        // GPS-tagged states count from a week's start: the frames carry their GPS time.
+        if let Some(week) = self.settings.gps.map(|g| g.week).or(get().week) {
+            sim.set_gps_time(week, 0.0);
         }
         let grid = sim.grid();
         let extra: Vec<_> = extra.into_iter().map(|p| sim.frames_encoding(p)).collect();
@@ -434,18 +438,23 @@ fn get_error(mut g: std::sync::MutexGuard<'_, Input>) -> Option<std::io::Error> 
     g.error.take()
 }
 
-/// The input thread: receives, records, decodes, feeds the model and the clock map; tags
-/// are taken from the start of GPS week `epoch` (0: as they are).
+/// The input thread: receives, records, decodes, feeds the model and the clock map; GPS
+/// tags are taken from the start of GPS week `epoch` (`None`: the first one seen), which
+/// also sets the GPS time base.
 fn receive<W: Write>(
     rx: &mut Receiver,
     format: InputFormat,
-    epoch: u32,
+    epoch: Option<u32>,
     model: &CausalMotion,
     record: &Mutex<Option<W>>,
     shared: &(Mutex<Input>, Condvar),
     stop: &AtomicBool,
 ) {
-    let mut decoder = Decoder::since_week(format, epoch);
+    let base = match epoch {
+        Some(_) => TimeBase::Gps,
+        None => TimeBase::Sim,
+    };
+    let mut decoder = Decoder::with_base(format, base, epoch);
     let modulo = match format {
         InputFormat::Mavlink => 256,
         _ => 1 << 32,
@@ -483,8 +492,13 @@ fn receive<W: Write>(
                 if outcome.is_ok() {
                     g.map.observe(d.state.sample.t, arrival_ns);
                 }
+                g.week = decoder.epoch_week();
             }
             Ok(None) => {}
+            Err(e) if e.fatal => {
+                let what = format!("{}, byte {}: {}", m.place, e.offset, e.message);
+                break Some(std::io::Error::new(std::io::ErrorKind::InvalidData, what));
+            }
             Err(e) => {
                 let at = format!("{name}: {}, byte {}", m.place, e.offset);
                 g.stats.malformed(&at, &e.message);
