@@ -85,7 +85,10 @@ fn vibration() -> VibrationSpec {
     }
 }
 
-fn rows(text: &[u8]) -> (Vec<String>, Vec<Vec<f64>>) {
+/// A CSV file: its header and its rows of numbers.
+type Csv = (Vec<String>, Vec<Vec<f64>>);
+
+fn rows(text: &[u8]) -> Csv {
     let text = std::str::from_utf8(text).unwrap();
     let mut lines = text.lines();
     let header = lines.next().unwrap().split(',').map(String::from).collect();
@@ -97,7 +100,7 @@ fn rows(text: &[u8]) -> (Vec<String>, Vec<Vec<f64>>) {
 
 /// The output records and the injected-errors file of a 4 s circle run (the lever arm and the
 /// vibration optional).
-fn run(m: ImuModel, arm: bool, vib: bool) -> (Vec<Vec<f64>>, (Vec<String>, Vec<Vec<f64>>)) {
+fn run(m: ImuModel, arm: bool, vib: bool) -> (Vec<Vec<f64>>, Csv) {
     let mut b = Simulation::builder()
         .scene("circle")
         .imu_model(m)
