@@ -49,6 +49,18 @@ impl FilteredImu {
         &self.chain
     }
 
+    /// Also records the error each stage kind injected into each output record
+    /// ([`FilteredImu::components`]); before the first fill.
+    pub fn with_components(mut self) -> FilteredImu {
+        self.chain = self.chain.with_components();
+        self
+    }
+
+    /// The injected errors of the records of the last fill (empty unless asked for).
+    pub fn components(&self) -> &[crate::errors::chain::Components] {
+        self.chain.components()
+    }
+
     /// Fills `out` with output records k_first, k_first + 1, … (k ≥ 1): record k filters the
     /// internal records up to the end of its output interval; its time tag is t₀ + k/rate
     /// (from the integer k, as every run's).

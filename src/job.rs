@@ -357,6 +357,9 @@ pub struct Block<'a> {
     pub truth: &'a [Record],
     /// The error chain, for its per-record components.
     pub chain: Option<&'a ErrorChain>,
+    /// The error each stage kind injected into each record (empty unless asked for): the
+    /// chain's, or those of the output filter's chain through the filter.
+    pub components: &'a [crate::errors::chain::Components],
     /// Times of validity and emission of the records, when the IMU has timing errors.
     pub times: Option<crate::timing::Times<'a>>,
     /// The motion the records sense (for the truth's GNSS visibility).
@@ -745,6 +748,10 @@ impl Producer {
             records: &self.block[..n],
             truth: &self.truth[..if self.keep_truth { n } else { 0 }],
             chain: self.chain.as_ref(),
+            components: match &self.filtered {
+                Some(f) => f.components(),
+                None => self.chain.as_ref().map_or(&[], |c| c.components()),
+            },
             times: match (&self.timing, &self.trigger) {
                 (Some(t), _) => Some(t.times()),
                 (None, Some(_)) => Some(crate::timing::Times {
@@ -838,11 +845,6 @@ pub fn drain(
     mut injected: Option<&mut dyn Write>,
     mut progress: impl FnMut(u64) -> ControlFlow<()>,
 ) -> Result<(), JobError> {
-    if injected.is_some() && producer.filtered.is_some() {
-        return Err(JobError::Filter(
-            "the injected errors (--truth-errors) of a unit with an output filter are not written yet: they are generated at the internal rate".into(),
-        ));
-    }
     let format = producer.encoding.side();
     if format == Format::Csv {
         if let Some(t) = truth.as_mut() {
@@ -855,8 +857,13 @@ pub fn drain(
         }
     }
     if injected.is_some() {
-        let chain = producer.chain.take().unwrap_or_else(ErrorChain::ideal);
-        producer.chain = Some(chain.with_components());
+        match producer.filtered.take() {
+            Some(f) => producer.filtered = Some(Box::new(f.with_components())),
+            None => {
+                let chain = producer.chain.take().unwrap_or_else(ErrorChain::ideal);
+                producer.chain = Some(chain.with_components());
+            }
+        }
     }
     producer.keep_truth = truth.is_some();
     out.write_all(producer.preamble().as_bytes())?;
@@ -876,9 +883,9 @@ pub fn drain(
             output::encode_truth(format, b.truth, b.times.as_ref(), gnss, &mut side);
             t.write_all(&side)?;
         }
-        if let (Some(w), Some(c)) = (injected.as_mut(), b.chain) {
+        if let Some(w) = injected.as_mut() {
             side.clear();
-            output::encode_components(format, b.records, c.components(), &mut side);
+            output::encode_components(format, b.records, b.components, &mut side);
             w.write_all(&side)?;
         }
         let done = b.first + b.records.len() as u64;

@@ -173,7 +173,10 @@ pub fn term_rows(model: &ImuModel, analysis: &Analysis) -> Vec<TermRow> {
     for (ch, (c, th)) in analysis.channels.iter().zip(&theory).enumerate() {
         let points = checked_points(&c.adev, filter.as_ref());
         let ms: Vec<usize> = points.iter().map(|p| p.m).collect();
-        let nu = term_edf(th, analysis.dt, &ms, phases);
+        let mut nu = term_edf(th, analysis.dt, &ms, phases);
+        if filter.is_some() && nu[1].is_some() {
+            nu[1] = joint_white_edf(th, analysis.dt, &ms, phases);
+        }
         // Refit with the bank's exact shape for B when the template sets it.
         let fit = match th.flicker_shape(1.0) {
             Some(_) => fit_with_floor(points, analysis.samples as usize, &|tau| {
@@ -262,6 +265,55 @@ pub fn term_edf(th: &AxisTheory, dt: f64, ms: &[usize], phases: usize) -> [Optio
             .filter(|nu| *nu > 0.0)
             .map(|nu| nu.max(0.5))
     })
+}
+
+/// ν of the white noise N of a filtered template, read jointly with the terms the fit can
+/// trade it against on the few octaves the filter leaves (Q, B, K). The octave readings'
+/// relative errors ε_m (var 2/edf_m, edf of the noise type dominating octave m, the octaves
+/// taken as independent) enter the generalised least squares for the coefficients' changes
+/// x_t, ε_m = Σ_t x_t·b_t(τ_m)/σ²(τ_m), whose covariance is (GᵀWG)⁻¹ with W = diag(edf_m/2);
+/// then var(ΔN²/N²) = [(GᵀWG)⁻¹]_NN/N⁴ and ν = 2/var. Q, B and K are in G whether or not the
+/// template sets them, because the fit may keep any of them; B with the bank's exact shape
+/// when the template sets it (as the refit uses), else the flat floor. Fewer octaves than
+/// terms leave N undetermined (None).
+pub fn joint_white_edf(th: &AxisTheory, dt: f64, ms: &[usize], phases: usize) -> Option<f64> {
+    const JOINT: [Term; 4] = [
+        Term::Quantization,
+        Term::WhiteNoise,
+        Term::BiasInstability,
+        Term::RandomWalk,
+    ];
+    let c_n = th.specified(Term::WhiteNoise).powi(2);
+    if c_n <= 0.0 || ms.len() < JOINT.len() {
+        return None;
+    }
+    let basis = |t: Term, tau: f64| match t {
+        Term::BiasInstability => th.flicker_shape(tau).unwrap_or(super::fit::FLICKER_FLOOR),
+        _ => t.basis(tau),
+    };
+    let mut g = nalgebra::DMatrix::<f64>::zeros(ms.len(), JOINT.len());
+    let mut w = nalgebra::DVector::<f64>::zeros(ms.len());
+    for (i, &m) in ms.iter().enumerate() {
+        let tau = m as f64 * dt;
+        let total = th.avar(m, dt);
+        for (j, &t) in JOINT.iter().enumerate() {
+            g[(i, j)] = basis(t, tau) / total;
+        }
+        let dominant = TERMS
+            .into_iter()
+            .max_by(|a, b| th.share(*a, m, dt).total_cmp(&th.share(*b, m, dt)))
+            .unwrap_or(Term::WhiteNoise);
+        w[i] = edf(dominant.noise_type(), phases, m) / 2.0;
+    }
+    // Columns scaled to unit norm so the normal matrix is well conditioned.
+    let scale: Vec<f64> = g.column_iter().map(|c| c.norm()).collect();
+    for (j, s) in scale.iter().enumerate() {
+        g.column_mut(j).scale_mut(1.0 / s);
+    }
+    let f = g.transpose() * nalgebra::DMatrix::from_diagonal(&w) * &g;
+    let cov = f.try_inverse()?;
+    let var_n = cov[(1, 1)] / (scale[1] * scale[1]) / (c_n * c_n);
+    (var_n.is_finite() && var_n > 0.0).then(|| (2.0 / var_n).max(0.5))
 }
 
 /// Share of σ² above which a second term must be read along with the one being checked.

@@ -90,15 +90,23 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     )?;
     let rows = model.as_ref().map(|m| term_rows(m, &res));
     write!(text, "{}", report::term_table(&res, rows.as_deref()))?;
+    // The verdict against the template: like `validate`, a FAIL makes the command fail, after
+    // the report, plots and CSV are written.
+    let mut verdict = None;
     if let Some(rows) = &rows {
         let failed = rows.iter().filter(|r| r.pass == Some(false)).count();
         let checked = rows.iter().filter(|r| r.pass.is_some()).count();
+        let name = model.as_ref().map_or("", |m| m.name.as_str());
         writeln!(
             text,
-            "template `{}`: {} of {checked} specified terms within their bands",
-            model.as_ref().map_or("", |m| m.name.as_str()),
+            "template `{name}`: {} of {checked} specified terms within their bands",
             checked - failed
         )?;
+        if failed > 0 {
+            verdict = Some(format!(
+                "template `{name}`: {failed} of {checked} specified terms FAIL (outside their 99 % bands)"
+            ));
+        }
     }
     let theory = model.as_ref().map(|m| channel_theory(m, dt));
     let title = a
@@ -145,6 +153,9 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         write_file(p, report::curves_csv(&res, theory.as_deref()).as_bytes())?;
     }
     std::io::Write::write_all(&mut std::io::stdout().lock(), text.as_bytes())?;
+    if let Some(v) = verdict {
+        anyhow::bail!(v);
+    }
     Ok(())
 }
 

@@ -4,8 +4,15 @@
 //! low-passes and decimates them to the output rate — a tone above the output Nyquist frequency
 //! aliases, attenuated by the filter's response at its own frequency, as in the real unit —
 //! and the output LSB and range apply last, at the output rate.
+//!
+//! The injected errors (`--truth-errors`) of such a unit: the filter is linear, so the output
+//! is the filter of the error-free internal signal plus the filter of each stage kind's
+//! injected error, each run through its own copy of the filter (same coefficients, same
+//! priming, same decimation phase); quantization and saturation, applied to the filter's
+//! output, stay their own stage. The components then add up to the output minus the
+//! filtered error-free signal.
 
-use super::chain::ErrorChain;
+use super::chain::{Components, ErrorChain};
 use super::model::{ImuModel, TriadModel};
 use super::output_filter::{Filter, FilterSpec};
 use crate::generator::RotationTerms;
@@ -24,6 +31,21 @@ pub struct FilteredChain {
     buf: Vec<Record>,
     carried: Vec<u8>,
     primed: bool,
+    /// The per-kind filters and the output records' components, only when they are asked for
+    /// ([`FilteredChain::with_components`]).
+    split: Option<Box<Split>>,
+}
+
+/// One copy of the output filter per stage kind, and the components of the last output.
+#[derive(Clone, Debug)]
+struct Split {
+    filters: Vec<Filter>,
+    out: Vec<Components>,
+}
+
+/// Gyro and accelerometer as the filter's six channels.
+fn channels(g: crate::math::Vec3, a: crate::math::Vec3) -> [f64; 6] {
+    [g[0], g[1], g[2], a[0], a[1], a[2]]
 }
 
 impl FilteredChain {
@@ -55,6 +77,7 @@ impl FilteredChain {
             buf: Vec::new(),
             carried: Vec::new(),
             primed: false,
+            split: None,
         })
     }
 
@@ -69,6 +92,27 @@ impl FilteredChain {
         }
         inner.output_filter = None;
         inner
+    }
+
+    /// Records, on each apply, the error every kind of stage injected into each output record
+    /// ([`FilteredChain::components`]): the internal-rate errors through their own copies of
+    /// the filter, plus the output quantization's. Must be set before the first apply (the
+    /// copies start from the filter's state, which is then still unprimed).
+    pub fn with_components(mut self) -> FilteredChain {
+        debug_assert!(!self.primed, "components asked for after the first apply");
+        self.inner = self.inner.with_components();
+        self.outer = self.outer.with_components();
+        self.split = Some(Box::new(Split {
+            filters: vec![self.filter.clone(); super::StageKind::ALL.len()],
+            out: Vec::new(),
+        }));
+        self
+    }
+
+    /// The injected errors of the output records of the last apply, in their order (empty
+    /// unless asked for with [`FilteredChain::with_components`]).
+    pub fn components(&self) -> &[Components] {
+        self.split.as_ref().map_or(&[], |s| &s.out)
     }
 
     /// Whether the internal-rate chain needs the motion's rotation terms (a lever arm).
@@ -112,15 +156,37 @@ impl FilteredChain {
         self.buf.extend_from_slice(input);
         self.inner.apply_with(&mut self.buf, rotation);
         let first = out.len();
+        let comps = self.inner.components();
+        let mut split = self.split.as_deref_mut();
+        if let Some(s) = split.as_mut() {
+            s.out.clear();
+        }
         if let Some(r) = self.buf.first().filter(|_| !self.primed) {
-            let (g, a) = (r.gyro, r.accel);
-            self.filter.prime([g[0], g[1], g[2], a[0], a[1], a[2]]);
+            self.filter.prime(channels(r.gyro, r.accel));
+            if let (Some(s), Some(c)) = (split.as_mut(), comps.first()) {
+                for (f, [g, a]) in s.filters.iter_mut().zip(c.0) {
+                    f.prime(channels(g, a));
+                }
+            }
             self.primed = true;
         }
-        for r in &self.buf {
+        for (i, r) in self.buf.iter().enumerate() {
             self.flags |= r.flags;
-            let (g, a) = (r.gyro, r.accel);
-            if let Some(y) = self.filter.push([g[0], g[1], g[2], a[0], a[1], a[2]]) {
+            // The copies share the main filter's phase, so they emit on the same samples.
+            if let Some(s) = split.as_mut() {
+                let mut emitted = Components::default();
+                let mut any = false;
+                for ((f, [g, a]), e) in s.filters.iter_mut().zip(comps[i].0).zip(&mut emitted.0) {
+                    if let Some(y) = f.push(channels(g, a)) {
+                        *e = [Vec3::new(y[0], y[1], y[2]), Vec3::new(y[3], y[4], y[5])];
+                        any = true;
+                    }
+                }
+                if any {
+                    s.out.push(emitted);
+                }
+            }
+            if let Some(y) = self.filter.push(channels(r.gyro, r.accel)) {
                 let gyro = Vec3::new(y[0], y[1], y[2]);
                 let accel = Vec3::new(y[3], y[4], y[5]);
                 out.push(Record {
@@ -140,5 +206,50 @@ impl FilteredChain {
         for (r, f) in out[first..].iter_mut().zip(&self.carried) {
             r.flags |= f;
         }
+        if let Some(s) = split {
+            // The output stages' own errors (quantization, saturation) at the output rate.
+            for (c, o) in s.out.iter_mut().zip(self.outer.components()) {
+                for (cg, og) in c.0.iter_mut().zip(o.0) {
+                    cg[0] += og[0];
+                    cg[1] += og[1];
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::errors::template::parse;
+
+    /// Without `with_components` the chain holds no per-kind filter copies and returns no
+    /// components (the injected errors cost nothing unless asked for); with it, one set of
+    /// components per output record.
+    #[test]
+    fn components_only_when_asked() {
+        let text = "name = \"f\"\n[gyro]\nnoise = \"1 deg/sqrt(h)\"\n\
+                    [output_filter]\ninternal_rate_hz = 800\nkind = \"moving_average\"\ntaps = 4\n";
+        let model = parse(text, std::path::Path::new("f.toml")).unwrap();
+        let input: Vec<Record> = (0..40)
+            .map(|k| Record {
+                t: (k + 1) as f64 / 800.0,
+                ..Record::default()
+            })
+            .collect();
+        let mut plain = FilteredChain::new(&model, 200.0, 1).unwrap();
+        assert!(plain.split.is_none());
+        let mut out = Vec::new();
+        plain.apply(&input, &mut out);
+        assert_eq!(out.len(), 10);
+        assert!(plain.components().is_empty() && plain.split.is_none());
+        let mut asked = FilteredChain::new(&model, 200.0, 1)
+            .unwrap()
+            .with_components();
+        let mut again = Vec::new();
+        asked.apply(&input, &mut again);
+        assert_eq!(asked.components().len(), 10);
+        // The same records either way: capturing does not disturb the run.
+        assert_eq!(out, again);
     }
 }

@@ -50,6 +50,10 @@ pub enum Verdict {
     OnlyThis,
     /// Only the reference's fit kept it.
     OnlyReference,
+    /// One of the two fits is not determined by its points ([`determined`]): whatever it
+    /// kept or left out says nothing about this figure (a published table of two or three
+    /// τ values, say).
+    NotEnoughPoints,
 }
 
 impl Verdict {
@@ -60,6 +64,7 @@ impl Verdict {
             Verdict::Differ => "DIFFER",
             Verdict::OnlyThis => "only in this run",
             Verdict::OnlyReference => "only in the reference",
+            Verdict::NotEnoughPoints => "not enough points",
         }
     }
 }
@@ -78,11 +83,31 @@ pub struct Row {
     pub this: Option<(f64, f64, f64)>,
     /// (value, lo, hi) of the reference, SI.
     pub reference: Option<(f64, f64, f64)>,
+    /// Whether each fit (this run, the reference) is determined by its points ([`determined`]).
+    pub determined: [bool; 2],
+}
+
+/// Free parameters of a fit: one per kept figure, and the Gauss–Markov time with σ_GM.
+pub fn free_parameters(f: &AxisFit) -> usize {
+    let kept = f.estimates.iter().flatten().count();
+    kept + usize::from(f.estimate(Component::GaussMarkov).is_some())
+}
+
+/// Whether a fit is determined by its Allan deviation points: only with more points than
+/// free parameters. With as many parameters as points a model of the right shape passes
+/// through every point exactly — any two τ values are met by a Gauss–Markov term's σ and T,
+/// or by N and B, alike — so neither its figures nor the terms it left out say anything,
+/// and its χ² has no degree of freedom left to reject it.
+pub fn determined(f: &AxisFit) -> bool {
+    f.points > free_parameters(f)
 }
 
 impl Row {
     /// The verdict.
     pub fn verdict(&self) -> Verdict {
+        if self.determined.contains(&false) {
+            return Verdict::NotEnoughPoints;
+        }
         match (self.this, self.reference) {
             (Some(a), Some(b)) if a.1 <= b.2 && b.1 <= a.2 => Verdict::Agree,
             (Some(_), Some(_)) => Verdict::Differ,
@@ -114,6 +139,7 @@ pub fn compare(this: &[Option<AxisFit>], reference: &[Option<AxisFit>]) -> Vec<R
     let mut rows = Vec::new();
     for ch in 0..this.len().min(reference.len()) {
         let (a, b) = (this[ch].as_ref(), reference[ch].as_ref());
+        let determined = [a, b].map(|f| f.is_none_or(determined));
         for k in COMPONENTS {
             let get = |f: Option<&AxisFit>| f.and_then(|f| f.estimate(k)).map(triple);
             let row = Row {
@@ -122,6 +148,7 @@ pub fn compare(this: &[Option<AxisFit>], reference: &[Option<AxisFit>]) -> Vec<R
                 time: false,
                 this: get(a),
                 reference: get(b),
+                determined,
             };
             if row.this.is_none() && row.reference.is_none() {
                 continue;
@@ -156,7 +183,7 @@ pub fn markdown(rows: &[Row], reference: &str) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "Per-term comparison with {reference} (stochastic model fitted to each, docs/fit.md; 99 % intervals; \"agree\": the intervals overlap)\n"
+        "Per-term comparison with {reference} (stochastic model fitted to each, docs/fit.md; 99 % intervals; \"agree\": the intervals overlap; \"not enough points\": a fit with no more Allan deviation points than free parameters, which determine nothing)\n"
     );
     let _ = writeln!(
         s,
@@ -177,11 +204,12 @@ pub fn markdown(rows: &[Row], reference: &str) -> String {
     let count = |v: Verdict| rows.iter().filter(|r| r.verdict() == v).count();
     let _ = writeln!(
         s,
-        "\n{} figures agree, {} differ, {} only in this run, {} only in the reference",
+        "\n{} figures agree, {} differ, {} only in this run, {} only in the reference, {} not determined (not enough points)",
         count(Verdict::Agree),
         count(Verdict::Differ),
         count(Verdict::OnlyThis),
-        count(Verdict::OnlyReference)
+        count(Verdict::OnlyReference),
+        count(Verdict::NotEnoughPoints)
     );
     s
 }
@@ -308,6 +336,7 @@ mod tests {
             time: false,
             this,
             reference,
+            determined: [true; 2],
         }
     }
 
@@ -321,5 +350,18 @@ mod tests {
         assert_eq!(row(Some((1.2, 1.11, 1.3)), a).verdict(), Verdict::Differ);
         assert_eq!(row(a, None).verdict(), Verdict::OnlyThis);
         assert_eq!(row(None, a).verdict(), Verdict::OnlyReference);
+        // Either fit undetermined: no verdict, whatever the intervals.
+        for d in [[false, true], [true, false]] {
+            let r = Row {
+                determined: d,
+                ..row(a, Some((1.2, 1.11, 1.3)))
+            };
+            assert_eq!(r.verdict(), Verdict::NotEnoughPoints);
+            let r = Row {
+                determined: d,
+                ..row(a, None)
+            };
+            assert_eq!(r.verdict(), Verdict::NotEnoughPoints);
+        }
     }
 }
