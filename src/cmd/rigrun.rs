@@ -28,12 +28,14 @@ pub(super) const WINDOW_NS: i64 = 100_000_000;
 /// Flags that describe one IMU or its sinks, which each `[[imu]]` entry gives for itself.
 fn refuse_single_imu_flags(a: &RunArgs) -> Result<()> {
     let s = &a.sim;
+    if a.time_base != "sim" && s.gps_time.is_some() {
+        bail!("--gps-time sets the GPS reference of --time-base sim only");
+    }
     let given = [
         ("--imu", s.imu.is_some()),
         ("--format", s.format.is_some()),
         ("--protocol-file", s.protocol_file.is_some()),
         ("--fault", !s.faults.is_empty()),
-        ("--gps-time", s.gps_time.is_some()),
         ("--pty", !a.pty.is_empty()),
         ("--serial", !a.serial.is_empty()),
         ("--udp", !a.udp.is_empty()),
