@@ -390,3 +390,76 @@ fn gps_time_applies_to_every_unit_and_the_gnss_stream() {
         shifted[0]
     );
 }
+
+/// Timing errors a rig cannot model yet are refused, naming where they come from, never
+/// left out silently: a scene file's `[timing]` and a unit template's `[timing]`.
+#[test]
+fn timing_errors_are_refused_for_rig_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let head = "[trajectory]\nscene = \"circle\"\n[output]\nduration_s = 1.0\n";
+    let path = d.join("rig.toml");
+    let refused = |text: String| -> String {
+        std::fs::write(&path, text).unwrap();
+        let e = Simulation::from_scene_file(&path)
+            .unwrap()
+            .build_rig()
+            .err()
+            .expect("refused");
+        format!("{e}: {}", e.root())
+    };
+    let e = refused(format!(
+        "{head}[timing]\njitter = \"1 us\"\n[[imu]]\nname = \"a\"\n"
+    ));
+    assert!(e.contains("rig.toml: `timing`"), "{e}");
+    assert!(e.contains("do not model timing errors"), "{e}");
+    let model = d.join("late.toml");
+    std::fs::write(&model, "name = \"late\"\n[timing]\nlatency = \"2 ms\"\n").unwrap();
+    let e = refused(format!(
+        "{head}[[imu]]\nname = \"a\"\n[[imu]]\nname = \"b\"\nmodel = \"{}\"\n",
+        model.display()
+    ));
+    assert!(e.contains("`imu[1].model`"), "{e}");
+    assert!(e.contains("template `late` has [timing] errors"), "{e}");
+}
+
+/// `run` on a rig refuses what it cannot honour rather than ignoring it: the flags that time
+/// one IMU's frames, and `--gps-time` on a time base that sets the reference itself.
+#[test]
+fn run_on_a_rig_refuses_frame_timing_flags_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/rig.toml");
+    let sinks = ["--unit-sink", "nav=file:nav.bin", "--duration", "0.1"];
+    for (flag, value, says) in [
+        (
+            "--time-marks",
+            "marks.csv",
+            "--time-marks does not apply to a rig yet",
+        ),
+        ("--pulse", "dtr:tov", "--pulse does not apply to a rig yet"),
+        (
+            "--trigger",
+            "/dev/null",
+            "--trigger does not apply to a rig yet",
+        ),
+        (
+            "--gps-time",
+            "2300,0",
+            "--gps-time sets the GPS reference of --time-base sim only",
+        ),
+    ] {
+        let mut args = vec!["run", scene, flag, value];
+        args.extend(sinks);
+        if flag == "--gps-time" {
+            args.extend(["--time-base", "gps"]);
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+            .current_dir(dir.path())
+            .args(&args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(says), "{flag}: {err}");
+        assert!(!dir.path().join("nav.bin").exists(), "{flag}");
+    }
+}

@@ -31,6 +31,17 @@ fn refuse_single_imu_flags(a: &RunArgs) -> Result<()> {
     if a.time_base != "sim" && s.gps_time.is_some() {
         bail!("--gps-time sets the GPS reference of --time-base sim only");
     }
+    let sync = [
+        ("--time-marks", !a.time_marks.is_empty()),
+        ("--pulse", a.pulse.is_some()),
+        ("--pps-in", a.pps_in.is_some()),
+        ("--trigger", a.trigger.is_some()),
+    ];
+    if let Some((flag, _)) = sync.iter().find(|g| g.1) {
+        bail!(
+            "{flag} does not apply to a rig yet: it times one IMU's frames, and a rig's units are merged on one pacer that does not tell which frame is whose (docs/rig.md)"
+        );
+    }
     let given = [
         ("--imu", s.imu.is_some()),
         ("--format", s.format.is_some()),

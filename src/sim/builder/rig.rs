@@ -46,6 +46,13 @@ impl SimulationBuilder {
                 "a rig needs at least one unit (`[[imu]]` in the scene file)".into(),
             ));
         }
+        if self.file.timing.is_some() {
+            // Never run the units without the timing errors the scene file names.
+            return Err(SimError::Invalid(format!(
+                "`timing`: {NO_TIMING} (a scene file's [timing] applies to one `[imu]`)"
+            ))
+            .at(Some(format!("{}: `timing`", label.display()))));
+        }
         let (source, _, _) = self.source()?;
         let motion = self.motion()?;
         let nodes = self.nodes()?;
@@ -136,6 +143,13 @@ impl SimulationBuilder {
                         ))
                         .at(Some(place("model"))));
                     }
+                    if !t.timing.is_zero() {
+                        return Err(SimError::Invalid(format!(
+                            "template `{}` has [timing] errors: {NO_TIMING}",
+                            t.name
+                        ))
+                        .at(Some(place("model"))));
+                    }
                     let mut chain = ErrorChain::new(&t, grid.rate_hz, seed);
                     if let Some(p) = &temperature {
                         chain = chain.with_temperature(p.clone(), &t);
@@ -211,6 +225,10 @@ impl SimulationBuilder {
         Ok(rig)
     }
 }
+
+/// Why a rig refuses timing errors: its units on one grid share the error-free signal at the
+/// grid's instants, where a unit with its own clock, jitter or latency needs its own.
+const NO_TIMING: &str = "rig units do not model timing errors yet (a single IMU does; docs/rig.md)";
 
 /// A protocol's frames suit the unit: an N-channel frame carries exactly a skew unit's
 /// channels (none dropped, none made up), a three-axis frame goes with a three-axis IMU.
