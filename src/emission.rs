@@ -15,6 +15,12 @@ pub struct Part {
     pub ends: Vec<usize>,
     /// Emission time of each frame (simulated ns after t₀), non-decreasing.
     pub emit_ns: Vec<i64>,
+    /// The stream's frames are an IMU's records, whose time marks and pulses the pacer gives
+    /// (kept by [`Part::clear`]).
+    pub marks_records: bool,
+    /// With `marks_records`: each frame's record index (0-based) and time of validity
+    /// (simulated ns after t₀).
+    pub records: Vec<(u64, i64)>,
 }
 
 impl Part {
@@ -23,6 +29,7 @@ impl Part {
         self.bytes.clear();
         self.ends.clear();
         self.emit_ns.clear();
+        self.records.clear();
     }
 
     /// Appends one frame emitted at `emit_ns`.

@@ -2,29 +2,9 @@
 //! the streams are written from the same motion and seed as the IMU records, are reproducible,
 //! and bad settings fail naming the file, line or key, leaving no file behind.
 
-use std::path::Path;
-use std::process::{Command, Output};
-
-fn imu_emu(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_imu-emu"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("run imu-emu")
-}
-
-fn ok(out: Output) {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-fn failed(out: Output) -> String {
-    assert!(!out.status.success());
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
+#[path = "common/aiding.rs"]
+mod aiding;
+use aiding::{failed, imu_emu, ok};
 
 const SCENE: &str = "[trajectory]\nscene = \"circle\"\n[output]\nduration_s = 4.0\n\
 [gnss]\nrate_hz = 10\nlever_arm_m = [1.0, 0.0, -0.5]\noutages_s = [[1.0, 2.0]]\n";
@@ -50,7 +30,7 @@ fn generate_writes_every_gnss_stream_and_its_truth() {
         "--gnss-truth",
         "g.csv",
     ];
-    ok(imu_emu(d, &args));
+    ok(&imu_emu(d, &args));
     let truth = std::fs::read_to_string(d.join("g.csv")).unwrap();
     let rows: Vec<Vec<&str>> = truth
         .lines()
@@ -67,7 +47,7 @@ fn generate_writes_every_gnss_stream_and_its_truth() {
     let mav = std::fs::read(d.join("g.mav")).unwrap();
     assert!(mav.len() > 41 * 12 && mav[0] == 0xFD);
     let first = [nmea.into_bytes(), ubx, mav, truth.into_bytes()];
-    ok(imu_emu(d, &args));
+    ok(&imu_emu(d, &args));
     for (name, bytes) in ["g.nmea", "g.ubx", "g.mav", "g.csv"].iter().zip(first) {
         assert_eq!(std::fs::read(d.join(name)).unwrap(), bytes, "{name}");
     }
@@ -164,7 +144,7 @@ fn generate_writes_the_odometer() {
     let scene = "[trajectory]\nscene = \"straight\"\n[output]\nduration_s = 1.0\n\
                  [odometer]\nrate_hz = 7\ncounts_per_m = 49.3\n";
     std::fs::write(d.join("odo.toml"), scene).unwrap();
-    ok(imu_emu(
+    ok(&imu_emu(
         d,
         &[
             "generate",
@@ -240,7 +220,7 @@ fn generate_writes_baro_and_magnetometer() {
         "--magnetometer",
         "m.csv",
     ];
-    ok(imu_emu(d, &args));
+    ok(&imu_emu(d, &args));
     let read = |name: &str| -> (String, Vec<Vec<f64>>) {
         let text = std::fs::read_to_string(d.join(name)).unwrap();
         let mut lines = text.lines();
@@ -277,7 +257,7 @@ fn generate_writes_baro_and_magnetometer() {
             assert!((got - want).abs() < 1e-18, "{r:?}");
         }
     }
-    ok(imu_emu(d, &args));
+    ok(&imu_emu(d, &args));
     assert_eq!(read("m.csv").1, rows);
 }
 

@@ -297,8 +297,8 @@ fn rig_streams_equal_generate_over_file_and_udp() {
     assert!(mag == want[5].1, "magnetometer rows differ");
 }
 
-/// Bad aiding flags name the flag, the value and what is expected; flags that time the
-/// IMU's frames alone are refused next to an aiding stream; nothing is written.
+/// Bad aiding flags name the flag, the value and what is expected; `--trigger` is refused
+/// next to an aiding stream, with why; nothing is written.
 #[test]
 fn bad_aiding_flags_are_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
@@ -322,12 +322,8 @@ fn bad_aiding_flags_are_refused_clearly() {
             "--gnss gps:file:g: unknown format `gps`",
         ),
         (
-            vec!["--baro", "file:b.csv", "--time-marks", "m.csv"],
-            "--time-marks and the aiding stream `baro` cannot share a run yet",
-        ),
-        (
             vec!["--gnss", "ubx:file:b.ubx", "--trigger", "udp://127.0.0.1:9"],
-            "--trigger and the aiding stream `gnss-ubx` cannot share a run yet",
+            "--trigger and the aiding stream `gnss-ubx` cannot share a run yet: the IMU samples at the trigger's edges",
         ),
     ] {
         let mut args = vec!["run", "one.toml", "--file", "imu.bin"];
@@ -344,4 +340,50 @@ fn bad_aiding_flags_are_refused_clearly() {
         .map(|e| e.unwrap().file_name())
         .collect();
     assert_eq!(left, ["one.toml"], "no output after a refused flag");
+}
+
+/// `--time-marks` next to aiding streams (a paced run, 1 s at real time): the marks are the
+/// IMU's records alone — one per LN-200 frame, indices 0, 1, … 399 without a gap, each valid
+/// at the end of its interval (k + 1)/400 s, due when valid — while the GNSS and barometer
+/// frames, interleaved on the same pacer, pass unmarked and still carry exactly
+/// `generate`'s bytes. Marking every merged frame would give 400 + 5 + 9 marks and shifted
+/// indices.
+#[test]
+fn time_marks_count_only_the_imu_records_next_to_aiding_streams() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    scene(d, "one.toml", "");
+    let common = ["--seed", "5", "--duration", "1"];
+    let mut args = vec!["run", "one.toml", "--speed", "1", "--file", "imu.bin"];
+    args.extend(["--gnss", "nmea:file:r.nmea", "--baro", "file:r-baro.csv"]);
+    args.extend(["--time-marks", "marks.csv"]);
+    args.extend(common);
+    let err = ok(&imu_emu(d, &args));
+    let mut gen_args = vec!["generate", "one.toml", "-o", "imu.csv"];
+    gen_args.extend(["--gnss", "nmea:g.nmea", "--baro", "g-baro.csv"]);
+    gen_args.extend(common);
+    ok(&imu_emu(d, &gen_args));
+    let read = |f: &str| std::fs::read(d.join(f)).unwrap();
+    assert!(
+        read("r.nmea") == read("g.nmea"),
+        "NMEA differs from generate's"
+    );
+    let baro = read("g-baro.csv");
+    let nl = baro.iter().position(|c| *c == b'\n').unwrap();
+    assert!(
+        read("r-baro.csv") == baro[nl + 1..],
+        "baro differs from generate's"
+    );
+    let marks = String::from_utf8(read("marks.csv")).unwrap();
+    let rows: Vec<Vec<i64>> = (marks.lines().skip(1))
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 400, "{err}");
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r[0], k as i64, "mark {k}: index");
+        let tov = ((k as f64 + 1.0) / 400.0 * 1e9).round() as i64;
+        assert_eq!(r[1], tov, "mark {k}: time of validity");
+        // Without timing errors a record is due when valid.
+        assert_eq!(r[2], r[3], "mark {k}: tov vs due");
+    }
 }

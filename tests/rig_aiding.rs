@@ -3,24 +3,9 @@
 //! settings and the master seed: byte for byte what a single IMU's scene of the same motion
 //! and settings writes. A flag a rig cannot honour is refused by name, leaving no file.
 
-use std::path::Path;
-use std::process::{Command, Output};
-
-fn imu_emu(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_imu-emu"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("run imu-emu")
-}
-
-fn ok(out: &Output) {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
+#[path = "common/aiding.rs"]
+mod aiding;
+use aiding::{imu_emu, ok};
 
 const AIDING: [&str; 14] = [
     "--gnss",

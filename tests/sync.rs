@@ -149,6 +149,7 @@ fn pulsed_locked(
         streams: vec![(vec![0; n], (1..=n).collect())],
         emit_ns: tovs.iter().map(|t| t + 2_000_000).collect(),
         tov_ns: tovs.clone(),
+        records: Vec::new(),
     })
     .unwrap();
     drop(tx);
@@ -275,6 +276,7 @@ fn frames_on_edges_are_not_late() {
             streams: vec![(vec![0; 1], vec![1])],
             emit_ns: vec![at],
             tov_ns: vec![at],
+            records: Vec::new(),
         })
         .unwrap();
     }

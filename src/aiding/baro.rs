@@ -94,35 +94,15 @@ impl Default for BaroConfig {
 impl BaroConfig {
     /// Checks every value; the error names the `[baro]` key.
     pub fn validate(&self) -> Result<(), super::gnss::ConfigError> {
-        let bad = |key, message: String| {
-            Err(super::gnss::ConfigError {
-                table: "baro",
-                key,
-                message,
-            })
-        };
-        if !(self.rate_hz > 0.0 && self.rate_hz <= 1000.0) {
-            return bad(
-                "rate_hz",
-                format!("{} Hz is outside (0, 1000] Hz", self.rate_hz),
-            );
-        }
-        for (key, v) in [
-            ("noise_pa", self.noise_pa),
-            ("bias_rw_pa_sqrt_s", self.bias_rw_pa_sqrt_s),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(key, format!("{v} must be ≥ 0"));
-            }
-        }
+        let c = super::gnss::Checks::new("baro");
+        c.rate("rate_hz", self.rate_hz)?;
+        c.non_negative("noise_pa", self.noise_pa)?;
+        c.non_negative("bias_rw_pa_sqrt_s", self.bias_rw_pa_sqrt_s)?;
         // A bias beyond a tenth of the sea-level pressure is not a barometer's.
-        if !(self.bias0_pa.is_finite() && self.bias0_pa.abs() <= 0.1 * P0) {
-            return bad(
-                "bias0_pa",
-                format!("{} is outside ±{} Pa", self.bias0_pa, 0.1 * P0),
-            );
-        }
-        Ok(())
+        let b = self.bias0_pa;
+        c.that(b.is_finite() && b.abs() <= 0.1 * P0, "bias0_pa", || {
+            format!("{b} is outside ±{} Pa", 0.1 * P0)
+        })
     }
 }
 

@@ -79,6 +79,55 @@ pub struct ConfigError {
     pub message: String,
 }
 
+/// Range checks of one aiding table's settings: each failed check is a [`ConfigError`]
+/// naming the table and the key, with the messages every aiding sensor shares.
+pub(crate) struct Checks {
+    table: &'static str,
+}
+
+impl Checks {
+    /// Checks of the scene-file table `table` (`odometer`, `baro`, `magnetometer`).
+    pub(crate) fn new(table: &'static str) -> Checks {
+        Checks { table }
+    }
+
+    /// `Ok` when `ok`, else the error `message()` on `key`.
+    pub(crate) fn that(
+        &self,
+        ok: bool,
+        key: &'static str,
+        message: impl FnOnce() -> String,
+    ) -> Result<(), ConfigError> {
+        match ok {
+            true => Ok(()),
+            false => Err(ConfigError {
+                table: self.table,
+                key,
+                message: message(),
+            }),
+        }
+    }
+
+    /// A sample rate in (0, 1000] Hz.
+    pub(crate) fn rate(&self, key: &'static str, hz: f64) -> Result<(), ConfigError> {
+        let ok = hz > 0.0 && hz <= 1000.0;
+        self.that(ok, key, || format!("{hz} Hz is outside (0, 1000] Hz"))
+    }
+
+    /// A finite value ≥ 0 (a σ, a random-walk density).
+    pub(crate) fn non_negative(&self, key: &'static str, v: f64) -> Result<(), ConfigError> {
+        self.that(v.is_finite() && v >= 0.0, key, || {
+            format!("{v} must be ≥ 0")
+        })
+    }
+
+    /// Three finite values (a lever arm, a hard-iron offset).
+    pub(crate) fn finite3(&self, key: &'static str, v: &[f64; 3]) -> Result<(), ConfigError> {
+        let ok = v.iter().all(|x| x.is_finite());
+        self.that(ok, key, || format!("{v:?} has a non-finite value"))
+    }
+}
+
 /// Lowest and highest epoch rate (Hz) of the receivers modelled.
 pub const RATE_RANGE_HZ: (f64, f64) = (1.0, 20.0);
 

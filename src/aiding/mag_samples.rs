@@ -104,9 +104,14 @@ impl MagHold {
     /// Samples of `cfg` (seed `seed`) from `t0`, turned into the IMU case's axes by
     /// `q_b_c` (C_b^c; `None`: the body's axes).
     pub fn new(cfg: MagConfig, seed: u64, t0: f64, q_b_c: Option<Quat>) -> MagHold {
+        MagHold::in_axes(cfg, seed, t0, q_b_c.map(|q| q.to_mat()))
+    }
+
+    /// [`MagHold::new`] with the case's axes given as the matrix C_b^c.
+    pub fn in_axes(cfg: MagConfig, seed: u64, t0: f64, c_b_c: Option<Mat3>) -> MagHold {
         MagHold {
             sampler: MagSampler::new(cfg, seed, t0),
-            c_b_c: q_b_c.map(|q| q.to_mat()),
+            c_b_c,
             current: Vec3::zeros(),
         }
     }

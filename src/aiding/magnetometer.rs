@@ -64,39 +64,15 @@ impl Default for MagConfig {
 impl MagConfig {
     /// Checks every value; the error names the `[magnetometer]` key.
     pub fn validate(&self) -> Result<(), super::gnss::ConfigError> {
-        let bad = |key, message: String| {
-            Err(super::gnss::ConfigError {
-                table: "magnetometer",
-                key,
-                message,
-            })
-        };
-        if !(self.rate_hz > 0.0 && self.rate_hz <= 1000.0) {
-            return bad(
-                "rate_hz",
-                format!("{} Hz is outside (0, 1000] Hz", self.rate_hz),
-            );
-        }
-        for (key, v) in [
-            ("dipole_nt", &self.dipole_nt),
-            ("hard_iron_t", &self.hard_iron_t),
-        ] {
-            if v.iter().any(|x| !x.is_finite()) {
-                return bad(key, format!("{v:?} has a non-finite value"));
-            }
-        }
-        let s = Mat3::from_row_slice(self.soft_iron.as_flattened());
-        let det = s.determinant();
-        if !(det.is_finite() && det.abs() > 1e-9) {
-            return bad(
-                "soft_iron",
-                format!("{:?} must be finite and invertible", self.soft_iron),
-            );
-        }
-        if !(self.noise_t.is_finite() && self.noise_t >= 0.0) {
-            return bad("noise_t", format!("{} must be ≥ 0", self.noise_t));
-        }
-        Ok(())
+        let c = super::gnss::Checks::new("magnetometer");
+        c.rate("rate_hz", self.rate_hz)?;
+        c.finite3("dipole_nt", &self.dipole_nt)?;
+        c.finite3("hard_iron_t", &self.hard_iron_t)?;
+        let det = Mat3::from_row_slice(self.soft_iron.as_flattened()).determinant();
+        c.that(det.is_finite() && det.abs() > 1e-9, "soft_iron", || {
+            format!("{:?} must be finite and invertible", self.soft_iron)
+        })?;
+        c.non_negative("noise_t", self.noise_t)
     }
 }
 

@@ -42,43 +42,24 @@ impl Default for OdometerConfig {
 impl OdometerConfig {
     /// Checks every value; the error names the `[odometer]` key.
     pub fn validate(&self) -> Result<(), super::gnss::ConfigError> {
-        let bad = |key, message: String| {
-            Err(super::gnss::ConfigError {
-                table: "odometer",
-                key,
-                message,
-            })
-        };
-        if !(self.rate_hz > 0.0 && self.rate_hz <= 1000.0) {
-            return bad(
-                "rate_hz",
-                format!("{} Hz is outside (0, 1000] Hz", self.rate_hz),
-            );
-        }
-        if !(self.counts_per_m.is_finite() && self.counts_per_m > 0.0) {
-            return bad("counts_per_m", format!("{} must be > 0", self.counts_per_m));
-        }
-        if !(self.scale_factor.is_finite() && self.scale_factor > -1.0) {
-            return bad(
-                "scale_factor",
-                format!("{} must be > −1", self.scale_factor),
-            );
-        }
-        if self.lever_arm_m.iter().any(|x| !x.is_finite()) {
-            return bad(
-                "lever_arm_m",
-                format!("{:?} has a non-finite value", self.lever_arm_m),
-            );
-        }
+        let c = super::gnss::Checks::new("odometer");
+        c.rate("rate_hz", self.rate_hz)?;
+        let n = self.counts_per_m;
+        c.that(n.is_finite() && n > 0.0, "counts_per_m", || {
+            format!("{n} must be > 0")
+        })?;
+        let k = self.scale_factor;
+        c.that(k.is_finite() && k > -1.0, "scale_factor", || {
+            format!("{k} must be > −1")
+        })?;
+        c.finite3("lever_arm_m", &self.lever_arm_m)?;
         for (i, s) in self.slip.iter().enumerate() {
-            if !(s.iter().all(|x| x.is_finite()) && s[0] < s[1] && s[2] > -1.0) {
-                return bad(
-                    "slip",
-                    format!(
-                        "window {i} {s:?} must be [start, end, slip] with start < end and slip > −1"
-                    ),
-                );
-            }
+            let ok = s.iter().all(|x| x.is_finite()) && s[0] < s[1] && s[2] > -1.0;
+            c.that(ok, "slip", || {
+                format!(
+                    "window {i} {s:?} must be [start, end, slip] with start < end and slip > −1"
+                )
+            })?;
         }
         Ok(())
     }

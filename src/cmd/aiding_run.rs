@@ -82,20 +82,27 @@ pub fn requests(a: &RunArgs) -> Result<Vec<(Aiding, Vec<SinkAddr>)>> {
     Ok(out)
 }
 
-/// Flags of a run whose frames are one IMU's alone, which aiding streams cannot share yet.
+/// Flags of a run that aiding streams cannot share yet. (`--time-marks` and `--pulse` can:
+/// they mark the IMU's records only, the aiding frames pass unmarked.)
 pub fn refuse_with_aiding(a: &RunArgs, asked: &[(Aiding, Vec<SinkAddr>)]) -> Result<()> {
     let Some((what, _)) = asked.first() else {
         return Ok(());
     };
     let given = [
-        ("--motion", a.live.motion.is_some()),
-        ("--trigger", a.trigger.is_some()),
-        ("--time-marks", !a.time_marks.is_empty()),
-        ("--pulse", a.pulse.is_some()),
+        (
+            "--motion",
+            a.live.motion.is_some(),
+            "the live motion's aiding streams are not built",
+        ),
+        (
+            "--trigger",
+            a.trigger.is_some(),
+            "the IMU samples at the trigger's edges, whose times the aiding streams, on the simulated clock, would have to follow",
+        ),
     ];
-    if let Some((flag, _)) = given.iter().find(|g| g.1) {
+    if let Some((flag, _, why)) = given.iter().find(|g| g.1) {
         bail!(
-            "{flag} and the aiding stream `{}` cannot share a run yet: {flag} times the IMU's frames alone (docs/aiding.md)",
+            "{flag} and the aiding stream `{}` cannot share a run yet: {why} (docs/aiding.md)",
             what.name()
         );
     }

@@ -22,7 +22,6 @@ fn refuse_single_imu_flags(a: &GenerateArgs) -> Result<()> {
         ("--format", s.format.is_some()),
         ("--protocol-file", s.protocol_file.is_some()),
         ("--fault", !s.faults.is_empty()),
-        ("--gps-time", s.gps_time.is_some()),
         ("--truth-errors", a.truth_errors.is_some()),
     ];
     if let Some((flag, _)) = given.iter().find(|g| g.1) {

@@ -28,12 +28,25 @@ pub(super) const WINDOW_NS: i64 = 100_000_000;
 /// Flags that describe one IMU or its sinks, which each `[[imu]]` entry gives for itself.
 fn refuse_single_imu_flags(a: &RunArgs) -> Result<()> {
     let s = &a.sim;
+    if a.time_base != "sim" && s.gps_time.is_some() {
+        bail!("--gps-time sets the GPS reference of --time-base sim only");
+    }
+    let sync = [
+        ("--time-marks", !a.time_marks.is_empty()),
+        ("--pulse", a.pulse.is_some()),
+        ("--pps-in", a.pps_in.is_some()),
+        ("--trigger", a.trigger.is_some()),
+    ];
+    if let Some((flag, _)) = sync.iter().find(|g| g.1) {
+        bail!(
+            "{flag} does not apply to a rig yet: it times one IMU's frames, and a rig's units are merged on one pacer that does not tell which frame is whose (docs/rig.md)"
+        );
+    }
     let given = [
         ("--imu", s.imu.is_some()),
         ("--format", s.format.is_some()),
         ("--protocol-file", s.protocol_file.is_some()),
         ("--fault", !s.faults.is_empty()),
-        ("--gps-time", s.gps_time.is_some()),
         ("--pty", !a.pty.is_empty()),
         ("--serial", !a.serial.is_empty()),
         ("--udp", !a.udp.is_empty()),

@@ -24,6 +24,11 @@ pub fn merge_into(parts: &[Part], block: &mut FrameBlock, order: &mut Vec<(i64, 
     order.sort_by_key(|o| (o.0, o.1));
     block.streams.resize_with(parts.len(), Default::default);
     block.emit_ns.clear();
+    block.tov_ns.clear();
+    block.records.clear();
+    // Only a record stream's frames are timed by the hooks; the others' validity is their
+    // emission.
+    let marked = parts.iter().any(|p| p.marks_records);
     for (bytes, ends) in block.streams.iter_mut() {
         bytes.clear();
         ends.clear();
@@ -39,6 +44,11 @@ pub fn merge_into(parts: &[Part], block: &mut FrameBlock, order: &mut Vec<(i64, 
             ends.push(bytes.len());
         }
         block.emit_ns.push(t);
+        if marked {
+            let (k, tov) = p.records.get(i).copied().unwrap_or((u64::MAX, t));
+            block.records.push(k);
+            block.tov_ns.push(tov);
+        }
     }
 }
 
@@ -91,6 +101,8 @@ pub struct ProducerWindow {
     /// time of each frame (ns after t₀), and the next frame to give.
     held: Vec<(Vec<u8>, Vec<usize>)>,
     emit: Vec<i64>,
+    /// Each held record's index and time of validity (ns after t₀).
+    tov: Vec<(u64, i64)>,
     next: usize,
     done: bool,
 }
@@ -105,6 +117,7 @@ impl ProducerWindow {
             rate_hz,
             held: vec![Default::default(); streams],
             emit: Vec::new(),
+            tov: Vec::new(),
             next: 0,
             done: false,
         }
@@ -117,17 +130,25 @@ impl ProducerWindow {
             ends.clear();
         }
         self.emit.clear();
+        self.tov.clear();
         self.next = 0;
         let Some(out) = self.producer.next_block_multi(self.block, &mut self.held) else {
             return self.producer.take_error().map_or(Ok(false), Err);
         };
+        let (first, n) = (out.first, out.records.len() as u64);
         match &out.times {
-            Some(t) => (self.emit).extend(t.emit.iter().map(|e| (e * 1e9).round() as i64)),
+            Some(t) => {
+                (self.emit).extend(t.emit.iter().map(|e| (e * 1e9).round() as i64));
+                let tov = t.tov.iter().map(|v| (v * 1e9).round() as i64);
+                self.tov.extend((first..first + n).zip(tov));
+            }
             None => {
-                let (first, n) = (out.first, out.records.len() as u64);
                 let rate = self.rate_hz;
-                (self.emit)
-                    .extend((first + 1..=first + n).map(|k| (k as f64 / rate * 1e9).round() as i64))
+                (self.emit).extend(
+                    (first + 1..=first + n).map(|k| (k as f64 / rate * 1e9).round() as i64),
+                );
+                self.tov
+                    .extend((first..first + n).zip(self.emit.iter().copied()));
             }
         }
         Ok(true)
@@ -140,6 +161,8 @@ impl WindowSource for ProducerWindow {
     }
 
     fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), JobError> {
+        // The main stream's frames are the records (the extra encodings repeat them).
+        parts[0].marks_records = true;
         while !self.done {
             while self.next < self.emit.len() && self.emit[self.next] <= until_ns {
                 let i = self.next;
@@ -147,6 +170,7 @@ impl WindowSource for ProducerWindow {
                     let from = if i == 0 { 0 } else { ends[i - 1] };
                     p.push(&bytes[from..ends[i]], self.emit[i]);
                 }
+                parts[0].records.push(self.tov[i]);
                 self.next += 1;
             }
             if self.next < self.emit.len() {

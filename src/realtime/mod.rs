@@ -41,6 +41,11 @@ pub struct FrameBlock {
     /// Time of validity of each frame after t₀ in simulated ns, when the IMU has timing
     /// errors; empty: frame k's time of validity is the end of its interval, k·Δt.
     pub tov_ns: Vec<i64>,
+    /// In a merged block with an IMU's records among other streams' frames: each frame's
+    /// record index (0-based), `u64::MAX` for a frame that is no record (an aiding stream's),
+    /// of which the pacer's hooks (time marks, pulses) are not told; empty: frame i is record
+    /// `first + i`.
+    pub records: Vec<u64>,
 }
 
 impl FrameBlock {
@@ -120,6 +125,7 @@ pub fn produce(
         b.first = out.first;
         b.emit_ns.clear();
         b.tov_ns.clear();
+        b.records.clear();
         if let Some(t) = &out.times {
             b.emit_ns
                 .extend(t.emit.iter().map(|e| (e * 1e9).round() as i64));

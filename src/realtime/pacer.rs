@@ -281,6 +281,9 @@ pub fn run_with(
     let mut warned_skip = false;
     let mut ends = Vec::new();
     let mut times: Vec<FrameTime> = Vec::new();
+    // Per frame of the block: its place in `times`, `usize::MAX` for a frame that is no
+    // record (an aiding stream's), which the hooks are not told of.
+    let mut slots: Vec<usize> = Vec::new();
     let mut sched: Option<Schedule> = None;
     let mut pending_edge: Vec<i128> = Vec::new();
     'blocks: while let Some(block) = rx.blocking_recv() {
@@ -309,18 +312,28 @@ pub fn run_with(
         };
         if !extras.hooks.is_empty() {
             times.clear();
-            times.extend((0..n).map(|j| {
+            slots.clear();
+            for j in 0..n {
+                let index = match block.records.get(j) {
+                    Some(&u64::MAX) => {
+                        slots.push(usize::MAX);
+                        continue;
+                    }
+                    Some(&k) => k,
+                    None => block.first + j as u64,
+                };
+                slots.push(times.len());
                 let (tov_sim_ns, tov) = c.tov_in(&block, j);
                 let due_ns = due(sched, j);
-                FrameTime {
-                    index: block.first + j as u64,
+                times.push(FrameTime {
+                    index,
                     tov_sim_ns,
                     tov_ns: sched.at(tov),
                     tov_nominal_ns: tov,
                     due_ns,
                     written_ns: due_ns,
-                }
-            }));
+                });
+            }
             for h in extras.hooks.iter_mut() {
                 h.ahead(&times);
             }
@@ -343,7 +356,10 @@ pub fn run_with(
                     }
                     if slewed {
                         // The frames not yet written (and their pulses) follow the new rate.
-                        for f in times.iter_mut().skip(i) {
+                        let unwritten = (slots.get(i..).unwrap_or_default().iter())
+                            .find(|&&s| s != usize::MAX)
+                            .map_or(times.len(), |&s| s);
+                        for f in times.iter_mut().skip(unwritten) {
                             f.tov_ns = sched.at(f.tov_nominal_ns);
                         }
                         for h in extras.hooks.iter_mut() {
@@ -395,7 +411,7 @@ pub fn run_with(
                     if c.on_edges {
                         pending_edge.push(done - due_ns);
                     }
-                    if let Some(f) = times.get_mut(j) {
+                    if let Some(f) = slots.get(j).and_then(|&s| times.get_mut(s)) {
                         f.due_ns = due_ns;
                         f.written_ns = handed;
                         for h in extras.hooks.iter_mut() {
@@ -552,6 +568,7 @@ mod tests {
             streams: vec![(vec![0; 4], vec![1, 2, 3, 4])],
             emit_ns: vec![1_400_000, 2_350_000, 3_450_000, 4_400_000],
             tov_ns: Vec::new(),
+            records: Vec::new(),
         };
         let c = Clocking::new(1000.0, None, false).unwrap().with_speed(2.0);
         assert_eq!(c.deadline_in(100, &block, 1), 100 + 1_175_000);

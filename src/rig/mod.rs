@@ -17,7 +17,10 @@ pub mod stream;
 use std::io::Write;
 use std::ops::ControlFlow;
 
+use crate::aiding::mag_samples::{FrameMag, MagHold};
 use crate::errors::ErrorChain;
+use crate::errors::temperature::TemperatureProfile;
+use crate::errors::vibration::Vibration;
 use crate::generator::{IdealImu, RotationTerms};
 use crate::job::{self, Encoding, Grid, JobError, Producer};
 use crate::math::Vec3;
@@ -49,6 +52,8 @@ pub(crate) enum Body {
         layout: SkewLayout,
         errors: Vec<ChannelErrors>,
         frames: Option<Box<(Plan, EncoderState)>>,
+        /// The body's vibration (body axes), added to the error-free signal at each sensor.
+        vibration: Option<Box<Vibration>>,
     },
 }
 
@@ -62,6 +67,11 @@ pub struct Unit {
     pub(crate) seed: u64,
     pub(crate) path: Option<std::path::PathBuf>,
     pub(crate) sinks: Vec<addr::SinkAddr>,
+    /// The sensor temperature over the run: the template's thermal terms follow it (in the
+    /// chain) and frames with a temperature field carry it.
+    pub(crate) temperature: Option<TemperatureProfile>,
+    /// The magnetometer whose latest sample (in the unit's axes) the frames carry.
+    pub(crate) mag: Option<Box<MagHold>>,
 }
 
 /// Reused per-unit buffers: nothing is allocated per block once they have grown.
@@ -77,6 +87,7 @@ struct Scratch {
     side: Vec<u8>,
     row: Vec<f64>,
     ends: Vec<usize>,
+    mag: Vec<FrameMag>,
 }
 
 /// Where one unit's outputs go.
@@ -210,20 +221,23 @@ impl Unit {
     /// → the unit's error-free readings → errors → failures → encoded into `out`.
     fn process(
         &mut self,
+        motion: &AnyMotion,
         reference: &[Record],
         rot: Option<&[RotationTerms]>,
         s: &mut Scratch,
         out: &mut UnitOutputs<'_>,
     ) -> Result<(), JobError> {
-        self.encode(reference, rot, s, &mut out.truth)?;
+        self.encode(motion, reference, rot, s, &mut out.truth)?;
         out.main.write_all(&s.buf)?;
         Ok(())
     }
 
     /// [`Unit::process`] without the main output: the frames are left in `s.buf`, one per
-    /// record (ends in `s.ends`); the truth rows go to `truth`.
+    /// record (ends in `s.ends`); the truth rows go to `truth`. `motion` places the
+    /// magnetometer's samples.
     fn encode(
         &mut self,
+        motion: &AnyMotion,
         reference: &[Record],
         rot: Option<&[RotationTerms]>,
         s: &mut Scratch,
@@ -270,7 +284,14 @@ impl Unit {
                     }
                     s.masks.push(mask);
                 }
-                encoding.encode(&s.recs, &[], None, &mut s.buf, &mut s.ends);
+                s.mag.clear();
+                if let Some(hold) = self.mag.as_mut() {
+                    for r in &s.recs {
+                        s.mag.push(hold.at(r.t, motion)?);
+                    }
+                }
+                let profile = self.temperature.as_ref();
+                encoding.encode_with_mag(&s.recs, &[], profile, &s.mag, &mut s.buf, &mut s.ends);
                 if let Some(w) = truth.as_mut() {
                     s.side.clear();
                     for (r, m) in s.truth.iter().zip(&s.masks) {
@@ -283,6 +304,7 @@ impl Unit {
                 layout,
                 errors,
                 frames,
+                vibration,
             } => {
                 let ch = layout.channels();
                 s.vals.clear();
@@ -301,10 +323,22 @@ impl Unit {
                         s.tvals.push(a.axis.dot(&self.place.to_case(f_b)));
                     }
                 }
+                let ng = layout.gyros.len();
                 for (row, r) in s.tvals.chunks(ch).zip(reference) {
                     let start = s.vals.len();
-                    s.vals
-                        .extend(row.iter().zip(errors.iter_mut()).map(|(x, e)| e.read(*x)));
+                    // The body's vibration in the unit's axes, on each sense axis.
+                    let (vg, va) = vibration
+                        .as_mut()
+                        .map_or((Vec3::zeros(), Vec3::zeros()), |v| {
+                            let (g, a) = v.next();
+                            (self.place.to_case(g), self.place.to_case(a))
+                        });
+                    let axes = layout.gyros.iter().chain(&layout.accels).map(|x| x.axis);
+                    s.vals.extend(
+                        row.iter().zip(errors.iter_mut()).zip(axes).enumerate().map(
+                            |(i, ((x, e), u))| e.read(x + u.dot(if i < ng { &vg } else { &va })),
+                        ),
+                    );
                     s.masks.push(self.failures.apply(r.t, &mut s.vals[start..]));
                 }
                 check_values(&s.vals, reference, ch)?;
@@ -323,7 +357,9 @@ impl Unit {
                             t: r.t,
                             ..Record::default()
                         };
-                        plan.encode_with(&rec, Some(&c), DEFAULT_FRAME_CELSIUS, state, &mut s.buf);
+                        let celsius = (self.temperature.as_ref())
+                            .map_or(DEFAULT_FRAME_CELSIUS, |p| p.at(r.t));
+                        plan.encode_with(&rec, Some(&c), celsius, state, &mut s.buf);
                         s.ends.push(s.buf.len());
                         continue;
                     }
@@ -550,7 +586,7 @@ impl Rig {
                 }
                 let terms = rot_needed.then_some(&rot[..]);
                 for (&i, s) in group.iter().zip(scratch.iter_mut()) {
-                    self.units[i].process(&reference, terms, s, &mut outs[i])?;
+                    self.units[i].process(&self.motion, &reference, terms, s, &mut outs[i])?;
                 }
                 k += n as u64;
                 done += (n * group.len()) as u64;

@@ -34,6 +34,8 @@ pub struct RigStream {
     origin: f64,
     reference: Vec<Record>,
     rot: Vec<RotationTerms>,
+    /// The rig's motion (the magnetometer samples it).
+    motion: AnyMotion,
 }
 
 impl Rig {
@@ -68,6 +70,7 @@ impl Rig {
             origin,
             reference: Vec::new(),
             rot: Vec::new(),
+            motion: self.motion,
         }
     }
 }
@@ -188,7 +191,7 @@ impl WindowSource for RigStream {
                 let terms = g.rot_needed.then_some(&self.rot[..]);
                 for &i in &g.units {
                     let s = &mut self.scratch[i];
-                    self.units[i].encode(&self.reference, terms, s, &mut None)?;
+                    self.units[i].encode(&self.motion, &self.reference, terms, s, &mut None)?;
                     let p = &mut parts[i];
                     let mut from = 0;
                     for (j, &end) in s.ends.iter().enumerate() {

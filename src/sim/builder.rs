@@ -605,7 +605,6 @@ impl SimulationBuilder {
         temperature: Option<&TemperatureProfile>,
         warnings: &mut Vec<String>,
     ) -> Result<ErrorChain, SimError> {
-        let label = self.file_label();
         if let Some(p) = temperature {
             chain = chain.with_temperature(p.clone(), imu);
         }
@@ -637,23 +636,7 @@ impl SimulationBuilder {
         if let Some(r) = lever_arm {
             chain = chain.with_lever_arm(crate::math::Vec3::from(r));
         }
-        let vibration = match &self.vibration {
-            Some(v) => v.clone(),
-            None => self.file.vibration.spec(&label)?,
-        };
-        if !vibration.is_empty() {
-            let place = format!("{}: `vibration`", label.display());
-            let v = Vibration::new(&vibration, 1.0 / rate_hz, seed)
-                .map_err(|e| SimError::Invalid(e.to_string()).at(Some(place)))?;
-            for s in v.random_summaries() {
-                if let Some(f) = s.truncated_at_hz {
-                    warnings.push(format!(
-                        "random vibration on {} {} cut at the Nyquist frequency {f} Hz",
-                        s.sensor.name(),
-                        ["x", "y", "z"][s.axis]
-                    ));
-                }
-            }
+        if let Some(v) = self.build_vibration(rate_hz, seed, warnings)? {
             chain = chain.with_vibration(v);
         }
         if imu.grade != "ideal" && !imu.has_error_figures() {
@@ -663,6 +646,41 @@ impl SimulationBuilder {
             ));
         }
         Ok(chain)
+    }
+
+    /// The vibration (setter, else the scene file's `[vibration]`) for records at `rate_hz`,
+    /// its random streams from `seed`; `None` when there is none. A table cut at Nyquist
+    /// adds a warning.
+    fn build_vibration(
+        &self,
+        rate_hz: f64,
+        seed: u64,
+        warnings: &mut Vec<String>,
+    ) -> Result<Option<Vibration>, SimError> {
+        let label = self.file_label();
+        let spec = match &self.vibration {
+            Some(v) => v.clone(),
+            None => self.file.vibration.spec(&label)?,
+        };
+        if spec.is_empty() {
+            return Ok(None);
+        }
+        let place = format!("{}: `vibration`", label.display());
+        let v = Vibration::new(&spec, 1.0 / rate_hz, seed)
+            .map_err(|e| SimError::Invalid(e.to_string()).at(Some(place)))?;
+        for s in v.random_summaries() {
+            if let Some(f) = s.truncated_at_hz {
+                let w = format!(
+                    "random vibration on {} {} cut at the Nyquist frequency {f} Hz",
+                    s.sensor.name(),
+                    ["x", "y", "z"][s.axis]
+                );
+                if !warnings.contains(&w) {
+                    warnings.push(w);
+                }
+            }
+        }
+        Ok(Some(v))
     }
 
     /// The scene file's `[faults]` plus the faults set in code, checked against the output.

@@ -70,7 +70,7 @@ mod sine;
 
 use super::bounds::compact;
 pub use super::model::Sensor;
-use crate::math::Vec3;
+use crate::math::{Mat3, Vec3};
 use random::RandomChannel;
 use sine::SineTerm;
 use std::fmt;
@@ -327,6 +327,9 @@ pub struct Vibration {
     sines: Vec<SineTerm>,
     randoms: Vec<RandomChannel>,
     k: u64,
+    /// C: the spec's axes to the sensed axes, when they differ (a rig unit turned on a body
+    /// whose vibration the spec gives).
+    axes: Option<Mat3>,
 }
 
 impl Vibration {
@@ -392,7 +395,16 @@ impl Vibration {
             sines,
             randoms,
             k: 0,
+            axes: None,
         })
+    }
+
+    /// The same vibration sensed in axes turned by `c` from the spec's (C_b^c: the spec
+    /// gives the body's vibration, a unit mounted by C_c^b senses C_b^c v): one realization,
+    /// rotated, so units on one grid see the same body motion.
+    pub fn in_axes(mut self, c: Option<Mat3>) -> Vibration {
+        self.axes = c.filter(|c| *c != Mat3::identity());
+        self
     }
 
     /// The vibration to add to the next record's interval-mean gyro (rad/s) and accel (m/s²);
@@ -408,7 +420,11 @@ impl Vibration {
         for r in &mut self.randoms {
             v[r.slot] += r.sample();
         }
-        (Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]))
+        let (g, a) = (Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]));
+        match &self.axes {
+            Some(c) => (c * g, c * a),
+            None => (g, a),
+        }
     }
 
     /// What was built for each random vibration, in spec order.

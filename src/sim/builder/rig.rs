@@ -3,6 +3,7 @@
 
 use super::{Rate, SimulationBuilder};
 use crate::aiding::GnssConfig;
+use crate::aiding::mag_samples::MagHold;
 use crate::errors::ErrorChain;
 use crate::job::Encoding;
 use crate::output::Format;
@@ -45,10 +46,23 @@ impl SimulationBuilder {
                 "a rig needs at least one unit (`[[imu]]` in the scene file)".into(),
             ));
         }
+        if self.file.timing.is_some() {
+            // Never run the units without the timing errors the scene file names.
+            return Err(SimError::Invalid(format!(
+                "`timing`: {NO_TIMING} (a scene file's [timing] applies to one `[imu]`)"
+            ))
+            .at(Some(format!("{}: `timing`", label.display()))));
+        }
         let (source, _, _) = self.source()?;
         let motion = self.motion()?;
         let nodes = self.nodes()?;
         let master = (self.seed.or(self.file.imu.seed)).unwrap_or(crate::rng::DEFAULT_SEED);
+        let temperature = match &self.temperature {
+            Some(p) => Some(p.clone()),
+            None => self.file.temperature.profile(&label, &self.base())?,
+        };
+        let sensors = self.sensor_set()?;
+        let mut warnings = Vec::new();
         let mut units: Vec<Unit> = Vec::new();
         for (index, spec) in specs {
             let place = |key: &str| match index {
@@ -107,11 +121,18 @@ impl SimulationBuilder {
                     SimError::Invalid(format!("`{format}`: {e}")).at(Some(place("format")))
                 })?;
             }
+            let placement = Placement::new(spec.mounting_deg, spec.lever_arm_m);
+            // The body's vibration from the master seed: every unit on one time grid senses
+            // the same realization, in its own axes.
+            let vibration = (self.build_vibration(grid.rate_hz, master, &mut warnings))
+                .map_err(|e| e.at(Some(place("rate_hz"))))?;
+            let frames = plan.is_some();
             let body = match (&spec.model, template) {
                 (UnitModel::Skew(layout), _) => Body::Skew {
                     errors: ChannelErrors::of(layout, grid.rate_hz, seed),
                     layout: layout.clone(),
                     frames: plan.map(|p| Box::new((p, EncoderState::default()))),
+                    vibration: vibration.map(Box::new),
                 },
                 (UnitModel::Template(_), Some(t)) => {
                     if t.output_filter.is_some() {
@@ -122,7 +143,20 @@ impl SimulationBuilder {
                         ))
                         .at(Some(place("model"))));
                     }
-                    let chain = ErrorChain::new(&t, grid.rate_hz, seed);
+                    if !t.timing.is_zero() {
+                        return Err(SimError::Invalid(format!(
+                            "template `{}` has [timing] errors: {NO_TIMING}",
+                            t.name
+                        ))
+                        .at(Some(place("model"))));
+                    }
+                    let mut chain = ErrorChain::new(&t, grid.rate_hz, seed);
+                    if let Some(p) = &temperature {
+                        chain = chain.with_temperature(p.clone(), &t);
+                    }
+                    if let Some(v) = vibration {
+                        chain = chain.with_vibration(v.in_axes(placement.c_b_c));
+                    }
                     let encoding = match plan {
                         Some(plan) => Encoding::Frames {
                             plan: Box::new(plan),
@@ -149,10 +183,23 @@ impl SimulationBuilder {
                 })?;
                 failures.push(r);
             }
+            // The unit's own magnetometer: its noise from the unit's seed (units differ; a unit
+            // whose seed is the master seed draws the single IMU's samples).
+            let mag = match (&sensors.magnetometer, &body) {
+                (Some(cfg), Body::Triad { .. }) if frames => Some(Box::new(MagHold::in_axes(
+                    cfg.clone(),
+                    seed,
+                    grid.t0,
+                    placement.c_b_c,
+                ))),
+                _ => None,
+            };
             units.push(Unit {
                 name: spec.name.clone(),
                 grid,
-                place: Placement::new(spec.mounting_deg, spec.lever_arm_m),
+                temperature: temperature.clone(),
+                mag,
+                place: placement,
                 body,
                 failures: FailureSet::new(failures, channels, seed),
                 seed,
@@ -161,20 +208,27 @@ impl SimulationBuilder {
             });
         }
         let gnss = self.resolve_aiding(&self.gnss, &self.file.gnss, GnssConfig::validate)?;
-        let sensors = self.sensor_set()?;
-        Ok(Rig {
+        let mut rig = Rig {
             motion,
             nodes,
             units,
-            warnings: Vec::new(),
+            warnings,
             gnss,
             sensors,
             seed: master,
-            gps_time: self.gps_time,
+            gps_time: None,
             gnss_time: None,
-        })
+        };
+        if let Some((week, sow)) = self.gps_time {
+            rig.set_gps_time(week, sow);
+        }
+        Ok(rig)
     }
 }
+
+/// Why a rig refuses timing errors: its units on one grid share the error-free signal at the
+/// grid's instants, where a unit with its own clock, jitter or latency needs its own.
+const NO_TIMING: &str = "rig units do not model timing errors yet (a single IMU does; docs/rig.md)";
 
 /// A protocol's frames suit the unit: an N-channel frame carries exactly a skew unit's
 /// channels (none dropped, none made up), a three-axis frame goes with a three-axis IMU.
