@@ -420,3 +420,86 @@ fn live_rig_refusals_are_clear() {
         }
     }
 }
+
+/// examples/rig.toml (LN-200 frames at 400 Hz; an HG1700 at 100 Hz upside down 1.2 m aft;
+/// a six-gyro skew-redundant unit with a bias step, a stuck gyro and a noise burst) fed its
+/// own circle's states at 100 Hz, `imu-emu trajectory examples/rig.toml`, through a pipe:
+/// every unit's record count, and the CSV units against the same rig generated on the
+/// analytic scene. The error terms and failures draw from the same seeds in both runs, so
+/// what is left is the motion model's error, held to the one-IMU lockstep test's whole-run
+/// bounds (4e-3 rad/s, 1e-4 m/s²); a failure not applied (the 0.01 rad/s bias step, the
+/// 0.05 m/s² noise burst) or another seed (the skew accelerometers' white noise, σ =
+/// 0.05 m/s/√h × √100 Hz = 8.3e-3 m/s²) would break them. Measured when written: skew unit
+/// 2.4e-10, HG1700 2.3e-7 (one quantum of its velocity increment, 2⁻²⁷ ft/s, at 100 Hz: the
+/// model's 1e-10 error moves a rounding across a quantum now and then).
+#[test]
+fn example_rig_follows_its_own_states_with_its_failures() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/rig.toml");
+    let states = imu_emu()
+        .arg("trajectory")
+        .arg(&example)
+        .args(["--rate", "100", "--duration", "21"])
+        .output()
+        .unwrap();
+    assert!(states.status.success());
+    let names = ["nav", "tactical", "skew"];
+    let mut c = imu_emu();
+    c.arg("run").arg(&example);
+    c.args(["--motion", "-", "--time-mode", "lockstep"]);
+    for n in names {
+        c.arg("--unit-sink")
+            .arg(format!("{n}=file:{}", dir.path().join(n).display()));
+    }
+    let mut child = c
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut pipe = child.stdin.take().unwrap();
+    let text = states.stdout;
+    let writer = std::thread::spawn(move || {
+        let _ = pipe.write_all(&text);
+    });
+    let o = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    for line in [
+        "unit nav: 8000 records at 400 Hz from t = 0.08 s",
+        "unit tactical: 2000 records at 100 Hz from t = 0.08 s",
+        "unit skew: 2000 records at 100 Hz from t = 0.08 s",
+    ] {
+        assert!(err.contains(line), "{err}");
+    }
+    let want = generated(&example);
+    // LN-200 frames: 26 bytes each (their counts are compared through the summary).
+    let nav = std::fs::read(dir.path().join("nav")).unwrap();
+    assert_eq!(nav.len(), want[0].len());
+    for (i, n) in names.iter().enumerate().skip(1) {
+        let got = String::from_utf8(std::fs::read(dir.path().join(n)).unwrap()).unwrap();
+        let want = String::from_utf8(want[i].clone()).unwrap();
+        assert_eq!(got.lines().next(), want.lines().next(), "{n}: header");
+        let (mut worst, mut rows) = (0.0f64, 0);
+        for (a, b) in got.lines().zip(want.lines()).skip(1) {
+            let a: Vec<f64> = a.split(',').map(|x| x.parse().unwrap()).collect();
+            let b: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();
+            assert_eq!(a[0], b[0], "{n}: t");
+            // Rates and specific forces (the increments are them × Δt).
+            let half = (a.len() - 1) / 2;
+            for (j, (x, y)) in a[1..=half].iter().zip(&b[1..=half]).enumerate() {
+                let gyro = if i == 1 { j < 3 } else { j < 6 };
+                let bound = if gyro { 4e-3 } else { 1e-4 };
+                assert!(
+                    (x - y).abs() <= bound,
+                    "{n} t = {} column {j}: {x} vs {y}",
+                    a[0]
+                );
+                worst = worst.max((x - y).abs());
+            }
+            rows += 1;
+        }
+        assert_eq!(rows, 2000, "{n}");
+        println!("example rig, unit {n}: largest difference {worst:.2e}");
+    }
+}
