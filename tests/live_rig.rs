@@ -137,6 +137,23 @@ fn imu_emu() -> Command {
     Command::new(env!("CARGO_BIN_EXE_imu-emu"))
 }
 
+/// Runs `c` with `stdin` written into its standard input from another thread (the run may
+/// stop reading once its duration is written), stderr captured.
+fn piped(c: &mut Command, stdin: Vec<u8>) -> std::process::Output {
+    let mut child = c
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut pipe = child.stdin.take().unwrap();
+    let writer = std::thread::spawn(move || {
+        let _ = pipe.write_all(&stdin);
+    });
+    let o = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    o
+}
+
 /// `imu-emu run RIG --motion - --time-mode lockstep` with `stdin` piped in, each unit to
 /// `DIR/NAME.csv`: (exit status, stderr, each unit's bytes).
 fn cli(dir: &Path, scene: &Path, stdin: &[u8], extra: &[&str]) -> (bool, String, Vec<Vec<u8>>) {
@@ -151,19 +168,7 @@ fn cli(dir: &Path, scene: &Path, stdin: &[u8], extra: &[&str]) -> (bool, String,
             dir.join(format!("{n}.csv")).display()
         ));
     }
-    let mut child = c
-        .stdin(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut pipe = child.stdin.take().unwrap();
-    let text = stdin.to_vec();
-    // The run may stop reading once its duration is written.
-    let writer = std::thread::spawn(move || {
-        let _ = pipe.write_all(&text);
-    });
-    let o = child.wait_with_output().unwrap();
-    writer.join().unwrap();
+    let o = piped(&mut c, stdin.to_vec());
     let outs = names
         .iter()
         .map(|n| std::fs::read(dir.join(format!("{n}.csv"))).unwrap_or_default())
@@ -451,18 +456,7 @@ fn example_rig_follows_its_own_states_with_its_failures() {
         c.arg("--unit-sink")
             .arg(format!("{n}=file:{}", dir.path().join(n).display()));
     }
-    let mut child = c
-        .stdin(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut pipe = child.stdin.take().unwrap();
-    let text = states.stdout;
-    let writer = std::thread::spawn(move || {
-        let _ = pipe.write_all(&text);
-    });
-    let o = child.wait_with_output().unwrap();
-    writer.join().unwrap();
+    let o = piped(&mut c, states.stdout);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     for line in [
