@@ -497,3 +497,36 @@ fn example_rig_follows_its_own_states_with_its_failures() {
         println!("example rig, unit {n}: largest difference {worst:.2e}");
     }
 }
+
+/// A caller of the library that hands a rig's run the wrong number of writers gets an
+/// error saying so, not a panic, and a builder without units is refused before any state.
+#[test]
+fn library_misuse_is_an_error() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let b = Simulation::builder()
+        .scene_file(write_scene(dir.path(), TWO_UNITS))
+        .unwrap();
+    let run = Lockstep::rig(b, InputFormat::Csv).unwrap();
+    assert_eq!(run.outputs(), 2);
+    let mut one = Vec::new();
+    let e = run
+        .run_to(
+            &mut receiver(&survey_csv(1.0)),
+            &mut [&mut one],
+            None,
+            |_| (),
+        )
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "1 outputs given for a run that writes 2",
+        "{e}"
+    );
+    let e = Lockstep::rig(Simulation::builder(), InputFormat::Csv)
+        .err()
+        .unwrap();
+    assert!(
+        e.to_string().contains("a rig needs at least one unit"),
+        "{e}"
+    );
+}

@@ -9,7 +9,7 @@ use std::io::Write;
 
 use super::lockstep::LiveError;
 use crate::emission::Part;
-use crate::job::{Grid, JobError, Producer};
+use crate::job::{Grid, Producer};
 use crate::motion::causal::CausalMotion;
 use crate::rig::RigStream;
 use crate::sim::{SimError, SimulationBuilder};
@@ -165,9 +165,7 @@ impl Target for RigTarget {
             return Ok(());
         };
         self.parts.iter_mut().for_each(Part::clear);
-        stream
-            .release_upto(t, &mut self.parts)
-            .map_err(JobError::from)?;
+        stream.release_upto(t, &mut self.parts)?;
         for ((p, out), done) in (self.parts.iter()).zip(outs.iter_mut()).zip(&mut self.done) {
             write_all(*out, &p.bytes)?;
             *done += p.ends.len() as u64;
