@@ -361,6 +361,96 @@ fn bad_lines_are_named_and_never_fatal() {
     assert!(err.contains("stdin: line 53"), "{err}");
 }
 
+/// The rig of `TWO_UNITS` over 3 s follows the survey's states sent over UDP on loopback at
+/// 100 Hz in real time (one CSV line a datagram, each at its own instant), `--time-mode
+/// realtime`, each unit to its file sink through the one pacer. Each unit gets every record
+/// of its grid (1200 at 400 Hz, 300 at 100 Hz from t = 0.08 s), and they match the rig
+/// generated on the analytic scene within the lockstep case's bounds
+/// (two_units_from_a_pipe_follow_the_analytic_truth): states that arrive in time leave the
+/// chain following the received pieces, so real time computes the lockstep records. The
+/// summary names each unit; the arm unit against the rig without its lever arm is far
+/// outside the bound (the comparison sees the arm).
+#[test]
+fn two_units_follow_udp_input_in_real_time() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let scene = write_scene(dir.path(), &TWO_UNITS.replace("30.0", "3.0"));
+    let port = std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let mut c = imu_emu();
+    c.arg("run").arg(&scene).args([
+        "--motion",
+        &format!("udp://127.0.0.1:{port}"),
+        "--input-timeout",
+        "1",
+        "--max-behind-ms",
+        "2000",
+    ]);
+    for n in ["ref", "arm"] {
+        c.arg("--unit-sink").arg(format!(
+            "{n}=file:{}",
+            dir.path().join(format!("{n}.csv")).display()
+        ));
+    }
+    let mut child = c.stderr(Stdio::piped()).spawn().unwrap();
+    let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut text = String::new();
+    while !text.contains("following udp://") {
+        let mut l = String::new();
+        assert!(
+            std::io::BufRead::read_line(&mut err, &mut l).unwrap() > 0,
+            "{text}"
+        );
+        text += &l;
+    }
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let start = std::time::Instant::now();
+    for (k, line) in survey_csv(3.5).lines().enumerate() {
+        let due = std::time::Duration::from_millis(10 * k as u64);
+        if let Some(w) = due.checked_sub(start.elapsed()) {
+            std::thread::sleep(w);
+        }
+        sock.send_to(line.as_bytes(), ("127.0.0.1", port)).unwrap();
+    }
+    let status = child.wait().unwrap();
+    std::io::Read::read_to_string(&mut err, &mut text).unwrap();
+    println!("{text}");
+    assert!(status.success(), "{text}");
+    assert!(
+        text.contains("unit ref: 1200 records at 400 Hz from t = 0.08 s"),
+        "{text}"
+    );
+    assert!(
+        text.contains("unit arm: 300 records at 100 Hz from t = 0.08 s"),
+        "{text}"
+    );
+    let truth = generated(&scene);
+    let breaks = breakpoints(0.08, 3.08);
+    let outs: Vec<Vec<Record>> = ["ref", "arm"]
+        .iter()
+        .map(|n| records(&std::fs::read(dir.path().join(format!("{n}.csv"))).unwrap()))
+        .collect();
+    for ((name, out), want) in ["ref", "arm"].iter().zip(&outs).zip(&truth) {
+        let e = errors(out, &records(want), &breaks);
+        println!(
+            "real-time rig, unit {name}: gyro {:.2e} rad/s (interior {:.2e}), accel {:.2e} m/s² (interior {:.2e})",
+            e[2], e[0], e[3], e[1]
+        );
+        assert!(e[0] <= 1e-10 && e[1] <= 1e-8, "{name} interior: {e:?}");
+        assert!(e[2] <= 4e-3 && e[3] <= 1e-4, "{name} whole run: {e:?}");
+    }
+    let no_arm = write_scene(
+        dir.path(),
+        &TWO_UNITS
+            .replace("30.0", "3.0")
+            .replace("lever_arm_m = [1.5, -0.4, 0.3]", ""),
+    );
+    let e = errors(&outs[1], &records(&generated(&no_arm)[1]), &[]);
+    assert!(e[3] > 1e-6, "{e:?}");
+}
+
 /// What a live rig does not do yet is refused with the reason, before any output exists; an
 /// input too short for the model fails and leaves no file behind.
 #[test]
@@ -370,9 +460,9 @@ fn live_rig_refusals_are_clear() {
     let short = survey_csv(0.05);
     for (extra, stdin, msg) in [
         (
-            &["--time-mode", "realtime"][..],
+            &["--time-mode", "realtime", "--time-base", "gps"][..],
             "",
-            "--time-mode lockstep only",
+            "the GPS time base is not built yet for a rig",
         ),
         (
             &["--gnss", "nmea:file:g.nmea"][..],

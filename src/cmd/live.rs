@@ -131,9 +131,7 @@ pub fn run_rig(a: &RunArgs, source: &str, units: &[Unit], sinks: &[Vec<SinkAddr>
     let (format, endpoint) = input(a, source)?;
     super::aiding_run::refuse_with_aiding(a, &super::aiding_run::requests(a)?)?;
     if a.live.time_mode == "realtime" {
-        bail!(
-            "--motion with a rig runs in --time-mode lockstep only: real time (the units on one pacer following the clock map) is not built yet for a rig (docs/rig.md)"
-        );
+        return super::live_rt::run_rig(a, &endpoint, format, units, sinks);
     }
     refuse_time_base(a)?;
     if a.speed.is_some() || a.start_at.is_some() {
@@ -144,7 +142,7 @@ pub fn run_rig(a: &RunArgs, source: &str, units: &[Unit], sinks: &[Vec<SinkAddr>
         match list.as_slice() {
             [SinkAddr::File(p)] => paths.push(p.clone()),
             _ => bail!(
-                "unit `{}`: a rig following --motion in lockstep writes each unit to one file (`--unit-sink {}=file:PATH`, or - for stdout); the paced sinks (pty, serial, udp) take --time-mode realtime, not built yet for a rig",
+                "unit `{}`: a rig following --motion in lockstep writes each unit to one file (`--unit-sink {}=file:PATH`, or - for stdout); the paced sinks (pty, serial, udp) take --time-mode realtime",
                 u.name(),
                 u.name()
             ),
