@@ -125,8 +125,8 @@ pub fn run(a: &RunArgs, source: &str) -> Result<()> {
     Ok(())
 }
 
-/// Runs `run RIG.toml --motion`: every unit of the rig follows the input in lockstep, each
-/// to its one file sink.
+/// Runs `run RIG.toml --motion`: every unit of the rig follows the input, in real time
+/// ([`super::live_rt::run_rig`]) or in lockstep, each to its one file sink.
 pub fn run_rig(a: &RunArgs, source: &str, units: &[Unit], sinks: &[Vec<SinkAddr>]) -> Result<()> {
     let (format, endpoint) = input(a, source)?;
     super::aiding_run::refuse_with_aiding(a, &super::aiding_run::requests(a)?)?;
