@@ -79,9 +79,23 @@ pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
     if let Some(d) = a.duration {
         b = b.duration(d);
     }
-    // Samples at t₀ + k/rate for k = 0..=n, including the start.
-    let sim = b.build()?;
-    let (motion, grid) = (sim.motion(), sim.grid());
+    // Samples at t₀ + k/rate for k = 0..=n, including the start; a rig's motion over its
+    // span (the states to feed the rig with `run --motion`, docs/rig.md).
+    let (motion, grid) = if b.is_rig() {
+        let rig = b.build_rig()?;
+        let (t0, t1) = rig.span();
+        let count = ((t1 - t0) * a.rate + 1e-9).floor() as u64;
+        let grid = imu_emu::job::Grid {
+            t0,
+            rate_hz: a.rate,
+            count,
+        };
+        (rig.motion().clone(), grid)
+    } else {
+        let sim = b.build()?;
+        (sim.motion().clone(), sim.grid())
+    };
+    let motion = &motion;
     let text = imu_emu::trajectory::sample_motion(
         motion,
         grid.t0,

@@ -10,24 +10,29 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail};
 
 use imu_emu::live::InputFormat;
+use imu_emu::live::lockstep::LiveError;
 use imu_emu::live::realtime::{
     FrameOut, GpsBase, LiveStatus, OnTimeout, Realtime, RealtimeSettings, RealtimeSummary,
+    RigRealtimeSummary,
 };
 use imu_emu::live::transport::{Endpoint, Receiver};
 use imu_emu::motion::chain::ChainSettings;
 use imu_emu::motion::sampled::Degree;
 use imu_emu::output::AtomicFile;
 use imu_emu::realtime::hostclock::GpsClock;
-use imu_emu::realtime::pacer::{self, Clocking, Pacing, Status};
+use imu_emu::realtime::pacer::{self, Clocking, Pacing, Routed, Status};
 use imu_emu::realtime::signal::{Interrupted, StopSignals};
 use imu_emu::realtime::{self, clock};
+use imu_emu::rig::{SinkAddr, Unit};
+use imu_emu::sim::SimulationBuilder;
 use imu_emu::timebase::LeapTable;
 
+use super::rigrun::Stream;
 use super::run::{DEFAULT_IMU, DEFAULT_PROTOCOL, FOREVER_S, RunArgs, open_sinks, summary};
 use super::setup::require_frames;
 
-/// Runs `run --motion` in real time.
-pub fn run(a: &RunArgs, endpoint: &Endpoint, format: InputFormat) -> Result<()> {
+/// The real-time settings the flags give (and the GPS time base read now, when asked).
+fn settings(a: &RunArgs) -> Result<RealtimeSettings> {
     let l = &a.live;
     let on_timeout = OnTimeout::from_name(&l.on_timeout).with_context(|| {
         format!(
@@ -72,22 +77,45 @@ pub fn run(a: &RunArgs, endpoint: &Endpoint, format: InputFormat) -> Result<()> 
             "--time-base {other}: a --motion run takes sim (the clock map is estimated from the arrivals) or gps (the tags and the host clock are both GPS time)"
         ),
     };
-    let builder = (a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?).unbounded_duration(FOREVER_S);
-    if builder.model_settings()?.degree != Degree::Quintic {
-        bail!("--time-mode realtime needs the quintic motion model (--interp quintic)");
-    }
-    // The wire format and rate, from the settings alone (the motion comes later).
-    let stand_in = (builder.clone().scene("static").start(0.0).duration(1000.0)).build()?;
-    let plan = require_frames(&stand_in, "run --motion (realtime)")?;
-    let rate = stand_in.grid().rate_hz;
-    let settings = RealtimeSettings {
+    Ok(RealtimeSettings {
         delay,
         chain,
         on_timeout,
         gps,
-    };
-    let live = Realtime::new(builder, format, settings)?;
+    })
+}
 
+/// What a real-time run gave: the emitter's result, the pacer's final status, and the signal
+/// that interrupted it.
+struct Ran<R> {
+    result: Result<R, LiveError>,
+    status: Status,
+    interrupted: Option<Interrupted>,
+}
+
+/// The input record a run writes, shared with the input thread.
+type Record = Arc<Mutex<Option<AtomicFile>>>;
+
+/// Opens `sinks` and the input, then runs `emit` (the emitter) and the pacer (`frames_per_s`
+/// frames per second in all), printing the live status once a second, until the emitter
+/// returns or a signal stops it. The input record is kept whatever happened.
+fn follow<R: Send + 'static, S: Send + 'static>(
+    a: &RunArgs,
+    (endpoint, format, what): (&Endpoint, InputFormat, &str),
+    sinks: impl FnOnce() -> Result<(Vec<Routed>, S)>,
+    frames_per_s: f64,
+    emit: impl FnOnce(
+        S,
+        Receiver,
+        Record,
+        FrameOut,
+        Arc<AtomicBool>,
+        Arc<Mutex<LiveStatus>>,
+    ) -> Result<R, LiveError>
+    + Send
+    + 'static,
+) -> Result<Ran<R>> {
+    let l = &a.live;
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?;
@@ -95,12 +123,12 @@ pub fn run(a: &RunArgs, endpoint: &Endpoint, format: InputFormat) -> Result<()> 
         let _rt = rt.enter();
         StopSignals::new()?
     };
-    let (sinks, plans) = open_sinks(a, plan, rate, rate, true)?;
+    let (sinks, given) = sinks()?;
     let idle = Some(Duration::from_secs_f64(l.input_timeout));
     let rx = Receiver::open(endpoint, format, idle)
         .with_context(|| format!("--motion {}: opening", l.motion.as_deref().unwrap_or("")))?;
     eprintln!(
-        "imu-emu: following {} ({}) in real time at {rate} Hz",
+        "imu-emu: following {} ({}) in real time{what}",
         rx.name(),
         l.input_format
     );
@@ -112,7 +140,8 @@ pub fn run(a: &RunArgs, endpoint: &Endpoint, format: InputFormat) -> Result<()> 
     }));
 
     let anchor_ns = clock::monotonic_ns();
-    let mut c = Clocking::new(rate, Some(anchor_ns), a.realtime).map_err(|e| anyhow::anyhow!(e))?;
+    let mut c =
+        Clocking::new(frames_per_s, Some(anchor_ns), a.realtime).map_err(|e| anyhow::anyhow!(e))?;
     c.max_behind_ns = (a.max_behind_ms * 1e6) as i128;
     let stop = Arc::new(AtomicBool::new(false));
     let pacer_status = Arc::new(Mutex::new(Status::default()));
@@ -128,7 +157,6 @@ pub fn run(a: &RunArgs, endpoint: &Endpoint, format: InputFormat) -> Result<()> 
     };
     let emitter = {
         let (stop, status, record) = (stop.clone(), live_status.clone(), record.clone());
-        let extra = plans.into_iter().skip(1).collect();
         let out = FrameOut {
             tx,
             recycle: recycle_rx,
@@ -137,7 +165,7 @@ pub fn run(a: &RunArgs, endpoint: &Endpoint, format: InputFormat) -> Result<()> 
         std::thread::Builder::new()
             .name("imu-live-emitter".into())
             .spawn(move || {
-                let r = live.run(rx, record, extra, out, stop, status);
+                let r = emit(given, rx, record, out, stop, status);
                 let _ = done_tx.send(());
                 r
             })?
@@ -175,16 +203,45 @@ pub fn run(a: &RunArgs, endpoint: &Endpoint, format: InputFormat) -> Result<()> 
         r.commit()
             .with_context(|| format!("writing {}", p.display()))?;
     }
+    Ok(Ran {
+        result,
+        status: final_status,
+        interrupted,
+    })
+}
+
+/// Runs `run --motion` in real time.
+pub fn run(a: &RunArgs, endpoint: &Endpoint, format: InputFormat) -> Result<()> {
+    let settings = settings(a)?;
+    let builder = quintic(a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?)?;
+    // The wire format and rate, from the settings alone (the motion comes later).
+    let stand_in = (builder.clone().scene("static").start(0.0).duration(1000.0)).build()?;
+    let plan = require_frames(&stand_in, "run --motion (realtime)")?;
+    let rate = stand_in.grid().rate_hz;
+    let live = Realtime::new(builder, format, settings)?;
+
+    let Ran {
+        result,
+        status: final_status,
+        interrupted,
+    } = follow(
+        a,
+        (endpoint, format, &format!(" at {rate} Hz")),
+        || open_sinks(a, plan, rate, rate, true),
+        rate,
+        move |plans, rx, record, out, stop, status| {
+            let extra = plans.into_iter().skip(1).collect();
+            live.run(rx, record, extra, out, stop, status)
+        },
+    )?;
     let s: RealtimeSummary = match result {
         Ok(s) => s,
         Err(e) => {
-            // No partial output file behind a failed run.
-            for v in &a.file {
-                let path = v.rsplit_once(",protocol=").map_or(v.as_str(), |x| x.0);
-                if path != "-" {
-                    let _ = std::fs::remove_file(path);
-                }
-            }
+            remove_files(
+                a.file
+                    .iter()
+                    .map(|v| v.rsplit_once(",protocol=").map_or(v.as_str(), |x| x.0)),
+            );
             return Err(e.into());
         }
     };
@@ -202,5 +259,104 @@ pub fn run(a: &RunArgs, endpoint: &Endpoint, format: InputFormat) -> Result<()> 
         eprintln!("  {p}");
     }
     eprintln!("imu-emu: {}", summary(&final_status, s.status.frames, true));
+    interrupted.map_or(Ok(()), |i| Err(i.into()))
+}
+
+/// The unbounded run of `builder`, which real time needs on the quintic motion model.
+fn quintic(builder: SimulationBuilder) -> Result<SimulationBuilder> {
+    if builder.model_settings()?.degree != Degree::Quintic {
+        bail!("--time-mode realtime needs the quintic motion model (--interp quintic)");
+    }
+    Ok(builder.unbounded_duration(FOREVER_S))
+}
+
+/// No partial output file behind a failed run (`-`: stdout, nothing to remove).
+fn remove_files<'a>(paths: impl Iterator<Item = &'a str>) {
+    for path in paths.filter(|p| *p != "-") {
+        let _ = std::fs::remove_file(path);
+    }
+}
+
+/// Runs `run RIG.toml --motion` in real time: every unit of the rig on one pacer, each to
+/// its sinks `addrs[i]`, at the host instants of its records' simulation time plus the delay.
+pub fn run_rig(
+    a: &RunArgs,
+    endpoint: &Endpoint,
+    format: InputFormat,
+    units: &[Unit],
+    addrs: &[Vec<SinkAddr>],
+) -> Result<()> {
+    if a.time_base != "sim" {
+        bail!(
+            "--time-base {}: a rig following --motion takes --time-base sim (the GPS time base is not built yet for a rig)",
+            a.time_base
+        );
+    }
+    let settings = settings(a)?;
+    let live = Realtime::rig(quintic(a.sim.builder("ideal", "csv")?)?, format, settings)?;
+    let streams: Vec<Stream> = (units.iter())
+        .map(|u| Stream {
+            name: u.name().to_string(),
+            rate_hz: u.grid().rate_hz,
+            plan: u.plan(),
+        })
+        .collect();
+    let frames_per_s = streams.iter().map(|s| s.rate_hz).sum();
+    let open_all = || {
+        let mut sinks = Vec::new();
+        for (i, (u, list)) in streams.iter().zip(addrs).enumerate() {
+            for addr in list {
+                let sink = super::rigrun::open(a, u, addr, true, 1.0)?;
+                sinks.push(Routed { stream: i, sink });
+            }
+        }
+        Ok((sinks, ()))
+    };
+    let Ran {
+        result,
+        status,
+        interrupted,
+    } = follow(
+        a,
+        (endpoint, format, &format!(" with {} units", units.len())),
+        open_all,
+        frames_per_s,
+        move |(), rx, record, out, stop, status| live.run_rig(rx, record, out, stop, status),
+    )?;
+    let s: RigRealtimeSummary = match result {
+        Ok(s) => s,
+        Err(e) => {
+            remove_files(addrs.iter().flatten().filter_map(|x| match x {
+                SinkAddr::File(p) => Some(p.as_str()),
+                _ => None,
+            }));
+            return Err(e.into());
+        }
+    };
+    eprintln!(
+        "imu-emu: {}{} records of {} units ({}); {}; input: {}",
+        interrupted.map_or(String::new(), |i| format!("{i}: ")),
+        s.status.frames,
+        units.len(),
+        s.ended,
+        s.status.line(),
+        s.status.stats.summary()
+    );
+    for (i, (u, (g, n))) in units.iter().zip(&s.units).enumerate() {
+        let paced = status.streams.get(i).copied().unwrap_or_default();
+        eprintln!(
+            "  unit {}: {n} records at {} Hz from t = {} s to {} s, {} written, {} skipped (too late)",
+            u.name(),
+            g.rate_hz,
+            g.t0,
+            g.t0 + *n as f64 / g.rate_hz,
+            paced.frames,
+            paced.skipped
+        );
+    }
+    for p in &s.status.stats.problems {
+        eprintln!("  {p}");
+    }
+    eprintln!("imu-emu: {}", summary(&status, s.status.frames, true));
     interrupted.map_or(Ok(()), |i| Err(i.into()))
 }

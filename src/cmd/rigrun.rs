@@ -51,7 +51,6 @@ fn refuse_single_imu_flags(a: &RunArgs) -> Result<()> {
         ("--serial", !a.serial.is_empty()),
         ("--udp", !a.udp.is_empty()),
         ("--file", !a.file.is_empty()),
-        ("--motion", a.live.motion.is_some()),
     ];
     if let Some((flag, _)) = given.iter().find(|g| g.1) {
         let file = s.source.scene_file.as_deref().unwrap_or(Path::new("?"));
@@ -144,6 +143,13 @@ pub(super) fn open(
 /// Streams every unit of the rig in `a`'s scene file until the end of the span or a signal.
 pub fn run(a: RunArgs) -> Result<()> {
     refuse_single_imu_flags(&a)?;
+    if let Some(source) = &a.live.motion {
+        // The units' names and sinks, from the settings alone (the motion comes later).
+        let builder = (a.sim.builder("ideal", "csv")?).unbounded_duration(FOREVER_S);
+        let stand_in = imu_emu::live::target::stand_in(&builder).build_rig()?;
+        let sinks = unit_sinks(&a, stand_in.units())?;
+        return super::live::run_rig(&a, source, stand_in.units(), &sinks);
+    }
     let mut rig = (a.sim.builder("ideal", "csv")?)
         .unbounded_duration(FOREVER_S)
         .build_rig()?;

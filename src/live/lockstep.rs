@@ -1,20 +1,19 @@
 //! Lockstep: no wall clock. Each state taken into the causal model releases every record whose
 //! interval it completes (t_k at or before the state's time), produced by the same producer —
-//! generator, error chain, encoder — as a run from a file. The output depends only on the
-//! order and contents of the messages, so the same input gives the same bytes, and a run
-//! replayed from its recorded input (`--record-input`) gives the bytes of the original.
+//! generator, error chain, encoder — as a run from a file: one IMU's, or every unit's of a rig
+//! ([`super::target`]). The output depends only on the order and contents of the messages,
+//! so the same input gives the same bytes, and a run replayed from its recorded input
+//! (`--record-input`) gives the bytes of the original.
 
 use std::io::Write;
 
 use super::stats::InputStats;
+use super::target::{RigTarget, SimTarget, Target};
 use super::transport::{Message, Receiver};
 use super::{Decoded, Decoder, InputFormat, TimeBase};
-use crate::job::{Grid, JobError, Producer};
+use crate::job::{Grid, JobError};
 use crate::motion::causal::CausalMotion;
 use crate::sim::{SimError, SimulationBuilder};
-
-/// Records per block handed to the producer at most.
-const BLOCK: usize = 4096;
 
 /// Why a live run stopped.
 #[derive(Debug, thiserror::Error)]
@@ -48,6 +47,14 @@ pub enum LiveError {
     /// The input's time tags do not fit the time base chosen.
     #[error("{0}")]
     TimeBase(String),
+    /// The caller gave a number of outputs other than the run writes.
+    #[error("{given} outputs given for a run that writes {need}")]
+    Outputs {
+        /// Outputs given.
+        given: usize,
+        /// Outputs the run writes.
+        need: usize,
+    },
 }
 
 /// How a lockstep run ended.
@@ -55,29 +62,31 @@ pub enum LiveError {
 pub struct LiveSummary {
     /// What happened to the input.
     pub stats: InputStats,
-    /// The run's time grid (t₀, rate; `count` is the most it would have written).
+    /// The run's time grid (t₀, rate; `count` is the most it would have written); a rig's
+    /// first unit's.
     pub grid: Grid,
-    /// Records written.
+    /// Records written (over every output).
     pub records: u64,
+    /// Per output (the IMU, or each unit of a rig): its grid and the records written.
+    pub outputs: Vec<(Grid, u64)>,
     /// Time of the newest state taken (s).
     pub newest: f64,
 }
 
-/// A lockstep run in progress: feed it messages or decoded states; it writes what they release.
-pub struct Lockstep {
-    builder: Option<SimulationBuilder>,
+/// A lockstep run in progress: feed it messages or decoded states; it writes what they
+/// release. `T` is what the records come from: one IMU ([`Lockstep::new`]) or a rig
+/// ([`Lockstep::rig`]).
+pub struct Lockstep<T = SimTarget> {
+    target: T,
+    started: bool,
     model: CausalMotion,
     need: usize,
     decoder: Decoder,
     modulo: u64,
-    producer: Option<(Producer, Grid)>,
-    done: u64,
     stats: InputStats,
-    buf: Vec<u8>,
-    ends: Vec<usize>,
 }
 
-impl Lockstep {
+impl Lockstep<SimTarget> {
     /// A run of the simulation `builder` describes (IMU, rate, encoding, duration…), whose
     /// motion comes from messages of `format`. Starts at the builder's start time, else at the
     /// model's first knot.
@@ -92,43 +101,7 @@ impl Lockstep {
         format: InputFormat,
         base: TimeBase,
     ) -> Result<Lockstep, SimError> {
-        let settings = builder.model_settings()?;
-        // Every other setting (IMU, rate, encoding, faults…) is checked now, on a stand-in
-        // motion, rather than when the first states have arrived.
-        (builder.clone().scene("static").start(0.0).duration(1000.0)).build()?;
-        let model = CausalMotion::new(settings);
-        Ok(Lockstep {
-            builder: Some(builder.live_motion(model.clone())),
-            model,
-            need: settings.stencil.max(3),
-            decoder: Decoder::with_base(format, base, None),
-            modulo: match format {
-                InputFormat::Mavlink => 256,
-                _ => 1 << 32,
-            },
-            producer: None,
-            done: 0,
-            stats: InputStats::default(),
-            buf: Vec::new(),
-            ends: Vec::new(),
-        })
-    }
-
-    /// What happened to the input so far.
-    pub fn stats(&self) -> &InputStats {
-        &self.stats
-    }
-
-    /// Records written so far.
-    pub fn records(&self) -> u64 {
-        self.done
-    }
-
-    /// True once the run's duration is written.
-    pub fn complete(&self) -> bool {
-        self.producer
-            .as_ref()
-            .is_some_and(|(p, _)| p.remaining() == 0)
+        Lockstep::with_target(builder, format, base, SimTarget::new)
     }
 
     /// Decodes and takes one message (`input` names its source in reports), writing the
@@ -139,9 +112,98 @@ impl Lockstep {
         input: &str,
         out: &mut dyn Write,
     ) -> Result<(), LiveError> {
+        self.message_to(m, input, &mut [out])
+    }
+
+    /// Takes one decoded state, writing the records it releases into `out`.
+    pub fn state(
+        &mut self,
+        d: &Decoded,
+        place: &str,
+        out: &mut dyn Write,
+    ) -> Result<(), LiveError> {
+        self.state_to(d, place, &mut [out])
+    }
+
+    /// Runs to the end of the input (or of the duration), recording every message received
+    /// into `record` when given; `tick` is called after each message.
+    pub fn run(
+        self,
+        rx: &mut Receiver,
+        out: &mut dyn Write,
+        record: Option<&mut dyn Write>,
+        tick: impl FnMut(&Lockstep),
+    ) -> Result<LiveSummary, LiveError> {
+        self.run_to(rx, &mut [out], record, tick)
+    }
+}
+
+impl Lockstep<RigTarget> {
+    /// A run of every unit of the rig `builder` describes (its `[[imu]]` list or units added
+    /// in code), whose motion comes from messages of `format`: output i is unit i's. All
+    /// units start at the builder's start time, else at the model's first knot.
+    pub fn rig(
+        builder: SimulationBuilder,
+        format: InputFormat,
+    ) -> Result<Lockstep<RigTarget>, SimError> {
+        Lockstep::with_target(builder, format, TimeBase::Sim, RigTarget::new)
+    }
+}
+
+impl<T: Target> Lockstep<T> {
+    fn with_target(
+        builder: SimulationBuilder,
+        format: InputFormat,
+        base: TimeBase,
+        target: impl FnOnce(SimulationBuilder, &CausalMotion) -> Result<T, SimError>,
+    ) -> Result<Lockstep<T>, SimError> {
+        let settings = builder.model_settings()?;
+        let model = CausalMotion::new(settings);
+        Ok(Lockstep {
+            target: target(builder, &model)?,
+            started: false,
+            model,
+            need: settings.stencil.max(3),
+            decoder: Decoder::with_base(format, base, None),
+            modulo: match format {
+                InputFormat::Mavlink => 256,
+                _ => 1 << 32,
+            },
+            stats: InputStats::default(),
+        })
+    }
+
+    /// What happened to the input so far.
+    pub fn stats(&self) -> &InputStats {
+        &self.stats
+    }
+
+    /// Records written so far (over every output).
+    pub fn records(&self) -> u64 {
+        self.target.written().iter().map(|w| w.1).sum()
+    }
+
+    /// How many outputs the run writes (one per unit of a rig).
+    pub fn outputs(&self) -> usize {
+        self.target.outputs()
+    }
+
+    /// True once the run's duration is written.
+    pub fn complete(&self) -> bool {
+        self.started && self.target.complete()
+    }
+
+    /// Decodes and takes one message (`input` names its source in reports), writing the
+    /// records it releases into `outs` (one per output).
+    pub fn message_to(
+        &mut self,
+        m: &Message,
+        input: &str,
+        outs: &mut [&mut dyn Write],
+    ) -> Result<(), LiveError> {
         self.stats.messages += 1;
         match self.decoder.decode(&m.bytes) {
-            Ok(Some(d)) => self.state(&d, &format!("{input}: {}", m.place), out),
+            Ok(Some(d)) => self.state_to(&d, &format!("{input}: {}", m.place), outs),
             Ok(None) => Ok(()),
             Err(e) if e.fatal => Err(LiveError::TimeBase(format!(
                 "{input}: {}, byte {}: {}",
@@ -155,62 +217,40 @@ impl Lockstep {
         }
     }
 
-    /// Takes one decoded state, writing the records it releases into `out`.
-    pub fn state(
+    /// Takes one decoded state, writing the records it releases into `outs`.
+    pub fn state_to(
         &mut self,
         d: &Decoded,
         place: &str,
-        out: &mut dyn Write,
+        outs: &mut [&mut dyn Write],
     ) -> Result<(), LiveError> {
+        if outs.len() != self.target.outputs() {
+            return Err(LiveError::Outputs {
+                given: outs.len(),
+                need: self.target.outputs(),
+            });
+        }
         let outcome = self.model.push(&d.state);
         self.stats.state(d, &outcome, self.modulo, place);
         if outcome.is_err() || self.model.knots() == 0 {
             return Ok(());
         }
-        if self.producer.is_none() {
-            let builder = self.builder.take().expect("built once");
-            let mut sim = builder.build()?;
-            if let Some(week) = self.decoder.epoch_week() {
-                sim.set_gps_time(week, 0.0);
-            }
-            let grid = sim.grid();
-            let p = sim.producer()?;
-            let pre = p.preamble();
-            write_all(out, pre.as_bytes())?;
-            self.producer = Some((p, grid));
+        if !self.started {
+            self.target.start(outs, self.decoder.epoch_week())?;
+            self.started = true;
         }
-        self.release(out)
+        self.target.release(self.model.newest(), outs)
     }
 
-    /// Writes every record up to the newest knot.
-    fn release(&mut self, out: &mut dyn Write) -> Result<(), LiveError> {
-        let newest = self.model.newest();
-        let Some((p, grid)) = self.producer.as_mut() else {
-            return Ok(());
-        };
-        let upto = released(grid, newest).min(grid.count);
-        while self.done < upto {
-            let n = ((upto - self.done) as usize).min(BLOCK);
-            self.buf.clear();
-            self.ends.clear();
-            if p.next_block(n, &mut self.buf, &mut self.ends).is_none() {
-                p.finished()?;
-                break;
-            }
-            write_all(out, &self.buf)?;
-            self.done += n as u64;
-        }
-        Ok(())
-    }
-
-    /// Runs to the end of the input (or of the duration), recording every message received
-    /// into `record` when given; `tick` is called after each message.
-    pub fn run(
+    /// Runs to the end of the input (or of the duration), writing output i into `outs[i]`
+    /// and every message received into `record` when given; `tick` is called after each
+    /// message.
+    pub fn run_to(
         mut self,
         rx: &mut Receiver,
-        out: &mut dyn Write,
+        outs: &mut [&mut dyn Write],
         mut record: Option<&mut dyn Write>,
-        mut tick: impl FnMut(&Lockstep),
+        mut tick: impl FnMut(&Lockstep<T>),
     ) -> Result<LiveSummary, LiveError> {
         let name = rx.name().to_string();
         let csv = self.decoder.is_csv();
@@ -230,15 +270,18 @@ impl Lockstep {
                     r.write_all(b"\n").map_err(io)?;
                 }
             }
-            self.message(&m, &name, out)?;
+            self.message_to(&m, &name, outs)?;
             tick(&self);
         }
         self.stats.skipped_bytes = rx.skipped_bytes();
-        out.flush().map_err(|source| LiveError::Io {
-            what: "writing the output".into(),
-            source,
-        })?;
-        let Some((_, grid)) = self.producer else {
+        for out in outs.iter_mut() {
+            out.flush().map_err(|source| LiveError::Io {
+                what: "writing the output".into(),
+                source,
+            })?;
+        }
+        let outputs = self.target.written();
+        let Some(&(grid, _)) = outputs.first().filter(|_| self.started) else {
             return Err(LiveError::TooFewStates {
                 input: name,
                 states: self.stats.states,
@@ -248,7 +291,8 @@ impl Lockstep {
         Ok(LiveSummary {
             stats: self.stats,
             grid,
-            records: self.done,
+            records: outputs.iter().map(|w| w.1).sum(),
+            outputs,
             newest: self.model.newest(),
         })
     }
@@ -257,13 +301,6 @@ impl Lockstep {
     pub fn motion(&self) -> &CausalMotion {
         &self.model
     }
-}
-
-fn write_all(out: &mut dyn Write, b: &[u8]) -> Result<(), LiveError> {
-    out.write_all(b).map_err(|source| LiveError::Io {
-        what: "writing the output".into(),
-        source,
-    })
 }
 
 /// Number of records k ≥ 1 of `grid` with t_k = t₀ + k/rate at or before `t` (times computed

@@ -14,6 +14,7 @@ pub mod lockstep;
 pub mod mavlink;
 pub mod realtime;
 pub mod stats;
+pub mod target;
 pub mod transport;
 
 use std::sync::OnceLock;

@@ -30,6 +30,9 @@ use crate::realtime::clock::{monotonic_ns, sleep_until};
 use crate::record::FLAG_STALE;
 use crate::sim::{SimError, SimulationBuilder};
 
+mod rig;
+pub use rig::RigRealtimeSummary;
+
 /// The emitter wakes this long before a frame's deadline to produce it (s): what it
 /// computes for one frame takes microseconds; the rest absorbs its own wake-up lateness.
 pub const LEAD_S: f64 = 0.001;
@@ -185,6 +188,9 @@ pub struct FrameOut {
     pub anchor_ns: i128,
 }
 
+/// The input thread's shared state and its wake-up.
+type Shared = (Mutex<Input>, Condvar);
+
 struct Input {
     stats: InputStats,
     map: ClockMap,
@@ -210,8 +216,28 @@ impl Realtime {
         format: InputFormat,
         settings: RealtimeSettings,
     ) -> Result<Realtime, SimError> {
+        Realtime::checked(builder, format, settings, |b| b.build().map(drop))
+    }
+
+    /// A run of every unit of the rig `builder` describes (its scene file lists `[[imu]]`
+    /// units), following messages of `format`: see [`Realtime::run_rig`].
+    pub fn rig(
+        builder: SimulationBuilder,
+        format: InputFormat,
+        settings: RealtimeSettings,
+    ) -> Result<Realtime, SimError> {
+        Realtime::checked(builder, format, settings, |b| b.build_rig().map(drop))
+    }
+
+    /// The run, its settings checked by `check` on a stand-in motion before any state.
+    fn checked(
+        builder: SimulationBuilder,
+        format: InputFormat,
+        settings: RealtimeSettings,
+        check: impl Fn(SimulationBuilder) -> Result<(), SimError>,
+    ) -> Result<Realtime, SimError> {
         let model_settings = builder.model_settings()?;
-        (builder.clone().scene("static").start(0.0).duration(1000.0)).build()?;
+        check(super::target::stand_in(&builder))?;
         let model = CausalMotion::new(model_settings);
         model.enable_chain(settings.chain);
         Ok(Realtime {
@@ -223,18 +249,14 @@ impl Realtime {
         })
     }
 
-    /// Follows `rx` until the input ends (and the policy stops), `stop` is set, or the
-    /// duration is done; `record`, when given, receives every message as it arrives.
-    /// `extra` are the sinks' other protocols. `status` is refreshed after every frame block.
-    pub fn run<W: Write + Send + 'static>(
-        self,
+    /// Starts the input thread on `rx` and waits for the model's first knot: the shared
+    /// input state, the output delay in use and the input's name.
+    fn start_input<W: Write + Send + 'static>(
+        &self,
         mut rx: Receiver,
         record: Arc<Mutex<Option<W>>>,
-        extra: Vec<Plan>,
-        mut out: FrameOut,
-        stop: Arc<AtomicBool>,
-        status: Arc<Mutex<LiveStatus>>,
-    ) -> Result<RealtimeSummary, LiveError> {
+        stop: &Arc<AtomicBool>,
+    ) -> Result<(Arc<Shared>, f64, String), LiveError> {
         let shared = Arc::new((
             Mutex::new(Input {
                 stats: InputStats::default(),
@@ -254,7 +276,7 @@ impl Realtime {
         ));
         let name = rx.name().to_string();
         {
-            let (shared, model, stop) = (shared.clone(), self.model.clone(), stop.clone());
+            let (shared, model, stop) = (shared.clone(), self.model.clone(), Arc::clone(stop));
             let format = self.format;
             let epoch = self.settings.gps.map(|g| g.week);
             std::thread::Builder::new()
@@ -299,6 +321,24 @@ impl Realtime {
                 )));
             }
         }
+        Ok((shared, delay, name))
+    }
+
+    /// Follows `rx` until the input ends (and the policy stops), `stop` is set, or the
+    /// duration is done; `record`, when given, receives every message as it arrives.
+    /// `extra` are the sinks' other protocols. `status` is refreshed after every frame block.
+    pub fn run<W: Write + Send + 'static>(
+        self,
+        rx: Receiver,
+        record: Arc<Mutex<Option<W>>>,
+        extra: Vec<Plan>,
+        mut out: FrameOut,
+        stop: Arc<AtomicBool>,
+        status: Arc<Mutex<LiveStatus>>,
+    ) -> Result<RealtimeSummary, LiveError> {
+        let (shared, delay, name) = self.start_input(rx, record, &stop)?;
+        let (lock, _) = &*shared;
+        let get = || lock.lock().unwrap_or_else(|e| e.into_inner());
         let delay_ns = (delay * 1e9).round() as i128;
         let lead_ns = (LEAD_S * 1e9) as i128;
         let mut sim = self.builder.build()?;

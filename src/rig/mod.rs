@@ -190,7 +190,7 @@ impl Unit {
     }
 
     /// The header of the main output (CSV only) and of the truth file.
-    fn headers(&self) -> (String, String) {
+    pub(crate) fn headers(&self) -> (String, String) {
         let names = match &self.body {
             Body::Triad { .. } => COLUMNS[1..].iter().map(|s| s.to_string()).collect(),
             Body::Skew { layout, .. } => {

@@ -176,8 +176,29 @@ impl WindowSource for RigStream {
     }
 
     fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), JobError> {
+        let origin = self.origin;
+        self.produce(|g| last_due(g, origin, until_ns), parts)
+    }
+
+    fn done(&self) -> bool {
+        self.groups.iter().all(|g| g.next > g.grid.count)
+    }
+}
+
+impl RigStream {
+    /// Appends to `parts` (one per unit) every record whose interval ends at or before `t`
+    /// (s) that was not given before: what a state at `t` releases in a lockstep run.
+    pub fn release_upto(&mut self, t: f64, parts: &mut [Part]) -> Result<(), JobError> {
+        self.produce(
+            |g| crate::live::lockstep::released(g, t).min(g.count),
+            parts,
+        )
+    }
+
+    /// Produces, group by group, every record up to `last(grid)` of the group's grid.
+    fn produce(&mut self, last: impl Fn(&Grid) -> u64, parts: &mut [Part]) -> Result<(), JobError> {
         for g in self.groups.iter_mut() {
-            let last = last_due(&g.grid, self.origin, until_ns);
+            let last = last(&g.grid);
             while g.next <= last {
                 let k = g.next;
                 let n = ((last - k + 1) as usize).min(job::BLOCK);
@@ -206,10 +227,6 @@ impl WindowSource for RigStream {
             }
         }
         Ok(())
-    }
-
-    fn done(&self) -> bool {
-        self.groups.iter().all(|g| g.next > g.grid.count)
     }
 }
 
