@@ -1,10 +1,13 @@
 //! N-channel frames (`gyro[i]`, `dv[i]`, … fields; `protocols/skew6.toml`): a skew-redundant
 //! rig unit writes them, `decode` and an independent Python decoder read them back, channel
-//! values round-trip within half an LSB, failure bits follow the failure truth, and bad specs
+//! values round-trip within an LSB (their running sums within half one), failure bits follow the failure truth, and bad specs
 //! or mismatched units are refused naming the file, line and field.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+#[path = "common/carry.rs"]
+mod carry;
 
 use imu_emu::protocol::spec::{Channel, Source};
 use imu_emu::protocol::{self, Channels, Decoded, EncoderState, Plan, StreamDecoder};
@@ -118,6 +121,7 @@ fn rig_frames_carry_the_csv_values_and_failure_bits() {
     );
     assert_eq!(stats.status_flagged, 160);
     let (mut gyro_failed, mut accel_failed) = (0, 0);
+    let mut running = Vec::new();
     for (k, ((d, row), tr)) in frames.iter().zip(&rows).zip(&truth).enumerate() {
         assert_eq!(d.get(Source::Counter), Some(k as f64));
         let t = d.get(Source::Time).unwrap();
@@ -129,12 +133,15 @@ fn rig_frames_carry_the_csv_values_and_failure_bits() {
                 (Channel::Dv, 19 + i, LSB_DV),
             ] {
                 let got = d.get(Source::Channel(c, i)).unwrap();
-                let want = row[col];
-                let tol = 0.5 * lsb + 4.0 * f64::EPSILON * want.abs();
-                assert!(
-                    (got - want).abs() <= tol,
-                    "frame {k} {c:?}[{i}]: {got} vs {want}"
-                );
+                assert_eq!(plan.quantum(Source::Channel(c, i)), Some(lsb));
+                let s = (Source::Channel(c, i), k);
+                assert!(carry::sums_within_half_a_step(
+                    &mut running,
+                    &plan,
+                    s,
+                    got,
+                    row[col]
+                ));
             }
         }
         let status = d.get(Source::Status).unwrap() as u64;
@@ -218,7 +225,8 @@ for o in range(0, len(data), 64):
 }
 
 /// Random channel values (inside ±0.25 rad and ±16 m/s per sample) and failure masks encode
-/// and decode back: each channel within half its LSB, the status word equal to the mask.
+/// and decode back: each channel within one LSB and its running sum within half one (the
+/// encoder carries each count's remainder), the status word equal to the mask.
 /// Wrong: the increments (value × dt) must be sent, not the means; the accelerometers come
 /// after the gyros in `values`.
 #[test]
@@ -234,6 +242,7 @@ fn channel_values_round_trip_within_half_an_lsb() {
     let unit = |x: u64| (x >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
     let mut st = EncoderState::default();
     let dt = 1.0 / 200.0;
+    let mut running = Vec::new();
     for k in 0..2000 {
         let mut v = [0.0; 12];
         for (i, x) in v.iter_mut().enumerate() {
@@ -260,10 +269,15 @@ fn channel_values_round_trip_within_half_an_lsb() {
                 (Channel::Dv, v[6 + i] * dt, LSB_DV),
             ] {
                 let got = d.get(Source::Channel(c, i)).unwrap();
-                assert!(
-                    (got - want).abs() <= 0.5 * lsb + 4.0 * f64::EPSILON * want.abs(),
-                    "{c:?}[{i}]: {got} vs {want}"
-                );
+                assert_eq!(plan.quantum(Source::Channel(c, i)), Some(lsb));
+                let s = (Source::Channel(c, i), k);
+                assert!(carry::sums_within_half_a_step(
+                    &mut running,
+                    &plan,
+                    s,
+                    got,
+                    want
+                ));
             }
         }
         assert_eq!(d.get(Source::Status), Some(failed as f64));

@@ -36,6 +36,11 @@ pub struct EncoderState {
     pub mag: Vec3,
     /// The next frame carries a magnetometer sample no earlier frame carried.
     pub mag_fresh: bool,
+    /// What each increment source's integer field could not express in the frames sent so far
+    /// (physical units, slots of `layout::carry_slot`): added to the next frame's increment,
+    /// as a real unit's accumulator keeps the remainder of its counts, so that the counts sum to
+    /// the summed increments within one count instead of drifting by up to half a count a frame.
+    pub carry: Vec<f64>,
 }
 
 /// The single-axis channels of an N-channel unit (a skew-redundant one) for one frame, next

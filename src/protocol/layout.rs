@@ -157,7 +157,7 @@ impl Layout {
         r: &Record,
         ch: Option<&Channels<'_>>,
         temperature: f64,
-        state: &EncoderState,
+        state: &mut EncoderState,
         faults: FrameFaults,
         out: &mut Vec<u8>,
     ) -> u8 {
@@ -165,10 +165,10 @@ impl Layout {
         out.resize(start + self.len, 0);
         let frame = &mut out[start..];
         let mut flags = r.flags;
-        let counter = |modulo: u64, step: u64| {
-            let n = state.frames.wrapping_sub(state.stalled);
-            n.wrapping_mul(step) % modulo
-        };
+        let sent = state.frames.wrapping_sub(state.stalled);
+        let counter = |modulo: u64, step: u64| sent.wrapping_mul(step) % modulo;
+        // Increment sources already sent in this frame: the remainder is carried once.
+        let (mut carried, mut with_carry) = (0u64, [0.0f64; 64]);
         for op in &self.ops {
             let dst = &mut frame[op.offset..op.offset + op.ty.bytes()];
             match &op.what {
@@ -194,6 +194,30 @@ impl Layout {
                     if !q.is_finite() {
                         flags |= FLAG_INVALID;
                     }
+                    let q = match (carry_slot(*source), op.ty.int_range()) {
+                        // A second field of the same increment (a raw copy) sends the same.
+                        (Some(k), Some(_)) if carried & (1 << k) != 0 => with_carry[k],
+                        (Some(k), Some((lo, hi))) if q.is_finite() => {
+                            carried |= 1 << k;
+                            if state.carry.len() <= k {
+                                state.carry.resize(k + 1, 0.0);
+                            }
+                            // The unit's accumulator keeps what a count could not express, so
+                            // the sum of the counts sent follows the sum of the increments. A
+                            // saturated count loses the excess, as the real unit's does.
+                            let x = q + state.carry[k];
+                            let counts = (x * scale).round().clamp(lo as f64, hi as f64);
+                            let rest = x - counts / scale;
+                            state.carry[k] = if (rest * scale).abs() <= 0.5 {
+                                rest
+                            } else {
+                                0.0
+                            };
+                            with_carry[k] = x;
+                            x
+                        }
+                        _ => q,
+                    };
                     let x = q * scale;
                     if *wrap {
                         let (lo, hi) = op.ty.int_range().expect("checked at compile");
@@ -390,6 +414,20 @@ impl CheckOp {
         self.check
             .compute_parts(&[covered, &ZEROS[..pad.min(16)], &self.append])
     }
+}
+
+/// The carry slot of an increment source (Δθ, ΔV, a single-axis channel's increment):
+/// three-axis Δθ 0–2, ΔV 3–5, then channel i of a kind at 6 + 2i (gyros) or 7 + 2i; `None`
+/// for a quantity that is not an increment (rates, time, status…). Slots past 63 (more than
+/// 28 channels of a kind) are not carried.
+fn carry_slot(s: Source) -> Option<usize> {
+    let k = match s {
+        Source::DTheta(i) => i,
+        Source::Dv(i) => 3 + i,
+        Source::Channel(c, i) if c.is_increment() => 6 + 2 * i + usize::from(!c.is_gyro()),
+        _ => return None,
+    };
+    (k < 64).then_some(k)
 }
 
 fn quantity(r: &Record, temperature: f64, st: &EncoderState, s: Source) -> f64 {
