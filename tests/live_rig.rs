@@ -487,7 +487,7 @@ fn live_rig_refusals_are_clear() {
         (
             &["--time-base", "gps"][..],
             "",
-            "--time-base gps: lockstep follows the input alone",
+            "--time-base gps: a rig following --motion takes its input's tags as simulation seconds",
         ),
         (
             &[][..],
