@@ -456,16 +456,7 @@ impl Realtime {
             }
         };
         drop(out);
-        let g = get();
-        st.stats = g.stats.clone();
-        st.corrections = self.model.corrections();
-        *status.lock().unwrap_or_else(|e| e.into_inner()) = st.clone();
-        if let Some(source) = get_error(g) {
-            return Err(LiveError::Io {
-                what: format!("reading {name}"),
-                source,
-            });
-        }
+        close(get(), &mut st, &self.model, &status, &name)?;
         Ok(RealtimeSummary {
             status: st,
             grid,
@@ -476,6 +467,27 @@ impl Realtime {
 
 fn get_error(mut g: std::sync::MutexGuard<'_, Input>) -> Option<std::io::Error> {
     g.error.take()
+}
+
+/// Publishes the run's last status, with the input's final counts; the input's read error,
+/// if it had one, becomes the run's.
+fn close(
+    g: std::sync::MutexGuard<'_, Input>,
+    st: &mut LiveStatus,
+    model: &CausalMotion,
+    status: &Mutex<LiveStatus>,
+    name: &str,
+) -> Result<(), LiveError> {
+    st.stats = g.stats.clone();
+    st.corrections = model.corrections();
+    *status.lock().unwrap_or_else(|e| e.into_inner()) = st.clone();
+    match get_error(g) {
+        Some(source) => Err(LiveError::Io {
+            what: format!("reading {name}"),
+            source,
+        }),
+        None => Ok(()),
+    }
 }
 
 /// The input thread: receives, records, decodes, feeds the model and the clock map; GPS

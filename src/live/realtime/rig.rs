@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 
 use super::super::lockstep::LiveError;
 use super::super::transport::Receiver;
-use super::{FrameOut, LEAD_S, LiveStatus, OnTimeout, Realtime, get_error};
+use super::{FrameOut, LEAD_S, LiveStatus, OnTimeout, Realtime, close};
 use crate::emission::Part;
 use crate::job::Grid;
 use crate::motion::chain::Tail;
@@ -149,16 +149,7 @@ impl Realtime {
             }
         };
         drop(out);
-        let g = get();
-        st.stats = g.stats.clone();
-        st.corrections = self.model.corrections();
-        *status.lock().unwrap_or_else(|e| e.into_inner()) = st.clone();
-        if let Some(source) = get_error(g) {
-            return Err(LiveError::Io {
-                what: format!("reading {name}"),
-                source,
-            });
-        }
+        close(get(), &mut st, &self.model, &status, &name)?;
         Ok(RigRealtimeSummary {
             status: st,
             units: grids.into_iter().zip(done).collect(),
