@@ -371,18 +371,9 @@ impl Realtime {
             }
             let deadline = get().map.host_ns(time(k + 1) - ahead) + delay_ns;
             let wake = deadline - lead_ns;
-            while monotonic_ns() < wake && !stop.load(Ordering::Relaxed) {
-                sleep_until(wake.min(monotonic_ns() + 100_000_000));
-            }
+            sleep_to(wake, &stop);
             let now = monotonic_ns();
-            let (map, input_ended) = {
-                let g = get();
-                st.stats = g.stats.clone();
-                st.rate = g.map.rate();
-                st.jitter = g.map.jitter();
-                st.clock_rate = g.map.clock_rate();
-                (g.map.clone(), g.ended)
-            };
+            let (map, input_ended) = observe(&mut st, &get());
             st.stale = input_ended;
             let newest = self.model.newest();
             if input_ended {
@@ -467,6 +458,24 @@ impl Realtime {
 
 fn get_error(mut g: std::sync::MutexGuard<'_, Input>) -> Option<std::io::Error> {
     g.error.take()
+}
+
+/// Sleeps until `wake` (CLOCK_MONOTONIC ns) or a stop request, in slices of at most 100 ms
+/// so that a stop is seen promptly.
+fn sleep_to(wake: i128, stop: &AtomicBool) {
+    while monotonic_ns() < wake && !stop.load(Ordering::Relaxed) {
+        sleep_until(wake.min(monotonic_ns() + 100_000_000));
+    }
+}
+
+/// Takes the input's counts and clock-map figures into the status; returns the clock map
+/// and whether the input has ended.
+fn observe(st: &mut LiveStatus, g: &Input) -> (ClockMap, bool) {
+    st.stats = g.stats.clone();
+    st.rate = g.map.rate();
+    st.jitter = g.map.jitter();
+    st.clock_rate = g.map.clock_rate();
+    (g.map.clone(), g.ended)
 }
 
 /// Publishes the run's last status, with the input's final counts; the input's read error,

@@ -11,11 +11,11 @@ use std::sync::{Arc, Mutex};
 
 use super::super::lockstep::LiveError;
 use super::super::transport::Receiver;
-use super::{FrameOut, LEAD_S, LiveStatus, OnTimeout, Realtime, close};
+use super::{FrameOut, LEAD_S, LiveStatus, OnTimeout, Realtime, close, observe, sleep_to};
 use crate::emission::Part;
 use crate::job::Grid;
 use crate::motion::chain::Tail;
-use crate::realtime::clock::{monotonic_ns, sleep_until};
+use crate::realtime::clock::monotonic_ns;
 use crate::realtime::merge::merge_into;
 
 /// Simulated time released per step (s): short against any output delay worth having,
@@ -82,18 +82,9 @@ impl Realtime {
                 break "duration reached";
             }
             let wake = get().map.host_ns(t + STEP_S) + delay_ns - lead_ns;
-            while monotonic_ns() < wake && !stop.load(Ordering::Relaxed) {
-                sleep_until(wake.min(monotonic_ns() + 100_000_000));
-            }
+            sleep_to(wake, &stop);
             let now = monotonic_ns();
-            let (map, input_ended) = {
-                let g = get();
-                st.stats = g.stats.clone();
-                st.rate = g.map.rate();
-                st.jitter = g.map.jitter();
-                st.clock_rate = g.map.clock_rate();
-                (g.map.clone(), g.ended)
-            };
+            let (map, input_ended) = observe(&mut st, &get());
             st.stale = input_ended;
             let newest = self.model.newest();
             let stopping = input_ended && self.settings.on_timeout == OnTimeout::Stop;
