@@ -11,7 +11,7 @@
 //! the run if deadlines accumulated error).
 //!
 //! Then throughput: an unpaced run through the whole pipeline (producer thread, channel,
-//! pacer, file sink into a discarding writer) against `job::run` (what `generate` runs) on
+//! pacer, file sink into a discarding writer) against `engine::run` (what `generate` runs) on
 //! the same scene.
 
 use std::io::Read;
@@ -21,9 +21,9 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use imu_emu::engine::{self, Encoding, Producer, SourceSpec};
 use imu_emu::errors::{ErrorChain, template};
 use imu_emu::generator::DEFAULT_NODES;
-use imu_emu::job::{self, Encoding, Producer, SourceSpec};
 use imu_emu::motion::sampled::ModelSettings;
 use imu_emu::output::Format;
 use imu_emu::protocol::{EncoderState, Plan, StreamDecoder, load};
@@ -38,8 +38,8 @@ use imu_emu::scenes::SceneParams;
 
 fn producer(rate: f64, secs: f64, plan: &Plan) -> Producer {
     let source = SourceSpec::Scene("survey".into(), SceneParams::defaults_for("survey"));
-    let motion = job::build_motion(&source, ModelSettings::default()).expect("survey");
-    let grid = job::plan(&motion, rate, None, Some(secs)).expect("span");
+    let motion = engine::build_motion(&source, ModelSettings::default()).expect("survey");
+    let grid = engine::plan(&motion, rate, None, Some(secs)).expect("span");
     let ln200 = template::load("ln200").expect("built in");
     let chain = ErrorChain::new(&ln200, rate, 1);
     let encoding = Encoding::Frames {
@@ -56,7 +56,7 @@ fn pipeline(p: Producer, frames_per_s: f64, pacing: Pacing, sink: Box<dyn Sink>)
     let (tx, rx) = tokio::sync::mpsc::channel::<FrameBlock>(realtime::CHANNEL_BLOCKS);
     let (rtx, rrx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
     let block = realtime::block_len(frames_per_s);
-    let prod = std::thread::spawn(move || realtime::produce(p, block, 1, tx, rrx));
+    let prod = std::thread::spawn(move || imu_emu::run::merge::produce(p, block, 1, tx, rrx));
     let status = Arc::new(Mutex::new(Status::default()));
     let st = std::thread::Builder::new()
         .name("imu-pacer".into())
@@ -261,7 +261,7 @@ fn main() {
         }
     }
 
-    // Throughput of an unpaced run against generate's job::run, same scene and settings.
+    // Throughput of an unpaced run against generate's engine::run, same scene and settings.
     let rate = 1000.0;
     let dur = 600.0;
     let count = (rate * dur) as u64;
@@ -276,8 +276,8 @@ fn main() {
 
         let t = Instant::now();
         let source = SourceSpec::Scene("survey".into(), SceneParams::defaults_for("survey"));
-        let motion = job::build_motion(&source, ModelSettings::default()).unwrap();
-        let grid = job::plan(&motion, rate, None, Some(dur)).unwrap();
+        let motion = engine::build_motion(&source, ModelSettings::default()).unwrap();
+        let grid = engine::plan(&motion, rate, None, Some(dur)).unwrap();
         let ln200 = template::load("ln200").unwrap();
         let encoding = Encoding::Frames {
             plan: Box::new(plan.clone()),
@@ -285,7 +285,7 @@ fn main() {
             temperature: 25.0,
             side: Format::Csv,
         };
-        job::run(
+        engine::run(
             motion,
             grid,
             DEFAULT_NODES,
@@ -310,7 +310,7 @@ fn main() {
         best[1] / best[0]
     );
     println!(
-        "| generate (job::run, one thread) | {:.3e} | 1.00 |",
+        "| generate (engine::run, one thread) | {:.3e} | 1.00 |",
         count as f64 / best[1]
     );
 }

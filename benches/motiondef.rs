@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use imu_emu::job::{self, BLOCK, Producer, SourceSpec};
+use imu_emu::engine::{self, BLOCK, Producer, SourceSpec};
 use imu_emu::motion::Motion;
 use imu_emu::scenes::SceneParams;
 use imu_emu::source::AnyMotion;
@@ -17,7 +17,7 @@ const SECONDS: f64 = 60.0;
 
 fn ns_per_record(m: &AnyMotion) -> f64 {
     let seconds = SECONDS.min(m.end() - m.start());
-    let grid = job::plan(m, RATE, None, Some(seconds)).expect("plan");
+    let grid = engine::plan(m, RATE, None, Some(seconds)).expect("plan");
     let mut best = f64::INFINITY;
     for _ in 0..3 {
         let start = Instant::now();
@@ -40,7 +40,7 @@ fn main() {
     println!("| source | ns/record |\n| --- | ---: |");
     for name in ["static", "circle", "survey", "coning"] {
         let spec = SourceSpec::Scene(name.into(), SceneParams::defaults_for(name));
-        let m = job::build_motion(&spec, Default::default()).expect("scene");
+        let m = engine::build_motion(&spec, Default::default()).expect("scene");
         println!("| scene {name} | {:.0} |", ns_per_record(&m));
     }
     for file in [

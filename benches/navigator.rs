@@ -7,8 +7,8 @@
 
 use std::time::Instant;
 
+use imu_emu::engine;
 use imu_emu::generator::IdealImu;
-use imu_emu::job;
 use imu_emu::motion::Motion;
 use imu_emu::nav::{NavState, Navigator, Settings, StateError};
 use imu_emu::record::Record;
@@ -27,7 +27,7 @@ fn main() {
     for (name, seconds) in cases {
         let p = SceneParams::defaults_for(name);
         let m = AnyMotion::Scene(scenes::build(name, &p).unwrap().unwrap());
-        let grid = job::plan(&m, RATE, None, Some(seconds)).unwrap();
+        let grid = engine::plan(&m, RATE, None, Some(seconds)).unwrap();
         let mut imu = IdealImu::new(m.clone(), RATE, 0.0, grid.count, 3);
         let mut rec = vec![Record::default(); grid.count as usize];
         imu.fill(1, &mut rec);

@@ -10,7 +10,7 @@ use std::ops::ControlFlow;
 use std::time::Instant;
 
 use imu_emu::rig::UnitOutputs;
-use imu_emu::rig::config::UnitSpec;
+use imu_emu::rig::UnitSpec;
 use imu_emu::sim::Simulation;
 
 const DURATION_S: f64 = 120.0;

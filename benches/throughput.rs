@@ -1,6 +1,6 @@
 //! Records per second of offline generation on one core: `cargo bench --bench throughput`.
 //!
-//! Runs the same code path as `imu-emu generate` (`job::run`: generator → error chain →
+//! Runs the same code path as `imu-emu generate` (`engine::run`: generator → error chain →
 //! encoder → writer) into a writer that discards the bytes, so the figure is the simulator's,
 //! not the disk's. Best of 9 runs (this 2-core VM is noisy: run-to-run spread is ±20 %); every run produces
 //! identical bytes.
@@ -9,9 +9,9 @@ use std::io;
 use std::path::Path;
 use std::time::Instant;
 
+use imu_emu::engine::{self, SourceSpec};
 use imu_emu::errors::{ErrorChain, ImuModel, template};
 use imu_emu::generator::DEFAULT_NODES;
-use imu_emu::job::{self, SourceSpec};
 use imu_emu::motion::sampled::ModelSettings;
 use imu_emu::output::Format;
 use imu_emu::scenes::SceneParams;
@@ -32,14 +32,14 @@ fn measure(case: &Case, rate: f64) -> (u64, f64) {
     let mut best = f64::INFINITY;
     let mut count = 0;
     for _ in 0..9 {
-        let motion = job::build_motion(source, ModelSettings::default()).expect("valid source");
-        let grid = job::plan(&motion, rate, None, *duration).expect("valid span");
+        let motion = engine::build_motion(source, ModelSettings::default()).expect("valid source");
+        let grid = engine::plan(&motion, rate, None, *duration).expect("valid span");
         count = grid.count;
         let chain = imu
             .map(|m| ErrorChain::new(m, rate, 1))
             .filter(|c| !c.is_empty());
         let t = Instant::now();
-        job::run(
+        engine::run(
             motion,
             grid,
             *nodes,
@@ -62,7 +62,7 @@ fn main() {
     let dir = std::env::temp_dir().join(format!("imu-emu-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let csv = dir.join("survey100.csv");
-    let motion = job::build_motion(&scene("survey"), ModelSettings::default()).expect("survey");
+    let motion = engine::build_motion(&scene("survey"), ModelSettings::default()).expect("survey");
     std::fs::write(&csv, sample_csv(&motion, 100.0, 600.0)).expect("write csv");
     let noise_only = template::parse(
         "name = \"noise-only\"\n[gyro]\nnoise = \"0.07 deg/sqrt(h)\"\n[accel]\nnoise = \"0.03 m/s/sqrt(h)\"\n",

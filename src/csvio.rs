@@ -281,6 +281,27 @@ impl<R: BufRead> CsvLines<R> {
     }
 }
 
+/// A TOML error of `text` on one line: `line L, column C: message`. The parser's own text
+/// spans several lines (a code excerpt with a caret), which a one-line error cannot show.
+pub fn toml_error_line(text: &str, e: &toml::de::Error) -> String {
+    let message = e.message().trim().replace('\n', " ");
+    match e.span() {
+        Some(s) => {
+            let (line, column) = line_col(text, s.start);
+            format!("line {line}, column {column}: {message}")
+        }
+        None => message,
+    }
+}
+
+/// 1-based line and column of a byte offset.
+pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

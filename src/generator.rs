@@ -38,7 +38,7 @@ impl<M: Motion> IdealImu<M> {
     /// Gauss–Legendre rule. The caller has checked that the span lies within the motion.
     ///
     /// # Panics
-    /// If `nodes` is not in 1..=[`crate::quadrature::MAX_NODES`] (`job::run` checks it first).
+    /// If `nodes` is not in 1..=[`crate::quadrature::MAX_NODES`] (`engine::run` checks it first).
     pub fn new(motion: M, rate_hz: f64, t0: f64, count: u64, nodes: usize) -> Self {
         let rule = GaussLegendre::new(nodes).expect("node count validated by the caller");
         IdealImu {
@@ -258,24 +258,24 @@ impl<M: Motion> IdealImu<M> {
     }
 
     /// Fills `out` with records k_first, k_first+1, … whose increments integrate over the
-    /// sensor's true intervals `timed` (relative to t₀; [`crate::timing::SensorTiming`]): the
-    /// gyro's over `timed.gyro`, the accelerometers' over `timed.accel`. The record's time tag
+    /// sensor's true intervals (relative to t₀; the timing model's `SensorTiming`): the
+    /// gyro's over (gyro[i], gyro[i+1]], the accelerometers' over (accel[i], accel[i+1]]. The record's time tag
     /// stays t₀ + k/rate (the sensor clock's reading) and its rates are the increments over
     /// the nominal Δt, as a unit that divides by the interval its own clock measured reports
     /// them.
     pub fn fill_timed(
         &mut self,
         k_first: u64,
-        timed: &crate::timing::TimedBlock,
+        (gyro, accel): (&[f64], &[f64]),
         out: &mut [Record],
     ) {
-        let same = timed.gyro == timed.accel;
+        let same = gyro == accel;
         for (i, r) in out.iter_mut().enumerate() {
-            let (dtheta, dv_g) = self.integral(timed.gyro[i], timed.gyro[i + 1]);
+            let (dtheta, dv_g) = self.integral(gyro[i], gyro[i + 1]);
             let dv = if same {
                 dv_g
             } else {
-                self.integral(timed.accel[i], timed.accel[i + 1]).1
+                self.integral(accel[i], accel[i + 1]).1
             };
             *r = Record {
                 t: self.time_of(k_first + i as u64),
@@ -342,7 +342,7 @@ mod tests {
         let mut timed = TimedBlock::default();
         let mut out = vec![Record::default(); 150];
         timing.fill(1, 150, &mut timed);
-        imu.fill_timed(1, &timed, &mut out);
+        imu.fill_timed(1, (&timed.gyro, &timed.accel), &mut out);
         for (i, r) in out.iter().enumerate() {
             let (a, b) = (timed.gyro[i], timed.gyro[i + 1]);
             let (c, d) = (timed.accel[i], timed.accel[i + 1]);

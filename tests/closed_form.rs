@@ -449,7 +449,7 @@ fn polar_flight_closed_form_through_the_pole() {
 /// (86.4 M records streamed through the real job path), ending at exactly 86400 s.
 #[test]
 fn time_base_exact_over_24_hours_at_1khz() {
-    use imu_emu::job;
+    use imu_emu::engine;
     struct Check {
         k: u64,
         buf: Vec<u8>,
@@ -471,13 +471,13 @@ fn time_base_exact_over_24_hours_at_1khz() {
         }
     }
     let m = scene("static", SceneParams::defaults_for("static"));
-    let grid = job::plan(&m, 1000.0, None, Some(86_400.0)).unwrap();
+    let grid = engine::plan(&m, 1000.0, None, Some(86_400.0)).unwrap();
     assert_eq!(grid.count, 86_400_000);
     let mut check = Check {
         k: 0,
         buf: Vec::new(),
     };
-    job::run(
+    engine::run(
         m,
         grid,
         3,
@@ -538,7 +538,7 @@ fn circle_exact_at_the_end_of_24_hours() {
 /// floor of `coning_increments_closed_form`, 4 sin β·Ω t·ε = 1.7e-11 rad (measured 3.4e-12).
 #[test]
 fn coning_exact_at_the_end_of_24_hours() {
-    use imu_emu::job::{self, Producer};
+    use imu_emu::engine::{self, Producer};
     let p = SceneParams::defaults_for("coning");
     let (beta, om) = (
         p.cone_half_angle_deg.to_radians(),
@@ -547,12 +547,12 @@ fn coning_exact_at_the_end_of_24_hours() {
     let lat = p.lat_deg.to_radians();
     let m = scene("coning", p);
     let rate = 10.0;
-    let grid = job::plan(&m, rate, None, Some(86_400.0)).unwrap();
+    let grid = engine::plan(&m, rate, None, Some(86_400.0)).unwrap();
     assert_eq!(grid.count, 864_000);
     let mut producer =
         Producer::new(m, grid, 8, imu_emu::output::Format::Bin, None, false).unwrap();
     let mut tail = std::collections::VecDeque::with_capacity(11);
-    while let Some(b) = producer.next_records(job::BLOCK) {
+    while let Some(b) = producer.next_records(engine::BLOCK) {
         for r in b.records {
             if tail.len() == 10 {
                 tail.pop_front();

@@ -4,8 +4,8 @@
 use std::path::Path;
 use std::process::Command;
 
+use imu_emu::engine;
 use imu_emu::errors::template;
-use imu_emu::job;
 use imu_emu::nav::Settings;
 use imu_emu::nav::montecarlo::{Plan, TemplateResult, compare};
 use imu_emu::scenes::{self, SceneParams};
@@ -14,7 +14,7 @@ use imu_emu::source::AnyMotion;
 fn plan(scene: &str, seconds: f64, rate: f64, runs: usize, seed: u64, threads: usize) -> Plan {
     let p = SceneParams::defaults_for(scene);
     let motion = AnyMotion::Scene(scenes::build(scene, &p).unwrap().unwrap());
-    let grid = job::plan(&motion, rate, None, Some(seconds)).unwrap();
+    let grid = engine::plan(&motion, rate, None, Some(seconds)).unwrap();
     Plan {
         motion,
         grid,

@@ -290,7 +290,7 @@ rate_per_s = 4.0
 /// counter gap, duplicate, stale counter, skipped byte or framing error.
 #[test]
 fn ten_minutes_of_survey_decode_cleanly() {
-    use imu_emu::job::{self, Encoding, SourceSpec};
+    use imu_emu::engine::{self, Encoding, SourceSpec};
     use imu_emu::motion::sampled::ModelSettings;
     use imu_emu::scenes::SceneParams;
     for name in protocol::builtin_names() {
@@ -300,12 +300,12 @@ fn ten_minutes_of_survey_decode_cleanly() {
         }
         let rate = plan.rate_hz.unwrap_or(400.0);
         let source = SourceSpec::Scene("survey".into(), SceneParams::defaults_for("survey"));
-        let motion = job::build_motion(&source, ModelSettings::default()).unwrap();
-        let grid = job::plan(&motion, rate, None, Some(600.0)).unwrap();
+        let motion = engine::build_motion(&source, ModelSettings::default()).unwrap();
+        let grid = engine::plan(&motion, rate, None, Some(600.0)).unwrap();
         let imu = imu_emu::errors::template::load("stim300").unwrap();
         let chain = imu_emu::errors::ErrorChain::new(&imu, rate, 1);
         let mut bytes = Vec::new();
-        job::run(
+        engine::run(
             motion,
             grid,
             3,

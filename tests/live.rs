@@ -14,9 +14,9 @@ use std::thread;
 use std::time::Duration;
 
 use imu_emu::earth;
+use imu_emu::engine::released;
 use imu_emu::input::RecordReader;
 use imu_emu::live::binary::{self, Datagram};
-use imu_emu::live::lockstep::{LiveSummary, Lockstep, released};
 use imu_emu::live::transport::{Endpoint, Receiver};
 use imu_emu::live::{InputFormat, mavlink};
 use imu_emu::math::{QuatExt, Vec3, euler_from_quat};
@@ -25,6 +25,7 @@ use imu_emu::nav::{NavState, Navigator, Settings, StateError};
 use imu_emu::output::Format;
 use imu_emu::protocol::spec::Source;
 use imu_emu::record::Record;
+use imu_emu::run::lockstep::{LiveSummary, Lockstep};
 use imu_emu::sim::Simulation;
 use imu_emu::source::AnyMotion;
 use imu_emu::trajectory;

@@ -15,12 +15,12 @@ use std::process::{Command, Stdio};
 
 use imu_emu::input::RecordReader;
 use imu_emu::live::InputFormat;
-use imu_emu::live::lockstep::Lockstep;
 use imu_emu::live::transport::Receiver;
 use imu_emu::motion::Motion;
 use imu_emu::output::Format;
 use imu_emu::record::Record;
 use imu_emu::rig::UnitOutputs;
+use imu_emu::run::lockstep::Lockstep;
 use imu_emu::sim::Simulation;
 use imu_emu::source::AnyMotion;
 use imu_emu::trajectory;

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use imu_emu::earth;
-use imu_emu::job;
+use imu_emu::engine;
 use imu_emu::motion::Motion;
 use imu_emu::motiondef::{self, DefinedMotion};
 use imu_emu::nav::{Settings, close};
@@ -34,7 +34,7 @@ fn every_gnss_ins_sim_demo_closes_within_a_millimetre() {
     assert_eq!(names.len(), 11, "{names:?}");
     for name in names {
         let m = AnyMotion::Defined(load(&name));
-        let grid = job::plan(&m, 100.0, None, None).unwrap();
+        let grid = engine::plan(&m, 100.0, None, None).unwrap();
         let c = close(&m, &grid, Settings::default(), None, 100).unwrap();
         println!(
             "{name:>40}: {:>7.1} s, position {:.2e} m (max {:.2e}), velocity max {:.2e} m/s, attitude max {:.2e} rad",
@@ -265,7 +265,7 @@ fn native_mission_closes_and_is_continuous() {
     println!("mission: {i} boundaries, largest jump ω {dw:.2e} rad/s, f {df:.2e} m/s²");
     assert!(dw < 1e-12 && df < 1e-9, "{dw:e} {df:e}");
     let m = AnyMotion::Defined(m);
-    let grid = job::plan(&m, 200.0, None, None).unwrap();
+    let grid = engine::plan(&m, 200.0, None, None).unwrap();
     let c = close(&m, &grid, Settings::default(), None, 100).unwrap();
     println!(
         "mission: {} s, position {:.2e} m (max {:.2e}), velocity max {:.2e} m/s",
@@ -661,7 +661,7 @@ fn waypoints_pass_their_points_continuously_and_close() {
     assert!(i == 359 && dw < 1e-12 && df < 1e-9, "{i} {dw:e} {df:e}");
     assert!(!m.gnss_visible(55.0) && m.gnss_visible(45.0) && m.gnss_visible(75.0));
     let m = AnyMotion::Defined(m);
-    let grid = job::plan(&m, 200.0, None, None).unwrap();
+    let grid = engine::plan(&m, 200.0, None, None).unwrap();
     let c = close(&m, &grid, Settings::default(), None, 100).unwrap();
     println!(
         "waypoints: position {:.2e} m (max {:.2e})",

@@ -9,8 +9,8 @@
 //! ≤ 1e-3 m) is far above all of them.
 
 use imu_emu::earth;
+use imu_emu::engine;
 use imu_emu::generator::IdealImu;
-use imu_emu::job;
 use imu_emu::math::{QuatExt, Vec3};
 use imu_emu::motion::Motion;
 use imu_emu::nav::strapdown::rotation_vector;
@@ -28,7 +28,7 @@ fn scene(name: &str) -> AnyMotion {
 /// error, the largest velocity error and the final attitude error.
 fn closes(name: &str, seconds: f64, rate: f64, pos_m: f64, vel_m_s: f64, att_rad: f64) {
     let m = scene(name);
-    let grid = job::plan(&m, rate, None, Some(seconds)).unwrap();
+    let grid = engine::plan(&m, rate, None, Some(seconds)).unwrap();
     let c = close(&m, &grid, Settings::default(), None, 100).unwrap();
     println!(
         "{name:>8} {seconds:>4} s {rate} Hz: position {:.2e} m (max {:.2e}), velocity max {:.2e} m/s, attitude {:.2e} rad",
@@ -217,7 +217,7 @@ fn accel_bias_gives_schuler_error() {
 #[test]
 fn reset_to_truth_continues_closing() {
     let m = scene("circle");
-    let grid = job::plan(&m, 400.0, None, Some(20.0)).unwrap();
+    let grid = engine::plan(&m, 400.0, None, Some(20.0)).unwrap();
     let mut imu = IdealImu::new(m.clone(), 400.0, 0.0, grid.count, 3);
     let mut rec = vec![Record::default(); grid.count as usize];
     imu.fill(1, &mut rec);
@@ -373,7 +373,7 @@ fn closure_refuses_a_run_cut_short_by_a_non_finite_record() {
     .unwrap();
     let profile = TemperatureProfile::Table(vec![(0.0, 25.0), (0.25, 25.0), (0.35, f64::NAN)]);
     let m = scene("static");
-    let grid = job::plan(&m, 10.0, None, Some(5.0)).unwrap();
+    let grid = engine::plan(&m, 10.0, None, Some(5.0)).unwrap();
     let chain = ErrorChain::new(&model, 10.0, 1).with_temperature(profile, &model);
     let e = close(&m, &grid, Settings::default(), Some(chain), 1).unwrap_err();
     assert!(e.to_string().contains("accel_x"), "{e}");

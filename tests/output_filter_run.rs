@@ -422,7 +422,7 @@ fn validate_and_compare_produce_what_generate_does() {
     let grid = sim.grid();
     let motion = sim.motion().clone();
     let want: Vec<Record> = sim.records().unwrap().flat_map(|b| b.unwrap()).collect();
-    let mut p = imu_emu::job::Producer::for_model(motion.clone(), grid, &m, 7).unwrap();
+    let mut p = imu_emu::engine::Producer::for_model(motion.clone(), grid, &m, 7).unwrap();
     let mut got = Vec::new();
     while let Some(b) = p.next_records(300) {
         got.extend_from_slice(b.records);
@@ -430,11 +430,11 @@ fn validate_and_compare_produce_what_generate_does() {
     p.finished().unwrap();
     assert_eq!(got.len(), 1000);
     assert_eq!(got, want);
-    let bad = imu_emu::job::Grid {
+    let bad = imu_emu::engine::Grid {
         rate_hz: 300.0,
         ..grid
     };
-    let e = imu_emu::job::Producer::for_model(motion, bad, &m, 7)
+    let e = imu_emu::engine::Producer::for_model(motion, bad, &m, 7)
         .err()
         .unwrap()
         .to_string();
@@ -459,10 +459,7 @@ fn a_rig_refuses_a_filtered_unit() {
         .scene("static")
         .rate(RATE)
         .duration(1.0)
-        .unit(imu_emu::rig::config::UnitSpec::imu(
-            "a",
-            file.to_str().unwrap(),
-        ))
+        .unit(imu_emu::rig::UnitSpec::imu("a", file.to_str().unwrap()))
         .build_rig()
         .err()
         .unwrap();

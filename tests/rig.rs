@@ -7,7 +7,7 @@ use std::ops::ControlFlow;
 use imu_emu::math::{Mat3, QuatExt, Vec3, quat_from_euler};
 use imu_emu::motion::Motion;
 use imu_emu::quadrature::GaussLegendre;
-use imu_emu::rig::config::UnitSpec;
+use imu_emu::rig::UnitSpec;
 use imu_emu::rig::{Rig, SkewLayout, SkewSensor, UnitOutputs, dodecahedron_axes};
 use imu_emu::sim::Simulation;
 

@@ -2,10 +2,10 @@
 //! clock): one record per edge after the first, each integrating over the interval since the
 //! previous edge.
 
-use imu_emu::job::{JobError, Producer};
+use imu_emu::engine::trigger::EdgeList;
+use imu_emu::engine::{EngineError, Producer};
 use imu_emu::record::Record;
 use imu_emu::sim::Simulation;
-use imu_emu::timing::trigger::EdgeList;
 
 /// An ideal IMU on `scene` at 100 Hz for 2 s.
 fn producer(scene: &str) -> Producer {
@@ -20,7 +20,7 @@ fn producer(scene: &str) -> Producer {
 }
 
 /// Every record a producer gives, with the run's error.
-fn drain(mut p: Producer) -> (Vec<Record>, Vec<f64>, Option<JobError>) {
+fn drain(mut p: Producer) -> (Vec<Record>, Vec<f64>, Option<EngineError>) {
     let (mut recs, mut tov) = (Vec::new(), Vec::new());
     while let Some(b) = p.next_records(64) {
         recs.extend_from_slice(b.records);

@@ -14,7 +14,12 @@ pub mod sensors;
 pub mod stream;
 pub mod time;
 pub mod ubx;
-pub mod window;
 
 pub use gnss::{Fix, GnssConfig, GnssEpoch, Receiver};
 pub use stream::{GnssEncoder, GnssFormat};
+
+/// Why a sensor cannot give a sample (a position outside its field table, a value that is not
+/// finite), naming the time.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct SampleError(pub String);

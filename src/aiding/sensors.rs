@@ -4,12 +4,11 @@
 
 use std::fmt::Write as _;
 
+use super::SampleError;
 use super::baro::{BaroConfig, Barometer};
 use super::magnetometer::{MagConfig, Magnetometer};
 use super::odometer::{Odometer, OdometerConfig};
 use crate::earth::Geodetic;
-use crate::emission::{EmitWindow, Emitter};
-use crate::job::JobError;
 use crate::math::QuatExt;
 use crate::motion::Motion;
 
@@ -97,7 +96,6 @@ pub struct SensorRows<M> {
     /// Index of the next sample and one past the last.
     next: i64,
     end: i64,
-    row: String,
 }
 
 impl<M: Motion> SensorRows<M> {
@@ -153,22 +151,12 @@ impl<M: Motion> SensorRows<M> {
             t0,
             next,
             end,
-            row: String::new(),
         }
     }
 
     /// Samples per second.
     pub fn rate_hz(&self) -> f64 {
         self.rate
-    }
-
-    /// The rows as a stream for the merger, each emitted at its sample's time counted from
-    /// `origin` (the run's t₀, s).
-    pub fn window(self, origin: f64) -> EmitWindow<SensorRows<M>>
-    where
-        M: Send,
-    {
-        EmitWindow::new(self, origin)
     }
 
     /// How many samples the span holds.
@@ -179,7 +167,7 @@ impl<M: Motion> SensorRows<M> {
     /// The next sample's CSV row (with its line end), replacing `row`'s contents; returns
     /// its time (s), or `None` after the last. A position outside the magnetometer's field
     /// table or a non-finite value is an error naming the time.
-    pub fn next_row(&mut self, row: &mut String) -> Result<Option<f64>, JobError> {
+    pub fn next_row(&mut self, row: &mut String) -> Result<Option<f64>, SampleError> {
         if self.next >= self.end {
             return Ok(None);
         }
@@ -217,7 +205,7 @@ impl<M: Motion> SensorRows<M> {
                 let pos = Geodetic::from_radians(p.lat, p.lon, p.h);
                 let field = mag
                     .field_n(&pos)
-                    .map_err(|e| JobError::Sensor(format!("magnetometer at t = {t} s: {e}")))?;
+                    .map_err(|e| SampleError(format!("magnetometer at t = {t} s: {e}")))?;
                 let b = p.q_b_n.rotate_inv(field);
                 let m = mag.measure(b);
                 let _ = write!(row, "{t}");
@@ -229,7 +217,7 @@ impl<M: Motion> SensorRows<M> {
             }
         };
         if finite.contains(&false) {
-            return Err(JobError::Sensor(format!(
+            return Err(SampleError(format!(
                 "the {} sample at t = {t} s is not finite: {}",
                 self.kind().name(),
                 row.trim_end()
@@ -245,17 +233,6 @@ impl<M: Motion> SensorRows<M> {
             Model::Baro(_) => SensorKind::Baro,
             Model::Mag(_) => SensorKind::Magnetometer,
         }
-    }
-}
-
-/// A sensor's rows as a stream for the merger: each row emitted at its sample's time.
-impl<M: Motion + Send> Emitter for SensorRows<M> {
-    fn next_frame(&mut self, out: &mut Vec<u8>) -> Result<Option<f64>, JobError> {
-        let mut row = std::mem::take(&mut self.row);
-        let t = self.next_row(&mut row);
-        out.extend_from_slice(row.as_bytes());
-        self.row = row;
-        t
     }
 }
 

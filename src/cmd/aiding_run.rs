@@ -6,8 +6,9 @@ use anyhow::{Result, bail};
 
 use imu_emu::aiding::GnssFormat;
 use imu_emu::aiding::sensors::SensorKind;
-use imu_emu::realtime::merge::WindowSource;
 use imu_emu::rig::SinkAddr;
+use imu_emu::run::merge::WindowSource;
+use imu_emu::sim::aiding_frames::sensor_window;
 
 use super::run::RunArgs;
 
@@ -125,7 +126,7 @@ impl AidingHost for imu_emu::sim::Simulation {
     fn sensor(&self, k: SensorKind) -> (Box<dyn WindowSource>, f64, u64) {
         let rows = self.sensor_rows(k);
         let (rate, n) = (rows.rate_hz(), rows.count());
-        (Box::new(rows.window(self.grid().t0)), rate, n)
+        (Box::new(sensor_window(rows, self.grid().t0)), rate, n)
     }
 }
 
@@ -137,7 +138,7 @@ impl AidingHost for imu_emu::rig::Rig {
     fn sensor(&self, k: SensorKind) -> (Box<dyn WindowSource>, f64, u64) {
         let rows = self.sensor_rows(k);
         let (rate, n) = (rows.rate_hz(), rows.count());
-        (Box::new(rows.window(self.span().0)), rate, n)
+        (Box::new(sensor_window(rows, self.span().0)), rate, n)
     }
 }
 

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 
-use imu_emu::job;
+use imu_emu::engine;
 use imu_emu::nav::Settings;
 use imu_emu::nav::montecarlo::{self, Plan, TemplateResult};
 use imu_emu::output::AtomicFile;
@@ -148,7 +148,7 @@ pub fn compare(a: CompareArgs) -> Result<()> {
         }
     }
     let motion = a.reference.builder()?.motion()?;
-    let grid = job::plan(&motion, a.rate, None, a.duration)?;
+    let grid = engine::plan(&motion, a.rate, None, a.duration)?;
     let outage_records = match a.outage {
         None => None,
         Some(s) if s.is_finite() && s > 0.0 => {

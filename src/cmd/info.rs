@@ -85,7 +85,7 @@ pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
         let rig = b.build_rig()?;
         let (t0, t1) = rig.span();
         let count = ((t1 - t0) * a.rate + 1e-9).floor() as u64;
-        let grid = imu_emu::job::Grid {
+        let grid = imu_emu::engine::Grid {
             t0,
             rate_hz: a.rate,
             count,

@@ -1,6 +1,6 @@
 //! `imu-emu run --motion SOURCE`: follow a vehicle simulation's states as they arrive
 //! (docs/live-input.md), with one IMU or a rig's units (docs/rig.md). Parses and prints; the
-//! run is `imu_emu::live::lockstep`, or `imu_emu::live::realtime` through [`super::live_rt`].
+//! run is `imu_emu::run::lockstep`, or `imu_emu::run::live_realtime` through [`super::live_rt`].
 
 use std::io::{IsTerminal, Write};
 use std::path::Path;
@@ -8,12 +8,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 
-use imu_emu::live::lockstep::{LiveSummary, Lockstep};
-use imu_emu::live::target::Target;
 use imu_emu::live::transport::{Endpoint, Receiver};
 use imu_emu::live::{InputFormat, TimeBase};
 use imu_emu::output::AtomicFile;
 use imu_emu::rig::{SinkAddr, Unit};
+use imu_emu::run::lockstep::{LiveSummary, Lockstep};
+use imu_emu::run::target::Target;
 
 use super::run::{DEFAULT_IMU, DEFAULT_PROTOCOL, FOREVER_S, RunArgs};
 

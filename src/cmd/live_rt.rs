@@ -1,7 +1,7 @@
 //! `imu-emu run --motion SOURCE --time-mode realtime`: frames at the host-clock instants of
 //! the states' simulation time plus an output delay, to every sink of `run`. Parses flags,
 //! wires the input, emitter and pacer threads, prints the status and the summary; the run is
-//! `imu_emu::live::realtime`.
+//! `imu_emu::run::live_realtime`.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -10,11 +10,6 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail};
 
 use imu_emu::live::InputFormat;
-use imu_emu::live::lockstep::LiveError;
-use imu_emu::live::realtime::{
-    FrameOut, GpsBase, LiveStatus, OnTimeout, Realtime, RealtimeSettings, RealtimeSummary,
-    RigRealtimeSummary,
-};
 use imu_emu::live::transport::{Endpoint, Receiver};
 use imu_emu::motion::chain::ChainSettings;
 use imu_emu::motion::sampled::Degree;
@@ -24,6 +19,11 @@ use imu_emu::realtime::pacer::{self, Clocking, Pacing, Routed, Status};
 use imu_emu::realtime::signal::{Interrupted, StopSignals};
 use imu_emu::realtime::{self, clock};
 use imu_emu::rig::{SinkAddr, Unit};
+use imu_emu::run::live_realtime::{
+    FrameOut, GpsBase, LiveStatus, OnTimeout, Realtime, RealtimeSettings, RealtimeSummary,
+    RigRealtimeSummary,
+};
+use imu_emu::run::lockstep::LiveError;
 use imu_emu::sim::SimulationBuilder;
 use imu_emu::timebase::LeapTable;
 

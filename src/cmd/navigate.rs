@@ -6,12 +6,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
-use imu_emu::gnss_fixes::{FixEpoch, read_fixes};
 use imu_emu::input::RecordReader;
 use imu_emu::math::Vec3;
 use imu_emu::math::euler_from_quat;
 use imu_emu::motion::{Motion, Pose};
 use imu_emu::nav::aided::{AidedConfig, AidedNavigator};
+use imu_emu::nav::gnss_fixes::{FixEpoch, read_fixes};
 use imu_emu::nav::{NavState, Navigator, Settings, StateError};
 use imu_emu::output::{AtomicFile, Format};
 use imu_emu::record::Record;

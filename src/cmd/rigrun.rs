@@ -7,7 +7,6 @@ use std::path::Path;
 use anyhow::{Context, Result, bail};
 
 use imu_emu::protocol::Plan;
-use imu_emu::realtime::merge::{self, WindowSource};
 use imu_emu::realtime::pacer::{Clocking, Pacing, Routed, Status};
 use imu_emu::realtime::serial::{SerialSink, check_link};
 use imu_emu::realtime::signal::StopSignals;
@@ -16,6 +15,7 @@ use imu_emu::realtime::udp::{self, UdpSink};
 use imu_emu::realtime::{clock, pty::PtySink};
 use imu_emu::rig::SinkAddr;
 use imu_emu::rig::Unit;
+use imu_emu::run::merge::{self, WindowSource};
 
 use super::aiding_run;
 use super::run::{FOREVER_S, RunArgs, drive, file_sink, time_base_start};
@@ -146,7 +146,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     if let Some(source) = &a.live.motion {
         // The units' names and sinks, from the settings alone (the motion comes later).
         let builder = (a.sim.builder("ideal", "csv")?).unbounded_duration(FOREVER_S);
-        let stand_in = imu_emu::live::target::stand_in(&builder).build_rig()?;
+        let stand_in = imu_emu::run::target::stand_in(&builder).build_rig()?;
         let sinks = unit_sinks(&a, stand_in.units())?;
         return super::live::run_rig(&a, source, stand_in.units(), &sinks);
     }

@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 
 use anyhow::{Context, Result, bail};
 
-use imu_emu::job;
+use imu_emu::engine;
 use imu_emu::protocol::Plan;
 use imu_emu::realtime::hostclock::GpsClock;
 use imu_emu::realtime::pacer::{self, Clocking, Pacing, Routed, Status};
@@ -18,8 +18,8 @@ use imu_emu::realtime::sink::FileSink;
 use imu_emu::realtime::udp::{self, UdpSink};
 use imu_emu::realtime::{self, FrameBlock, clock, pty::PtySink};
 
-use imu_emu::realtime::merge::{self, ProducerWindow, WindowSource};
 use imu_emu::rig::SinkAddr;
+use imu_emu::run::merge::{self, ProducerWindow, WindowSource};
 
 use super::aiding_run;
 use super::rigrun::{Stream, WINDOW_NS};
@@ -258,7 +258,7 @@ pub fn run(a: RunArgs) -> Result<()> {
             sources.push(s.source);
         }
     }
-    let extra: Vec<job::Encoding> = (plans.into_iter().skip(1))
+    let extra: Vec<engine::Encoding> = (plans.into_iter().skip(1))
         .map(|p| sim.frames_encoding(p))
         .collect();
 
@@ -315,7 +315,7 @@ pub fn run(a: RunArgs) -> Result<()> {
         sources.insert(0, Box::new(imu));
         Box::new(move |tx, rx| merge::produce_merged(sources, WINDOW_NS, tx, rx))
     } else {
-        Box::new(move |tx, rx| realtime::produce(producer, block, n_streams, tx, rx))
+        Box::new(move |tx, rx| imu_emu::run::merge::produce(producer, block, n_streams, tx, rx))
     };
     let ended = drive(
         &rt,
@@ -349,7 +349,7 @@ pub(super) struct Ended {
     /// The signal that stopped it, if one did.
     pub interrupted: Option<Interrupted>,
     /// Why the producer stopped early, if it did.
-    pub failed: Option<imu_emu::job::JobError>,
+    pub failed: Option<imu_emu::engine::EngineError>,
 }
 
 /// Runs `produce` (blocks of frames, on a blocking thread) into the pacer (its own thread)
@@ -364,7 +364,7 @@ pub(super) fn drive(
     produce: impl FnOnce(
         tokio::sync::mpsc::Sender<FrameBlock>,
         tokio::sync::mpsc::Receiver<FrameBlock>,
-    ) -> Option<imu_emu::job::JobError>
+    ) -> Option<imu_emu::engine::EngineError>
     + Send
     + 'static,
     line: impl Fn(&Status) -> String,
@@ -676,12 +676,13 @@ fn triggered(
     a: &RunArgs,
     spec: &str,
     real_time: bool,
-    producer: job::Producer,
+    producer: engine::Producer,
     stop: &Arc<AtomicBool>,
     rt: &tokio::runtime::Runtime,
     signals: &mut StopSignals,
-) -> Result<(job::Producer, i128)> {
-    use imu_emu::realtime::{pps, trigger::ChannelTrigger};
+) -> Result<(engine::Producer, i128)> {
+    use imu_emu::realtime::pps;
+    use imu_emu::run::trigger::ChannelTrigger;
     if !real_time {
         bail!("--trigger samples at real edges: give --speed 1");
     }
@@ -751,7 +752,7 @@ type Produce = Box<
     dyn FnOnce(
             tokio::sync::mpsc::Sender<FrameBlock>,
             tokio::sync::mpsc::Receiver<FrameBlock>,
-        ) -> Option<imu_emu::job::JobError>
+        ) -> Option<imu_emu::engine::EngineError>
         + Send,
 >;
 

@@ -150,7 +150,7 @@ fn closure(s: &mut Section, motion_defs: &[PathBuf]) -> Result<()> {
     }
     for path in motion_defs {
         let m = imu_emu::source::AnyMotion::Defined(imu_emu::motiondef::open(path)?);
-        let grid = imu_emu::job::plan(&m, RATE, None, None)?;
+        let grid = imu_emu::engine::plan(&m, RATE, None, None)?;
         let c = imu_emu::nav::close(&m, &grid, Default::default(), None, 100);
         s.closure_row(&path.display().to_string(), c);
     }
@@ -190,15 +190,15 @@ fn static_analysis(
     seconds: f64,
     seed: u64,
 ) -> Result<imu_emu::analysis::analyzer::Analysis> {
-    let source = imu_emu::job::SourceSpec::Scene(
+    let source = imu_emu::engine::SourceSpec::Scene(
         "static".into(),
         imu_emu::scenes::SceneParams::defaults_for("static"),
     );
-    let motion = imu_emu::job::build_motion(&source, Default::default())?;
-    let grid = imu_emu::job::plan(&motion, rate_hz, None, Some(seconds))?;
-    let mut producer = imu_emu::job::Producer::for_model(motion, grid, model, seed)?;
+    let motion = imu_emu::engine::build_motion(&source, Default::default())?;
+    let grid = imu_emu::engine::plan(&motion, rate_hz, None, Some(seconds))?;
+    let mut producer = imu_emu::engine::Producer::for_model(motion, grid, model, seed)?;
     let mut an = Analyzer::new(SEGMENT);
-    while let Some(b) = producer.next_records(imu_emu::job::BLOCK) {
+    while let Some(b) = producer.next_records(imu_emu::engine::BLOCK) {
         b.records.iter().for_each(|r| an.push_record(r));
     }
     producer.finished()?;

@@ -5,7 +5,6 @@
 //! them from TOML with unit and range checks, `stages` holds one type per stage of the chain,
 //! and `chain` assembles and applies the stage list.
 
-pub mod bounds;
 pub mod chain;
 pub mod filter_allan;
 pub mod filtered;

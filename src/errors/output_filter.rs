@@ -384,13 +384,13 @@ pub fn from_toml(t: &toml::Table) -> Result<FilterSpec, (String, String)> {
         }
     }
     let internal_rate_hz = number("internal_rate_hz")?
-        .filter(|r| *r > 0.0 && *r <= super::bounds::MAX_RATE_HZ)
+        .filter(|r| *r > 0.0 && *r <= crate::units::bounds::MAX_RATE_HZ)
         .ok_or_else(|| {
             err(
                 "internal_rate_hz",
                 &format!(
                     "expected a number in (0, {}] (Hz)",
-                    super::bounds::compact(super::bounds::MAX_RATE_HZ)
+                    crate::units::bounds::compact(crate::units::bounds::MAX_RATE_HZ)
                 ),
             )
         })?;

@@ -4,10 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
-use super::bounds;
 use super::model::StageKind;
 pub use super::model::{ImuModel, TriadModel};
 use super::process::QuantMode;
+use crate::units::bounds;
 use crate::units::{self, Kind, Lsb};
 
 /// The built-in templates, embedded at compile time (a test checks every file in `templates/`
@@ -142,7 +142,7 @@ pub fn parse(text: &str, path: &Path) -> Result<ImuModel, TemplateError> {
 pub fn parse_profile(text: &str, path: &Path, profile: Profile) -> Result<ImuModel, TemplateError> {
     let syntax = |e: toml::de::Error| TemplateError::Syntax {
         path: path.to_path_buf(),
-        message: crate::config::toml_error_line(text, &e),
+        message: crate::csvio::toml_error_line(text, &e),
     };
     let mut table: toml::Table = text.parse().map_err(syntax)?;
     if let Some(base) = table.remove("base") {
@@ -676,17 +676,7 @@ fn list(v: &toml::Value, kind: Kind, n: usize) -> Result<Vec<f64>, String> {
 }
 
 /// One `"number unit"` value of `kind` in SI, within the template bounds.
-pub(crate) fn one(v: &toml::Value, kind: Kind) -> Result<f64, String> {
-    let s = v.as_str().ok_or_else(|| {
-        format!(
-            "expected a string \"value unit\" (units: {})",
-            kind.unit_names()
-        )
-    })?;
-    let x = units::parse(s, kind).map_err(|e| e.to_string())?.0;
-    bounds::check(s, kind, x, false)?;
-    Ok(x)
-}
+pub(crate) use crate::units::quantity as one;
 
 #[cfg(test)]
 mod tests {

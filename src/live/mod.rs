@@ -1,8 +1,8 @@
 //! Live motion input for hardware-in-the-loop runs: states of a vehicle simulation arriving
 //! over UDP, TCP, a pipe or a file, decoded ([`csv`], [`binary`], [`mavlink`]), checked and
-//! counted ([`stats`]), fed to the causal motion model ([`crate::motion::causal`]), and turned
-//! into records or frames in step with them ([`lockstep`]) or with the host clock
-//! ([`realtime`], [`clockmap`]). docs/live-input.md is the user's
+//! counted ([`stats`]), for the causal motion model ([`crate::motion::causal`]), with the map
+//! from the sender's clock to the host's ([`clockmap`]). The run follows them
+//! ([`crate::run`]). docs/live-input.md is the user's
 //! guide and specifies the binary datagram.
 //!
 //! Decoding is pure (bytes in, states out); [`transport`] is the only I/O.
@@ -10,11 +10,8 @@
 pub mod binary;
 pub mod clockmap;
 pub mod csv;
-pub mod lockstep;
 pub mod mavlink;
-pub mod realtime;
 pub mod stats;
-pub mod target;
 pub mod transport;
 
 use std::sync::OnceLock;

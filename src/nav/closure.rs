@@ -3,8 +3,8 @@
 //! truth — what the closure tests and `validate` need.
 
 use super::strapdown::{NavState, Navigator, Settings, SettingsError, StateError};
+use crate::engine::{self, BLOCK, EngineError, Grid, Producer, SourceSpec};
 use crate::errors::ErrorChain;
-use crate::job::{self, BLOCK, Grid, JobError, Producer, SourceSpec};
 use crate::motion::Motion;
 use crate::motion::sampled::ModelSettings;
 use crate::scenes::SceneParams;
@@ -69,7 +69,7 @@ pub fn close(
 pub enum CloseError {
     /// Unknown scene, bad span or rate.
     #[error(transparent)]
-    Job(#[from] JobError),
+    Job(#[from] EngineError),
     /// Bad navigator settings.
     #[error(transparent)]
     Settings(#[from] SettingsError),
@@ -80,7 +80,7 @@ pub enum CloseError {
 /// returns the closure error — the check `validate` reports.
 pub fn close_scene(name: &str, rate_hz: f64, seconds: Option<f64>) -> Result<Closure, CloseError> {
     let source = SourceSpec::Scene(name.to_string(), SceneParams::defaults_for(name));
-    let motion = job::build_motion(&source, ModelSettings::default())?;
-    let grid = job::plan(&motion, rate_hz, None, seconds)?;
+    let motion = engine::build_motion(&source, ModelSettings::default())?;
+    let grid = engine::plan(&motion, rate_hz, None, seconds)?;
     close(&motion, &grid, Settings::default(), None, 100)
 }

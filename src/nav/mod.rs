@@ -6,6 +6,7 @@
 
 pub mod aided;
 pub mod closure;
+pub mod gnss_fixes;
 pub mod montecarlo;
 pub mod poly;
 pub mod strapdown;

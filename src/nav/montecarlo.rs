@@ -11,8 +11,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::closure::CloseError;
 use super::strapdown::{NavState, Navigator, Settings, StateError};
+use crate::engine::{BLOCK, Grid, Producer};
 use crate::errors::template::ImuModel;
-use crate::job::{BLOCK, Grid, Producer};
 use crate::motion::Motion;
 use crate::rng::{fnv1a64, splitmix64};
 use crate::source::AnyMotion;

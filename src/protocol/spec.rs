@@ -558,7 +558,7 @@ impl FrameSpec {
     pub fn parse(text: &str, path: &Path) -> Result<FrameSpec, SpecError> {
         toml::from_str(text).map_err(|e| SpecError::Syntax {
             path: path.to_path_buf(),
-            message: crate::config::toml_error_line(text, &e),
+            message: crate::csvio::toml_error_line(text, &e),
         })
     }
 }

@@ -1,6 +1,6 @@
 //! Real-time emulation: encoded frames written at their wall-clock deadlines to any number of
 //! sinks (pseudo-terminal, serial device, UDP, file). No physics here: the frames come from
-//! [`crate::job::Producer`], the same code that writes `generate`'s output.
+//! the run ([`crate::run`]), the same code that writes `generate`'s output.
 //!
 //! Shape: a producer (its own thread) runs ahead of the clock and sends blocks of encoded
 //! frames through a bounded channel, so memory is the same for any run length; the pacer (a
@@ -12,7 +12,6 @@ pub mod clock;
 pub mod hook;
 pub mod hostclock;
 pub mod lock;
-pub mod merge;
 pub mod pacer;
 pub mod pps;
 pub mod pty;
@@ -22,10 +21,7 @@ pub mod signal;
 pub mod sink;
 pub mod stats;
 pub mod timemark;
-pub mod trigger;
 pub mod udp;
-
-use crate::job::Producer;
 
 /// A block of encoded frames travelling from the producer to the pacer: the same records in
 /// one or more wire formats (streams), for sinks that speak different protocols.
@@ -93,47 +89,9 @@ impl FrameBlock {
 /// frames, so the pacer's look-ahead (channel depth × block) stays short and the first frame is
 /// ready quickly, but never fewer than 16 (channel traffic stays negligible).
 pub fn block_len(rate_hz: f64) -> usize {
-    ((rate_hz * 0.1) as usize).clamp(16, crate::job::BLOCK)
+    ((rate_hz * 0.1) as usize).clamp(16, crate::engine::BLOCK)
 }
 
 /// Blocks in flight between producer and pacer: bounded memory, enough look-ahead to ride out
 /// a scheduling hiccup of the producer.
 pub const CHANNEL_BLOCKS: usize = 8;
-
-/// Runs `producer` to the end (or until the receiver hangs up), sending blocks of `block`
-/// frames in `streams` encodings (the main one and the producer's extra ones); reuses the
-/// buffers the pacer returns on `recycled`. Blocking: call it on its own thread (or
-/// `spawn_blocking`). Returns why production stopped early (a non-finite record), if it did:
-/// nothing of the bad block was sent, and the caller reports it.
-pub fn produce(
-    mut producer: Producer,
-    block: usize,
-    streams: usize,
-    tx: tokio::sync::mpsc::Sender<FrameBlock>,
-    mut recycled: tokio::sync::mpsc::Receiver<FrameBlock>,
-) -> Option<crate::job::JobError> {
-    loop {
-        let mut b = recycled.try_recv().unwrap_or_default();
-        b.streams.resize_with(streams, Default::default);
-        for (bytes, ends) in b.streams.iter_mut() {
-            bytes.clear();
-            ends.clear();
-        }
-        let Some(out) = producer.next_block_multi(block, &mut b.streams) else {
-            return producer.take_error();
-        };
-        b.first = out.first;
-        b.emit_ns.clear();
-        b.tov_ns.clear();
-        b.records.clear();
-        if let Some(t) = &out.times {
-            b.emit_ns
-                .extend(t.emit.iter().map(|e| (e * 1e9).round() as i64));
-            b.tov_ns
-                .extend(t.tov.iter().map(|e| (e * 1e9).round() as i64));
-        }
-        if tx.blocking_send(b).is_err() {
-            return None;
-        }
-    }
-}

@@ -8,32 +8,32 @@
 //! from code; docs/rig.md describes the scene-file schema and the outputs.
 
 pub mod addr;
-pub mod config;
 pub mod failure;
 pub mod geometry;
 pub mod skew;
+mod spec;
 pub mod stream;
 
 use std::io::Write;
 use std::ops::ControlFlow;
 
 use crate::aiding::mag_samples::{FrameMag, MagHold};
+use crate::engine::{self, DEFAULT_FRAME_CELSIUS, Encoding, EngineError, Grid, Producer};
 use crate::errors::ErrorChain;
 use crate::errors::temperature::TemperatureProfile;
 use crate::errors::vibration::Vibration;
 use crate::generator::{IdealImu, RotationTerms};
-use crate::job::{self, Encoding, Grid, JobError, Producer};
 use crate::math::Vec3;
 use crate::output::Format;
 use crate::protocol::{Channels, EncoderState, Plan};
 use crate::record::{COLUMNS, Record};
-use crate::sim::{DEFAULT_FRAME_CELSIUS, SimError};
 use crate::source::AnyMotion;
 
 pub use addr::SinkAddr;
 pub use failure::{Failure, FailureKind, FailureSet, FailureSpec, Pick};
 pub use geometry::Placement;
 pub use skew::{SkewLayout, SkewSensor, dodecahedron_axes};
+pub use spec::{UnitModel, UnitSpec};
 pub use stream::RigStream;
 
 use skew::ChannelErrors;
@@ -226,7 +226,7 @@ impl Unit {
         rot: Option<&[RotationTerms]>,
         s: &mut Scratch,
         out: &mut UnitOutputs<'_>,
-    ) -> Result<(), JobError> {
+    ) -> Result<(), EngineError> {
         self.encode(motion, reference, rot, s, &mut out.truth)?;
         out.main.write_all(&s.buf)?;
         Ok(())
@@ -242,7 +242,7 @@ impl Unit {
         rot: Option<&[RotationTerms]>,
         s: &mut Scratch,
         truth: &mut Option<&mut dyn Write>,
-    ) -> Result<(), JobError> {
+    ) -> Result<(), EngineError> {
         let dt = 1.0 / self.grid.rate_hz;
         let n = reference.len();
         s.masks.clear();
@@ -410,10 +410,10 @@ fn place_triad(place: &Placement, recs: &mut [Record], rot: Option<&[RotationTer
 }
 
 /// A skew unit's readings are finite, or the error names the record and the channel.
-fn check_values(vals: &[f64], reference: &[Record], ch: usize) -> Result<(), JobError> {
+fn check_values(vals: &[f64], reference: &[Record], ch: usize) -> Result<(), EngineError> {
     match vals.iter().position(|v| !v.is_finite()) {
         None => Ok(()),
-        Some(i) => Err(JobError::NonFinite {
+        Some(i) => Err(EngineError::NonFinite {
             t: reference[i / ch].t,
             quantity: "a skew-redundant sensor's reading",
             value: vals[i],
@@ -525,24 +525,25 @@ impl Rig {
     }
 
     /// Writes every unit's outputs (`outs[i]` for unit i); `progress(records_done)`, summed
-    /// over units, is called after each block and may stop the run ([`JobError::Stopped`]).
+    /// over units, is called after each block and may stop the run ([`EngineError::Stopped`]).
     pub fn write(
         mut self,
         outs: &mut [UnitOutputs<'_>],
         mut progress: impl FnMut(u64) -> ControlFlow<()>,
-    ) -> Result<(), SimError> {
+    ) -> Result<(), EngineError> {
         if outs.len() != self.units.len() {
-            return Err(SimError::Invalid(format!(
-                "{} outputs for {} units",
-                outs.len(),
-                self.units.len()
-            )));
+            return Err(EngineError::Outputs {
+                given: outs.len(),
+                need: self.units.len(),
+            });
         }
         for (u, o) in self.units.iter().zip(outs.iter_mut()) {
             let (main, truth) = u.headers();
-            o.main.write_all(main.as_bytes()).map_err(JobError::from)?;
+            o.main
+                .write_all(main.as_bytes())
+                .map_err(EngineError::from)?;
             if let Some(t) = o.truth.as_mut() {
-                t.write_all(truth.as_bytes()).map_err(JobError::from)?;
+                t.write_all(truth.as_bytes()).map_err(EngineError::from)?;
             }
             if let Some(f) = o.failures.as_mut() {
                 let names = u.channel_names();
@@ -558,7 +559,7 @@ impl Rig {
                         x.magnitude
                     );
                 }
-                f.write_all(text.as_bytes()).map_err(JobError::from)?;
+                f.write_all(text.as_bytes()).map_err(EngineError::from)?;
             }
         }
         let mut done = 0;
@@ -576,7 +577,7 @@ impl Rig {
             let mut scratch: Vec<Scratch> = group.iter().map(|_| Scratch::default()).collect();
             let mut k = 1;
             while k <= grid.count {
-                let n = ((grid.count - k + 1) as usize).min(job::BLOCK);
+                let n = ((grid.count - k + 1) as usize).min(engine::BLOCK);
                 reference.resize(n, Record::default());
                 ideal.fill(k, &mut reference);
                 Producer::check_finite(&reference, "in the error-free signal")?;
@@ -591,17 +592,17 @@ impl Rig {
                 k += n as u64;
                 done += (n * group.len()) as u64;
                 if progress(done).is_break() {
-                    return Err(JobError::Stopped.into());
+                    return Err(EngineError::Stopped.into());
                 }
             }
         }
         for o in outs.iter_mut() {
-            o.main.flush().map_err(JobError::from)?;
+            o.main.flush().map_err(EngineError::from)?;
             for w in [o.truth.as_mut(), o.failures.as_mut()]
                 .into_iter()
                 .flatten()
             {
-                w.flush().map_err(JobError::from)?;
+                w.flush().map_err(EngineError::from)?;
             }
         }
         Ok(())

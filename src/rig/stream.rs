@@ -5,14 +5,10 @@
 //! as in [`Rig::write`].
 
 use super::{Rig, Scratch, Unit};
-use crate::aiding::sensors::{SensorKind, SensorRows};
-use crate::aiding::window::{GnssFrames, GnssWindow};
-use crate::aiding::{GnssConfig, GnssFormat};
-use crate::emission::{Part, WindowSource};
+use crate::engine::frames::{Part, WindowSource};
+use crate::engine::{self, EngineError, Grid, Producer};
 use crate::generator::{IdealImu, RotationTerms};
-use crate::job::{self, Grid, JobError, Producer};
 use crate::record::Record;
-use crate::sim::AidingStreams;
 use crate::source::AnyMotion;
 
 /// The units that share a time grid, and where their motion evaluation has got to.
@@ -85,58 +81,6 @@ impl Rig {
             .fold(f64::NEG_INFINITY, f64::max);
         (t0, t1)
     }
-
-    /// The rig's aiding sensors on its motion, [`Rig::span`], master seed and GPS time: the
-    /// same streams a single IMU's simulation of the scene writes.
-    pub fn aiding(&self) -> AidingStreams<'_> {
-        AidingStreams {
-            motion: &self.motion,
-            span: self.span(),
-            seed: self.seed,
-            gps_time: self.gnss_time.or(self.gps_time),
-            gnss: self.gnss.as_ref(),
-            sensors: self.sensors.clone(),
-        }
-    }
-
-    /// The GNSS receiver (the scene file's `[gnss]`, else the default) as a frame source in
-    /// `format` on the rig's motion and clock: epochs over [`Rig::span`], emission times
-    /// counted from its start like the units' (see [`Rig::stream`]).
-    pub fn gnss_window(&self, format: GnssFormat) -> GnssWindow<AnyMotion> {
-        let aid = self.aiding();
-        let span = aid.span;
-        GnssFrames::new(
-            aid.gnss_receiver(),
-            self.motion.clone(),
-            aid.gnss_encoder(format),
-            span,
-        )
-        .window(span.0)
-    }
-}
-
-impl Rig {
-    /// The GNSS receiver's epochs per second.
-    pub fn gnss_rate_hz(&self) -> f64 {
-        self.gnss
-            .as_ref()
-            .map_or(GnssConfig::default().rate_hz, |g| g.rate_hz)
-    }
-
-    /// How many GNSS epochs fall in [`Rig::span`] (outages included: they are sent without
-    /// a fix).
-    pub fn gnss_epochs(&self) -> u64 {
-        crate::aiding::window::epoch_count(self.gnss_rate_hz(), self.span())
-    }
-}
-
-impl Rig {
-    /// Sensor `kind`'s rows over [`Rig::span`] (the scene file's table, else the default),
-    /// its errors from the rig's master seed.
-    pub fn sensor_rows(&self, kind: SensorKind) -> SensorRows<AnyMotion> {
-        let span = self.span();
-        SensorRows::new(kind, &self.sensors, self.motion.clone(), self.seed, span)
-    }
 }
 
 /// Emission time of record `k` of `grid` after `origin` (ns).
@@ -175,7 +119,7 @@ impl WindowSource for RigStream {
         self.units.len()
     }
 
-    fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), JobError> {
+    fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), EngineError> {
         let origin = self.origin;
         self.produce(|g| last_due(g, origin, until_ns), parts)
     }
@@ -188,20 +132,21 @@ impl WindowSource for RigStream {
 impl RigStream {
     /// Appends to `parts` (one per unit) every record whose interval ends at or before `t`
     /// (s) that was not given before: what a state at `t` releases in a lockstep run.
-    pub fn release_upto(&mut self, t: f64, parts: &mut [Part]) -> Result<(), JobError> {
-        self.produce(
-            |g| crate::live::lockstep::released(g, t).min(g.count),
-            parts,
-        )
+    pub fn release_upto(&mut self, t: f64, parts: &mut [Part]) -> Result<(), EngineError> {
+        self.produce(|g| engine::released(g, t).min(g.count), parts)
     }
 
     /// Produces, group by group, every record up to `last(grid)` of the group's grid.
-    fn produce(&mut self, last: impl Fn(&Grid) -> u64, parts: &mut [Part]) -> Result<(), JobError> {
+    fn produce(
+        &mut self,
+        last: impl Fn(&Grid) -> u64,
+        parts: &mut [Part],
+    ) -> Result<(), EngineError> {
         for g in self.groups.iter_mut() {
             let last = last(&g.grid);
             while g.next <= last {
                 let k = g.next;
-                let n = ((last - k + 1) as usize).min(job::BLOCK);
+                let n = ((last - k + 1) as usize).min(engine::BLOCK);
                 self.reference.resize(n, Record::default());
                 g.ideal.fill(k, &mut self.reference);
                 Producer::check_finite(&self.reference, "in the error-free signal")?;

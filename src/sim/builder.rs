@@ -12,13 +12,13 @@ use crate::aiding::gnss::ConfigError as AidingConfigError;
 use crate::aiding::odometer::OdometerConfig;
 use crate::aiding::sensors::SensorSet;
 use crate::config::{self, SceneFile};
+use crate::engine::{self, EngineError, Grid, SourceSpec};
 use crate::errors::ErrorChain;
 use crate::errors::filtered::FilteredChain;
 use crate::errors::temperature::TemperatureProfile;
 use crate::errors::template::ImuModel;
 use crate::errors::vibration::{Vibration, VibrationSpec};
 use crate::generator::DEFAULT_NODES;
-use crate::job::{self, Grid, JobError, SourceSpec};
 use crate::motion::Motion;
 use crate::motion::causal::CausalMotion;
 use crate::motion::sampled::{Degree, ModelSettings};
@@ -58,7 +58,7 @@ pub struct SimulationBuilder {
     mounting_deg: Option<[f64; 3]>,
     lever_arm_m: Option<[f64; 3]>,
     vibration: Option<VibrationSpec>,
-    units: Vec<crate::rig::config::UnitSpec>,
+    units: Vec<crate::rig::UnitSpec>,
     gnss: Option<GnssConfig>,
     odometer: Option<OdometerConfig>,
     baro: Option<crate::aiding::baro::BaroConfig>,
@@ -100,7 +100,7 @@ impl Default for SimulationBuilder {
             magnetometer: None,
             default_imu: "ideal".into(),
             default_format: "csv".into(),
-            unbounded_duration: job::DEFAULT_UNBOUNDED_DURATION_S,
+            unbounded_duration: engine::DEFAULT_UNBOUNDED_DURATION_S,
             live: None,
         }
     }
@@ -437,13 +437,13 @@ impl SimulationBuilder {
         }
         let (source, scene_from_file, params_from_file) = self.source()?;
         let model = self.model_settings()?;
-        job::build_motion(&source, model).map_err(|e| {
+        engine::build_motion(&source, model).map_err(|e| {
             let label = self.file_label();
             let place = match &e {
-                JobError::UnknownScene(_) if scene_from_file => {
+                EngineError::UnknownScene(_) if scene_from_file => {
                     Some(format!("{}: `trajectory.scene`", label.display()))
                 }
-                JobError::SceneParam(p) if params_from_file => Some(format!(
+                EngineError::SceneParam(p) if params_from_file => Some(format!(
                     "{}: `trajectory.params.{}`",
                     label.display(),
                     p.key
@@ -555,10 +555,10 @@ impl SimulationBuilder {
             None if !motion.end().is_finite() => Some(self.unbounded_duration),
             d => d,
         };
-        job::plan(motion, rate.hz, start, duration).map_err(|e| {
+        engine::plan(motion, rate.hz, start, duration).map_err(|e| {
             let place = match &e {
-                JobError::Span { .. } => self.span_place(source),
-                JobError::Setting { key, .. } => match *key {
+                EngineError::Span { .. } => self.span_place(source),
+                EngineError::Setting { key, .. } => match *key {
                     "rate" => rate.place.clone(),
                     "start" => at_start.clone(),
                     "duration" => at_duration.clone(),
@@ -838,7 +838,7 @@ impl SimulationBuilder {
         motion: &AnyMotion,
         grid: &mut Grid,
         seed: u64,
-    ) -> Result<Option<crate::timing::TimedRun>, SimError> {
+    ) -> Result<Option<crate::engine::timed::TimedRun>, SimError> {
         let model = imu.timing;
         let filter = imu.output_filter.as_ref();
         if model.is_zero() && filter.is_none() {
@@ -876,7 +876,7 @@ impl SimulationBuilder {
             .map_err(|e| SimError::Invalid(format!("{}: {e}", imu.name)))?;
         let offset = filter.map_or(0.0, |f| f.validity_offset_s(grid.rate_hz));
         Ok(Some(
-            crate::timing::TimedRun::new(sensor, grid.rate_hz, grid.t0)
+            crate::engine::timed::TimedRun::new(sensor, grid.rate_hz, grid.t0)
                 .with_validity_offset(offset),
         ))
     }

@@ -4,11 +4,11 @@
 
 use std::io::Write;
 
+use super::aiding_frames::{GnssFrames, GnssWindow};
 use super::streams::AidingStreams;
 use super::{SimError, Simulation};
 use crate::aiding::gnss::Receiver;
 use crate::aiding::stream::{TRUTH_HEADER, truth_row};
-use crate::aiding::window::{GnssFrames, GnssWindow};
 use crate::aiding::{GnssConfig, GnssEncoder, GnssFormat};
 use crate::source::AnyMotion;
 
@@ -85,10 +85,10 @@ impl Simulation {
 
     /// How many GNSS epochs fall in the run (outages included).
     pub fn gnss_epochs(&self) -> u64 {
-        crate::aiding::window::epoch_count(self.gnss_rate_hz(), self.span())
+        super::aiding_frames::epoch_count(self.gnss_rate_hz(), self.span())
     }
 }
 
 pub(super) fn io(e: std::io::Error) -> SimError {
-    SimError::Job(crate::job::JobError::Io(e))
+    SimError::Job(crate::engine::EngineError::Io(e))
 }

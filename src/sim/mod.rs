@@ -16,8 +16,10 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod aiding_frames;
 mod builder;
 mod gnss;
+mod rig_aiding;
 mod sensors;
 mod streams;
 
@@ -31,12 +33,12 @@ pub use streams::AidingStreams;
 use crate::aiding::GnssConfig;
 use crate::aiding::mag_samples::MagHold;
 use crate::config::ConfigError;
+use crate::engine::filtered::FilteredImu;
+use crate::engine::{self, Encoding, EngineError, Grid, Producer};
 use crate::errors::filtered::FilteredChain;
 use crate::errors::temperature::TemperatureProfile;
 use crate::errors::template::{ImuModel, TemplateError};
 use crate::errors::{ErrorChain, template};
-use crate::filtered_imu::FilteredImu;
-use crate::job::{self, Encoding, Grid, JobError, Producer};
 use crate::output::Format;
 use crate::protocol::{EncoderState, FaultInjector, Plan, SpecError};
 use crate::record::Record;
@@ -57,7 +59,7 @@ pub enum SimError {
     Protocol(#[from] SpecError),
     /// The trajectory, the span or the production failed.
     #[error(transparent)]
-    Job(#[from] JobError),
+    Job(#[from] EngineError),
     /// A setting outside what it can be: names the setting and what is expected.
     #[error("{0}")]
     Invalid(String),
@@ -136,7 +138,7 @@ pub struct Simulation {
     case_rotation: Option<crate::math::Quat>,
     output_path: Option<PathBuf>,
     warnings: Vec<String>,
-    timing: Option<crate::timing::TimedRun>,
+    timing: Option<crate::engine::timed::TimedRun>,
 }
 
 impl Simulation {
@@ -256,7 +258,7 @@ impl Simulation {
         let filtered = match self.filtered {
             Some(c) => Some(
                 FilteredImu::new(self.motion.clone(), self.grid, self.nodes, c)
-                    .map_err(JobError::Filter)?,
+                    .map_err(EngineError::Filter)?,
             ),
             None => None,
         };
@@ -287,7 +289,7 @@ impl Simulation {
     }
 
     /// Writes the whole run into `out` and the side outputs; `progress(records_done)` is
-    /// called after each block and may stop the run ([`JobError::Stopped`]).
+    /// called after each block and may stop the run ([`EngineError::Stopped`]).
     pub fn write_with(
         self,
         out: &mut impl Write,
@@ -295,15 +297,14 @@ impl Simulation {
         progress: impl FnMut(u64) -> ControlFlow<()>,
     ) -> Result<(), SimError> {
         let producer = self.producer()?;
-        job::drain(producer, out, side.truth, side.injected, progress)?;
+        engine::drain(producer, out, side.truth, side.injected, progress)?;
         Ok(())
     }
 }
 
-/// The temperature frames carry when the scene gives no temperature profile (°C).
-pub const DEFAULT_FRAME_CELSIUS: f64 = 25.0;
+pub use crate::engine::DEFAULT_FRAME_CELSIUS;
 
-/// The records of a simulation, one block (up to [`job::BLOCK`] records) per item.
+/// The records of a simulation, one block (up to [`engine::BLOCK`] records) per item.
 pub struct RecordBlocks {
     producer: Producer,
 }
@@ -312,7 +313,7 @@ impl Iterator for RecordBlocks {
     type Item = Result<Vec<Record>, SimError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        match self.producer.next_records(job::BLOCK) {
+        match self.producer.next_records(engine::BLOCK) {
             Some(b) => Some(Ok(b.records.to_vec())),
             None => self.producer.take_error().map(|e| Err(e.into())),
         }

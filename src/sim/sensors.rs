@@ -6,6 +6,7 @@ use std::io::Write;
 
 use super::{SimError, Simulation};
 use crate::aiding::sensors::{SensorKind, SensorRows, SensorSet};
+use crate::engine::EngineError;
 use crate::source::AnyMotion;
 
 impl Simulation {
@@ -68,10 +69,14 @@ pub(crate) fn write_rows(
     mut rows: SensorRows<AnyMotion>,
     out: &mut dyn Write,
 ) -> Result<u64, SimError> {
-    let io = |e| SimError::Job(crate::job::JobError::Io(e));
+    let io = |e| SimError::Job(crate::engine::EngineError::Io(e));
     out.write_all(rows.kind().header().as_bytes()).map_err(io)?;
     let (mut row, mut n) = (String::new(), 0);
-    while rows.next_row(&mut row)?.is_some() {
+    while rows
+        .next_row(&mut row)
+        .map_err(EngineError::from)?
+        .is_some()
+    {
         out.write_all(row.as_bytes()).map_err(io)?;
         n += 1;
     }

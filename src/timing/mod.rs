@@ -7,16 +7,26 @@
 //! [`SensorTiming`] turns them into, for each sample, the true instants that bound its
 //! integration intervals, its time of validity and its emission time.
 
-pub mod merge;
-mod run;
 mod sensor;
-pub mod trigger;
 
-pub use run::{TimedRun, Times};
 pub use sensor::{SensorTiming, TimedBlock};
 
-use crate::errors::template::one as quantity;
-use crate::units::Kind;
+use crate::units::{Kind, quantity};
+
+/// Times of the records of one block, relative to the run's t₀ (s).
+#[derive(Clone, Copy, Debug)]
+pub struct Times<'a> {
+    /// The run's t₀ (s): add it for absolute times.
+    pub t0: f64,
+    /// Time of validity (end of the gyro interval) of each record.
+    pub tov: &'a [f64],
+    /// Time of validity of each record's accelerometers.
+    pub tov_accel: &'a [f64],
+    /// Emission time of each record's frame (its first byte).
+    pub emit: &'a [f64],
+    /// Samples the sensor skipped just before each record.
+    pub gaps: &'a [u32],
+}
 
 /// The timing figures of an IMU, in SI. All zero (the default): samples on the nominal grid,
 /// each frame sent at the end of its interval.

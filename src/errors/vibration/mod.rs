@@ -68,9 +68,9 @@ mod fft;
 mod random;
 mod sine;
 
-use super::bounds::compact;
 pub use super::model::Sensor;
 use crate::math::{Mat3, Vec3};
+use crate::units::bounds::compact;
 use random::RandomChannel;
 use sine::SineTerm;
 use std::fmt;

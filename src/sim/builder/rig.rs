@@ -4,14 +4,14 @@
 use super::{Rate, SimulationBuilder};
 use crate::aiding::GnssConfig;
 use crate::aiding::mag_samples::MagHold;
+use crate::engine::Encoding;
 use crate::errors::ErrorChain;
-use crate::job::Encoding;
 use crate::output::Format;
 use crate::protocol::{self, EncoderState};
-use crate::rig::config::{UnitModel, UnitSpec};
 use crate::rig::failure::FailureSet;
 use crate::rig::skew::ChannelErrors;
 use crate::rig::{Body, Placement, Rig, Unit};
+use crate::rig::{UnitModel, UnitSpec};
 use crate::rng::{fnv1a64, splitmix64};
 use crate::sim::{DEFAULT_FRAME_CELSIUS, SimError};
 

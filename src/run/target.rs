@@ -8,8 +8,8 @@
 use std::io::Write;
 
 use super::lockstep::LiveError;
-use crate::emission::Part;
-use crate::job::{Grid, Producer};
+use crate::engine::frames::Part;
+use crate::engine::{Grid, Producer};
 use crate::motion::causal::CausalMotion;
 use crate::rig::RigStream;
 use crate::sim::{SimError, SimulationBuilder};
@@ -101,7 +101,7 @@ impl Target for SimTarget {
         let Some((p, grid)) = self.producer.as_mut() else {
             return Ok(());
         };
-        let upto = super::lockstep::released(grid, t).min(grid.count);
+        let upto = crate::engine::released(grid, t).min(grid.count);
         while self.done < upto {
             let n = ((upto - self.done) as usize).min(BLOCK);
             self.buf.clear();

@@ -1,11 +1,12 @@
-//! A GNSS receiver as a real-time frame source: each epoch's frames, emitted at the epoch's
-//! emission time (time of validity plus latency), for the merger and pacer of `imu-emu run`
-//! (`realtime::merge`) through [`crate::emission::EmitWindow`]. No I/O.
+//! The aiding sensors as frame sources: a GNSS receiver's epochs, emitted at each epoch's
+//! emission time (time of validity plus latency), and the odometer's, barometer's and
+//! magnetometer's CSV rows, each at its sample's time, through
+//! [`crate::engine::frames::EmitWindow`]. No I/O.
 
-use super::gnss::Receiver;
-use super::stream::GnssEncoder;
-use crate::emission::{EmitWindow, Emitter};
-use crate::job::JobError;
+use crate::aiding::sensors::SensorRows;
+use crate::aiding::{GnssEncoder, Receiver};
+use crate::engine::EngineError;
+use crate::engine::frames::{EmitWindow, Emitter};
 use crate::motion::Motion;
 
 /// One GNSS stream: the epochs with time of validity in a span, encoded by one encoder.
@@ -41,7 +42,7 @@ impl<M: Motion> GnssFrames<M> {
 }
 
 impl<M: Motion + Send> Emitter for GnssFrames<M> {
-    fn next_frame(&mut self, out: &mut Vec<u8>) -> Result<Option<f64>, JobError> {
+    fn next_frame(&mut self, out: &mut Vec<u8>) -> Result<Option<f64>, EngineError> {
         let Some(e) = self.rx.next_epoch(&self.motion, self.span.0, self.span.1) else {
             return Ok(None);
         };
@@ -56,7 +57,7 @@ impl<M: Motion + Send> Emitter for GnssFrames<M> {
             ("gnss_vd", m.v_n.z),
         ];
         if let Some(&(quantity, value)) = values.iter().find(|v| !v.1.is_finite()) {
-            return Err(JobError::NonFinite {
+            return Err(EngineError::NonFinite {
                 t: e.t,
                 quantity,
                 value,
@@ -72,4 +73,33 @@ impl<M: Motion + Send> Emitter for GnssFrames<M> {
 /// without a fix).
 pub fn epoch_count(rate: f64, (t0, t1): (f64, f64)) -> u64 {
     ((t1 * rate).floor() - (t0 * rate).ceil() + 1.0).max(0.0) as u64
+}
+
+/// A sensor's CSV rows as a frame stream: each row emitted at its sample's time.
+pub struct SensorFrames<M> {
+    rows: SensorRows<M>,
+    row: String,
+}
+
+/// A sensor's rows as a window source for the merger.
+pub type SensorWindow<M> = EmitWindow<SensorFrames<M>>;
+
+/// The rows of `rows` as a stream, each emitted at its sample's time counted from `origin`
+/// (the run's t₀, s).
+pub fn sensor_window<M: Motion + Send>(rows: SensorRows<M>, origin: f64) -> SensorWindow<M> {
+    EmitWindow::new(
+        SensorFrames {
+            rows,
+            row: String::new(),
+        },
+        origin,
+    )
+}
+
+impl<M: Motion + Send> Emitter for SensorFrames<M> {
+    fn next_frame(&mut self, out: &mut Vec<u8>) -> Result<Option<f64>, EngineError> {
+        let t = self.rows.next_row(&mut self.row)?;
+        out.extend_from_slice(self.row.as_bytes());
+        Ok(t)
+    }
 }

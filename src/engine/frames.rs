@@ -3,7 +3,7 @@
 //! (`realtime::merge`). A stream is a sequence of (emission time, bytes); a source gives its
 //! streams' frames a window of simulated time at a time. No I/O here.
 
-use crate::job::JobError;
+use crate::engine::EngineError;
 
 /// The frames one stream emits in a window: bytes back to back, the end of each frame in
 /// `bytes`, and its emission time (simulated ns after the run's t₀).
@@ -46,7 +46,7 @@ pub trait WindowSource: Send {
     fn streams(&self) -> usize;
     /// Appends to `parts` (one per stream, cleared by the caller) the frames emitted at or
     /// before `until_ns` that were not given before.
-    fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), JobError>;
+    fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), EngineError>;
     /// True once every frame has been given.
     fn done(&self) -> bool;
 }
@@ -56,7 +56,7 @@ pub trait WindowSource: Send {
 pub trait Emitter: Send {
     /// Appends the next frame to `out` and returns its emission time (s of record time);
     /// `None` after the last frame.
-    fn next_frame(&mut self, out: &mut Vec<u8>) -> Result<Option<f64>, JobError>;
+    fn next_frame(&mut self, out: &mut Vec<u8>) -> Result<Option<f64>, EngineError>;
 }
 
 /// An [`Emitter`] as a one-stream [`WindowSource`], its emission times counted from `origin`.
@@ -87,7 +87,7 @@ impl<E: Emitter> WindowSource for EmitWindow<E> {
         1
     }
 
-    fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), JobError> {
+    fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), EngineError> {
         while !self.done {
             let at = match self.pending {
                 Some(at) => at,
@@ -124,7 +124,7 @@ mod tests {
     /// Frames every 0.3 s from t = 10 s, counted from origin 10 s.
     struct Every(u32);
     impl Emitter for Every {
-        fn next_frame(&mut self, out: &mut Vec<u8>) -> Result<Option<f64>, JobError> {
+        fn next_frame(&mut self, out: &mut Vec<u8>) -> Result<Option<f64>, EngineError> {
             if self.0 == 5 {
                 return Ok(None);
             }

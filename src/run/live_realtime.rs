@@ -1,5 +1,5 @@
 //! Real-time mode: states arrive on their own thread and update the causal model and the
-//! clock map ([`super::clockmap`]); the emitter produces record k just before its deadline
+//! clock map ([`crate::live::clockmap`]); the emitter produces record k just before its deadline
 //! — the host instant simulation time t_k maps to, plus a constant output delay — from what
 //! has arrived by then, and hands the frame to the pacer ([`crate::realtime::pacer`]), which
 //! writes it at that deadline to every sink.
@@ -16,12 +16,12 @@ use std::time::Duration;
 
 use tokio::sync::mpsc::{Receiver as BlockRx, Sender as BlockTx};
 
-use super::clockmap::{ClockMap, GivenMap};
 use super::lockstep::LiveError;
-use super::stats::InputStats;
-use super::transport::Receiver;
-use super::{Decoder, InputFormat, TimeBase};
-use crate::job::Grid;
+use crate::engine::Grid;
+use crate::live::clockmap::{ClockMap, GivenMap};
+use crate::live::stats::InputStats;
+use crate::live::transport::Receiver;
+use crate::live::{Decoder, InputFormat, TimeBase};
 use crate::motion::causal::CausalMotion;
 use crate::motion::chain::{ChainSettings, Corrections, Tail};
 use crate::protocol::Plan;

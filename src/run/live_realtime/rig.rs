@@ -2,7 +2,7 @@
 //! delay as one IMU ([`super::Realtime::run`]), and the records a lockstep rig releases
 //! ([`crate::rig::RigStream::release_upto`]), released here up to the simulation time the
 //! clock map gives the host's present instant. The units' frames are merged in emission
-//! order ([`crate::realtime::merge::merge_into`]) onto one pacer, each at the host instant
+//! order ([`crate::run::merge::merge_into`]) onto one pacer, each at the host instant
 //! of its simulation time plus the delay.
 
 use std::io::Write;
@@ -10,13 +10,13 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use super::super::lockstep::LiveError;
-use super::super::transport::Receiver;
 use super::{FrameOut, LEAD_S, LiveStatus, OnTimeout, Realtime, close, observe, sleep_to};
-use crate::emission::Part;
-use crate::job::Grid;
+use crate::engine::Grid;
+use crate::engine::frames::Part;
+use crate::live::transport::Receiver;
 use crate::motion::chain::Tail;
 use crate::realtime::clock::monotonic_ns;
-use crate::realtime::merge::merge_into;
+use crate::run::merge::merge_into;
 
 /// Simulated time released per step (s): short against any output delay worth having,
 /// long enough that a step's merge and channel traffic are negligible.

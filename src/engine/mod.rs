@@ -1,5 +1,12 @@
-//! An offline generation job: a motion model, a time grid and an output encoding, run block by
-//! block into any writer. The binary adds flags, files and the progress bar around it.
+//! The signal engine: a motion model, a time grid, an IMU's error chain and an output encoding,
+//! run block by block ([`Producer`]): ideal records → error chain → encoded bytes. Every
+//! consumer — files, the real-time pacer, the navigator — takes its records from here.
+
+pub mod filtered;
+pub mod frames;
+pub mod timed;
+mod timed_merge;
+pub mod trigger;
 
 use std::io::Write;
 use std::ops::ControlFlow;
@@ -20,6 +27,9 @@ use crate::trajectory::{self, TrajectoryError};
 /// Duration of a run on an unbounded scene when none is given (s).
 pub const DEFAULT_UNBOUNDED_DURATION_S: f64 = 60.0;
 
+/// The temperature frames carry when the scene gives no temperature profile (°C).
+pub const DEFAULT_FRAME_CELSIUS: f64 = 25.0;
+
 /// Records per block: large enough to amortise the writer, small enough to stay in cache.
 pub const BLOCK: usize = 4096;
 
@@ -34,9 +44,9 @@ pub enum SourceSpec {
     MotionDef(PathBuf),
 }
 
-/// Everything a job can refuse, each naming what to fix.
+/// Everything the engine can refuse, each naming what to fix.
 #[derive(Debug, thiserror::Error)]
-pub enum JobError {
+pub enum EngineError {
     /// Bad trajectory file.
     #[error(transparent)]
     Trajectory(#[from] TrajectoryError),
@@ -115,18 +125,26 @@ pub enum JobError {
     #[error("{0}")]
     Trigger(String),
     /// An aiding sensor cannot give a sample (outside its field table, not finite).
-    #[error("{0}")]
-    Sensor(String),
+    #[error(transparent)]
+    Sensor(#[from] crate::aiding::SampleError),
     /// A magnetometer sample for the frames cannot be taken (outside its field table).
     #[error(transparent)]
     Magnetometer(#[from] crate::aiding::mag_samples::MagError),
+    /// The caller gave a number of outputs other than the run writes.
+    #[error("{given} outputs given for a run that writes {need}")]
+    Outputs {
+        /// Outputs given.
+        given: usize,
+        /// Outputs the run writes.
+        need: usize,
+    },
     /// Writing failed (the cause is the error's `source()`, not repeated here).
     #[error("writing output")]
     Io(#[from] std::io::Error),
 }
 
 /// Builds the motion model of a source.
-pub fn build_motion(source: &SourceSpec, model: ModelSettings) -> Result<AnyMotion, JobError> {
+pub fn build_motion(source: &SourceSpec, model: ModelSettings) -> Result<AnyMotion, EngineError> {
     match source {
         SourceSpec::Scene(name, params) => Ok(AnyMotion::Scene(scenes::build(name, params)??)),
         SourceSpec::File(path) => Ok(AnyMotion::Sampled(trajectory::open_motion(path, model)?)),
@@ -151,9 +169,9 @@ pub fn plan(
     rate_hz: f64,
     start: Option<f64>,
     duration: Option<f64>,
-) -> Result<Grid, JobError> {
+) -> Result<Grid, EngineError> {
     if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 1.0e7) {
-        return Err(JobError::Setting {
+        return Err(EngineError::Setting {
             key: "rate",
             value: rate_hz.to_string(),
             expected: "a rate in (0, 1e7] Hz",
@@ -162,7 +180,7 @@ pub fn plan(
     let (m0, m1) = (motion.start(), motion.end());
     let t0 = start.unwrap_or(m0);
     if !t0.is_finite() {
-        return Err(JobError::Setting {
+        return Err(EngineError::Setting {
             key: "start",
             value: t0.to_string(),
             expected: "a finite time",
@@ -171,7 +189,7 @@ pub fn plan(
     let duration = match duration {
         Some(d) if d.is_finite() && d > 0.0 => d,
         Some(d) => {
-            return Err(JobError::Setting {
+            return Err(EngineError::Setting {
                 key: "duration",
                 value: d.to_string(),
                 expected: "a positive duration in seconds",
@@ -185,7 +203,7 @@ pub fn plan(
     let t_last = t0 + count / rate_hz;
     let slack = 1e-9 * m1.abs().max(1.0);
     if t0 < m0 - slack || t_last > m1 + slack || count < 1.0 {
-        return Err(JobError::Span {
+        return Err(EngineError::Span {
             from: t0,
             to: t0 + duration,
             start: m0,
@@ -200,6 +218,23 @@ pub fn plan(
     })
 }
 
+/// Number of records k ≥ 1 of `grid` with t_k = t₀ + k/rate at or before `t` (times computed
+/// as the generator computes them, so the last released interval never passes `t`).
+pub fn released(grid: &Grid, t: f64) -> u64 {
+    let time = |k: u64| grid.t0 + k as f64 / grid.rate_hz;
+    if t.is_nan() || t < grid.t0 {
+        return 0;
+    }
+    let mut k = ((t - grid.t0) * grid.rate_hz).floor() as u64;
+    while time(k + 1) <= t {
+        k += 1;
+    }
+    while k > 0 && time(k) > t {
+        k -= 1;
+    }
+    k
+}
+
 /// Largest spacing of representable times near a run's times, as a fraction of the record
 /// interval. A time tag t₀ + k/rate is rounded to the nearest f64, off by up to half that
 /// spacing, so successive tags differ from Δt by up to one spacing: at 1/1000 of Δt the tags
@@ -207,11 +242,11 @@ pub fn plan(
 pub const TIME_RESOLUTION: f64 = 1.0e-3;
 
 /// Refuses a run whose largest |time| `t` is held more coarsely than [`TIME_RESOLUTION`]·`dt`.
-fn check_time_resolution(t: f64, dt: f64) -> Result<(), JobError> {
+fn check_time_resolution(t: f64, dt: f64) -> Result<(), EngineError> {
     // Spacing of f64 values at t: the next representable value above |t|, minus |t|.
     let ulp = f64::from_bits(t.to_bits() + 1) - t;
     if ulp > TIME_RESOLUTION * dt {
-        return Err(JobError::TimeResolution { t, ulp, dt });
+        return Err(EngineError::TimeResolution { t, ulp, dt });
     }
     Ok(())
 }
@@ -329,14 +364,14 @@ pub struct Producer {
     /// The sensor temperature over the run, carried by frames with a temperature field.
     temperature: Option<TemperatureProfile>,
     /// Why production stopped early (a non-finite value), for [`Producer::take_error`].
-    error: Option<JobError>,
+    error: Option<EngineError>,
     /// The IMU's timing errors, when it has any.
-    timing: Option<Box<crate::timing::TimedRun>>,
+    timing: Option<Box<crate::engine::timed::TimedRun>>,
     /// A unit with an output filter: replaces the generator and chain above for the records
     /// (the output-rate generator still gives the truth).
-    filtered: Option<Box<crate::filtered_imu::FilteredImu>>,
+    filtered: Option<Box<crate::engine::filtered::FilteredImu>>,
     /// The external trigger, when samples are taken at its edges.
-    trigger: Option<Box<dyn crate::timing::trigger::TriggerSource>>,
+    trigger: Option<Box<dyn crate::engine::trigger::TriggerSource>>,
     /// The last triggered sample's time of validity (= emission) after t₀ (s).
     trigger_tov: [f64; 1],
     /// Flags added to every record from now on ([`Producer::mark`]).
@@ -375,9 +410,9 @@ impl Producer {
         encoding: impl Into<Encoding>,
         chain: Option<ErrorChain>,
         keep_truth: bool,
-    ) -> Result<Producer, JobError> {
+    ) -> Result<Producer, EngineError> {
         if !(1..=crate::quadrature::MAX_NODES).contains(&nodes) {
-            return Err(JobError::Setting {
+            return Err(EngineError::Setting {
                 key: "quadrature",
                 value: nodes.to_string(),
                 expected: "1 to 16 Gauss–Legendre nodes",
@@ -433,7 +468,10 @@ impl Producer {
     /// filter's internal rate through `filtered`, instead of the output-rate generator and the
     /// producer's own chain (give it none). The truth stays the exact increments over the
     /// output intervals.
-    pub fn with_filter(mut self, filtered: Option<crate::filtered_imu::FilteredImu>) -> Producer {
+    pub fn with_filter(
+        mut self,
+        filtered: Option<crate::engine::filtered::FilteredImu>,
+    ) -> Producer {
         self.filtered = filtered.map(Box::new);
         self
     }
@@ -445,23 +483,23 @@ impl Producer {
         grid: Grid,
         model: &crate::errors::ImuModel,
         seed: u64,
-    ) -> Result<Producer, JobError> {
+    ) -> Result<Producer, EngineError> {
         if model.output_filter.is_none() {
             let chain = ErrorChain::new(model, grid.rate_hz, seed);
             return Ok(Producer::records(motion, grid, Some(chain)));
         }
         let chain = crate::errors::filtered::FilteredChain::new(model, grid.rate_hz, seed)
-            .map_err(JobError::Filter)?;
+            .map_err(EngineError::Filter)?;
         let nodes = crate::generator::DEFAULT_NODES;
-        let f = crate::filtered_imu::FilteredImu::new(motion.clone(), grid, nodes, chain)
-            .map_err(JobError::Filter)?;
+        let f = crate::engine::filtered::FilteredImu::new(motion.clone(), grid, nodes, chain)
+            .map_err(EngineError::Filter)?;
         Ok(Producer::records(motion, grid, None).with_filter(Some(f)))
     }
 
     /// Samples at the sensor clock's instants with the IMU's timing errors (`None`: on the
     /// nominal grid): increments over the true intervals, skipped samples folded into the
     /// next, and each record's time of validity and emission time in [`Block::times`].
-    pub fn with_timing(mut self, timing: Option<crate::timing::TimedRun>) -> Producer {
+    pub fn with_timing(mut self, timing: Option<crate::engine::timed::TimedRun>) -> Producer {
         self.timing = timing.map(Box::new);
         self
     }
@@ -471,7 +509,7 @@ impl Producer {
     /// the source does or after the grid's count. Replaces the IMU's own timing errors.
     pub fn with_trigger(
         mut self,
-        source: Box<dyn crate::timing::trigger::TriggerSource>,
+        source: Box<dyn crate::engine::trigger::TriggerSource>,
     ) -> Producer {
         self.trigger = Some(source);
         self.timing = None;
@@ -525,19 +563,19 @@ impl Producer {
 
     /// The error that ended production early: the block methods return `None` both at the
     /// end of the run and when a record came out non-finite; this tells them apart.
-    pub fn take_error(&mut self) -> Option<JobError> {
+    pub fn take_error(&mut self) -> Option<EngineError> {
         self.error.take()
     }
 
     /// After the last block: `Err` if production stopped early on a non-finite value, so a
     /// consumer of [`Producer::next_records`] never takes a short run for a whole one.
-    pub fn finished(&mut self) -> Result<(), JobError> {
+    pub fn finished(&mut self) -> Result<(), EngineError> {
         self.take_error().map_or(Ok(()), Err)
     }
 
     /// Whether a record of the last block is non-finite (before or after the error chain):
     /// nothing non-finite leaves the producer.
-    pub(crate) fn check_finite(records: &[Record], stage: &'static str) -> Result<(), JobError> {
+    pub(crate) fn check_finite(records: &[Record], stage: &'static str) -> Result<(), EngineError> {
         // x·0 is 0 for every finite x and NaN for ±inf and NaN, so one branch-free sum over
         // the block settles the common case; only a bad block is searched value by value.
         let any_bad: f64 = records
@@ -550,7 +588,7 @@ impl Producer {
         for r in records {
             let v = r.values();
             if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(JobError::NonFinite {
+                return Err(EngineError::NonFinite {
                     t: r.t,
                     quantity: crate::record::COLUMNS[i],
                     value: v[i],
@@ -620,7 +658,8 @@ impl Producer {
         match self.timing.as_mut() {
             Some(t) => {
                 let timed = t.instants(self.k, n);
-                self.imu.fill_timed(self.k, timed, &mut self.block[..n]);
+                self.imu
+                    .fill_timed(self.k, (&timed.gyro, &timed.accel), &mut self.block[..n]);
             }
             None => self.imu.fill(self.k, &mut self.block[..n]),
         }
@@ -702,7 +741,7 @@ impl Producer {
     fn step_triggered(&mut self) -> Option<(u64, usize)> {
         let (lo, hi) = match self.trigger.as_mut()?.next_interval()? {
             Ok(iv) => iv,
-            Err(e) => return self.fail(JobError::Trigger(e)),
+            Err(e) => return self.fail(EngineError::Trigger(e)),
         };
         let bounds = [lo, hi];
         if self.block.is_empty() {
@@ -736,7 +775,7 @@ impl Producer {
     }
 
     /// Ends production with `e` (kept for [`Producer::take_error`]).
-    fn fail(&mut self, e: JobError) -> Option<(u64, usize)> {
+    fn fail(&mut self, e: EngineError) -> Option<(u64, usize)> {
         self.error = Some(e);
         self.k = self.count + 1;
         None
@@ -826,7 +865,7 @@ pub fn run(
     truth: Option<&mut dyn Write>,
     injected: Option<&mut dyn Write>,
     mut progress: impl FnMut(u64),
-) -> Result<(), JobError> {
+) -> Result<(), EngineError> {
     let producer = Producer::new(motion, grid, nodes, encoding, chain, false)?;
     drain(producer, out, truth, injected, |k| {
         progress(k);
@@ -836,15 +875,15 @@ pub fn run(
 
 /// Writes the whole run of a producer that has not started into `out` (and the side
 /// outputs, as [`run`] does). After each block `progress(records_done)` may stop the run
-/// early with `ControlFlow::Break`, which returns [`JobError::Stopped`]; a non-finite record
-/// stops it with [`JobError::NonFinite`] before anything of its block is written.
+/// early with `ControlFlow::Break`, which returns [`EngineError::Stopped`]; a non-finite record
+/// stops it with [`EngineError::NonFinite`] before anything of its block is written.
 pub fn drain(
     mut producer: Producer,
     out: &mut impl Write,
     mut truth: Option<&mut dyn Write>,
     mut injected: Option<&mut dyn Write>,
     mut progress: impl FnMut(u64) -> ControlFlow<()>,
-) -> Result<(), JobError> {
+) -> Result<(), EngineError> {
     let format = producer.encoding.side();
     if format == Format::Csv {
         if let Some(t) = truth.as_mut() {
@@ -891,7 +930,7 @@ pub fn drain(
         let done = b.first + b.records.len() as u64;
         out.write_all(&buf)?;
         if progress(done).is_break() {
-            return Err(JobError::Stopped);
+            return Err(EngineError::Stopped);
         }
     }
     if let Some(e) = producer.take_error() {
@@ -1016,7 +1055,7 @@ mod tests {
         assert!(p.next_block(2, &mut buf, &mut ends).is_none());
         assert_eq!(buf.len(), written);
         match p.take_error() {
-            Some(JobError::NonFinite {
+            Some(EngineError::NonFinite {
                 t, quantity, stage, ..
             }) => {
                 assert!((t - 0.3).abs() < 1e-12, "t = {t}");
@@ -1027,6 +1066,23 @@ mod tests {
             other => panic!("expected a non-finite record, got {other:?}"),
         }
         assert!(p.next_block(2, &mut buf, &mut ends).is_none());
+    }
+
+    #[test]
+    fn released_counts_records_at_or_before() {
+        let g = Grid {
+            t0: 0.08,
+            rate_hz: 400.0,
+            count: 1000,
+        };
+        assert_eq!(released(&g, 0.05), 0);
+        assert_eq!(released(&g, 0.08), 0);
+        assert_eq!(released(&g, 0.09), 4);
+        assert_eq!(released(&g, 0.0925), 5);
+        for k in 1..900u64 {
+            let t = g.t0 + k as f64 / g.rate_hz;
+            assert_eq!(released(&g, t), k, "at t_{k} itself");
+        }
     }
 
     fn plan_grid(motion: &AnyMotion) -> Grid {

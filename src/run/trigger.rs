@@ -1,14 +1,14 @@
 //! External sample trigger in real time (`run --trigger`): edges from the same sources as the
-//! PPS input ([`super::pps`]: a UDP edge message, a serial port's DCD or CTS line, a PPS
+//! PPS input ([`crate::realtime::pps`]: a UDP edge message, a serial port's DCD or CTS line, a PPS
 //! device) become the intervals a triggered producer samples over
-//! ([`crate::timing::trigger`]).
+//! ([`crate::engine::trigger`]).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 
-use super::pps::POLL;
-use crate::timing::trigger::{Trigger, TriggerSource};
+use crate::engine::trigger::{Trigger, TriggerSource};
+use crate::realtime::pps::POLL;
 
 /// Intervals between the edges arriving on a channel (CLOCK_MONOTONIC ns), the first edge
 /// already taken as t₀.

@@ -1,5 +1,7 @@
 //! Datasheet units at the edges: `"0.07 deg/sqrt(h)"` → SI, once, when a template is loaded.
 
+pub mod bounds;
+
 use std::f64::consts::PI;
 
 /// Standard gravity used by datasheets for g, mg, µg (m/s²).
@@ -226,6 +228,19 @@ pub fn parse(text: &str, kind: Kind) -> Result<(f64, bool), UnitError> {
             unit,
             accepted: kind.unit_names(),
         })
+}
+
+/// A `"number unit"` value of `kind` in SI, within the physical bounds of its kind.
+pub fn quantity(v: &toml::Value, kind: Kind) -> Result<f64, String> {
+    let s = v.as_str().ok_or_else(|| {
+        format!(
+            "expected a string \"value unit\" (units: {})",
+            kind.unit_names()
+        )
+    })?;
+    let x = parse(s, kind).map_err(|e| e.to_string())?.0;
+    bounds::check(s, kind, x, false)?;
+    Ok(x)
 }
 
 #[cfg(test)]

@@ -7,11 +7,11 @@
 
 use std::io::Write;
 
-use super::stats::InputStats;
 use super::target::{RigTarget, SimTarget, Target};
-use super::transport::{Message, Receiver};
-use super::{Decoded, Decoder, InputFormat, TimeBase};
-use crate::job::{Grid, JobError};
+use crate::engine::{EngineError, Grid};
+use crate::live::stats::InputStats;
+use crate::live::transport::{Message, Receiver};
+use crate::live::{Decoded, Decoder, InputFormat, TimeBase};
 use crate::motion::causal::CausalMotion;
 use crate::sim::{SimError, SimulationBuilder};
 
@@ -23,7 +23,7 @@ pub enum LiveError {
     Sim(#[from] SimError),
     /// Production stopped (a non-finite value, a setting).
     #[error(transparent)]
-    Job(#[from] JobError),
+    Job(#[from] EngineError),
     /// Reading the input, or writing the output or the input record, failed.
     #[error("{what}: {source}")]
     Io {
@@ -300,44 +300,5 @@ impl<T: Target> Lockstep<T> {
     /// The live motion model (for its start, newest time and pose).
     pub fn motion(&self) -> &CausalMotion {
         &self.model
-    }
-}
-
-/// Number of records k ≥ 1 of `grid` with t_k = t₀ + k/rate at or before `t` (times computed
-/// as the generator computes them, so the last released interval never passes `t`).
-pub fn released(grid: &Grid, t: f64) -> u64 {
-    let time = |k: u64| grid.t0 + k as f64 / grid.rate_hz;
-    if t.is_nan() || t < grid.t0 {
-        return 0;
-    }
-    let mut k = ((t - grid.t0) * grid.rate_hz).floor() as u64;
-    while time(k + 1) <= t {
-        k += 1;
-    }
-    while k > 0 && time(k) > t {
-        k -= 1;
-    }
-    k
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn released_counts_records_at_or_before() {
-        let g = Grid {
-            t0: 0.08,
-            rate_hz: 400.0,
-            count: 1000,
-        };
-        assert_eq!(released(&g, 0.05), 0);
-        assert_eq!(released(&g, 0.08), 0);
-        assert_eq!(released(&g, 0.09), 4);
-        assert_eq!(released(&g, 0.0925), 5);
-        for k in 1..900u64 {
-            let t = g.t0 + k as f64 / g.rate_hz;
-            assert_eq!(released(&g, t), k, "at t_{k} itself");
-        }
     }
 }

@@ -2,6 +2,8 @@
 //! the engine settings. Every key is optional; command-line flags override the file.
 //! `examples/survey.toml` is a commented example.
 
+pub mod rig;
+
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
@@ -17,11 +19,11 @@ pub struct SceneFile {
     pub trajectory: TrajectorySection,
     /// IMU model and rate (`[imu]`); an `[[imu]]` list (a rig) leaves it at its default and
     /// fills [`SceneFile::rig`].
-    #[serde(default, deserialize_with = "crate::rig::config::table_or_list")]
+    #[serde(default, deserialize_with = "rig::table_or_list")]
     pub imu: ImuSection,
     /// The units of a rig (`[[imu]]` entries; empty for a single `[imu]`).
     #[serde(skip)]
-    pub rig: Vec<crate::rig::config::UnitEntry>,
+    pub rig: Vec<rig::UnitEntry>,
     /// Output.
     #[serde(default)]
     pub output: OutputSection,
@@ -468,7 +470,9 @@ impl SceneFile {
     /// Parses scene-file text; `path` is used in messages.
     pub fn parse(text: &str, path: &Path) -> Result<SceneFile, ConfigError> {
         let located = |e: toml::de::Error| {
-            let (line, column) = e.span().map_or((1, 1), |s| line_col(text, s.start));
+            let (line, column) = e
+                .span()
+                .map_or((1, 1), |s| crate::csvio::line_col(text, s.start));
             let message = e.message().trim();
             ConfigError::Parse {
                 path: path.to_path_buf(),
@@ -481,7 +485,7 @@ impl SceneFile {
             }
         };
         let mut file: SceneFile = toml::from_str(text).map_err(located)?;
-        file.rig = crate::rig::config::units_of(text).map_err(located)?;
+        file.rig = rig::units_of(text).map_err(located)?;
         // `[trajectory.params]` is kept as a table (the defaults depend on the scene); check its
         // keys and types now, while an error can still point at the line.
         if file.trajectory.params.is_some() {
@@ -572,27 +576,6 @@ fn key_at(text: &str, offset: usize) -> Option<String> {
         Some(t) if !t.is_empty() => format!("{t}.{key}"),
         _ => key.to_string(),
     })
-}
-
-/// A TOML error of `text` on one line: `line L, column C: message`. The parser's own text
-/// spans several lines (a code excerpt with a caret), which a one-line error cannot show.
-pub fn toml_error_line(text: &str, e: &toml::de::Error) -> String {
-    let message = e.message().trim().replace('\n', " ");
-    match e.span() {
-        Some(s) => {
-            let (line, column) = line_col(text, s.start);
-            format!("line {line}, column {column}: {message}")
-        }
-        None => message,
-    }
-}
-
-/// 1-based line and column of a byte offset.
-fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let before = &text[..offset.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, column)
 }
 
 #[cfg(test)]

@@ -55,7 +55,7 @@ impl Trigger {
     }
 }
 
-/// Where a triggered producer ([`crate::job::Producer::with_trigger`]) takes the intervals of its
+/// Where a triggered producer ([`crate::engine::Producer::with_trigger`]) takes the intervals of its
 /// samples from.
 pub trait TriggerSource: Send {
     /// The next sample's interval (relative to t₀, s), blocking until its edge; `None` when

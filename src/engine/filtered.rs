@@ -1,12 +1,12 @@
 //! A unit with an output filter, as a run produces it: the motion's exact increments over the
 //! unit's internal intervals (the same generator as every run, at the internal rate), the
 //! error chain at that rate, the filter and the decimation to the output rate
-//! ([`crate::errors::filtered::FilteredChain`]). [`crate::job::Producer`] drives it in place
+//! ([`crate::errors::filtered::FilteredChain`]). [`crate::engine::Producer`] drives it in place
 //! of the output-rate generator and chain.
 
+use crate::engine::Grid;
 use crate::errors::filtered::FilteredChain;
 use crate::generator::{IdealImu, RotationTerms};
-use crate::job::Grid;
 use crate::record::Record;
 use crate::source::AnyMotion;
 

@@ -1,27 +1,12 @@
-//! The timing errors over a run, as the block producer ([`crate::job::Producer`]) uses them:
+//! The timing errors over a run, as the block producer ([`crate::engine::Producer`]) uses them:
 //! the sensor's instants of each block, then the skipped samples folded into the next one
 //! taken, leaving per kept sample its time of validity, emission time and the number of
 //! samples skipped before it (which the frame counter steps over).
 
-use super::merge::{Carry, merge_components, merge_records};
-use super::{SensorTiming, TimedBlock};
+use super::timed_merge::{Carry, merge_components, merge_records};
 use crate::errors::chain::Components;
 use crate::record::Record;
-
-/// Times of the records of one block, relative to the run's t₀ (s).
-#[derive(Clone, Copy, Debug)]
-pub struct Times<'a> {
-    /// The run's t₀ (s): add it for absolute times.
-    pub t0: f64,
-    /// Time of validity (end of the gyro interval) of each record.
-    pub tov: &'a [f64],
-    /// Time of validity of each record's accelerometers.
-    pub tov_accel: &'a [f64],
-    /// Emission time of each record's frame (its first byte).
-    pub emit: &'a [f64],
-    /// Samples the sensor skipped just before each record.
-    pub gaps: &'a [u32],
-}
+use crate::timing::{SensorTiming, TimedBlock, Times};
 
 /// Per-run state of the timing errors.
 #[derive(Clone, Debug)]

@@ -6,11 +6,11 @@
 //!
 //! The interface is deliberately small: a stream is a sequence of (emission time, bytes).
 
-use crate::job::{JobError, Producer};
+use crate::engine::{EngineError, Producer};
 
-pub use crate::emission::{Part, WindowSource};
+pub use crate::engine::frames::{Part, WindowSource};
 
-use super::FrameBlock;
+use crate::realtime::FrameBlock;
 
 /// Lays `parts` out in `block` in emission-time order (ties: the lower stream first): every
 /// stream gets an end per frame, empty where the frame is another stream's. `order` is
@@ -53,14 +53,14 @@ pub fn merge_into(parts: &[Part], block: &mut FrameBlock, order: &mut Vec<(i64, 
 }
 
 /// Merges `sources` window by window (`window_ns` of simulated time each) and sends a block
-/// per non-empty window, like [`super::produce`] does for one IMU: blocking, on its own
+/// per non-empty window, like [`produce`] does for one IMU: blocking, on its own
 /// thread; buffers come back on `recycled`. Returns why production stopped early, if it did.
 pub fn produce_merged(
     mut sources: Vec<Box<dyn WindowSource>>,
     window_ns: i64,
     tx: tokio::sync::mpsc::Sender<FrameBlock>,
     mut recycled: tokio::sync::mpsc::Receiver<FrameBlock>,
-) -> Option<JobError> {
+) -> Option<EngineError> {
     let n: usize = sources.iter().map(|s| s.streams()).sum();
     let mut parts = vec![Part::default(); n];
     let mut order = Vec::new();
@@ -124,7 +124,7 @@ impl ProducerWindow {
     }
 
     /// Makes the next block; false at the end of the run (or on a producer error).
-    fn refill(&mut self) -> Result<bool, JobError> {
+    fn refill(&mut self) -> Result<bool, EngineError> {
         for (bytes, ends) in self.held.iter_mut() {
             bytes.clear();
             ends.clear();
@@ -160,7 +160,7 @@ impl WindowSource for ProducerWindow {
         self.held.len()
     }
 
-    fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), JobError> {
+    fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), EngineError> {
         // The main stream's frames are the records (the extra encodings repeat them).
         parts[0].marks_records = true;
         while !self.done {
@@ -183,6 +183,44 @@ impl WindowSource for ProducerWindow {
 
     fn done(&self) -> bool {
         self.done
+    }
+}
+
+/// Runs `producer` to the end (or until the receiver hangs up), sending blocks of `block`
+/// frames in `streams` encodings (the main one and the producer's extra ones); reuses the
+/// buffers the pacer returns on `recycled`. Blocking: call it on its own thread (or
+/// `spawn_blocking`). Returns why production stopped early (a non-finite record), if it did:
+/// nothing of the bad block was sent, and the caller reports it.
+pub fn produce(
+    mut producer: Producer,
+    block: usize,
+    streams: usize,
+    tx: tokio::sync::mpsc::Sender<FrameBlock>,
+    mut recycled: tokio::sync::mpsc::Receiver<FrameBlock>,
+) -> Option<crate::engine::EngineError> {
+    loop {
+        let mut b = recycled.try_recv().unwrap_or_default();
+        b.streams.resize_with(streams, Default::default);
+        for (bytes, ends) in b.streams.iter_mut() {
+            bytes.clear();
+            ends.clear();
+        }
+        let Some(out) = producer.next_block_multi(block, &mut b.streams) else {
+            return producer.take_error();
+        };
+        b.first = out.first;
+        b.emit_ns.clear();
+        b.tov_ns.clear();
+        b.records.clear();
+        if let Some(t) = &out.times {
+            b.emit_ns
+                .extend(t.emit.iter().map(|e| (e * 1e9).round() as i64));
+            b.tov_ns
+                .extend(t.tov.iter().map(|e| (e * 1e9).round() as i64));
+        }
+        if tx.blocking_send(b).is_err() {
+            return None;
+        }
     }
 }
 
@@ -230,7 +268,7 @@ mod tests {
             fn streams(&self) -> usize {
                 1
             }
-            fn fill(&mut self, until: i64, parts: &mut [Part]) -> Result<(), JobError> {
+            fn fill(&mut self, until: i64, parts: &mut [Part]) -> Result<(), EngineError> {
                 while self.0 + 3 <= until.min(40) {
                     self.0 += 3;
                     parts[0].push(&[self.0 as u8], self.0);
