@@ -592,7 +592,7 @@ impl Rig {
                 k += n as u64;
                 done += (n * group.len()) as u64;
                 if progress(done).is_break() {
-                    return Err(EngineError::Stopped.into());
+                    return Err(EngineError::Stopped);
                 }
             }
         }
