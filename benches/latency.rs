@@ -56,7 +56,7 @@ fn pipeline(p: Producer, frames_per_s: f64, pacing: Pacing, sink: Box<dyn Sink>)
     let (tx, rx) = tokio::sync::mpsc::channel::<FrameBlock>(realtime::CHANNEL_BLOCKS);
     let (rtx, rrx) = tokio::sync::mpsc::channel(realtime::CHANNEL_BLOCKS);
     let block = realtime::block_len(frames_per_s);
-    let prod = std::thread::spawn(move || imu_emu::run::merge::produce(p, block, 1, tx, rrx));
+    let prod = std::thread::spawn(move || produce(p, block, tx, rrx));
     let status = Arc::new(Mutex::new(Status::default()));
     let st = std::thread::Builder::new()
         .name("imu-pacer".into())
@@ -76,6 +76,38 @@ fn pipeline(p: Producer, frames_per_s: f64, pacing: Pacing, sink: Box<dyn Sink>)
         .expect("pacer");
     prod.join().unwrap();
     st
+}
+
+/// The producer side of a paced run of one stream: the IMU's frames as a source
+/// (`imu_emu::run::sources::imu::ImuFrames`), windows of `block` records into blocks.
+fn produce(
+    p: Producer,
+    block: usize,
+    tx: tokio::sync::mpsc::Sender<FrameBlock>,
+    mut recycled: tokio::sync::mpsc::Receiver<FrameBlock>,
+) {
+    use imu_emu::engine::frames::{Part, Until, WindowSource};
+    let grid = p.grid();
+    let mut src =
+        imu_emu::run::sources::imu::ImuFrames::new(p, 1, Default::default(), grid.t0, false);
+    let window = (block as f64 / grid.rate_hz * 1e9) as i64;
+    let (mut until, mut first) = (0i64, 0u64);
+    let mut parts = vec![Part::default()];
+    while !src.done() {
+        until += window;
+        parts[0].clear();
+        src.fill(Until::ns(grid.t0, until), &mut parts)
+            .expect("finite records");
+        let mut b = recycled.try_recv().unwrap_or_default();
+        let part = std::mem::take(&mut parts[0]);
+        b.first = first;
+        first += part.ends.len() as u64;
+        b.streams = vec![(part.bytes, part.ends)];
+        b.emit_ns = part.emit_ns;
+        if tx.blocking_send(b).is_err() {
+            return;
+        }
+    }
 }
 
 /// Reader-side lateness of every frame, from (arrival ns, bytes) chunks.
@@ -269,7 +301,7 @@ fn main() {
     for _ in 0..3 {
         let t = Instant::now();
         let p = producer(rate, dur, &plan);
-        let sink = FileSink::new("null".into(), Box::new(std::io::sink()), false);
+        let sink = FileSink::writer("null".into(), Box::new(std::io::sink()), false);
         let st = pipeline(p, rate, Pacing::Unpaced, Box::new(sink));
         assert_eq!(st.frames, count);
         best[0] = best[0].min(t.elapsed().as_secs_f64());

@@ -194,7 +194,7 @@ fn pty_stream_is_generate_and_survives_reopen() {
         );
     }
     assert!(took < 15.0, "a 3 s run took {took:.1} s");
-    assert!(err.contains("6000 of 6000 frames"), "{err}");
+    assert!(err.contains("unit imu: 6000 of 6000 records"), "{err}");
     assert!(
         link.symlink_metadata().is_err(),
         "the pty link was left behind"
@@ -274,7 +274,7 @@ fn udp_without_listener_completes() {
         "--udp",
         &dest,
     ]));
-    assert!(err.contains("400 of 400 frames"), "{err}");
+    assert!(err.contains("unit imu: 400 of 400 records"), "{err}");
     assert!(started.elapsed() < Duration::from_secs(10));
 }
 
@@ -385,7 +385,6 @@ fn refuses_impossible_settings() {
         ),
         (&["--speed", "0"][..], "--speed 0"),
         (&["--start-at", "tomorrow"][..], "--start-at"),
-        (&["--protocol", "csv"][..], "generate"),
         // 3000 26-byte frames: 78 000 bytes, over the 65 507 of a UDP datagram.
         (
             &["--udp", "127.0.0.1:9", "--udp-batch", "3000"][..],
@@ -953,7 +952,7 @@ fn a_signal_ends_the_run_with_the_shells_status() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(code), "{sig}: {err}");
         assert!(
-            err.contains(&format!("interrupted by {sig}: ")) && err.contains(" of 12000 frames"),
+            err.contains(&format!("interrupted by {sig}: ")) && err.contains(" of 12000 records"),
             "{err}"
         );
         assert!(!err.contains("error"), "{err}");

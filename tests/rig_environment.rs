@@ -423,29 +423,42 @@ fn timing_errors_are_refused_for_rig_units() {
     assert!(e.contains("template `late` has [timing] errors"), "{e}");
 }
 
-/// `run` on a rig refuses what it cannot honour rather than ignoring it: the flags that time
-/// one IMU's frames, and `--gps-time` on a time base that sets the reference itself.
+/// `run` on a rig refuses what it cannot honour rather than ignoring it: time marks that do
+/// not say whose frames they mark, a pulse with no modem line to drive, a trigger (rig units
+/// sample on their shared grids), and `--gps-time` on a time base that sets the reference
+/// itself.
 #[test]
 fn run_on_a_rig_refuses_frame_timing_flags_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/rig.toml");
-    let sinks = ["--unit-sink", "nav=file:nav.bin", "--duration", "0.1"];
+    let sinks = [
+        "--unit-sink",
+        "nav=file:nav.bin",
+        "--duration",
+        "0.1",
+        "--speed",
+        "1",
+    ];
     for (flag, value, says) in [
         (
             "--time-marks",
             "marks.csv",
-            "--time-marks does not apply to a rig yet",
+            "a rig's time marks are per unit: give UNIT=marks.csv",
         ),
-        ("--pulse", "dtr:tov", "--pulse does not apply to a rig yet"),
+        (
+            "--pulse",
+            "dtr:tov",
+            "--pulse: drives a serial port's modem line: give --pulse-port DEV or a serial sink of unit `nav`",
+        ),
         (
             "--trigger",
             "/dev/null",
-            "--trigger does not apply to a rig yet",
+            "--trigger: a rig's units sample on their shared grids; triggered rig units are not built yet",
         ),
         (
             "--gps-time",
             "2300,0",
-            "--gps-time sets the GPS reference of --time-base sim only",
+            "--gps-time: sets the GPS reference of --time-base sim only",
         ),
     ] {
         let mut args = vec!["run", scene, flag, value];

@@ -150,6 +150,7 @@ fn pulsed_locked(
         emit_ns: tovs.iter().map(|t| t + 2_000_000).collect(),
         tov_ns: tovs.clone(),
         records: Vec::new(),
+        ..FrameBlock::default()
     })
     .unwrap();
     drop(tx);
@@ -277,6 +278,7 @@ fn frames_on_edges_are_not_late() {
             emit_ns: vec![at],
             tov_ns: vec![at],
             records: Vec::new(),
+            ..FrameBlock::default()
         })
         .unwrap();
     }

@@ -407,6 +407,13 @@ impl Receiver {
         &self.cfg
     }
 
+    /// The time of validity of the epoch [`Receiver::next_epoch`] gives next: the first at or
+    /// after `t_from` (before the first call), else the one after the previous.
+    pub fn next_time(&self, t_from: f64) -> f64 {
+        let rate = self.cfg.rate_hz;
+        self.next_k.unwrap_or_else(|| first_epoch(t_from, rate)) as f64 / rate
+    }
+
     /// The next epoch at or after `t_from` (the first call) or after the previous one, if its
     /// time of validity is at most `t_to`.
     pub fn next_epoch(
@@ -417,11 +424,7 @@ impl Receiver {
     ) -> Option<GnssEpoch> {
         let rate = self.cfg.rate_hz;
         let first = self.next_k.is_none();
-        let k = *self.next_k.get_or_insert_with(|| {
-            let k = (t_from * rate).ceil() as i64;
-            // The quotient k/rate can round below t_from by an ulp.
-            if (k as f64) / rate < t_from { k + 1 } else { k }
-        });
+        let k = *self.next_k.get_or_insert_with(|| first_epoch(t_from, rate));
         let t = k as f64 / rate;
         if t > t_to {
             return None;
@@ -503,4 +506,17 @@ pub fn displace(s: AntennaState, dp: Vec3, dv: Vec3) -> AntennaState {
         h: s.h - dp.z,
         v_n: s.v_n + dv,
     }
+}
+
+/// Index of the first epoch at `rate` at or after `t_from` (epoch k is at k/rate).
+fn first_epoch(t_from: f64, rate: f64) -> i64 {
+    let k = (t_from * rate).ceil() as i64;
+    // The quotient k/rate can round below t_from by an ulp.
+    if (k as f64) / rate < t_from { k + 1 } else { k }
+}
+
+/// How many epochs at `rate` (Hz) fall in `[t0, t1]` (outages included: they are sent
+/// without a fix).
+pub fn epoch_count(rate: f64, (t0, t1): (f64, f64)) -> u64 {
+    ((t1 * rate).floor() - (t0 * rate).ceil() + 1.0).max(0.0) as u64
 }

@@ -159,6 +159,14 @@ impl<M: Motion> SensorRows<M> {
         self.rate
     }
 
+    /// The time of the sample [`SensorRows::next_row`] gives next (s); `None` after the last.
+    pub fn next_time(&self) -> Option<f64> {
+        (self.next < self.end).then(|| match self.model {
+            Model::Odometer(_) => self.t0 + self.next as f64 / self.rate,
+            Model::Baro(_) | Model::Mag(_) => self.next as f64 / self.rate,
+        })
+    }
+
     /// How many samples the span holds.
     pub fn count(&self) -> u64 {
         (self.end - self.next).max(0) as u64

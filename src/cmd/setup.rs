@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 
 use imu_emu::protocol::FaultSpec;
 use imu_emu::sim::{Simulation, SimulationBuilder};
@@ -232,24 +232,11 @@ impl SimArgs {
     }
 }
 
-/// Prints what the user should know about a built simulation: its warnings, and the IMU and
-/// seed when the records carry errors.
-pub fn announce(sim: &Simulation) {
-    for w in sim.warnings() {
-        eprintln!("imu-emu: warning: {w}");
-    }
-    if sim.has_errors() {
-        eprintln!("imu-emu: IMU `{}`, seed {}", sim.imu().name, sim.seed());
-    }
-}
-
-/// Refuses a record format where only frames make sense.
-pub fn require_frames(sim: &Simulation, command: &str) -> Result<imu_emu::protocol::Plan> {
-    match sim.output() {
-        imu_emu::sim::Output::Frames(p) => Ok(p.clone()),
-        imu_emu::sim::Output::Records(f) => bail!(
-            "output format {f:?}: `{command}` streams protocol frames; use `generate` for records"
-        ),
+/// Prints what the user should know about a built run before it starts: for one IMU with
+/// errors its template and seed, for a rig each unit's records, rate and seed.
+pub fn announce_run(run: &imu_emu::run::Run) {
+    for line in run.announcements() {
+        eprintln!("imu-emu: {line}");
     }
 }
 

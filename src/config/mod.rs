@@ -3,6 +3,7 @@
 //! `examples/survey.toml` is a commented example.
 
 pub mod rig;
+pub mod run;
 
 use std::path::{Path, PathBuf};
 
@@ -55,6 +56,9 @@ pub struct SceneFile {
     /// The magnetometer (`[magnetometer]`; docs/aiding.md).
     #[serde(default)]
     pub magnetometer: Option<crate::aiding::magnetometer::MagConfig>,
+    /// How `run` goes and where its streams go (`[run]`; docs/run.md).
+    #[serde(default)]
+    pub run: Option<run::RunSection>,
 }
 
 /// `[faults]`: faults injected into protocol frames (`[[faults.event]]` entries).
@@ -403,6 +407,9 @@ pub struct ImuSection {
     pub mounting_deg: Option<[f64; 3]>,
     /// Lever arm from the trajectory's reference point to the IMU, in the IMU case frame (m).
     pub lever_arm_m: Option<[f64; 3]>,
+    /// Where `run` streams the IMU: one sink (`"pty:imu.pty"`, with `,protocol=NAME` for
+    /// another wire format) or a list.
+    pub sink: Option<rig::OneOrMany>,
 }
 
 /// `[output]`.

@@ -225,7 +225,13 @@ pub fn released(grid: &Grid, t: f64) -> u64 {
     if t.is_nan() || t < grid.t0 {
         return 0;
     }
-    let mut k = ((t - grid.t0) * grid.rate_hz).floor() as u64;
+    // Past 2⁵³ records the time of record k no longer moves with k: every record is in.
+    const HUGE: f64 = 9.0e15;
+    let guess = ((t - grid.t0) * grid.rate_hz).floor();
+    if guess >= HUGE {
+        return HUGE as u64;
+    }
+    let mut k = guess as u64;
     while time(k + 1) <= t {
         k += 1;
     }
@@ -357,6 +363,7 @@ pub struct Producer {
     /// Next record index (1-based: record k covers (t_{k−1}, t_k]).
     k: u64,
     count: u64,
+    grid: Grid,
     block: Vec<Record>,
     truth: Vec<Record>,
     keep_truth: bool,
@@ -438,6 +445,7 @@ impl Producer {
     ) -> Producer {
         Producer {
             imu: IdealImu::new(motion, grid.rate_hz, grid.t0, grid.count, nodes),
+            grid,
             chain,
             encoding,
             extra: Vec::new(),
@@ -457,6 +465,41 @@ impl Producer {
             mag: None,
             mag_block: Vec::new(),
         }
+    }
+
+    /// Also records the error each stage injects into each record ([`Block::components`]):
+    /// an ideal unit gets an empty chain to count them in.
+    pub fn with_components(mut self) -> Producer {
+        match self.filtered.take() {
+            Some(f) => self.filtered = Some(Box::new(f.with_components())),
+            None => {
+                let chain = self.chain.take().unwrap_or_else(ErrorChain::ideal);
+                self.chain = Some(chain.with_components());
+            }
+        }
+        self
+    }
+
+    /// Whether each block also returns the error-free records ([`Block::truth`]).
+    pub fn set_keep_truth(&mut self, keep: bool) {
+        self.keep_truth = keep;
+    }
+
+    /// The format of the side outputs (truth, injected errors): the records' own, or CSV for
+    /// frames.
+    pub fn side_format(&self) -> Format {
+        self.encoding.side()
+    }
+
+    /// The header of the truth CSV (with the timing and GNSS-visibility columns this run's
+    /// records have).
+    pub fn truth_header(&self) -> String {
+        output::csv_header_truth(self.is_timed(), self.imu.motion().defined().is_some())
+    }
+
+    /// The run's time grid.
+    pub fn grid(&self) -> Grid {
+        self.grid
     }
 
     /// True when the records come through an output filter at an internal rate.
@@ -896,15 +939,9 @@ pub fn drain(
         }
     }
     if injected.is_some() {
-        match producer.filtered.take() {
-            Some(f) => producer.filtered = Some(Box::new(f.with_components())),
-            None => {
-                let chain = producer.chain.take().unwrap_or_else(ErrorChain::ideal);
-                producer.chain = Some(chain.with_components());
-            }
-        }
+        producer = producer.with_components();
     }
-    producer.keep_truth = truth.is_some();
+    producer.set_keep_truth(truth.is_some());
     out.write_all(producer.preamble().as_bytes())?;
     let mut buf = Vec::with_capacity(BLOCK * 104);
     let mut side = Vec::new();

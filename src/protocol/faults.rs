@@ -246,6 +246,20 @@ impl FaultInjector {
         self.specs.iter().map(|s| s.kind)
     }
 
+    /// The faults in words (`drop@1,2; corrupt-check~0.5/s`), for a run's description.
+    pub fn describe(&self) -> String {
+        let parts: Vec<String> = (self.specs.iter())
+            .map(|s| match &s.when {
+                When::At(t) => {
+                    let t: Vec<String> = t.iter().map(|x| x.to_string()).collect();
+                    format!("{}@{}", s.kind.name(), t.join(","))
+                }
+                When::Rate(r) => format!("{}~{r}/s", s.kind.name()),
+            })
+            .collect();
+        parts.join("; ")
+    }
+
     /// The shared tally of faults injected.
     pub fn tally(&self) -> FaultTally {
         self.tally.clone()

@@ -10,6 +10,8 @@ use super::lock::Schedule;
 pub struct FrameTime {
     /// Record index (0-based) in the run.
     pub index: u64,
+    /// The stream whose record it is (a rig's unit; 0 for one IMU).
+    pub stream: usize,
     /// Time of validity after the run's t₀ on the records' own time axis (simulated ns).
     pub tov_sim_ns: i64,
     /// Wall-clock instant of the time of validity.
@@ -38,5 +40,46 @@ pub trait FrameHook: Send {
     /// End of the run: flush what is buffered, stop threads.
     fn finish(&mut self) -> io::Result<()> {
         Ok(())
+    }
+}
+
+/// A hook told of one stream's frames only: the time marks or the pulse of one unit of a rig.
+pub struct OfStream {
+    stream: usize,
+    inner: Box<dyn FrameHook>,
+    scratch: Vec<FrameTime>,
+}
+
+impl OfStream {
+    /// `inner`, told of the frames of `stream` only.
+    pub fn new(stream: usize, inner: Box<dyn FrameHook>) -> OfStream {
+        OfStream {
+            stream,
+            inner,
+            scratch: Vec::new(),
+        }
+    }
+}
+
+impl FrameHook for OfStream {
+    fn ahead(&mut self, frames: &[FrameTime]) {
+        self.scratch.clear();
+        (self.scratch).extend(frames.iter().filter(|f| f.stream == self.stream));
+        self.inner.ahead(&self.scratch);
+    }
+
+    fn rescheduled(&mut self, sched: &Schedule) {
+        self.inner.rescheduled(sched);
+    }
+
+    fn written(&mut self, f: &FrameTime) -> io::Result<()> {
+        if f.stream == self.stream {
+            self.inner.written(f)?;
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self) -> io::Result<()> {
+        self.inner.finish()
     }
 }

@@ -42,6 +42,13 @@ pub struct FrameBlock {
     /// of which the pacer's hooks (time marks, pulses) are not told; empty: frame i is record
     /// `first + i`.
     pub records: Vec<u64>,
+    /// In a merged block: the stream each frame belongs to (hooks may follow one unit's
+    /// records only); empty: every frame is stream 0's.
+    pub stream_of: Vec<u32>,
+    /// The wall-clock time of validity of each frame, ns after the pacer's start, when it is
+    /// not `tov_ns` at the run's speed (a run that follows a live input's clock); empty:
+    /// derived from `tov_ns`.
+    pub tov_wall_ns: Vec<i64>,
 }
 
 impl FrameBlock {

@@ -122,6 +122,9 @@ impl Clocking {
     /// When frame `i` of `block` is valid, on the records' time axis (simulated ns after t₀)
     /// and as a nominal wall-clock offset after the start.
     fn tov_in(&self, block: &FrameBlock, i: usize) -> (i64, i128) {
+        if let (Some(t), Some(w)) = (block.tov_ns.get(i), block.tov_wall_ns.get(i)) {
+            return (*t, *w as i128);
+        }
         match block.tov_ns.get(i) {
             Some(t) => (*t, self.wall(*t)),
             None => {
@@ -327,6 +330,7 @@ pub fn run_with(
                 let due_ns = due(sched, j);
                 times.push(FrameTime {
                     index,
+                    stream: block.stream_of.get(j).map_or(0, |&s| s as usize),
                     tov_sim_ns,
                     tov_ns: sched.at(tov),
                     tov_nominal_ns: tov,
@@ -569,6 +573,8 @@ mod tests {
             emit_ns: vec![1_400_000, 2_350_000, 3_450_000, 4_400_000],
             tov_ns: Vec::new(),
             records: Vec::new(),
+            stream_of: Vec::new(),
+            tov_wall_ns: Vec::new(),
         };
         let c = Clocking::new(1000.0, None, false).unwrap().with_speed(2.0);
         assert_eq!(c.deadline_in(100, &block, 1), 100 + 1_175_000);

@@ -351,6 +351,7 @@ mod tests {
 
     fn frame(tov_sim_ns: i64) -> FrameTime {
         FrameTime {
+            stream: 0,
             index: 0,
             tov_sim_ns,
             tov_ns: 1_000 + tov_sim_ns as i128,

@@ -1,36 +1,10 @@
-//! Sinks: where frames go. Every sink takes whole frames and never blocks the pacer for long:
-//! what it cannot take now is dropped and counted (a file is the exception: it is assumed to
-//! keep up, and an unpaced run waits for it so that no frame is lost).
+//! Non-blocking whole-frame writes to a file descriptor, which the pty and serial sinks share;
+//! the [`Sink`] trait and the file sink are `crate::output::sink`'s.
 
-use std::io::{self, Write};
+use std::io;
 use std::os::fd::{AsFd, BorrowedFd};
 
-/// What a sink delivered.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct SinkStats {
-    /// Frames written whole.
-    pub sent: u64,
-    /// Frames dropped because the consumer could not take them (full buffer, slow link).
-    pub dropped: u64,
-    /// Frames dropped because nobody was reading (a pty with no reader).
-    pub no_reader: u64,
-    /// Bytes written.
-    pub bytes: u64,
-}
-
-/// A destination for frames.
-pub trait Sink: Send {
-    /// What the user named (`pty /tmp/imu`, `udp 127.0.0.1:5000`, …).
-    fn label(&self) -> &str;
-    /// Writes frames `bytes`, frame `i` ending at `ends[i]` (offsets into `bytes`).
-    fn write(&mut self, bytes: &[u8], ends: &[usize]) -> io::Result<()>;
-    /// Writes what is still buffered (end of run).
-    fn finish(&mut self) -> io::Result<()> {
-        Ok(())
-    }
-    /// Counts so far.
-    fn stats(&self) -> SinkStats;
-}
+pub use crate::output::sink::{FileSink, Sink, SinkStats};
 
 /// Non-blocking writes of whole frames to a file descriptor (pty master, serial device).
 ///
@@ -123,51 +97,6 @@ pub fn set_nonblocking(fd: impl AsFd) -> io::Result<()> {
     let flags = OFlag::from_bits_truncate(fcntl(fd, FcntlArg::F_GETFL)?);
     fcntl(fd, FcntlArg::F_SETFL(flags | OFlag::O_NONBLOCK))?;
     Ok(())
-}
-
-/// A file or stdout: every frame written, in order (a slow disk delays the run; paced runs
-/// flush after every wake-up so a reader sees frames at their time).
-pub struct FileSink {
-    label: String,
-    out: Box<dyn Write + Send>,
-    flush_each: bool,
-    stats: SinkStats,
-}
-
-impl FileSink {
-    /// A sink writing to `out`; `flush_each` flushes after every write (paced runs).
-    pub fn new(label: String, out: Box<dyn Write + Send>, flush_each: bool) -> FileSink {
-        FileSink {
-            label,
-            out,
-            flush_each,
-            stats: SinkStats::default(),
-        }
-    }
-}
-
-impl Sink for FileSink {
-    fn label(&self) -> &str {
-        &self.label
-    }
-
-    fn write(&mut self, bytes: &[u8], ends: &[usize]) -> io::Result<()> {
-        self.out.write_all(bytes)?;
-        if self.flush_each {
-            self.out.flush()?;
-        }
-        self.stats.sent += ends.len() as u64;
-        self.stats.bytes += bytes.len() as u64;
-        Ok(())
-    }
-
-    fn finish(&mut self) -> io::Result<()> {
-        self.out.flush()
-    }
-
-    fn stats(&self) -> SinkStats {
-        self.stats
-    }
 }
 
 #[cfg(test)]

@@ -7,7 +7,6 @@
 //! Built by [`crate::sim::SimulationBuilder::build_rig`] from a scene file's `[[imu]]` list or
 //! from code; docs/rig.md describes the scene-file schema and the outputs.
 
-pub mod addr;
 pub mod failure;
 pub mod geometry;
 pub mod skew;
@@ -29,7 +28,7 @@ use crate::protocol::{Channels, EncoderState, Plan};
 use crate::record::{COLUMNS, Record};
 use crate::source::AnyMotion;
 
-pub use addr::SinkAddr;
+pub use crate::output::SinkAddr;
 pub use failure::{Failure, FailureKind, FailureSet, FailureSpec, Pick};
 pub use geometry::Placement;
 pub use skew::{SkewLayout, SkewSensor, dodecahedron_axes};
@@ -60,18 +59,22 @@ pub(crate) enum Body {
 /// One unit of a rig, ready to produce.
 pub struct Unit {
     pub(crate) name: String,
+    /// The template's name, or the skew unit's sensors in words.
+    pub(crate) model: String,
     pub(crate) grid: Grid,
     pub(crate) place: Placement,
     pub(crate) body: Body,
     pub(crate) failures: FailureSet,
     pub(crate) seed: u64,
     pub(crate) path: Option<std::path::PathBuf>,
-    pub(crate) sinks: Vec<addr::SinkAddr>,
+    pub(crate) sinks: Vec<SinkAddr>,
     /// The sensor temperature over the run: the template's thermal terms follow it (in the
     /// chain) and frames with a temperature field carry it.
     pub(crate) temperature: Option<TemperatureProfile>,
     /// The magnetometer whose latest sample (in the unit's axes) the frames carry.
     pub(crate) mag: Option<Box<MagHold>>,
+    /// Status flags every record carries from now on (e.g. stale input).
+    pub(crate) flags: u8,
 }
 
 /// Reused per-unit buffers: nothing is allocated per block once they have grown.
@@ -107,6 +110,11 @@ impl Unit {
         &self.name
     }
 
+    /// What the unit is: `template NAME`, or `skew-redundant, G gyros and A accelerometers`.
+    pub fn model_name(&self) -> &str {
+        &self.model
+    }
+
     /// The unit's time grid.
     pub fn grid(&self) -> Grid {
         self.grid
@@ -128,7 +136,7 @@ impl Unit {
     }
 
     /// Where `imu-emu run` streams the unit (the scene file's `sink`).
-    pub fn sinks(&self) -> &[addr::SinkAddr] {
+    pub fn sinks(&self) -> &[SinkAddr] {
         &self.sinks
     }
 
@@ -154,6 +162,24 @@ impl Unit {
     /// The failures, their random choices made.
     pub fn failures(&self) -> &[Failure] {
         self.failures.failures()
+    }
+
+    /// The resolved failure schedule as CSV: a header, then one line per failure.
+    pub fn failure_csv(&self) -> String {
+        let names = self.channel_names();
+        let mut text = String::from("kind,sensor,channel,start_s,end_s,magnitude\n");
+        for x in self.failures() {
+            text += &format!(
+                "{},{},{},{},{},{}\n",
+                x.kind.name(),
+                names[x.channel],
+                x.channel,
+                x.start_s,
+                x.end_s,
+                x.magnitude
+            );
+        }
+        text
     }
 
     /// The channel names failures refer to: `gyro_x` … `accel_z`, or `gyro_0` … `accel_N`.
@@ -282,6 +308,7 @@ impl Unit {
                         r.dtheta = r.gyro * dt;
                         r.dv = r.accel * dt;
                     }
+                    r.flags |= self.flags;
                     s.masks.push(mask);
                 }
                 s.mag.clear();
@@ -355,6 +382,7 @@ impl Unit {
                         };
                         let rec = Record {
                             t: r.t,
+                            flags: self.flags,
                             ..Record::default()
                         };
                         let celsius = (self.temperature.as_ref())
@@ -496,6 +524,11 @@ impl Rig {
         self.gnss_time = Some((week, seconds_of_week));
     }
 
+    /// The GPS time (week, seconds of week) of record time 0, when one was set.
+    pub fn gps_time(&self) -> Option<(u32, f64)> {
+        self.gps_time
+    }
+
     /// The units, in the order given.
     pub fn units(&self) -> &[Unit] {
         &self.units
@@ -546,20 +579,7 @@ impl Rig {
                 t.write_all(truth.as_bytes()).map_err(EngineError::from)?;
             }
             if let Some(f) = o.failures.as_mut() {
-                let names = u.channel_names();
-                let mut text = String::from("kind,sensor,channel,start_s,end_s,magnitude\n");
-                for x in u.failures() {
-                    text += &format!(
-                        "{},{},{},{},{},{}\n",
-                        x.kind.name(),
-                        names[x.channel],
-                        x.channel,
-                        x.start_s,
-                        x.end_s,
-                        x.magnitude
-                    );
-                }
-                f.write_all(text.as_bytes()).map_err(EngineError::from)?;
+                (f.write_all(u.failure_csv().as_bytes())).map_err(EngineError::from)?;
             }
         }
         let mut done = 0;

@@ -3,9 +3,9 @@
 
 use std::path::PathBuf;
 
-use super::addr::SinkAddr;
 use super::failure::FailureSpec;
 use super::skew::SkewLayout;
+use crate::output::SinkAddr;
 
 /// What a unit is: a three-axis IMU with an error template, or a skew-redundant unit.
 #[derive(Clone, Debug, PartialEq)]

@@ -4,8 +4,10 @@
 //! t_k = t₀ + k/rate; units on the same grid share one evaluation of the motion per instant,
 //! as in [`Rig::write`].
 
+use std::io::Write;
+
 use super::{Rig, Scratch, Unit};
-use crate::engine::frames::{Part, WindowSource};
+use crate::engine::frames::{Part, Until, WindowSource};
 use crate::engine::{self, EngineError, Grid, Producer};
 use crate::generator::{IdealImu, RotationTerms};
 use crate::record::Record;
@@ -32,6 +34,11 @@ pub struct RigStream {
     rot: Vec<RotationTerms>,
     /// The rig's motion (the magnetometer samples it).
     motion: AnyMotion,
+    /// Per unit: the stream of its error-free readings, when asked for
+    /// ([`RigStream::with_truth`]).
+    truth: Vec<Option<usize>>,
+    /// Each unit's truth rows of the block being made.
+    truth_buf: Vec<u8>,
 }
 
 impl Rig {
@@ -60,12 +67,14 @@ impl Rig {
             .collect();
         let origin = self.span().0;
         RigStream {
+            truth: vec![None; self.units.len()],
             scratch: self.units.iter().map(|_| Scratch::default()).collect(),
             units: self.units,
             groups,
             origin,
             reference: Vec::new(),
             rot: Vec::new(),
+            truth_buf: Vec::new(),
             motion: self.motion,
         }
     }
@@ -108,6 +117,33 @@ impl RigStream {
         &self.units
     }
 
+    /// Also streams the error-free readings of each unit `i` with `wanted[i]` (CSV with the
+    /// failed-channel mask, as `generate --truth` writes them), after the units' streams, in
+    /// unit order.
+    pub fn with_truth(mut self, wanted: &[bool]) -> RigStream {
+        let mut next = self.units.len();
+        for (t, w) in self.truth.iter_mut().zip(wanted) {
+            if *w {
+                *t = Some(next);
+                next += 1;
+            }
+        }
+        self
+    }
+
+    /// What each stream starts with: a CSV unit's header, each truth stream's header.
+    pub fn preambles(&self) -> Vec<Vec<u8>> {
+        let mut out: Vec<Vec<u8>> = (self.units.iter())
+            .map(|u| u.headers().0.into_bytes())
+            .collect();
+        for (u, t) in self.units.iter().zip(&self.truth) {
+            if t.is_some() {
+                out.push(u.headers().1.into_bytes());
+            }
+        }
+        out
+    }
+
     /// The run's t₀ (s): emission times count from it.
     pub fn origin(&self) -> f64 {
         self.origin
@@ -116,12 +152,28 @@ impl RigStream {
 
 impl WindowSource for RigStream {
     fn streams(&self) -> usize {
-        self.units.len()
+        self.units.len() + self.truth.iter().flatten().count()
     }
 
-    fn fill(&mut self, until_ns: i64, parts: &mut [Part]) -> Result<(), EngineError> {
+    fn next_due_ns(&self) -> Option<i64> {
+        (self.groups.iter())
+            .filter(|g| g.next <= g.grid.count)
+            .map(|g| emit_ns(&g.grid, self.origin, g.next))
+            .min()
+    }
+
+    fn set_flags(&mut self, flags: u8) {
+        for u in self.units.iter_mut() {
+            u.flags = flags;
+        }
+    }
+
+    fn fill(&mut self, until: Until, parts: &mut [Part]) -> Result<(), EngineError> {
         let origin = self.origin;
-        self.produce(|g| last_due(g, origin, until_ns), parts)
+        self.produce(
+            |g| last_due(g, origin, until.ns).min(engine::released(g, until.t)),
+            parts,
+        )
     }
 
     fn done(&self) -> bool {
@@ -157,15 +209,20 @@ impl RigStream {
                 let terms = g.rot_needed.then_some(&self.rot[..]);
                 for &i in &g.units {
                     let s = &mut self.scratch[i];
-                    self.units[i].encode(&self.motion, &self.reference, terms, s, &mut None)?;
-                    let p = &mut parts[i];
+                    self.truth_buf.clear();
+                    let mut truth = self.truth[i].map(|_| &mut self.truth_buf as &mut dyn Write);
+                    self.units[i].encode(&self.motion, &self.reference, terms, s, &mut truth)?;
+                    let at = |j: usize| emit_ns(&g.grid, self.origin, k + j as u64);
                     let mut from = 0;
                     for (j, &end) in s.ends.iter().enumerate() {
-                        p.push(
-                            &s.buf[from..end],
-                            emit_ns(&g.grid, self.origin, k + j as u64),
-                        );
+                        parts[i].push(&s.buf[from..end], at(j));
                         from = end;
+                    }
+                    if let Some(t) = self.truth[i] {
+                        let rows = self.truth_buf.split_inclusive(|&b| b == b'\n');
+                        for (j, row) in rows.enumerate() {
+                            parts[t].push(row, at(j));
+                        }
                     }
                 }
                 g.next += n as u64;

@@ -1,61 +1,23 @@
-//! Lockstep: no wall clock. Each state taken into the causal model releases every record whose
-//! interval it completes (t_k at or before the state's time), produced by the same producer —
-//! generator, error chain, encoder — as a run from a file: one IMU's, or every unit's of a rig
-//! ([`super::target`]). The output depends only on the order and contents of the messages,
-//! so the same input gives the same bytes, and a run replayed from its recorded input
-//! (`--record-input`) gives the bytes of the original.
+//! Lockstep for a program that holds its own input and outputs: feed it messages (or decoded
+//! states) and it writes into the caller's writers what each releases — one IMU's records or
+//! frames, or each unit's of a rig. The same sources and release rule as a lockstep
+//! [`Run`](super::Run): the output depends only on the order and contents of the messages,
+//! so a run replayed from its recorded input gives the original bytes.
 
 use std::io::Write;
 
-use super::target::{RigTarget, SimTarget, Target};
-use crate::engine::{EngineError, Grid};
+use super::error::RunError;
+use super::pipeline::{Built, input_base, modulo};
+use super::routing::{Layout, Units};
+use super::spec::{Route, StreamId};
+use crate::engine::Grid;
+use crate::engine::frames::Until;
 use crate::live::stats::InputStats;
 use crate::live::transport::{Message, Receiver};
-use crate::live::{Decoded, Decoder, InputFormat, TimeBase};
+use crate::live::{Decoded, Decoder, InputFormat};
 use crate::motion::causal::CausalMotion;
-use crate::sim::{SimError, SimulationBuilder};
-
-/// Why a live run stopped.
-#[derive(Debug, thiserror::Error)]
-pub enum LiveError {
-    /// The simulation could not be assembled.
-    #[error(transparent)]
-    Sim(#[from] SimError),
-    /// Production stopped (a non-finite value, a setting).
-    #[error(transparent)]
-    Job(#[from] EngineError),
-    /// Reading the input, or writing the output or the input record, failed.
-    #[error("{what}: {source}")]
-    Io {
-        /// What was being read or written.
-        what: String,
-        /// The cause.
-        source: std::io::Error,
-    },
-    /// The input ended before the model had its first piece.
-    #[error(
-        "{input}: the input ended after {states} usable states; the motion model needs {need} before the first record"
-    )]
-    TooFewStates {
-        /// The input's name.
-        input: String,
-        /// States taken.
-        states: u64,
-        /// States needed.
-        need: usize,
-    },
-    /// The input's time tags do not fit the time base chosen.
-    #[error("{0}")]
-    TimeBase(String),
-    /// The caller gave a number of outputs other than the run writes.
-    #[error("{given} outputs given for a run that writes {need}")]
-    Outputs {
-        /// Outputs given.
-        given: usize,
-        /// Outputs the run writes.
-        need: usize,
-    },
-}
+use crate::output::SinkAddr;
+use crate::sim::SimulationBuilder;
 
 /// How a lockstep run ended.
 #[derive(Clone, Debug)]
@@ -74,102 +36,86 @@ pub struct LiveSummary {
 }
 
 /// A lockstep run in progress: feed it messages or decoded states; it writes what they
-/// release. `T` is what the records come from: one IMU ([`Lockstep::new`]) or a rig
-/// ([`Lockstep::rig`]).
-pub struct Lockstep<T = SimTarget> {
-    target: T,
-    started: bool,
+/// release.
+pub struct Lockstep {
+    builder: SimulationBuilder,
+    rig: bool,
+    layout: Layout,
     model: CausalMotion,
     need: usize,
     decoder: Decoder,
     modulo: u64,
     stats: InputStats,
+    built: Option<Built>,
+    written: Vec<u64>,
+    grids: Vec<Grid>,
 }
 
-impl Lockstep<SimTarget> {
+impl Lockstep {
     /// A run of the simulation `builder` describes (IMU, rate, encoding, duration…), whose
-    /// motion comes from messages of `format`. Starts at the builder's start time, else at the
-    /// model's first knot.
-    pub fn new(builder: SimulationBuilder, format: InputFormat) -> Result<Lockstep, SimError> {
-        Lockstep::with_time_base(builder, format, TimeBase::Sim)
+    /// motion comes from messages of `format`. Starts at the builder's start time, else at
+    /// the model's first knot.
+    pub fn new(builder: SimulationBuilder, format: InputFormat) -> Result<Lockstep, RunError> {
+        Lockstep::with_time_base(builder, format, crate::live::TimeBase::Sim)
     }
 
-    /// [`Lockstep::new`], with the input's time tags taken on `base`. GPS-tagged states count
-    /// from the first GPS week seen, and the frames' GPS time fields carry their GPS time.
+    /// [`Lockstep::new`] with the input's time tags on `base`: GPS-tagged states count from
+    /// the first GPS week seen, and the frames' GPS-time fields carry their GPS time.
     pub fn with_time_base(
         builder: SimulationBuilder,
         format: InputFormat,
-        base: TimeBase,
-    ) -> Result<Lockstep, SimError> {
-        Lockstep::with_target(builder, format, base, SimTarget::new)
+        base: crate::live::TimeBase,
+    ) -> Result<Lockstep, RunError> {
+        Lockstep::make(builder, format, base, false)
     }
 
-    /// Decodes and takes one message (`input` names its source in reports), writing the
-    /// records it releases into `out`.
-    pub fn message(
-        &mut self,
-        m: &Message,
-        input: &str,
-        out: &mut dyn Write,
-    ) -> Result<(), LiveError> {
-        self.message_to(m, input, &mut [out])
+    /// A run of every unit of the rig `builder` describes: output i is unit i's.
+    pub fn rig(builder: SimulationBuilder, format: InputFormat) -> Result<Lockstep, RunError> {
+        Lockstep::make(builder, format, crate::live::TimeBase::Sim, true)
     }
 
-    /// Takes one decoded state, writing the records it releases into `out`.
-    pub fn state(
-        &mut self,
-        d: &Decoded,
-        place: &str,
-        out: &mut dyn Write,
-    ) -> Result<(), LiveError> {
-        self.state_to(d, place, &mut [out])
-    }
-
-    /// Runs to the end of the input (or of the duration), recording every message received
-    /// into `record` when given; `tick` is called after each message.
-    pub fn run(
-        self,
-        rx: &mut Receiver,
-        out: &mut dyn Write,
-        record: Option<&mut dyn Write>,
-        tick: impl FnMut(&Lockstep),
-    ) -> Result<LiveSummary, LiveError> {
-        self.run_to(rx, &mut [out], record, tick)
-    }
-}
-
-impl Lockstep<RigTarget> {
-    /// A run of every unit of the rig `builder` describes (its `[[imu]]` list or units added
-    /// in code), whose motion comes from messages of `format`: output i is unit i's. All
-    /// units start at the builder's start time, else at the model's first knot.
-    pub fn rig(
+    fn make(
         builder: SimulationBuilder,
         format: InputFormat,
-    ) -> Result<Lockstep<RigTarget>, SimError> {
-        Lockstep::with_target(builder, format, TimeBase::Sim, RigTarget::new)
-    }
-}
-
-impl<T: Target> Lockstep<T> {
-    fn with_target(
-        builder: SimulationBuilder,
-        format: InputFormat,
-        base: TimeBase,
-        target: impl FnOnce(SimulationBuilder, &CausalMotion) -> Result<T, SimError>,
-    ) -> Result<Lockstep<T>, SimError> {
+        base: crate::live::TimeBase,
+        rig: bool,
+    ) -> Result<Lockstep, RunError> {
+        let builder = builder.unbounded_duration(super::FOREVER_S);
         let settings = builder.model_settings()?;
-        let model = CausalMotion::new(settings);
+        let stand_in = super::build::stand_in(&builder);
+        // Each unit's own stream, with no sink: the caller's writers take the frames.
+        let route = |stream| Route {
+            stream,
+            sink: SinkAddr::File("-".into()),
+            origin: "lockstep output".into(),
+        };
+        let layout = if rig {
+            let r = stand_in.build_rig()?;
+            let routes: Vec<Route> = r
+                .units()
+                .iter()
+                .map(|u| route(StreamId::unit(u.name())))
+                .collect();
+            Layout::resolve(&routes, &Units::Rig(&r))?
+        } else {
+            Layout::resolve(&[route(StreamId::imu())], &Units::Imu(&stand_in.build()?))?
+        };
+        let base = match base {
+            crate::live::TimeBase::Gps => super::spec::TimeBase::Gps,
+            crate::live::TimeBase::Sim => super::spec::TimeBase::Sim,
+        };
         Ok(Lockstep {
-            target: target(builder, &model)?,
-            started: false,
-            model,
+            rig,
+            written: vec![0; layout.streams.len()],
+            layout,
+            builder,
+            model: CausalMotion::new(settings),
             need: settings.stencil.max(3),
-            decoder: Decoder::with_base(format, base, None),
-            modulo: match format {
-                InputFormat::Mavlink => 256,
-                _ => 1 << 32,
-            },
+            decoder: Decoder::with_base(format, input_base(base), None),
+            modulo: modulo(format),
             stats: InputStats::default(),
+            built: None,
+            grids: Vec::new(),
         })
     }
 
@@ -180,17 +126,22 @@ impl<T: Target> Lockstep<T> {
 
     /// Records written so far (over every output).
     pub fn records(&self) -> u64 {
-        self.target.written().iter().map(|w| w.1).sum()
+        self.written.iter().sum()
     }
 
     /// How many outputs the run writes (one per unit of a rig).
     pub fn outputs(&self) -> usize {
-        self.target.outputs()
+        self.layout.streams.len()
     }
 
     /// True once the run's duration is written.
     pub fn complete(&self) -> bool {
-        self.started && self.target.complete()
+        self.built.as_ref().is_some_and(|b| b.sources.done())
+    }
+
+    /// The live motion model (for its start, newest time and pose).
+    pub fn motion(&self) -> &CausalMotion {
+        &self.model
     }
 
     /// Decodes and takes one message (`input` names its source in reports), writing the
@@ -200,12 +151,12 @@ impl<T: Target> Lockstep<T> {
         m: &Message,
         input: &str,
         outs: &mut [&mut dyn Write],
-    ) -> Result<(), LiveError> {
+    ) -> Result<(), RunError> {
         self.stats.messages += 1;
         match self.decoder.decode(&m.bytes) {
             Ok(Some(d)) => self.state_to(&d, &format!("{input}: {}", m.place), outs),
             Ok(None) => Ok(()),
-            Err(e) if e.fatal => Err(LiveError::TimeBase(format!(
+            Err(e) if e.fatal => Err(RunError::TimeBase(format!(
                 "{input}: {}, byte {}: {}",
                 m.place, e.offset, e.message
             ))),
@@ -217,29 +168,62 @@ impl<T: Target> Lockstep<T> {
         }
     }
 
+    /// [`Lockstep::message_to`] for a run with one output.
+    pub fn message(
+        &mut self,
+        m: &Message,
+        input: &str,
+        out: &mut dyn Write,
+    ) -> Result<(), RunError> {
+        self.message_to(m, input, &mut [out])
+    }
+
     /// Takes one decoded state, writing the records it releases into `outs`.
     pub fn state_to(
         &mut self,
         d: &Decoded,
         place: &str,
         outs: &mut [&mut dyn Write],
-    ) -> Result<(), LiveError> {
-        if outs.len() != self.target.outputs() {
-            return Err(LiveError::Outputs {
+    ) -> Result<(), RunError> {
+        if outs.len() != self.outputs() {
+            return Err(crate::engine::EngineError::Outputs {
                 given: outs.len(),
-                need: self.target.outputs(),
-            });
+                need: self.outputs(),
+            }
+            .into());
         }
         let outcome = self.model.push(&d.state);
         self.stats.state(d, &outcome, self.modulo, place);
         if outcome.is_err() || self.model.knots() == 0 {
             return Ok(());
         }
-        if !self.started {
-            self.target.start(outs, self.decoder.epoch_week())?;
-            self.started = true;
+        let io = |e| RunError::io("writing the output", e);
+        if self.built.is_none() {
+            let week = self.decoder.epoch_week();
+            let b = self
+                .layout
+                .build_live(&self.builder, self.rig, &self.model, week, false)?;
+            for (out, p) in outs.iter_mut().zip(&b.preambles) {
+                out.write_all(p).map_err(io)?;
+            }
+            self.grids = b.units.iter().map(|u| u.grid).collect();
+            self.built = Some(b);
         }
-        self.target.release(self.model.newest(), outs)
+        let b = self.built.as_mut().expect("built above");
+        b.sources.fill(Until::time(b.origin, self.model.newest()))?;
+        for ((p, out), n) in (b.sources.parts.iter())
+            .zip(outs.iter_mut())
+            .zip(self.written.iter_mut())
+        {
+            out.write_all(&p.bytes).map_err(io)?;
+            *n += p.ends.len() as u64;
+        }
+        Ok(())
+    }
+
+    /// [`Lockstep::state_to`] for a run with one output.
+    pub fn state(&mut self, d: &Decoded, place: &str, out: &mut dyn Write) -> Result<(), RunError> {
+        self.state_to(d, place, &mut [out])
     }
 
     /// Runs to the end of the input (or of the duration), writing output i into `outs[i]`
@@ -250,39 +234,43 @@ impl<T: Target> Lockstep<T> {
         rx: &mut Receiver,
         outs: &mut [&mut dyn Write],
         mut record: Option<&mut dyn Write>,
-        mut tick: impl FnMut(&Lockstep<T>),
-    ) -> Result<LiveSummary, LiveError> {
+        mut tick: impl FnMut(&Lockstep),
+    ) -> Result<LiveSummary, RunError> {
+        if outs.len() != self.outputs() {
+            return Err(crate::engine::EngineError::Outputs {
+                given: outs.len(),
+                need: self.outputs(),
+            }
+            .into());
+        }
         let name = rx.name().to_string();
         let csv = self.decoder.is_csv();
         while !self.complete() {
-            let m = rx.next_message().map_err(|source| LiveError::Io {
-                what: format!("reading {name}"),
-                source,
-            })?;
+            let m = rx
+                .next_message()
+                .map_err(|e| RunError::io(format!("reading {name}"), e))?;
             let Some(m) = m else { break };
             if let Some(r) = record.as_deref_mut() {
-                let io = |source| LiveError::Io {
-                    what: "writing the input record".into(),
-                    source,
-                };
-                r.write_all(&m.bytes).map_err(io)?;
-                if csv {
-                    r.write_all(b"\n").map_err(io)?;
-                }
+                let nl: &[u8] = if csv { b"\n" } else { b"" };
+                (r.write_all(&m.bytes).and_then(|()| r.write_all(nl)))
+                    .map_err(|e| RunError::io("writing the input record", e))?;
             }
             self.message_to(&m, &name, outs)?;
             tick(&self);
         }
         self.stats.skipped_bytes = rx.skipped_bytes();
         for out in outs.iter_mut() {
-            out.flush().map_err(|source| LiveError::Io {
-                what: "writing the output".into(),
-                source,
-            })?;
+            out.flush()
+                .map_err(|e| RunError::io("writing the output", e))?;
         }
-        let outputs = self.target.written();
-        let Some(&(grid, _)) = outputs.first().filter(|_| self.started) else {
-            return Err(LiveError::TooFewStates {
+        let outputs: Vec<(Grid, u64)> = self
+            .grids
+            .iter()
+            .copied()
+            .zip(self.written.iter().copied())
+            .collect();
+        let Some(&(grid, _)) = outputs.first() else {
+            return Err(RunError::TooFewStates {
                 input: name,
                 states: self.stats.states,
                 need: self.need,
@@ -297,8 +285,14 @@ impl<T: Target> Lockstep<T> {
         })
     }
 
-    /// The live motion model (for its start, newest time and pose).
-    pub fn motion(&self) -> &CausalMotion {
-        &self.model
+    /// [`Lockstep::run_to`] for a run with one output.
+    pub fn run(
+        self,
+        rx: &mut Receiver,
+        out: &mut dyn Write,
+        record: Option<&mut dyn Write>,
+        tick: impl FnMut(&Lockstep),
+    ) -> Result<LiveSummary, RunError> {
+        self.run_to(rx, &mut [out], record, tick)
     }
 }

@@ -1,11 +1,32 @@
-//! One run: a motion source, one or more units, their streams, a clock and sinks, composed
-//! into one pipeline.
+//! One run, any combination: a motion source (a scene, a trajectory file, a motion
+//! definition, or live states in real time or lockstep), one or more units, their streams
+//! and the aiding sensors', a clock (offline, paced at wall-clock rate, real time behind a
+//! live input, lockstep) and where each stream goes — described by a [`RunSpec`], checked as
+//! a whole by [`RunSpec::build`] and run by [`Run::execute`].
 
+pub mod build;
+mod describe;
+pub mod error;
+mod exec;
 #[cfg(feature = "realtime")]
-pub mod live_realtime;
+mod input;
 pub mod lockstep;
+mod pipeline;
+pub mod routing;
+pub mod scene;
+pub mod sinks;
+pub mod sources;
+pub mod spec;
+pub mod status;
 #[cfg(feature = "realtime")]
-pub mod merge;
-pub mod target;
-#[cfg(feature = "realtime")]
-pub mod trigger;
+mod wall;
+
+pub use build::{Clock, Run};
+pub use error::RunError;
+pub use pipeline::Control;
+pub use spec::{LiveSpec, Route, RunSpec, Speed, StreamId, TimeBase};
+pub use status::{RunReport, RunStatus};
+
+/// Duration of a run on an unbounded motion (a live input, the static scene) when none is
+/// given: "until stopped" (a year).
+pub const FOREVER_S: f64 = 365.0 * 86_400.0;

@@ -307,9 +307,63 @@ impl SimulationBuilder {
         self
     }
 
+    /// Whether a setter chose the trajectory (a scene, a trajectory file or a motion
+    /// definition), over the scene file's `[trajectory]`.
+    pub fn has_source(&self) -> bool {
+        self.scene.is_some() || self.trajectory.is_some() || self.motion_def.is_some()
+    }
+
+    /// The trajectory in words (`scene survey`, `trajectory file f.csv (quintic, stencil 9)`,
+    /// `motion definition m.csv`), for a run's description.
+    pub fn source_label(&self) -> Result<String, SimError> {
+        let m = self.model_settings()?;
+        Ok(match self.source()?.0 {
+            SourceSpec::Scene(name, _) => format!("scene {name}"),
+            SourceSpec::File(p) => format!(
+                "trajectory file {} ({}, stencil {})",
+                p.display(),
+                if m.degree == Degree::Quintic {
+                    "quintic"
+                } else {
+                    "cubic"
+                },
+                m.stencil
+            ),
+            SourceSpec::MotionDef(p) => format!("motion definition {}", p.display()),
+        })
+    }
+
+    /// Whether the trajectory is sampled (a trajectory file), the only motion the
+    /// interpolation and stencil settings shape (a live motion's too).
+    pub fn is_sampled(&self) -> Result<bool, SimError> {
+        Ok(matches!(self.source()?.0, SourceSpec::File(_)))
+    }
+
+    /// Whether a setter (a flag) chose the interpolation or the stencil; the scene file's
+    /// `[engine]` keys are defaults for whatever trajectory file the scene is run with.
+    pub fn model_settings_given(&self) -> bool {
+        self.interpolation.is_some() || self.stencil.is_some()
+    }
+
+    /// Gauss–Legendre nodes per interval this builder resolves to.
+    pub fn quadrature(&self) -> Result<usize, SimError> {
+        self.nodes()
+    }
+
+    /// Whether a GPS time of record time 0 was given (setter or nothing else: the scene file
+    /// has no such key).
+    pub fn gps_time_given(&self) -> bool {
+        self.gps_time.is_some()
+    }
+
     /// The scene file's `output.path`, if it gives one.
     pub fn output_path(&self) -> Option<&Path> {
         self.file.output.path.as_deref()
+    }
+
+    /// The scene file's contents (empty when none was read).
+    pub fn scene_contents(&self) -> &SceneFile {
+        &self.file
     }
 
     /// The scene file, if one was read.
@@ -772,13 +826,25 @@ impl SimulationBuilder {
         let mut output = self.output()?;
         let nodes = self.nodes()?;
         let rate_in_file = self.file.imu.rate_hz.is_some();
+        let protocol_hz = match &output {
+            Output::Frames(p) => p.rate_hz,
+            Output::Records(_) => None,
+        };
+        // A unit with an output filter has its rate built in (the internal rate is a multiple
+        // of it): it outranks the nominal rate of a protocol nobody chose (a command's
+        // default), not that of one the user asked for.
+        let chosen = self.format.is_some()
+            || self.protocol_file.is_some()
+            || self.file.output.format.is_some();
+        let (first, second) = if imu.output_filter.is_some() && !chosen {
+            (imu.rate_hz, protocol_hz)
+        } else {
+            (protocol_hz, imu.rate_hz)
+        };
         let rate = Rate {
             hz: (self.rate.or(self.file.imu.rate_hz))
-                .or(match &output {
-                    Output::Frames(p) => p.rate_hz,
-                    Output::Records(_) => None,
-                })
-                .or(imu.rate_hz)
+                .or(first)
+                .or(second)
                 .unwrap_or(DEFAULT_RATE_HZ),
             place: self.file_key(self.rate.is_some(), rate_in_file, "imu.rate_hz"),
         };

@@ -4,13 +4,11 @@
 
 use std::io::Write;
 
-use super::aiding_frames::{GnssFrames, GnssWindow};
 use super::streams::AidingStreams;
 use super::{SimError, Simulation};
 use crate::aiding::gnss::Receiver;
 use crate::aiding::stream::{TRUTH_HEADER, truth_row};
 use crate::aiding::{GnssConfig, GnssEncoder, GnssFormat};
-use crate::source::AnyMotion;
 
 impl AidingStreams<'_> {
     /// The receiver (the configured one, else the default) with this run's seed; a motion
@@ -63,19 +61,6 @@ impl AidingStreams<'_> {
 }
 
 impl Simulation {
-    /// The receiver's epochs in `format` as a stream for the merger, emitted at their
-    /// emission times counted from the run's t₀ (as the IMU's frames).
-    pub fn gnss_window(&self, format: GnssFormat) -> GnssWindow<AnyMotion> {
-        let aid = self.aiding();
-        GnssFrames::new(
-            aid.gnss_receiver(),
-            self.motion.clone(),
-            aid.gnss_encoder(format),
-            aid.span,
-        )
-        .window(self.grid.t0)
-    }
-
     /// The receiver's epochs per second.
     pub fn gnss_rate_hz(&self) -> f64 {
         self.gnss
@@ -85,7 +70,7 @@ impl Simulation {
 
     /// How many GNSS epochs fall in the run (outages included).
     pub fn gnss_epochs(&self) -> u64 {
-        super::aiding_frames::epoch_count(self.gnss_rate_hz(), self.span())
+        crate::aiding::gnss::epoch_count(self.gnss_rate_hz(), self.span())
     }
 }
 

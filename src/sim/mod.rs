@@ -16,7 +16,6 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-pub mod aiding_frames;
 mod builder;
 mod gnss;
 mod rig_aiding;
@@ -76,7 +75,7 @@ pub enum SimError {
 
 impl SimError {
     /// This error located at `place`, if any.
-    fn at(self, place: Option<String>) -> SimError {
+    pub fn at(self, place: Option<String>) -> SimError {
         match place {
             Some(place) => SimError::At {
                 place,
@@ -212,6 +211,11 @@ impl Simulation {
     /// and UBX GPS time of week come from GPS time whatever the IMU's frames carry.
     pub fn set_gnss_gps_time(&mut self, week: u32, seconds_of_week: f64) {
         self.gnss_time = Some((week, seconds_of_week));
+    }
+
+    /// The GPS time (week, seconds of week) of record time 0, when one was set.
+    pub fn gps_time(&self) -> Option<(u32, f64)> {
+        self.gps_time
     }
 
     /// The scene file's `output.path`, if it gives one.

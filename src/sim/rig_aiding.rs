@@ -2,9 +2,8 @@
 //! master seed and GPS time: the same streams one IMU's simulation of the scene gives.
 
 use super::AidingStreams;
-use super::aiding_frames::{GnssFrames, GnssWindow};
+use crate::aiding::GnssConfig;
 use crate::aiding::sensors::{SensorKind, SensorRows};
-use crate::aiding::{GnssConfig, GnssFormat};
 use crate::rig::Rig;
 use crate::source::AnyMotion;
 
@@ -21,21 +20,6 @@ impl Rig {
             sensors: self.sensors.clone(),
         }
     }
-
-    /// The GNSS receiver (the scene file's `[gnss]`, else the default) as a frame source in
-    /// `format` on the rig's motion and clock: epochs over [`Rig::span`], emission times
-    /// counted from its start like the units' (see [`Rig::stream`]).
-    pub fn gnss_window(&self, format: GnssFormat) -> GnssWindow<AnyMotion> {
-        let aid = self.aiding();
-        let span = aid.span;
-        GnssFrames::new(
-            aid.gnss_receiver(),
-            self.motion.clone(),
-            aid.gnss_encoder(format),
-            span,
-        )
-        .window(span.0)
-    }
 }
 
 impl Rig {
@@ -49,7 +33,7 @@ impl Rig {
     /// How many GNSS epochs fall in [`Rig::span`] (outages included: they are sent without
     /// a fix).
     pub fn gnss_epochs(&self) -> u64 {
-        super::aiding_frames::epoch_count(self.gnss_rate_hz(), self.span())
+        crate::aiding::gnss::epoch_count(self.gnss_rate_hz(), self.span())
     }
 }
 

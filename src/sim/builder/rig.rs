@@ -22,6 +22,18 @@ impl SimulationBuilder {
         self
     }
 
+    /// The rig's units as described (the scene file's `[[imu]]` entries, then those added in
+    /// code), each with where it was given (`FILE: `imu[i]``, or `None` from code).
+    pub fn unit_specs(&self) -> Result<Vec<(Option<usize>, UnitSpec)>, SimError> {
+        let label = self.file_label();
+        let mut specs = Vec::new();
+        for (i, e) in self.file.rig.iter().enumerate() {
+            specs.push((Some(i), e.spec(i, &label)?));
+        }
+        specs.extend(self.units.iter().cloned().map(|s| (None, s)));
+        Ok(specs)
+    }
+
     /// Whether the scene file lists `[[imu]]` units or units were added in code: then
     /// [`SimulationBuilder::build_rig`] is the way to build.
     pub fn is_rig(&self) -> bool {
@@ -36,11 +48,20 @@ impl SimulationBuilder {
     /// same template have independent errors.
     pub fn build_rig(self) -> Result<Rig, SimError> {
         let label = self.file_label();
-        let mut specs = Vec::new();
-        for (i, e) in self.file.rig.iter().enumerate() {
-            specs.push((Some(i), e.spec(i, &label)?));
+        let single = [
+            ("imu", self.imu.is_some()),
+            ("format", self.format.is_some()),
+            ("protocol file", self.protocol_file.is_some()),
+            ("fault", !self.faults.is_empty()),
+        ];
+        if let Some((what, _)) = single.iter().find(|x| x.1) {
+            return Err(SimError::Invalid(format!(
+                "the {what} setting (--{}) describes one IMU, and {} lists `[[imu]]` units: give each unit its `model`, `format` and `[[imu.failure]]` entries",
+                what.replace(' ', "-"),
+                label.display()
+            )));
         }
-        specs.extend(self.units.iter().cloned().map(|s| (None, s)));
+        let specs = self.unit_specs()?;
         if specs.is_empty() {
             return Err(SimError::Invalid(
                 "a rig needs at least one unit (`[[imu]]` in the scene file)".into(),
@@ -194,8 +215,17 @@ impl SimulationBuilder {
                 ))),
                 _ => None,
             };
+            let model = match &spec.model {
+                UnitModel::Template(t) => format!("template {t}"),
+                UnitModel::Skew(l) => format!(
+                    "skew-redundant, {} gyros and {} accelerometers",
+                    l.gyros.len(),
+                    l.accels.len()
+                ),
+            };
             units.push(Unit {
                 name: spec.name.clone(),
+                model,
                 grid,
                 temperature: temperature.clone(),
                 mag,
@@ -205,6 +235,7 @@ impl SimulationBuilder {
                 seed,
                 path: spec.path.clone(),
                 sinks: spec.sinks.clone(),
+                flags: 0,
             });
         }
         let gnss = self.resolve_aiding(&self.gnss, &self.file.gnss, GnssConfig::validate)?;

@@ -1,6 +1,11 @@
 //! Writing records: CSV (header + shortest round-trip numbers) or binary (13 little-endian f64
 //! per record, same order), into a file that appears under its name only when complete.
 
+pub mod addr;
+pub mod sink;
+
+pub use addr::SinkAddr;
+
 use std::fs::File;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
@@ -207,6 +212,15 @@ impl AtomicFile {
             dest: dest.to_path_buf(),
         })
     }
+    /// A second handle on the file being written: what is written through it lands in the
+    /// same file, committed or removed with it.
+    pub fn try_clone_writer(&self) -> io::Result<File> {
+        match &self.file {
+            Some(f) => f.try_clone(),
+            None => Err(io::Error::other("file already committed")),
+        }
+    }
+
     /// Flushes, closes and renames the file into place. On failure the temporary is removed.
     pub fn commit(mut self) -> io::Result<()> {
         let file = self.file.take();

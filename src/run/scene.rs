@@ -1,0 +1,207 @@
+//! A scene file's `[run]` table and `[imu] sink` turned into a [`RunSpec`]'s parts; every
+//! value that cannot be read is refused naming the file and the key.
+
+use crate::aiding::GnssFormat;
+use crate::aiding::sensors::SensorKind;
+use crate::config::run::{RunSection, SpeedValue};
+use crate::live::InputFormat;
+use crate::output::SinkAddr;
+use crate::sim::SimError;
+
+use super::spec::{LiveSpec, RunSpec, Speed, StreamId, TimeBase};
+use crate::sim::SimulationBuilder;
+
+impl RunSpec {
+    /// A run of the signal a scene file (or code) describes, with what the scene file says of
+    /// the run: its `[run]` table (clock, time base, streams, sync lines, live input), the
+    /// single IMU's `[imu] sink` and each rig unit's `[[imu]] sink`.
+    pub fn from_signal(signal: SimulationBuilder) -> Result<RunSpec, crate::sim::SimError> {
+        let mut spec = RunSpec::new(signal);
+        let file = spec
+            .signal
+            .scene_file_path()
+            .map(|p| p.display().to_string());
+        for (i, u) in spec.signal.unit_specs()? {
+            for (j, sink) in u.sinks.iter().enumerate() {
+                let origin = match (&file, i) {
+                    (Some(f), Some(i)) => format!("{f}: `imu[{i}].sink[{j}]`"),
+                    _ => format!("unit `{}`: sink {j}", u.name),
+                };
+                spec.add_route(StreamId::unit(&u.name), sink.clone(), origin);
+            }
+        }
+        apply(&mut spec, file.as_deref().unwrap_or("<scene>"))?;
+        Ok(spec)
+    }
+}
+
+/// Reads a sink with an optional `,protocol=NAME`: the address and the protocol.
+pub fn sink_with_protocol(s: &str) -> Result<(SinkAddr, Option<String>), String> {
+    let (target, protocol) = match s.rsplit_once(",protocol=") {
+        Some((t, p)) => (t, Some(p.to_string())),
+        None => (s, None),
+    };
+    Ok((SinkAddr::parse(target)?, protocol))
+}
+
+/// Applies the scene file `file`'s `[run]` table and `[imu] sink` to `spec`.
+pub fn apply(spec: &mut RunSpec, file: &str) -> Result<(), SimError> {
+    let bad = |key: &str, m: String| SimError::Invalid(m).at(Some(format!("{file}: `{key}`")));
+    if let Some(sinks) = spec.signal.scene_contents().imu.sink.clone() {
+        for (key, v) in sinks.keyed("imu.sink") {
+            let (addr, protocol) = sink_with_protocol(&v).map_err(|m| bad(&key, m))?;
+            let stream = StreamId::Unit {
+                unit: None,
+                protocol,
+            };
+            spec.add_route(stream, addr, format!("{file}: `{key}`"));
+        }
+    }
+    let Some(r) = spec.signal.scene_contents().run.clone() else {
+        return Ok(());
+    };
+    let RunSection {
+        speed,
+        start_at,
+        time_base,
+        max_behind_ms,
+        realtime_priority,
+        truth,
+        truth_errors,
+        gnss,
+        gnss_truth,
+        odometer,
+        baro,
+        magnetometer,
+        time_marks,
+        pulse,
+        pulse_port,
+        pulse_unit,
+        pps_in,
+        trigger,
+        baud,
+        framing,
+        udp_batch,
+        take_over,
+        input,
+    } = r;
+    let c = &mut spec.clock;
+    c.speed = match speed {
+        None => None,
+        Some(SpeedValue::Factor(x)) => Some(Speed::Factor(x)),
+        Some(SpeedValue::Word(w)) if w == "max" => Some(Speed::Max),
+        Some(SpeedValue::Word(w)) => {
+            return Err(bad(
+                "run.speed",
+                format!("`{w}`: expected a factor of real time or \"max\""),
+            ));
+        }
+    };
+    c.start_at = start_at;
+    c.time_base = match time_base {
+        None => None,
+        Some(t) => Some(
+            TimeBase::from_name(&t)
+                .ok_or_else(|| bad("run.time_base", format!("`{t}`: expected sim, gps or utc")))?,
+        ),
+    };
+    c.max_behind_ms = max_behind_ms;
+    c.realtime_priority = realtime_priority.unwrap_or(false);
+    let mut route = |key: &str, v: &str, stream: StreamId| -> Result<(), SimError> {
+        let addr = SinkAddr::parse(v).map_err(|m| bad(key, m))?;
+        spec.add_route(stream, addr, format!("{file}: `{key}`"));
+        Ok(())
+    };
+    if let Some(t) = truth {
+        route("run.truth", &t, StreamId::Truth { unit: None })?;
+    }
+    if let Some(t) = truth_errors {
+        route("run.truth_errors", &t, StreamId::Errors)?;
+    }
+    for (key, v) in gnss.map(|g| g.keyed("run.gnss")).unwrap_or_default() {
+        let (name, target) = v.split_once(':').unwrap_or((&v, ""));
+        let f = GnssFormat::from_name(name).ok_or_else(|| {
+            bad(
+                &key,
+                format!(
+                    "`{v}`: expected FORMAT:SINK with FORMAT one of {}",
+                    GnssFormat::NAMES.join(", ")
+                ),
+            )
+        })?;
+        route(&key, target, StreamId::Gnss(f))?;
+    }
+    if let Some(t) = gnss_truth {
+        route("run.gnss_truth", &t, StreamId::GnssTruth)?;
+    }
+    for (kind, values) in SensorKind::ALL
+        .into_iter()
+        .zip([odometer, baro, magnetometer])
+    {
+        let key = format!("run.{}", kind.name());
+        for (key, v) in values.map(|x| x.keyed(&key)).unwrap_or_default() {
+            route(&key, &v, StreamId::Sensor(kind))?;
+        }
+    }
+    let s = &mut spec.sync;
+    for (_, v) in time_marks
+        .map(|t| t.keyed("run.time_marks"))
+        .unwrap_or_default()
+    {
+        let (unit, target) = split_unit(&v);
+        s.time_marks.push((unit, target));
+    }
+    s.pulse = pulse;
+    s.pulse_port = pulse_port;
+    s.pulse_unit = pulse_unit;
+    s.pps_in = pps_in;
+    s.trigger = trigger;
+    let l = &mut spec.link;
+    l.baud = baud;
+    l.framing = framing;
+    l.udp_batch = udp_batch;
+    l.take_over = take_over.unwrap_or(false);
+    if let Some(i) = input {
+        let lockstep = match i.mode.as_deref() {
+            None | Some("realtime") => false,
+            Some("lockstep") => true,
+            Some(m) => {
+                return Err(bad(
+                    "run.input.mode",
+                    format!("`{m}`: expected realtime or lockstep"),
+                ));
+            }
+        };
+        let format = match &i.format {
+            None => None,
+            Some(f) => Some(InputFormat::from_name(f).ok_or_else(|| {
+                bad(
+                    "run.input.format",
+                    format!("`{f}`: expected csv, bin or mavlink"),
+                )
+            })?),
+        };
+        spec.input = Some(LiveSpec {
+            format,
+            lockstep,
+            output_delay_s: i.output_delay_s,
+            max_extrapolation_s: i.max_extrapolation_s,
+            correction_horizon_s: i.correction_horizon_s,
+            on_timeout: i.on_timeout,
+            input_timeout_s: i.timeout_s,
+            record: i.record,
+            ..LiveSpec::new(i.source)
+        });
+    }
+    Ok(())
+}
+
+/// `UNIT=TARGET` names a rig's unit; a target itself has no `=` before its scheme.
+pub fn split_unit(v: &str) -> (Option<String>, String) {
+    match v.split_once('=') {
+        Some((u, rest)) if !u.contains(':') && !u.contains('/') => {
+            (Some(u.to_string()), rest.to_string())
+        }
+        _ => (None, v.to_string()),
+    }
+}
