@@ -135,6 +135,8 @@ fn closure_at(seed: u64) {
         source: "closure".into(),
         samples: rec.samples,
         dt: DT,
+        lsb: [None; 2],
+        filter: None,
     };
     let text = template_toml(&prov, &fits, &vec![Vec::new(); 6]);
     let fitted = template::parse(&text, Path::new("fitted.toml")).unwrap();
@@ -353,6 +355,8 @@ fn a_ramp_is_fitted_and_written_as_a_key() {
         source: "ramp".into(),
         samples,
         dt: DT,
+        lsb: [None; 2],
+        filter: None,
     };
     let text = template_toml(&prov, &fits, &vec![Vec::new(); 6]);
     let m = template::parse(&text, Path::new("fitted.toml")).unwrap();

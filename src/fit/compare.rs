@@ -4,7 +4,7 @@
 
 use std::fmt::Write as _;
 
-use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, fit_triad_with};
+use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, OutputStage, fit_triad_with};
 use super::template::{sig4, unit};
 use crate::analysis::analyzer::{Analysis, CHANNELS};
 use crate::analysis::octave_adev::AdevPoint;
@@ -18,13 +18,22 @@ use crate::plot::{Panel, Series};
 pub fn fit_all(a: &Analysis) -> Vec<Option<AxisFit>> {
     let samples = a.samples as usize;
     let series = a.channels.iter().all(|c| c.trend.is_some());
+    let stages = output_lsbs(a);
     let triad = |base: usize| {
         let c = &a.channels;
+        let outputs = std::array::from_fn(|i| OutputStage {
+            sines: super::lines::find(&c[base + i].psd)
+                .iter()
+                .map(|l| (l.amplitude, l.freq))
+                .collect(),
+            ..stages[base / 3].clone()
+        });
         fit_triad_with(
             [&c[base].adev, &c[base + 1].adev, &c[base + 2].adev],
             samples,
             a.dt,
             !series,
+            outputs,
         )
     };
     let mut fits = std::thread::scope(|s| {
@@ -37,6 +46,43 @@ pub fn fit_all(a: &Analysis) -> Vec<Option<AxisFit>> {
         super::ramp::apply(a, &mut fits);
     }
     fits
+}
+
+/// The output LSB of each triad (gyro, accel) from its value lattice: q the median of the
+/// axes' LSBs where all three axes sit on a lattice. A template has one quantization mode:
+/// when either triad has an LSB, both are fitted for rounding (`quantization_mode = "round"`),
+/// so neither fits the carry-mode term.
+pub fn triad_lsbs(a: &Analysis) -> [Option<f64>; 2] {
+    [0, 3].map(|base| {
+        let mut q: Vec<f64> = (0..3)
+            .map(|i| a.channels[base + i].lattice.map(|l| l.lsb))
+            .collect::<Option<Vec<f64>>>()?;
+        q.sort_by(f64::total_cmp);
+        Some(q[1])
+    })
+}
+
+/// What the fit of each triad takes as known from its output stage: the LSB
+/// ([`triad_lsbs`]) and the filter the PSD shows ([`super::filter::fit`]).
+pub fn output_lsbs(a: &Analysis) -> [OutputStage; 2] {
+    let white = super::filter::fit(a).map(|f| f.white());
+    output_stages(a).map(|s| OutputStage {
+        white: white.clone(),
+        ..s
+    })
+}
+
+fn output_stages(a: &Analysis) -> [OutputStage; 2] {
+    let q = triad_lsbs(a);
+    let rounding = q.iter().any(Option::is_some);
+    q.map(|q| match q {
+        Some(q) => OutputStage::rounded(q, a.dt),
+        None if rounding => OutputStage {
+            carry: false,
+            ..OutputStage::default()
+        },
+        None => OutputStage::default(),
+    })
 }
 
 /// What the two intervals of a term say.

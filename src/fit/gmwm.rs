@@ -10,7 +10,8 @@
 //! each basis being the exact Allan variance of what the error model generates at the
 //! record's Δt (see [`crate::analysis::theory`]): F_band is the curve of the bias-instability
 //! bank of [`crate::errors::process::flicker_bank`] per unit B² (flat 2 ln 2/π inside its τ
-//! band, falling outside), g(u) the Gauss–Markov shape [`gm_shape`]. The model is linear in
+//! band, falling outside), g the Gauss–Markov sequence's exact curve at the record's Δt
+//! ([`gm_avar_sampled`]: white noise when T ≪ Δt, the continuous g(τ/T) when T ≫ Δt). The model is linear in
 //! the six coefficients (Q², N², B², K², R², σ_GM²) for a fixed band and T; the band edges
 //! (half-decade grid) and T (quarter-decade grid) are searched.
 //!
@@ -47,7 +48,8 @@ use crate::analysis::confidence::{NoiseType, edf};
 use crate::analysis::conformance::{band as chi2_band, model_allowance, term_edf};
 use crate::analysis::fit::{TERM_PENALTY, Term, weighted_lstsq};
 use crate::analysis::octave_adev::AdevPoint;
-use crate::analysis::theory::{AxisTheory, gm_shape};
+use crate::analysis::theory::{AxisTheory, gm_avar_sampled};
+use crate::errors::filter_allan::WhiteAllan;
 use crate::errors::process::flicker_bank;
 
 /// χ²₂ at 99 % (= 2 ln 100): what a Gauss–Markov component (σ, T) must gain.
@@ -117,6 +119,81 @@ impl Component {
     }
 }
 
+/// What the unit's output stage fixes for the fit of an axis. Its filter (when the PSD shows
+/// one, [`super::filter`]) shapes the white noise: its basis is r(m)/τ
+/// ([`WhiteAllan::ratio`]) instead of 1/τ, exact for white noise generated at the internal
+/// rate and filtered; the slower components are taken unfiltered (their curves change by the
+/// filter's length over τ, where they hold a small share). Its LSB: a unit that rounds each
+/// rate sample to its LSB q adds white rate noise of variance q²/12 per sample (density²
+/// q²Δt/12, Allan variance q²Δt/(12τ)) — known from the value lattice, so it is not fitted
+/// but added, and the fitted white noise N is the noise before the rounding, as the
+/// generator's `quantization_mode = "round"` needs it. The carry-mode term Q (3Q²/τ²) is then
+/// not a candidate: a template has one quantization mode.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OutputStage {
+    /// Rounding noise density² q²Δt/12 (0: no LSB seen).
+    pub rounding: f64,
+    /// Whether the carry-mode quantization Q may be fitted.
+    pub carry: bool,
+    /// The output filter's white-noise Allan variance, when there is one.
+    pub white: Option<WhiteAllan>,
+    /// Spectral lines of the axis, known from its PSD ([`super::lines`]): (amplitude B of
+    /// the recorded samples, frequency f), each adding [`sine_avar`].
+    pub sines: Vec<(f64, f64)>,
+}
+
+/// The Allan variance at cluster size m of the samples y_k = B sin(2πf kΔt + φ), averaged
+/// over φ: adjacent m-sample means differ by 2 sin(πfτ)·sin(πfτ)/(m sin(πfΔt)) times the
+/// amplitude, so σ² = B² sin⁴(πfτ)/(m² sin²(πfΔt)) — for the interval means of a sine of
+/// amplitude A (B = A·sinc(πfΔt)) the continuous A² sin⁴(πfτ)/(πfτ)² (IEEE Std 952-1997,
+/// Annex C, sinusoidal noise).
+pub fn sine_avar(b: f64, f: f64, m: usize, dt: f64) -> f64 {
+    let x = std::f64::consts::PI * f * dt;
+    let s = (x * m as f64).sin();
+    let d = m as f64 * x.sin();
+    b * b * s.powi(4) / (d * d)
+}
+
+impl Default for OutputStage {
+    fn default() -> Self {
+        OutputStage {
+            rounding: 0.0,
+            carry: true,
+            white: None,
+            sines: Vec::new(),
+        }
+    }
+}
+
+impl OutputStage {
+    /// Rounding to a rate LSB `q` at interval Δt.
+    pub fn rounded(q: f64, dt: f64) -> OutputStage {
+        OutputStage {
+            rounding: q * q * dt / 12.0,
+            carry: false,
+            white: None,
+            sines: Vec::new(),
+        }
+    }
+    /// The white-noise basis's factor r(m) at cluster size m (1 without a filter).
+    pub fn white_ratio(&self, m: usize) -> f64 {
+        self.white.as_ref().map_or(1.0, |w| w.ratio(m))
+    }
+    /// The known part of σ² at cluster size m (interval Δt): rounding noise and lines.
+    pub fn known(&self, m: usize, dt: f64) -> f64 {
+        self.rounding / (m as f64 * dt)
+            + self
+                .sines
+                .iter()
+                .map(|&(b, f)| sine_avar(b, f, m, dt))
+                .sum::<f64>()
+    }
+    /// Its limit at long τ (the white density's aliasing gain, squared).
+    pub fn white_long(&self) -> f64 {
+        self.white.as_ref().map_or(1.0, WhiteAllan::long_tau)
+    }
+}
+
 /// A fitted model of one axis: coefficients and shape parameters, SI.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Model {
@@ -128,6 +205,8 @@ pub struct Model {
     pub gm_tau: f64,
     /// Sampling interval (s).
     pub dt: f64,
+    /// The output LSB's known part.
+    pub output: OutputStage,
 }
 
 impl Model {
@@ -140,13 +219,18 @@ impl Model {
         self.c[i]
             * match k {
                 Component::BiasInstability => flicker_basis(self.band, m, self.dt),
-                Component::GaussMarkov => gm_shape(m as f64 * self.dt / self.gm_tau),
+                Component::GaussMarkov => gm_avar_sampled(self.dt / self.gm_tau, m),
+                Component::WhiteNoise => fixed_basis(k, m, self.dt) * self.output.white_ratio(m),
                 _ => fixed_basis(k, m, self.dt),
             }
     }
-    /// σ² at cluster size m.
+    /// σ² at cluster size m, the output LSB's rounding noise included.
     pub fn avar(&self, m: usize) -> f64 {
-        COMPONENTS.iter().map(|&k| self.part(k, m)).sum()
+        self.rounding(m) + COMPONENTS.iter().map(|&k| self.part(k, m)).sum::<f64>()
+    }
+    /// The known part of σ² at cluster size m: the rounding noise and the spectral lines.
+    pub fn rounding(&self, m: usize) -> f64 {
+        self.output.known(m, self.dt)
     }
     /// The component with the largest share at m (None when the model is empty).
     pub fn dominant(&self, m: usize) -> Option<Component> {
@@ -166,7 +250,7 @@ impl Model {
         let b = self.value(Component::BiasInstability);
         AxisTheory {
             white: self.value(Component::WhiteNoise),
-            rounding_white: 0.0,
+            rounding_white: self.output.rounding.sqrt(),
             quantization: self.value(Component::Quantization),
             random_walk: self.value(Component::RandomWalk),
             gauss_markov: if self.c[5] > 0.0 {
@@ -202,10 +286,9 @@ fn fixed_basis(k: Component, m: usize, dt: f64) -> f64 {
 
 /// σ² of the bias-instability bank per unit B² at cluster size m.
 fn flicker_basis(band: (f64, f64), m: usize, dt: f64) -> f64 {
-    let tau = m as f64 * dt;
     flicker_bank(1.0, band, dt)
         .iter()
-        .map(|c| c.sigma * c.sigma * gm_shape(tau / c.tau))
+        .map(|c| c.sigma * c.sigma * gm_avar_sampled(dt / c.tau, m))
         .sum()
 }
 
@@ -269,6 +352,10 @@ struct Design {
     gms: Vec<(f64, Vec<f64>)>,
     /// The random walk must be in every model searched ([`Options::walk`]).
     walk: bool,
+    /// The output LSB's known part, and `y` less its rounding noise (what the fitted
+    /// components must explain).
+    output: OutputStage,
+    y_fit: Vec<f64>,
 }
 
 /// The fixed components in the order of `Design::fixed`.
@@ -288,14 +375,30 @@ struct Found {
 }
 
 impl Design {
-    fn new(points: &[AdevPoint], dt: f64) -> Design {
+    fn new(points: &[AdevPoint], dt: f64, output: OutputStage) -> Design {
         let pts: Vec<&AdevPoint> = points
             .iter()
             .filter(|p| p.adev > 0.0 && p.adev.is_finite())
             .collect();
         let ms: Vec<usize> = pts.iter().map(|p| p.m).collect();
-        let y = pts.iter().map(|p| p.adev * p.adev).collect();
-        let fixed = FIXED.map(|k| ms.iter().map(|&m| fixed_basis(k, m, dt)).collect());
+        let y: Vec<f64> = pts.iter().map(|p| p.adev * p.adev).collect();
+        let y_fit = ms
+            .iter()
+            .zip(&y)
+            .map(|(&m, y)| y - output.known(m, dt))
+            .collect();
+        let fixed = FIXED.map(|k| {
+            ms.iter()
+                .map(|&m| {
+                    let shape = if k == Component::WhiteNoise {
+                        output.white_ratio(m)
+                    } else {
+                        1.0
+                    };
+                    fixed_basis(k, m, dt) * shape
+                })
+                .collect()
+        });
         let (tau_min, tau_max) = match (ms.first(), ms.last()) {
             (Some(&a), Some(&b)) => (a as f64 * dt, b as f64 * dt),
             _ => (dt, dt),
@@ -329,6 +432,8 @@ impl Design {
             bands,
             gms,
             walk: false,
+            output,
+            y_fit,
         }
     }
 
@@ -379,7 +484,7 @@ impl Design {
                     if cols.is_empty() || cols.len() > self.y.len() {
                         continue;
                     }
-                    let Some(sol) = weighted_lstsq(cols, &self.y, w) else {
+                    let Some(sol) = weighted_lstsq(cols, &self.y_fit, w) else {
                         continue;
                     };
                     if sol.iter().any(|v| *v <= 0.0) {
@@ -390,6 +495,7 @@ impl Design {
                         band: b.map_or((1.0, 1000.0), |bi| self.bands[bi].0),
                         gm_tau: g.map_or(1.0, |g| g.0),
                         dt,
+                        output: self.output.clone(),
                     };
                     which
                         .iter()
@@ -431,7 +537,13 @@ impl Design {
 }
 
 fn gm_column(ms: &[usize], dt: f64, t: f64) -> Vec<f64> {
-    ms.iter().map(|&m| gm_shape(m as f64 * dt / t)).collect()
+    ms.iter().map(|&m| gm_avar_sampled(dt / t, m)).collect()
+}
+
+/// ∂g/∂ln T of the Gauss–Markov basis at x = Δt/T (= −∂g/∂ln x), by a central difference in ln x.
+fn gm_dlnt(x: f64, m: usize) -> f64 {
+    let h = 1e-4f64;
+    -(gm_avar_sampled(x * h.exp(), m) - gm_avar_sampled(x * (-h).exp(), m)) / (2.0 * h)
 }
 
 /// 10^(k/per_decade) for the k with lo ≤ value ≤ hi (a small tolerance at the ends).
@@ -444,7 +556,7 @@ fn log_grid(lo: f64, hi: f64, per_decade: f64) -> Vec<f64> {
 }
 
 /// What the search may use.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Options {
     /// Whether a rate ramp may be fitted (the template has no key for it).
     pub ramp: bool,
@@ -453,6 +565,8 @@ pub struct Options {
     /// Whether the random walk must be in the model (the least favourable null of the
     /// time-domain ramp test, [`super::ramp`]).
     pub walk: bool,
+    /// What the output LSB fixes.
+    pub output: OutputStage,
 }
 
 impl Default for Options {
@@ -461,6 +575,7 @@ impl Default for Options {
             ramp: true,
             band: None,
             walk: false,
+            output: OutputStage::default(),
         }
     }
 }
@@ -475,7 +590,7 @@ pub fn fit_axis(points: &[AdevPoint], samples: usize, dt: f64) -> Option<AxisFit
 /// alternative where a fit with it is better) and one bias-instability band for the triad —
 /// of the bands the axes choose alone, the one with the least total cost.
 pub fn fit_triad(points: [&[AdevPoint]; 3], samples: usize, dt: f64) -> [Option<AxisFit>; 3] {
-    fit_triad_with(points, samples, dt, true)
+    fit_triad_with(points, samples, dt, true, Default::default())
 }
 
 /// [`fit_triad`], the Allan-variance ramp alternative sought only when `alternative` (a
@@ -485,13 +600,20 @@ pub fn fit_triad_with(
     samples: usize,
     dt: f64,
     alternative: bool,
+    outputs: [OutputStage; 3],
 ) -> [Option<AxisFit>; 3] {
-    let no_ramp = Options {
-        ramp: false,
-        band: None,
-        walk: false,
+    let axes = |band: Option<(f64, f64)>| -> [Option<AxisFit>; 3] {
+        std::array::from_fn(|i| {
+            let o = Options {
+                ramp: false,
+                band,
+                walk: false,
+                output: outputs[i].clone(),
+            };
+            fit_axis_with(points[i], samples, dt, &o)
+        })
     };
-    let alone = points.map(|p| fit_axis_with(p, samples, dt, &no_ramp));
+    let alone = axes(None);
     let mut bands: Vec<(f64, f64)> = alone
         .iter()
         .flatten()
@@ -504,18 +626,11 @@ pub fn fit_triad_with(
     } else {
         bands
             .iter()
-            .map(|&b| {
-                let o = Options {
-                    ramp: false,
-                    band: Some(b),
-                    walk: false,
-                };
-                points.map(|p| fit_axis_with(p, samples, dt, &o))
-            })
+            .map(|&b| axes(Some(b)))
             .min_by(|a, b| total_cost(a).total_cmp(&total_cost(b)))
             .expect("two or more bands")
     };
-    for (f, p) in fits.iter_mut().zip(points) {
+    for ((f, p), output) in fits.iter_mut().zip(points).zip(&outputs) {
         let Some(f) = f.as_mut().filter(|_| alternative) else {
             continue;
         };
@@ -523,6 +638,7 @@ pub fn fit_triad_with(
             ramp: true,
             band: (f.model.c[2] > 0.0).then_some(f.model.band),
             walk: false,
+            output: output.clone(),
         };
         if let Some(r) = fit_axis_with(p, samples, dt, &with)
             && r.cost < f.cost
@@ -544,7 +660,7 @@ pub fn fit_axis_with(
     dt: f64,
     opts: &Options,
 ) -> Option<AxisFit> {
-    let mut d = Design::new(points, dt);
+    let mut d = Design::new(points, dt, opts.output.clone());
     d.walk = opts.walk;
     if d.y.is_empty() {
         return None;
@@ -555,7 +671,14 @@ pub fn fit_axis_with(
         Some(b) => vec![None, d.bands.iter().position(|c| c.0 == b)],
     };
     let gms = d.all_gms();
-    let base_exclude: &[Component] = if opts.ramp { &[] } else { &[Component::Ramp] };
+    let mut base_exclude: Vec<Component> = Vec::new();
+    if !opts.ramp {
+        base_exclude.push(Component::Ramp);
+    }
+    if !opts.output.carry {
+        base_exclude.push(Component::Quantization);
+    }
+    let base_exclude = base_exclude.as_slice();
     // First pass weighted by the data, then by the model.
     let mut model_avar = d.y.clone();
     let mut types = vec![NoiseType::WhiteRate; d.y.len()];
@@ -782,10 +905,7 @@ fn gm_pair_dof(d: &Design, model: &Model, phases: usize) -> Option<(f64, f64)> {
     let nt = Component::GaussMarkov.noise_type();
     let ab = |m: usize| {
         let total = model.avar(m);
-        let u = m as f64 * dt / model.gm_tau;
-        let h = 1e-4f64;
-        // ∂g(τ/T)/∂ln T = −u g'(u), by a central difference in ln u.
-        let dg = -(gm_shape(u * h.exp()) - gm_shape(u * (-h).exp())) / (2.0 * h);
+        let dg = gm_dlnt(dt / model.gm_tau, m);
         (
             model.part(Component::GaussMarkov, m) / total,
             model.c[5] * dg / total,
@@ -830,9 +950,7 @@ fn gm_joint_variances(d: &Design, model: &Model, phases: usize) -> Option<(f64, 
     let mut info = nalgebra::DMatrix::<f64>::zeros(p, p);
     for &m in &d.ms {
         let total = model.avar(m);
-        let u = m as f64 * dt / model.gm_tau;
-        let h = 1e-4f64;
-        let dg = -(gm_shape(u * h.exp()) - gm_shape(u * (-h).exp())) / (2.0 * h);
+        let dg = gm_dlnt(dt / model.gm_tau, m);
         let mut row: Vec<f64> = kept.iter().map(|&k| model.part(k, m) / total).collect();
         row.push(model.c[5] * dg / total);
         let w = edf(model.dominant(m)?.noise_type(), phases, m) / 2.0;
@@ -877,6 +995,7 @@ mod tests {
             band: (10.0, 1000.0),
             gm_tau: 10f64.powf(0.5),
             dt,
+            output: OutputStage::default(),
         };
         let f = fit_axis(&exact_points(&truth, 22), 1 << 23, dt).unwrap();
         assert!(

@@ -5,8 +5,10 @@
 //! comparison of two recordings ([`compare`]). No file I/O:
 //! the command reads the input and writes the outputs.
 
+pub mod checks;
 pub mod closure;
 pub mod compare;
+pub mod filter;
 pub mod gmwm;
 pub mod lines;
 pub mod ramp;
