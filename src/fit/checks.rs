@@ -28,9 +28,10 @@ pub const TILT_MOTION: f64 = 2.0 * std::f64::consts::PI / 180.0;
 /// acceleration (m/s²: 0.05 g), unless the noise allows more.
 pub const ACCEL_MOTION: f64 = 0.05 * G0;
 
-/// Block-mean noise allowance, in Allan deviations at the block length: the block-to-block
-/// differences of a static record scatter by √2·σ(τ_block), and its slow terms add a few more
-/// (a maximum over ≤ 4096 blocks of Gaussian noise is below 5σ with odds 1 − 1e-3).
+/// Block-mean noise allowance, in white-noise scatters of a block mean ([`white_scatter`]):
+/// the largest of ≤ 4096 Gaussian block means lies within 5σ of the median with odds
+/// 1 − 1e-3; the margin leaves room for noise that is not white at Δt (a filter's roll-off
+/// lowers σ(Δt) by at most a factor 2 on the units tried).
 pub const NOISE_MARGIN: f64 = 20.0;
 
 /// Why a record is refused.
@@ -72,14 +73,12 @@ fn uniform(a: &Analysis) -> Result<(), String> {
     Ok(())
 }
 
-/// The Allan deviation of channel `ch` at cluster size m (the nearest octave at or below).
-fn adev_at(a: &Analysis, ch: usize, m: usize) -> f64 {
-    a.channels[ch]
-        .adev
-        .iter()
-        .filter(|p| p.m <= m.max(1))
-        .next_back()
-        .map_or(0.0, |p| p.adev)
+/// The scatter of a mean of `len` samples of channel `ch` were its noise white at the level of
+/// its first octave: σ(Δt)/√len. Not the Allan deviation at the block length, which motion
+/// itself inflates (it would excuse the motion it should reveal); a static unit's slow drift
+/// over the record is what the absolute thresholds allow for.
+fn white_scatter(a: &Analysis, ch: usize, len: usize) -> f64 {
+    a.channels[ch].adev.first().map_or(0.0, |p| p.adev) / (len as f64).sqrt()
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -91,11 +90,23 @@ fn static_record(a: &Analysis) -> Result<(), String> {
     let Some(blocks) = &a.blocks else {
         return Ok(());
     };
-    let means = blocks.means();
+    // Blocks of about a second (at least what the accumulator holds, at most an eighth of
+    // the record): a second of rotation or tilt is what a unit that was moved shows, and
+    // averaging that long takes the white noise out of the comparison.
+    let held = blocks.means();
+    let mut factor = 1usize;
+    while ((blocks.block_len() * factor * 2) as f64) * a.dt <= 1.0 && held.len() / (factor * 2) >= 8
+    {
+        factor *= 2;
+    }
+    let means: Vec<[f64; 6]> = held
+        .chunks_exact(factor)
+        .map(|c| std::array::from_fn(|i| c.iter().map(|b| b[i]).sum::<f64>() / factor as f64))
+        .collect();
     if means.len() < 2 {
         return Ok(());
     }
-    let len = blocks.block_len();
+    let len = blocks.block_len() * factor;
     let span = |i: usize| {
         let t0 = (i * len) as f64 * a.dt;
         format!(
@@ -108,7 +119,7 @@ fn static_record(a: &Analysis) -> Result<(), String> {
     };
     for ch in 0..3 {
         let mid = median(means.iter().map(|m| m[ch]).collect());
-        let allow = GYRO_MOTION.max(NOISE_MARGIN * adev_at(a, ch, len));
+        let allow = GYRO_MOTION.max(NOISE_MARGIN * white_scatter(a, ch, len));
         let (i, dev) = means
             .iter()
             .map(|m| (m[ch] - mid).abs())
@@ -128,7 +139,10 @@ fn static_record(a: &Analysis) -> Result<(), String> {
     let mid: [f64; 3] = std::array::from_fn(|i| median(means.iter().map(|m| m[3 + i]).collect()));
     let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     let g = norm(mid);
-    let noise = (3..6).map(|ch| adev_at(a, ch, len)).fold(0.0, f64::max) * NOISE_MARGIN;
+    let noise = (3..6)
+        .map(|ch| white_scatter(a, ch, len))
+        .fold(0.0, f64::max)
+        * NOISE_MARGIN;
     for (i, m) in means.iter().enumerate() {
         let v = [m[3], m[4], m[5]];
         let n = norm(v);
