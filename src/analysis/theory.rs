@@ -317,7 +317,7 @@ mod tests {
 
     /// Limits: σ²(1) = 1 − φ; independent samples (1/m) when T ≪ Δt; the continuous g(mx) as
     /// x → 0 at fixed mx (the two differ by O(x), here ≤ 2e-6); continuous across the switch
-    /// between series and closed form.
+    /// between series and closed form (to the closed form's own round-off there).
     #[test]
     fn sampled_gm_limits() {
         for x in [1e-7, 0.01, 2.0] {
@@ -339,7 +339,9 @@ mod tests {
                 gm_avar_sampled(edge * (1.0 - 1e-12), m),
                 gm_avar_sampled(edge * (1.0 + 1e-12), m),
             );
-            assert!((a / b - 1.0).abs() < 1e-12, "m {m}: {a} {b}");
+            // Just above the switch the closed form's numerator, O((mx)³) ≈ 5e-3 for m = 1,
+            // is the difference of terms ≈ 0.3: it keeps ~14 digits, not 16.
+            assert!((a / b - 1.0).abs() < 5e-12, "m {m}: {a} {b}");
         }
     }
 

@@ -49,7 +49,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
     // Refused before anything is fitted or written: too short, not uniform, not static.
     checks::check(&rec).map_err(|e| anyhow::anyhow!("{}: {e}", a.input.input.display()))?;
     let samples = rec.samples as usize;
-    let fits = compare::fit_all(&rec);
+    let (fits, filter) = compare::fit_all_with_filter(&rec);
     let found: Vec<Vec<lines::Line>> = rec.channels.iter().map(|c| lines::find(&c.psd)).collect();
     let name = a.name.clone().unwrap_or_else(|| {
         a.output
@@ -63,7 +63,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
         samples: rec.samples,
         dt: rec.dt,
         lsb: compare::triad_lsbs(&rec),
-        filter: imu_emu::fit::filter::fit(&rec),
+        filter,
     };
     let toml = template_toml(&prov, &fits, &found);
     // The template must load as written: what `--imu` will read is what was fitted.
@@ -73,7 +73,27 @@ pub fn fit(a: FitArgs) -> Result<()> {
     )
     .context("the fitted template does not load (a bug: please report it)")?;
     // The closure check is part of every report (stdout with -o, --report) and of the plot.
-    let simulated = if a.report.is_some() || a.plot.is_some() || a.output.is_some() {
+    let closing = a.report.is_some() || a.plot.is_some() || a.output.is_some();
+    let table = rec.channels.iter().all(|c| c.trend.is_none());
+    // A table's τ are its own: the simulated record is kept as series, to take its Allan
+    // deviation at each of them (and analysed once more for the plot).
+    let series = if closing && table {
+        Some(closure::simulate_series(
+            model.clone(),
+            rec.dt,
+            rec.samples,
+            a.seed,
+        )?)
+    } else {
+        None
+    };
+    let simulated = if let Some(series) = &series {
+        let mut an = imu_emu::analysis::analyzer::Analyzer::new(a.segment);
+        for k in 0..series[0].len() {
+            an.push(f64::NAN, &std::array::from_fn(|i| series[i][k]));
+        }
+        Some(an.finish(rec.dt))
+    } else if closing {
         let filter = prov.filter.as_ref().map(|f| &f.spec);
         Some(closure::simulate_with(
             model,
@@ -87,6 +107,19 @@ pub fn fit(a: FitArgs) -> Result<()> {
         None
     };
     let check = match &simulated {
+        Some(_) if let Some(series) = &series => Closure {
+            adev: (0..6)
+                .map(|ch| match &fits[ch] {
+                    Some(f) => {
+                        let pts = &rec.channels[ch].adev;
+                        let sim = closure::adev_at(&series[ch], rec.dt, pts);
+                        closure::compare(pts, &sim, &f.model, samples)
+                    }
+                    None => Vec::new(),
+                })
+                .collect(),
+            psd: vec![Vec::new(); 6],
+        },
         Some(sim) => Closure {
             adev: (0..6)
                 .map(|ch| match &fits[ch] {

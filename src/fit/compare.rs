@@ -4,6 +4,7 @@
 
 use std::fmt::Write as _;
 
+use super::filter::FittedFilter;
 use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, OutputStage, fit_triad_with};
 use super::template::{sig4, unit};
 use crate::analysis::analyzer::{Analysis, CHANNELS};
@@ -16,9 +17,38 @@ use crate::plot::{Panel, Series};
 /// tested on its time series ([`super::ramp`]); a table's is sought as an Allan-variance
 /// alternative.
 pub fn fit_all(a: &Analysis) -> Vec<Option<AxisFit>> {
+    fit_all_with_filter(a).0
+}
+
+/// [`fit_all`] and the output filter it took: a recording's PSD names the best candidate
+/// ([`super::filter::fit`]), which is kept when the Allan-variance fit with it costs less than
+/// without it by more than [`super::filter::FILTER_PENALTY`] (the top decade of a PSD also
+/// falls for a Gauss–Markov term of T ≈ 10Δt, which the unfiltered fit models exactly). A
+/// table's filter is read from its shortest τ ([`super::filter::fit_adev`]) and kept as read.
+pub fn fit_all_with_filter(a: &Analysis) -> (Vec<Option<AxisFit>>, Option<FittedFilter>) {
+    let series = a.channels.iter().all(|c| c.trend.is_some());
+    let filter = super::filter::fit(a);
+    let with = fit_with(a, filter.as_ref());
+    if filter.is_none() || !series {
+        return (with, filter);
+    }
+    let without = fit_with(a, None);
+    let cost = |f: &[Option<AxisFit>]| f.iter().flatten().map(|f| f.cost).sum::<f64>();
+    if cost(&without) - cost(&with) > super::filter::FILTER_PENALTY {
+        (with, filter)
+    } else {
+        (without, None)
+    }
+}
+
+fn fit_with(a: &Analysis, filter: Option<&FittedFilter>) -> Vec<Option<AxisFit>> {
     let samples = a.samples as usize;
     let series = a.channels.iter().all(|c| c.trend.is_some());
-    let stages = output_lsbs(a);
+    let white = filter.map(FittedFilter::white);
+    let stages = output_stages(a).map(|s| OutputStage {
+        white: white.clone(),
+        ..s
+    });
     let triad = |base: usize| {
         let c = &a.channels;
         let outputs = std::array::from_fn(|i| OutputStage {
@@ -62,16 +92,7 @@ pub fn triad_lsbs(a: &Analysis) -> [Option<f64>; 2] {
     })
 }
 
-/// What the fit of each triad takes as known from its output stage: the LSB
-/// ([`triad_lsbs`]) and the filter the PSD shows ([`super::filter::fit`]).
-pub fn output_lsbs(a: &Analysis) -> [OutputStage; 2] {
-    let white = super::filter::fit(a).map(|f| f.white());
-    output_stages(a).map(|s| OutputStage {
-        white: white.clone(),
-        ..s
-    })
-}
-
+/// What the fit of each triad takes as known from its LSB ([`triad_lsbs`]).
 fn output_stages(a: &Analysis) -> [OutputStage; 2] {
     let q = triad_lsbs(a);
     let rounding = q.iter().any(Option::is_some);

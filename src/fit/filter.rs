@@ -12,9 +12,10 @@
 //! Allan-variance fit is then the filtered one, N²·r(m)/τ ([`WhiteAllan::ratio`]).
 //!
 //! Candidates (one filter for all six channels, as a template holds it): internal rates
-//! D ∈ {2, 4, 8, 16} times the output rate; a moving average of L taps, or a CIC (cascaded
-//! moving averages, the Bartlett window of the ADIS164xx family at order 2) of order 2 or 3,
-//! with L from 2 to 4D.
+//! D ∈ {2, 4, 8, 16} times the output rate with a moving average of L taps, or a CIC
+//! (cascaded moving averages, the Bartlett window of the ADIS164xx family at order 2) of
+//! order 2 or 3, L from 2 to 4D; and Butterworth low-passes of order 1–4 at D ∈ {1, 2, 4},
+//! cut-off 5–45 % of the output rate.
 
 use crate::analysis::analyzer::Analysis;
 use crate::analysis::psd_band::{WelchEdf, banded};
@@ -71,6 +72,22 @@ pub fn candidates(dt: f64) -> Vec<(FilterSpec, usize)> {
             }
         }
     }
+    // IIR low-passes (a MEMS unit's digital low-pass is often one): Butterworth of order 1–4,
+    // cut-off from 5 % to 45 % of the output rate, run at 1, 2 or 4 times the output rate.
+    for d in [1usize, 2, 4] {
+        for order in 1..=4 {
+            for k in 1..=9 {
+                let cutoff_hz = 0.05 * k as f64 / dt;
+                if cutoff_hz < 0.45 * d as f64 / dt {
+                    let spec = FilterSpec {
+                        internal_rate_hz: d as f64 / dt,
+                        kind: FilterKind::Butterworth { order, cutoff_hz },
+                    };
+                    out.push((spec, d));
+                }
+            }
+        }
+    }
     out
 }
 
@@ -114,12 +131,13 @@ fn chi2(bands: &[Vec<(f64, f64, f64)>], shape: impl Fn(f64) -> f64) -> f64 {
         .sum()
 }
 
-/// The filter the recording's PSD shows, if one earns its place.
+/// The filter the recording's PSD shows (a published table, which has none: its short-τ
+/// Allan deviation, [`fit_adev`]), if one earns its place.
 pub fn fit(a: &Analysis) -> Option<FittedFilter> {
     let b = bands(a);
     let count: usize = b.iter().map(Vec::len).sum();
     if count < 4 {
-        return None;
+        return fit_adev(a);
     }
     let flat = chi2(&b, |_| 0.0);
     let best = candidates(a.dt)
@@ -161,4 +179,82 @@ pub fn toml(f: &FittedFilter) -> String {
         f.flat_chi2,
         f.spec.internal_rate_hz
     )
+}
+
+/// Longest cluster size the Allan-deviation filter fit uses: the filter's mark fades as 1/τ
+/// ([`WhiteAllan::ratio`]), and beyond a few dozen samples the slow terms take over.
+pub const ADEV_MAX_M: usize = 64;
+
+/// The filter read from the Allan deviation at its shortest τ (m ≤ [`ADEV_MAX_M`]), where a
+/// table gives nothing else to read it from: per channel σ̂²(m) = N²·r(m)/τ + C, N² and a
+/// constant C (the slow terms, nearly flat over these τ) fitted by least squares on the
+/// relative residuals with weights edf/2 (Var σ̂²/σ² = 2/edf, white-noise edf); the candidate
+/// with the least χ² over the six channels is kept when it gains [`FILTER_PENALTY`] over
+/// r ≡ 1.
+pub fn fit_adev(a: &Analysis) -> Option<FittedFilter> {
+    let n = a.samples as usize;
+    let chans: Vec<Vec<(usize, f64, f64)>> = a
+        .channels
+        .iter()
+        .map(|c| {
+            c.adev
+                .iter()
+                .filter(|p| p.m <= ADEV_MAX_M && p.m <= n / 8 && p.adev > 0.0)
+                .map(|p| {
+                    let w = crate::analysis::confidence::edf(
+                        crate::analysis::confidence::NoiseType::WhiteRate,
+                        n + 1,
+                        p.m,
+                    ) / 2.0;
+                    (p.m, p.adev * p.adev, w)
+                })
+                .collect()
+        })
+        .collect();
+    let count: usize = chans.iter().map(Vec::len).sum();
+    if chans.iter().any(|c| c.len() < 4) {
+        return None;
+    }
+    let chi2 = |ratio: &dyn Fn(usize) -> f64| -> f64 {
+        chans
+            .iter()
+            .map(|pts| {
+                // Minimise Σ w (1 − (x·u + C)/y)² over (x, C), u = r(m)/τ: 2×2 normal equations.
+                let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+                for &(m, y, w) in pts {
+                    let u = ratio(m) / (m as f64 * a.dt) / y;
+                    let v = 1.0 / y;
+                    a11 += w * u * u;
+                    a12 += w * u * v;
+                    a22 += w * v * v;
+                    b1 += w * u;
+                    b2 += w * v;
+                }
+                let det = a11 * a22 - a12 * a12;
+                let (x, c) = ((b1 * a22 - b2 * a12) / det, (a11 * b2 - a12 * b1) / det);
+                pts.iter()
+                    .map(|&(m, y, w)| {
+                        let model = x * ratio(m) / (m as f64 * a.dt) + c;
+                        w * (1.0 - model / y).powi(2)
+                    })
+                    .sum::<f64>()
+            })
+            .sum()
+    };
+    let flat = chi2(&|_| 1.0);
+    let best = candidates(a.dt)
+        .into_iter()
+        .map(|(spec, d)| {
+            let w = WhiteAllan::new(&spec, d);
+            let c = chi2(&|m| w.ratio(m));
+            (spec, d, c)
+        })
+        .min_by(|x, y| x.2.total_cmp(&y.2))?;
+    (flat - best.2 > FILTER_PENALTY).then(|| FittedFilter {
+        spec: best.0,
+        decimation: best.1,
+        chi2: best.2,
+        flat_chi2: flat,
+        bands: count,
+    })
 }

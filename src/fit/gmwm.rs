@@ -50,13 +50,17 @@ use crate::analysis::fit::{TERM_PENALTY, Term, weighted_lstsq};
 use crate::analysis::octave_adev::AdevPoint;
 use crate::analysis::theory::{AxisTheory, gm_avar_sampled};
 use crate::errors::filter_allan::WhiteAllan;
-use crate::errors::process::flicker_bank;
+use crate::errors::process::{FLICKER_RATIO, flicker_bank};
 
 /// χ²₂ at 99 % (= 2 ln 100): what a Gauss–Markov component (σ, T) must gain.
 pub const GM_PENALTY: f64 = 9.210_340_371_976_184;
 
 /// χ²₃ at 99 %: what bias instability with its band (B, τ_lo, τ_hi) must gain.
 pub const FLICKER_PENALTY: f64 = 11.344_866_730_144_373;
+
+/// Under an output filter, the shortest correlation time (in Δt) a fitted Gauss–Markov or
+/// bank component may have ([`OutputStage`]).
+pub const FILTERED_SLOWEST: f64 = 10.0;
 
 /// Reweighting passes (the chosen model settles within three or four on every case tried).
 const PASSES: usize = 6;
@@ -408,10 +412,21 @@ impl Design {
         // at least a decade wide (narrower is what the Gauss–Markov component describes).
         // Widest first, so that among equal fits the band that claims least is kept.
         let grid = log_grid(tau_min, 10.0 * tau_max, 2.0);
+        // Under an output filter the Gauss–Markov and bank components are taken unfiltered
+        // (OutputStage): true to O(filter length/T), so only components slower than 10Δt are
+        // candidates — a GM of T ≥ 10Δt, a band whose fastest component (τ_lo/(π·√10)) is.
+        let (slow, gm_from) = if output.white.is_some() {
+            (
+                FILTERED_SLOWEST * dt * std::f64::consts::PI * FLICKER_RATIO,
+                FILTERED_SLOWEST * dt,
+            )
+        } else {
+            (0.0, 0.0)
+        };
         let mut bands = Vec::new();
         for (i, &lo) in grid.iter().enumerate() {
             for &hi in &grid[i..] {
-                if hi >= 9.99 * lo && lo <= tau_max {
+                if hi >= 9.99 * lo && lo <= tau_max && lo >= slow {
                     bands.push((lo, hi));
                 }
             }
@@ -421,7 +436,7 @@ impl Design {
             .into_iter()
             .map(|b| (b, ms.iter().map(|&m| flicker_basis(b, m, dt)).collect()))
             .collect();
-        let gms = log_grid(tau_min, tau_max, 4.0)
+        let gms = log_grid(tau_min.max(gm_from), tau_max, 4.0)
             .into_iter()
             .map(|t| (t, gm_column(&ms, dt, t)))
             .collect();
