@@ -49,7 +49,8 @@ pub fn fit(a: FitArgs) -> Result<()> {
     // Refused before anything is fitted or written: too short, not uniform, not static.
     checks::check(&rec).map_err(|e| anyhow::anyhow!("{}: {e}", a.input.input.display()))?;
     let samples = rec.samples as usize;
-    let (fits, filter) = compare::fit_all_with_filter(&rec);
+    let fitted = compare::fit_all_with_filter(&rec);
+    let fits = fitted.fits;
     let found: Vec<Vec<lines::Line>> = rec.channels.iter().map(|c| lines::find(&c.psd)).collect();
     let name = a.name.clone().unwrap_or_else(|| {
         a.output
@@ -63,7 +64,8 @@ pub fn fit(a: FitArgs) -> Result<()> {
         samples: rec.samples,
         dt: rec.dt,
         lsb: compare::triad_lsbs(&rec),
-        filter,
+        filter: fitted.filter,
+        carry: fitted.carry,
     };
     let toml = template_toml(&prov, &fits, &found);
     // The template must load as written: what `--imu` will read is what was fitted.

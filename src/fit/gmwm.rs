@@ -139,6 +139,9 @@ pub struct OutputStage {
     pub rounding: f64,
     /// Whether the carry-mode quantization Q may be fitted.
     pub carry: bool,
+    /// Q² of a carry-mode quantizer known from the lattice ((qΔt)²/12 for a rate grid q),
+    /// adding 3Q²/τ².
+    pub carried: f64,
     /// The output filter's white-noise Allan variance, when there is one.
     pub white: Option<WhiteAllan>,
     /// Spectral lines of the axis, known from its PSD ([`super::lines`]): (amplitude B of
@@ -163,6 +166,7 @@ impl Default for OutputStage {
         OutputStage {
             rounding: 0.0,
             carry: true,
+            carried: 0.0,
             white: None,
             sines: Vec::new(),
         }
@@ -175,8 +179,19 @@ impl OutputStage {
         OutputStage {
             rounding: q * q * dt / 12.0,
             carry: false,
+            carried: 0.0,
             white: None,
             sines: Vec::new(),
+        }
+    }
+    /// A carry-mode quantizer whose outputs sit on the rate grid `q` at interval Δt: the
+    /// increments are multiples of qΔt and the residual carried, so the angle error is uniform
+    /// over an increment LSB, Q = qΔt/√12, known.
+    pub fn carried(q: f64, dt: f64) -> OutputStage {
+        OutputStage {
+            carry: false,
+            carried: (q * dt).powi(2) / 12.0,
+            ..OutputStage::default()
         }
     }
     /// The white-noise basis's factor r(m) at cluster size m (1 without a filter).
@@ -185,7 +200,9 @@ impl OutputStage {
     }
     /// The known part of σ² at cluster size m (interval Δt): rounding noise and lines.
     pub fn known(&self, m: usize, dt: f64) -> f64 {
-        self.rounding / (m as f64 * dt)
+        let tau = m as f64 * dt;
+        self.rounding / tau
+            + 3.0 * self.carried / (tau * tau)
             + self
                 .sines
                 .iter()
@@ -255,7 +272,7 @@ impl Model {
         AxisTheory {
             white: self.value(Component::WhiteNoise),
             rounding_white: self.output.rounding.sqrt(),
-            quantization: self.value(Component::Quantization),
+            quantization: (self.c[Component::Quantization as usize] + self.output.carried).sqrt(),
             random_walk: self.value(Component::RandomWalk),
             gauss_markov: if self.c[5] > 0.0 {
                 vec![(self.value(Component::GaussMarkov), self.gm_tau)]

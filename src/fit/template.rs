@@ -26,6 +26,8 @@ pub struct Provenance {
     pub lsb: [Option<f64>; 2],
     /// The output filter read from the PSD roll-off.
     pub filter: Option<super::filter::FittedFilter>,
+    /// Whether the LSB quantizes by carrying the residual (else by rounding each sample).
+    pub carry: bool,
 }
 
 /// A number with 4 significant digits, plain or in exponent form, that parses back.
@@ -101,7 +103,7 @@ pub fn template_toml(p: &Provenance, fits: &[Option<AxisFit>], lines: &[Vec<Line
         p.source.replace('"', "'")
     );
     let _ = writeln!(s, "rate_hz = {}", sig4(1.0 / p.dt));
-    if p.lsb.iter().any(Option::is_some) {
+    if p.lsb.iter().any(Option::is_some) && !p.carry {
         let _ = writeln!(
             s,
             "# The recorded values sit on a grid (the unit's output LSB): each rate sample is rounded to it,\n# which adds white noise of variance q²/12 per sample; the white noise below is what is left.\nquantization_mode = \"round\""
@@ -111,7 +113,16 @@ pub fn template_toml(p: &Provenance, fits: &[Option<AxisFit>], lines: &[Vec<Line
         let _ = writeln!(s, "\n[{}]", if gyro { "gyro" } else { "accel" });
         let axes: Vec<Option<&AxisFit>> = (0..3).map(|a| fits[base + a].as_ref()).collect();
         triad_toml(&mut s, gyro, &axes);
-        if let Some(q) = p.lsb[base / 3] {
+        if let Some(q) = p.lsb[base / 3].filter(|_| p.carry) {
+            let u = if gyro { "rad" } else { "m/s" };
+            let _ = writeln!(
+                s,
+                "# output LSB from the value lattice of x, y, z (median), increments carried (the fit of a\n\
+                 # rounding quantizer was worse): rate grid q, increment LSB qΔt\n\
+                 quantization = \"{:.7e} {u}\"",
+                q * p.dt
+            );
+        } else if let Some(q) = p.lsb[base / 3] {
             let (u, f) = if gyro {
                 ("deg/s", 180.0 / std::f64::consts::PI)
             } else {
