@@ -25,6 +25,28 @@ use tempfile::TempDir;
 
 const DT: f64 = 0.01;
 
+/// `imu-emu generate` of the built-in `scene` with the stim300 at 100 Hz for `seconds`, to
+/// `out` (binary when it ends in .bin).
+fn generate(scene: &str, seconds: &str, out: &Path) {
+    let bin = out.extension().is_some_and(|e| e == "bin");
+    let mut args = vec![
+        "generate",
+        "--scene",
+        scene,
+        "--imu",
+        "stim300",
+        "--rate",
+        "100",
+        "--duration",
+        seconds,
+    ];
+    if bin {
+        args.extend(["--format", "bin"]);
+    }
+    args.extend(["-o", p(out)]);
+    ok(imu_emu(args));
+}
+
 /// A static record of `model`, fitted as `fit` does; the fitted template written and loaded
 /// back; a record of the same length simulated from it (another seed); the closure of every
 /// channel (Allan deviation per octave to T/8, PSD per band from 0.01 Hz).
@@ -135,12 +157,8 @@ fn sampled_gauss_markov_closes_across_dt_over_t() {
             .into_iter()
             .chain(theory::triad(&model.accel, model.quantization_mode, DT))
             .collect();
-        for ch in 0..6 {
-            for pt in c.rec.channels[ch]
-                .adev
-                .iter()
-                .filter(|p| p.m as u64 <= n / 8)
-            {
+        for (ch, (t, chan)) in th.iter().zip(&c.rec.channels).enumerate() {
+            for pt in chan.adev.iter().filter(|p| p.m as u64 <= n / 8) {
                 let nu = [
                     NoiseType::WhiteRate,
                     NoiseType::FlickerRate,
@@ -149,7 +167,7 @@ fn sampled_gauss_markov_closes_across_dt_over_t() {
                 .map(|k| edf(k, n as usize + 1, pt.m))
                 .into_iter()
                 .fold(f64::INFINITY, f64::min);
-                let want = th[ch].avar(pt.m, DT).sqrt();
+                let want = t.avar(pt.m, DT).sqrt();
                 let z = (pt.adev / want).ln() * (2.0 * nu).sqrt();
                 assert!(z.abs() < 4.0, "Δt/T {x}, channel {ch}, m {}: z = {z}", pt.m);
             }
@@ -227,19 +245,7 @@ fn too_short_records_are_refused() {
     ] {
         let rec = d.join(format!("r{samples}.csv"));
         let duration = format!("{}", samples as f64 * DT);
-        ok(imu_emu([
-            "generate",
-            "--scene",
-            "static",
-            "--imu",
-            "stim300",
-            "--rate",
-            "100",
-            "--duration",
-            &duration,
-            "-o",
-            p(&rec),
-        ]));
+        generate("static", &duration, &rec);
         let unit = d.join(format!("u{samples}.toml"));
         let out = imu_emu(["fit", p(&rec), "-o", p(&unit)]);
         if refused {
@@ -266,19 +272,7 @@ fn non_uniform_time_steps_are_refused() {
     let dir = TempDir::new().unwrap();
     let d = dir.path();
     let rec = d.join("r.csv");
-    ok(imu_emu([
-        "generate",
-        "--scene",
-        "static",
-        "--imu",
-        "stim300",
-        "--rate",
-        "100",
-        "--duration",
-        "10",
-        "-o",
-        p(&rec),
-    ]));
+    generate("static", "10", &rec);
     let text = std::fs::read_to_string(&rec).unwrap();
     let mut lines: Vec<&str> = text.lines().collect();
     // Line 1 is the header, line 2 sample 1: dropping line 501 (sample 500) makes sample
@@ -315,21 +309,7 @@ fn a_moving_record_is_refused() {
     let dir = TempDir::new().unwrap();
     let d = dir.path();
     let moving = d.join("moving.bin");
-    ok(imu_emu([
-        "generate",
-        "--scene",
-        "survey",
-        "--imu",
-        "stim300",
-        "--rate",
-        "100",
-        "--duration",
-        "120",
-        "--format",
-        "bin",
-        "-o",
-        p(&moving),
-    ]));
+    generate("survey", "120", &moving);
     let unit = d.join("u.toml");
     let e = err(imu_emu(["fit", p(&moving), "-o", p(&unit)]));
     assert!(

@@ -72,7 +72,7 @@ pub fn find(v: &[f64]) -> Option<Lattice> {
         .windows(2)
         .map(|w| w[1] - w[0])
         .fold(f64::INFINITY, f64::min);
-    if !(q0 > 0.0) {
+    if q0.is_nan() || q0 <= 0.0 {
         return None;
     }
     let v0 = v[0];

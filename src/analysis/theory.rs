@@ -320,8 +320,8 @@ mod tests {
     /// between series and closed form (to the closed form's own round-off there).
     #[test]
     fn sampled_gm_limits() {
-        for x in [1e-7, 0.01, 2.0] {
-            let want = -(-x as f64).exp_m1();
+        for x in [1e-7f64, 0.01, 2.0] {
+            let want = -(-x).exp_m1();
             assert!((gm_avar_sampled(x, 1) / want - 1.0).abs() < 1e-14);
         }
         for m in [1usize, 4, 1024] {

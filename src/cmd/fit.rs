@@ -91,9 +91,8 @@ pub fn fit(a: FitArgs) -> Result<()> {
     };
     let simulated = if let Some(series) = &series {
         let mut an = imu_emu::analysis::analyzer::Analyzer::new(a.segment);
-        for k in 0..series[0].len() {
-            an.push(f64::NAN, &std::array::from_fn(|i| series[i][k]));
-        }
+        (0..series[0].len())
+            .for_each(|k| an.push(f64::NAN, &std::array::from_fn(|i| series[i][k])));
         Some(an.finish(rec.dt))
     } else if closing {
         let filter = prov.filter.as_ref().map(|f| &f.spec);

@@ -140,20 +140,31 @@ pub fn fit(a: &Analysis) -> Option<FittedFilter> {
         return fit_adev(a);
     }
     let flat = chi2(&b, |_| 0.0);
-    let best = candidates(a.dt)
+    best(a.dt, flat, count, |w| {
+        chi2(&b, |f| w.psd_ratio(f, a.dt).max(1e-300).ln())
+    })
+}
+
+/// The candidate of least χ² (`score`), kept when it gains [`FILTER_PENALTY`] over `flat`.
+fn best(
+    dt: f64,
+    flat: f64,
+    bands: usize,
+    score: impl Fn(&WhiteAllan) -> f64,
+) -> Option<FittedFilter> {
+    let best = candidates(dt)
         .into_iter()
         .map(|(spec, d)| {
-            let w = WhiteAllan::new(&spec, d);
-            let c = chi2(&b, |f| w.psd_ratio(f, a.dt).max(1e-300).ln());
+            let c = score(&WhiteAllan::new(&spec, d));
             (spec, d, c)
         })
         .min_by(|x, y| x.2.total_cmp(&y.2))?;
-    (flat - best.2 > FILTER_PENALTY).then(|| FittedFilter {
+    (flat - best.2 > FILTER_PENALTY).then_some(FittedFilter {
         spec: best.0,
         decimation: best.1,
         chi2: best.2,
         flat_chi2: flat,
-        bands: count,
+        bands,
     })
 }
 
@@ -242,19 +253,5 @@ pub fn fit_adev(a: &Analysis) -> Option<FittedFilter> {
             .sum()
     };
     let flat = chi2(&|_| 1.0);
-    let best = candidates(a.dt)
-        .into_iter()
-        .map(|(spec, d)| {
-            let w = WhiteAllan::new(&spec, d);
-            let c = chi2(&|m| w.ratio(m));
-            (spec, d, c)
-        })
-        .min_by(|x, y| x.2.total_cmp(&y.2))?;
-    (flat - best.2 > FILTER_PENALTY).then(|| FittedFilter {
-        spec: best.0,
-        decimation: best.1,
-        chi2: best.2,
-        flat_chi2: flat,
-        bands: count,
-    })
+    best(a.dt, flat, count, |w| chi2(&|m| w.ratio(m)))
 }

@@ -152,27 +152,25 @@ fn closure_section(s: &mut String, c: &Closure) {
         let _ = writeln!(s, "No closure check was run.");
         return;
     }
-    for ch in 0..c.adev.len() {
-        let a = &c.adev[ch];
+    for (ch, (a, name)) in c.adev.iter().zip(CHANNELS).enumerate() {
         let p = c.psd.get(ch).map_or(&[][..], Vec::as_slice);
         let _ = writeln!(
             s,
             "- {}: Allan deviation {} of {} octaves inside; PSD {} of {} bands inside",
-            CHANNELS[ch],
+            name,
             a.iter().filter(|x| x.inside()).count(),
             a.len(),
             p.iter().filter(|x| x.inside()).count(),
             p.len()
         );
     }
-    for ch in 0..c.adev.len() {
+    for (ch, (adev, name)) in c.adev.iter().zip(CHANNELS).enumerate() {
         let (unit, k) = adev_unit(ch < 3);
         let _ = writeln!(
             s,
-            "\n### {}\n\n| τ (s) | recording ({unit}) | simulated | band | verdict |\n| --- | --- | --- | --- | --- |",
-            CHANNELS[ch]
+            "\n### {name}\n\n| τ (s) | recording ({unit}) | simulated | band | verdict |\n| --- | --- | --- | --- | --- |"
         );
-        for q in &c.adev[ch] {
+        for q in adev {
             let _ = writeln!(
                 s,
                 "| {} | {} | {} | [{}, {}] | {} |",
