@@ -1,7 +1,7 @@
 //! The value lattice of a recorded channel: a real unit puts out integer counts times its
 //! LSB, so a static recording's values sit on a grid v₀ + k·q. Streaming: the distinct values
-//! are kept until there are too many to be a lattice worth finding (a float record, or counts
-//! far finer than the noise), then the channel is given up.
+//! of the first [`MAX_SCANNED`] samples are kept until there are too many to be a lattice worth
+//! finding (a float record, or counts far finer than the noise), then the channel is given up.
 
 use std::collections::HashSet;
 
@@ -10,6 +10,11 @@ pub const MAX_DISTINCT: usize = 1 << 14;
 
 /// Fewest distinct values a lattice is read from (fewer cannot tell a grid from chance).
 pub const MIN_DISTINCT: usize = 8;
+
+/// Samples scanned per channel: a grid shows itself long before (its distinct values are
+/// those of the noise's span), and the scan costs a hash insert per sample, so a day-long
+/// record is read at the speed of the rest of the analysis.
+pub const MAX_SCANNED: u64 = 1 << 20;
 
 /// Largest misfit of a value from the grid, in LSBs: values printed with fewer digits than
 /// the LSB has (3.33 mg as 0.00333 g) are off by up to half a unit of the last digit.
@@ -33,15 +38,17 @@ pub struct Lattice {
 pub struct LatticeScan {
     values: HashSet<u64>,
     overflow: bool,
+    scanned: u64,
 }
 
 impl LatticeScan {
     /// Adds a value.
     #[inline]
     pub fn push(&mut self, x: f64) {
-        if self.overflow {
+        if self.overflow || self.scanned >= MAX_SCANNED {
             return;
         }
+        self.scanned += 1;
         // +0.0 and −0.0 are one value.
         self.values.insert((x + 0.0).to_bits());
         if self.values.len() > MAX_DISTINCT {
