@@ -11,6 +11,7 @@ pub mod compare;
 pub mod filter;
 pub mod gmwm;
 pub mod lines;
+pub mod output;
 pub mod ramp;
 pub mod report;
 pub mod template;
