@@ -12,7 +12,7 @@ use std::path::Path;
 use common::cli::{err, imu_emu, ok};
 use imu_emu::errors::template::{self, ImuModel};
 use imu_emu::fit::closure;
-use imu_emu::fit::compare::fit_all;
+use imu_emu::fit::compare::{fit_all, fit_all_with_filter, triad_lsbs};
 use imu_emu::fit::gmwm::Component;
 use imu_emu::fit::template::{Provenance, template_toml};
 use tempfile::TempDir;
@@ -92,14 +92,28 @@ fn closure_at(seed: u64) {
     let n = rec.samples as usize;
     let c = &rec.channels;
     // As `fit` does: the triads fitted, then each channel's slope tested on its time series.
-    let fits = fit_all(&rec);
+    // The carry quantizer's outputs sit on the rate grid q/Δt: Q is read from it (the LSB to
+    // 1e-9) and the carry mode chosen over rounding, so Q is known rather than fitted.
+    let fitted = fit_all_with_filter(&rec);
+    assert!(fitted.carry && fitted.filter.is_none(), "seed {seed}");
+    let lsb = triad_lsbs(&rec);
+    for (s, t) in [&m.gyro, &m.accel].into_iter().enumerate() {
+        let Some(imu_emu::units::Lsb::Increment(q)) = t.quantization else {
+            panic!("{:?}", t.quantization)
+        };
+        let got = lsb[s].unwrap() * DT;
+        assert!(
+            (got / q - 1.0).abs() < 1e-9,
+            "seed {seed}: {got:e} vs {q:e}"
+        );
+    }
+    let fits = fitted.fits;
     let mut missed = Vec::new();
     let mut k_left_out = Vec::new();
     for (ch, f) in fits.iter().enumerate() {
         let f = f.as_ref().unwrap();
         let triad = if ch < 3 { &m.gyro } else { &m.accel };
         for k in [
-            Component::Quantization,
             Component::WhiteNoise,
             Component::BiasInstability,
             Component::RandomWalk,
@@ -135,6 +149,9 @@ fn closure_at(seed: u64) {
         source: "closure".into(),
         samples: rec.samples,
         dt: DT,
+        lsb,
+        filter: None,
+        carry: true,
     };
     let text = template_toml(&prov, &fits, &vec![Vec::new(); 6]);
     let fitted = template::parse(&text, Path::new("fitted.toml")).unwrap();
@@ -233,7 +250,8 @@ fn fit_command_end_to_end() {
     assert!((n - 1.0).abs() < 0.02, "{n}");
     let report = std::fs::read_to_string(d.join("r.md")).unwrap();
     assert!(
-        report.contains("## Closure") && report.contains("gyro y: 15 of 15 octaves inside"),
+        report.contains("## Closure")
+            && report.contains("gyro y: Allan deviation 15 of 15 octaves inside"),
         "{report}"
     );
     let png = std::fs::read(d.join("r.png")).unwrap();
@@ -353,6 +371,9 @@ fn a_ramp_is_fitted_and_written_as_a_key() {
         source: "ramp".into(),
         samples,
         dt: DT,
+        lsb: [None; 2],
+        filter: None,
+        carry: false,
     };
     let text = template_toml(&prov, &fits, &vec![Vec::new(); 6]);
     let m = template::parse(&text, Path::new("fitted.toml")).unwrap();

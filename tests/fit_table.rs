@@ -28,6 +28,7 @@ fn exact_table_gives_back_the_model() {
         band: (10.0, 1000.0),
         gm_tau: 10f64.powf(0.5),
         dt,
+        output: Default::default(),
     };
     let accel = Model {
         c: gyro.c.map(|c| c * 4.0),

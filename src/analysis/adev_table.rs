@@ -408,6 +408,7 @@ impl AdevTable {
                     },
                     fit: f,
                     trend: None,
+                    lattice: None,
                 }
             })
             .collect();
@@ -415,6 +416,8 @@ impl AdevTable {
             samples: self.samples as u64,
             dt: self.dt,
             step_range: (f64::NAN, f64::NAN),
+            step_at: [(0, f64::NAN); 2],
+            blocks: None,
             t_first: f64::NAN,
             channels,
         }

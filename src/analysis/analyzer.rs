@@ -2,8 +2,10 @@
 //! deviation, Welch PSD and the IEEE term fit of every channel, in memory independent of the
 //! record length.
 
+use super::blocks::BlockMeans;
 use super::confidence::NoiseType;
 use super::fit::{Fit, fit};
+use super::lattice::{Lattice, LatticeScan};
 use super::octave_adev::{AdevPoint, OctaveAdev};
 use super::psd::{Psd, Welch};
 use super::stats::Stats;
@@ -22,11 +24,17 @@ pub struct Analyzer {
     stats: [Stats; 6],
     adev: [OctaveAdev; 6],
     psd: [Welch; 6],
+    lattice: [LatticeScan; 6],
+    blocks: BlockMeans,
     n: u64,
     t_first: f64,
     t_prev: f64,
     step_min: f64,
     step_max: f64,
+    /// Sample index (0-based, the later sample of the step) and time of the smallest and
+    /// largest step.
+    step_min_at: (u64, f64),
+    step_max_at: (u64, f64),
 }
 
 /// What one channel showed.
@@ -42,6 +50,8 @@ pub struct ChannelAnalysis {
     pub fit: Fit,
     /// The record's linear trend (None without a time series, e.g. a published table).
     pub trend: Option<Trend>,
+    /// The grid the values sit on, when they sit on one (a unit's output LSB).
+    pub lattice: Option<Lattice>,
 }
 
 /// The least-squares line of a channel and the Allan deviation of what is left around it.
@@ -62,6 +72,10 @@ pub struct Analysis {
     pub dt: f64,
     /// Smallest and largest time step seen (s; NaN without a time column).
     pub step_range: (f64, f64),
+    /// Where they were seen: (0-based index of the step's later sample, its time).
+    pub step_at: [(u64, f64); 2],
+    /// Block means of the six channels (None without a time series).
+    pub blocks: Option<BlockMeans>,
     /// Time of the first sample (s).
     pub t_first: f64,
     /// The six channels in [`CHANNELS`] order.
@@ -75,11 +89,15 @@ impl Analyzer {
             stats: Default::default(),
             adev: Default::default(),
             psd: std::array::from_fn(|_| Welch::new(segment)),
+            lattice: Default::default(),
+            blocks: BlockMeans::default(),
             n: 0,
             t_first: f64::NAN,
             t_prev: f64::NAN,
             step_min: f64::INFINITY,
             step_max: f64::NEG_INFINITY,
+            step_min_at: (0, f64::NAN),
+            step_max_at: (0, f64::NAN),
         }
     }
 
@@ -90,8 +108,14 @@ impl Analyzer {
             self.t_first = t;
         } else {
             let step = t - self.t_prev;
-            self.step_min = self.step_min.min(step);
-            self.step_max = self.step_max.max(step);
+            if step < self.step_min {
+                self.step_min = step;
+                self.step_min_at = (self.n, t);
+            }
+            if step > self.step_max {
+                self.step_max = step;
+                self.step_max_at = (self.n, t);
+            }
         }
         self.t_prev = t;
         self.n += 1;
@@ -99,7 +123,9 @@ impl Analyzer {
             self.stats[i].push(x);
             self.adev[i].push(x);
             self.psd[i].push(x);
+            self.lattice[i].push(x);
         }
+        self.blocks.push(v);
     }
 
     /// Adds one output record (its interval-mean rates).
@@ -135,12 +161,15 @@ impl Analyzer {
                         detrended: self.adev[i].detrended_points(dt, |tau| fit.dominant(tau)),
                     }),
                     fit,
+                    lattice: self.lattice[i].finish(),
                 }
             })
             .collect();
         Analysis {
             samples: self.n,
             dt,
+            step_at: [self.step_min_at, self.step_max_at],
+            blocks: Some(self.blocks.clone()),
             step_range: if self.n >= 2 {
                 (self.step_min, self.step_max)
             } else {

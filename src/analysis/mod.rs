@@ -5,10 +5,12 @@
 pub mod adev_table;
 pub mod allan;
 pub mod analyzer;
+pub mod blocks;
 pub mod confidence;
 pub mod conformance;
 pub mod error_plot;
 pub mod fit;
+pub mod lattice;
 pub mod octave_adev;
 pub mod psd;
 pub mod psd_band;

@@ -4,7 +4,8 @@
 
 use std::fmt::Write as _;
 
-use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, fit_triad_with};
+use super::filter::FittedFilter;
+use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, OutputStage, fit_triad_with};
 use super::template::{sig4, unit};
 use crate::analysis::analyzer::{Analysis, CHANNELS};
 use crate::analysis::octave_adev::AdevPoint;
@@ -16,15 +17,88 @@ use crate::plot::{Panel, Series};
 /// tested on its time series ([`super::ramp`]); a table's is sought as an Allan-variance
 /// alternative.
 pub fn fit_all(a: &Analysis) -> Vec<Option<AxisFit>> {
+    fit_all_with_filter(a).fits
+}
+
+/// The fits of a recording with the output stage they took.
+#[derive(Clone, Debug)]
+pub struct Fitted {
+    /// The six channels' fits.
+    pub fits: Vec<Option<AxisFit>>,
+    /// The output filter kept.
+    pub filter: Option<FittedFilter>,
+    /// How an LSB found on the lattice quantizes: true for carry (pulse accumulation, error
+    /// 3Q²/τ²), false for per-sample rounding (white q²/12).
+    pub carry: bool,
+}
+
+/// [`fit_all`] and the output filter it took: a recording's PSD names the best candidate
+/// ([`super::filter::fit`]), which is kept when the Allan-variance fit with it costs less than
+/// without it by more than [`super::filter::FILTER_PENALTY`] (the top decade of a PSD also
+/// falls for a Gauss–Markov term of T ≈ 10Δt, which the unfiltered fit models exactly). A
+/// table's filter is read from its shortest τ ([`super::filter::fit_adev`]) and kept as read.
+///
+/// Values on a lattice are quantized, but a rate grid does not say how: a unit that rounds
+/// each sample adds white noise q²/12 per sample, one that accumulates pulses and carries the
+/// residual (the generator's carry mode) an angle error uniform over qΔt, 3Q²/τ². Both are
+/// fitted and the cheaper kept (the same number of parameters: none).
+pub fn fit_all_with_filter(a: &Analysis) -> Fitted {
+    let series = a.channels.iter().all(|c| c.trend.is_some());
+    let lattice = triad_lsbs(a).iter().any(Option::is_some);
+    let filter = super::filter::fit(a);
+    let cost = |f: &[Option<AxisFit>]| f.iter().flatten().map(|f| f.cost).sum::<f64>();
+    let mut best: Option<(f64, Fitted)> = None;
+    for carry in if lattice {
+        vec![false, true]
+    } else {
+        vec![false]
+    } {
+        let mut options = vec![(filter.clone(), 0.0)];
+        if filter.is_some() && series {
+            options.push((None, super::filter::FILTER_PENALTY));
+        }
+        for (f, bonus) in options {
+            let fits = fit_with(a, f.as_ref(), carry);
+            // Without the filter the cost is lowered by the penalty the filter must beat.
+            let c = cost(&fits) - bonus;
+            if best.as_ref().is_none_or(|b| c < b.0) {
+                best = Some((
+                    c,
+                    Fitted {
+                        fits,
+                        filter: f,
+                        carry,
+                    },
+                ));
+            }
+        }
+    }
+    best.expect("one variant at least").1
+}
+
+fn fit_with(a: &Analysis, filter: Option<&FittedFilter>, carry: bool) -> Vec<Option<AxisFit>> {
     let samples = a.samples as usize;
     let series = a.channels.iter().all(|c| c.trend.is_some());
+    let white = filter.map(FittedFilter::white);
+    let stages = output_stages(a, carry).map(|s| OutputStage {
+        white: white.clone(),
+        ..s
+    });
     let triad = |base: usize| {
         let c = &a.channels;
+        let outputs = std::array::from_fn(|i| OutputStage {
+            sines: super::lines::find(&c[base + i].psd)
+                .iter()
+                .map(|l| (l.amplitude, l.freq))
+                .collect(),
+            ..stages[base / 3].clone()
+        });
         fit_triad_with(
             [&c[base].adev, &c[base + 1].adev, &c[base + 2].adev],
             samples,
             a.dt,
             !series,
+            outputs,
         )
     };
     let mut fits = std::thread::scope(|s| {
@@ -37,6 +111,35 @@ pub fn fit_all(a: &Analysis) -> Vec<Option<AxisFit>> {
         super::ramp::apply(a, &mut fits);
     }
     fits
+}
+
+/// The output LSB of each triad (gyro, accel) from its value lattice: q the median of the
+/// axes' LSBs where all three axes sit on a lattice. A template has one quantization mode:
+/// when either triad has an LSB, both are fitted for rounding (`quantization_mode = "round"`),
+/// so neither fits the carry-mode term.
+pub fn triad_lsbs(a: &Analysis) -> [Option<f64>; 2] {
+    [0, 3].map(|base| {
+        let mut q: Vec<f64> = (0..3)
+            .map(|i| a.channels[base + i].lattice.map(|l| l.lsb))
+            .collect::<Option<Vec<f64>>>()?;
+        q.sort_by(f64::total_cmp);
+        Some(q[1])
+    })
+}
+
+/// What the fit of each triad takes as known from its LSB ([`triad_lsbs`]).
+fn output_stages(a: &Analysis, carry: bool) -> [OutputStage; 2] {
+    let q = triad_lsbs(a);
+    let rounding = q.iter().any(Option::is_some) && !carry;
+    q.map(|q| match q {
+        Some(q) if carry => OutputStage::carried(q, a.dt),
+        Some(q) => OutputStage::rounded(q, a.dt),
+        None if rounding => OutputStage {
+            carry: false,
+            ..OutputStage::default()
+        },
+        None => OutputStage::default(),
+    })
 }
 
 /// What the two intervals of a term say.

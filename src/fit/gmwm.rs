@@ -10,7 +10,8 @@
 //! each basis being the exact Allan variance of what the error model generates at the
 //! record's Δt (see [`crate::analysis::theory`]): F_band is the curve of the bias-instability
 //! bank of [`crate::errors::process::flicker_bank`] per unit B² (flat 2 ln 2/π inside its τ
-//! band, falling outside), g(u) the Gauss–Markov shape [`gm_shape`]. The model is linear in
+//! band, falling outside), g the Gauss–Markov sequence's exact curve at the record's Δt
+//! ([`gm_avar_sampled`]: white noise when T ≪ Δt, the continuous g(τ/T) when T ≫ Δt). The model is linear in
 //! the six coefficients (Q², N², B², K², R², σ_GM²) for a fixed band and T; the band edges
 //! (half-decade grid) and T (quarter-decade grid) are searched.
 //!
@@ -43,18 +44,23 @@
 //! with one is only reported beside the template's; a recording's ramp is tested on its time
 //! series instead ([`super::ramp`]).
 
+pub use super::output::{OutputStage, sine_avar};
 use crate::analysis::confidence::{NoiseType, edf};
 use crate::analysis::conformance::{band as chi2_band, model_allowance, term_edf};
 use crate::analysis::fit::{TERM_PENALTY, Term, weighted_lstsq};
 use crate::analysis::octave_adev::AdevPoint;
-use crate::analysis::theory::{AxisTheory, gm_shape};
-use crate::errors::process::flicker_bank;
+use crate::analysis::theory::{AxisTheory, gm_avar_sampled};
+use crate::errors::process::{FLICKER_RATIO, flicker_bank};
 
 /// χ²₂ at 99 % (= 2 ln 100): what a Gauss–Markov component (σ, T) must gain.
 pub const GM_PENALTY: f64 = 9.210_340_371_976_184;
 
 /// χ²₃ at 99 %: what bias instability with its band (B, τ_lo, τ_hi) must gain.
 pub const FLICKER_PENALTY: f64 = 11.344_866_730_144_373;
+
+/// Under an output filter, the shortest correlation time (in Δt) a fitted Gauss–Markov or
+/// bank component may have ([`OutputStage`]).
+pub const FILTERED_SLOWEST: f64 = 10.0;
 
 /// Reweighting passes (the chosen model settles within three or four on every case tried).
 const PASSES: usize = 6;
@@ -128,6 +134,8 @@ pub struct Model {
     pub gm_tau: f64,
     /// Sampling interval (s).
     pub dt: f64,
+    /// The output LSB's known part.
+    pub output: OutputStage,
 }
 
 impl Model {
@@ -140,13 +148,18 @@ impl Model {
         self.c[i]
             * match k {
                 Component::BiasInstability => flicker_basis(self.band, m, self.dt),
-                Component::GaussMarkov => gm_shape(m as f64 * self.dt / self.gm_tau),
+                Component::GaussMarkov => gm_avar_sampled(self.dt / self.gm_tau, m),
+                Component::WhiteNoise => fixed_basis(k, m, self.dt) * self.output.white_ratio(m),
                 _ => fixed_basis(k, m, self.dt),
             }
     }
-    /// σ² at cluster size m.
+    /// σ² at cluster size m, the output LSB's rounding noise included.
     pub fn avar(&self, m: usize) -> f64 {
-        COMPONENTS.iter().map(|&k| self.part(k, m)).sum()
+        self.rounding(m) + COMPONENTS.iter().map(|&k| self.part(k, m)).sum::<f64>()
+    }
+    /// The known part of σ² at cluster size m: the rounding noise and the spectral lines.
+    pub fn rounding(&self, m: usize) -> f64 {
+        self.output.known(m, self.dt)
     }
     /// The component with the largest share at m (None when the model is empty).
     pub fn dominant(&self, m: usize) -> Option<Component> {
@@ -166,8 +179,8 @@ impl Model {
         let b = self.value(Component::BiasInstability);
         AxisTheory {
             white: self.value(Component::WhiteNoise),
-            rounding_white: 0.0,
-            quantization: self.value(Component::Quantization),
+            rounding_white: self.output.rounding.sqrt(),
+            quantization: (self.c[Component::Quantization as usize] + self.output.carried).sqrt(),
             random_walk: self.value(Component::RandomWalk),
             gauss_markov: if self.c[5] > 0.0 {
                 vec![(self.value(Component::GaussMarkov), self.gm_tau)]
@@ -202,10 +215,9 @@ fn fixed_basis(k: Component, m: usize, dt: f64) -> f64 {
 
 /// σ² of the bias-instability bank per unit B² at cluster size m.
 fn flicker_basis(band: (f64, f64), m: usize, dt: f64) -> f64 {
-    let tau = m as f64 * dt;
     flicker_bank(1.0, band, dt)
         .iter()
-        .map(|c| c.sigma * c.sigma * gm_shape(tau / c.tau))
+        .map(|c| c.sigma * c.sigma * gm_avar_sampled(dt / c.tau, m))
         .sum()
 }
 
@@ -269,6 +281,10 @@ struct Design {
     gms: Vec<(f64, Vec<f64>)>,
     /// The random walk must be in every model searched ([`Options::walk`]).
     walk: bool,
+    /// The output LSB's known part, and `y` less its rounding noise (what the fitted
+    /// components must explain).
+    output: OutputStage,
+    y_fit: Vec<f64>,
 }
 
 /// The fixed components in the order of `Design::fixed`.
@@ -288,14 +304,30 @@ struct Found {
 }
 
 impl Design {
-    fn new(points: &[AdevPoint], dt: f64) -> Design {
+    fn new(points: &[AdevPoint], dt: f64, output: OutputStage) -> Design {
         let pts: Vec<&AdevPoint> = points
             .iter()
             .filter(|p| p.adev > 0.0 && p.adev.is_finite())
             .collect();
         let ms: Vec<usize> = pts.iter().map(|p| p.m).collect();
-        let y = pts.iter().map(|p| p.adev * p.adev).collect();
-        let fixed = FIXED.map(|k| ms.iter().map(|&m| fixed_basis(k, m, dt)).collect());
+        let y: Vec<f64> = pts.iter().map(|p| p.adev * p.adev).collect();
+        let y_fit = ms
+            .iter()
+            .zip(&y)
+            .map(|(&m, y)| y - output.known(m, dt))
+            .collect();
+        let fixed = FIXED.map(|k| {
+            ms.iter()
+                .map(|&m| {
+                    let shape = if k == Component::WhiteNoise {
+                        output.white_ratio(m)
+                    } else {
+                        1.0
+                    };
+                    fixed_basis(k, m, dt) * shape
+                })
+                .collect()
+        });
         let (tau_min, tau_max) = match (ms.first(), ms.last()) {
             (Some(&a), Some(&b)) => (a as f64 * dt, b as f64 * dt),
             _ => (dt, dt),
@@ -305,10 +337,21 @@ impl Design {
         // at least a decade wide (narrower is what the Gauss–Markov component describes).
         // Widest first, so that among equal fits the band that claims least is kept.
         let grid = log_grid(tau_min, 10.0 * tau_max, 2.0);
+        // Under an output filter the Gauss–Markov and bank components are taken unfiltered
+        // (OutputStage): true to O(filter length/T), so only components slower than 10Δt are
+        // candidates — a GM of T ≥ 10Δt, a band whose fastest component (τ_lo/(π·√10)) is.
+        let (slow, gm_from) = if output.white.is_some() {
+            (
+                FILTERED_SLOWEST * dt * std::f64::consts::PI * FLICKER_RATIO,
+                FILTERED_SLOWEST * dt,
+            )
+        } else {
+            (0.0, 0.0)
+        };
         let mut bands = Vec::new();
         for (i, &lo) in grid.iter().enumerate() {
             for &hi in &grid[i..] {
-                if hi >= 9.99 * lo && lo <= tau_max {
+                if hi >= 9.99 * lo && lo <= tau_max && lo >= slow {
                     bands.push((lo, hi));
                 }
             }
@@ -318,7 +361,7 @@ impl Design {
             .into_iter()
             .map(|b| (b, ms.iter().map(|&m| flicker_basis(b, m, dt)).collect()))
             .collect();
-        let gms = log_grid(tau_min, tau_max, 4.0)
+        let gms = log_grid(tau_min.max(gm_from), tau_max, 4.0)
             .into_iter()
             .map(|t| (t, gm_column(&ms, dt, t)))
             .collect();
@@ -329,6 +372,8 @@ impl Design {
             bands,
             gms,
             walk: false,
+            output,
+            y_fit,
         }
     }
 
@@ -379,7 +424,7 @@ impl Design {
                     if cols.is_empty() || cols.len() > self.y.len() {
                         continue;
                     }
-                    let Some(sol) = weighted_lstsq(cols, &self.y, w) else {
+                    let Some(sol) = weighted_lstsq(cols, &self.y_fit, w) else {
                         continue;
                     };
                     if sol.iter().any(|v| *v <= 0.0) {
@@ -390,6 +435,7 @@ impl Design {
                         band: b.map_or((1.0, 1000.0), |bi| self.bands[bi].0),
                         gm_tau: g.map_or(1.0, |g| g.0),
                         dt,
+                        output: self.output.clone(),
                     };
                     which
                         .iter()
@@ -431,7 +477,13 @@ impl Design {
 }
 
 fn gm_column(ms: &[usize], dt: f64, t: f64) -> Vec<f64> {
-    ms.iter().map(|&m| gm_shape(m as f64 * dt / t)).collect()
+    ms.iter().map(|&m| gm_avar_sampled(dt / t, m)).collect()
+}
+
+/// ∂g/∂ln T of the Gauss–Markov basis at x = Δt/T (= −∂g/∂ln x), by a central difference in ln x.
+fn gm_dlnt(x: f64, m: usize) -> f64 {
+    let h = 1e-4f64;
+    -(gm_avar_sampled(x * h.exp(), m) - gm_avar_sampled(x * (-h).exp(), m)) / (2.0 * h)
 }
 
 /// 10^(k/per_decade) for the k with lo ≤ value ≤ hi (a small tolerance at the ends).
@@ -444,7 +496,7 @@ fn log_grid(lo: f64, hi: f64, per_decade: f64) -> Vec<f64> {
 }
 
 /// What the search may use.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Options {
     /// Whether a rate ramp may be fitted (the template has no key for it).
     pub ramp: bool,
@@ -453,6 +505,8 @@ pub struct Options {
     /// Whether the random walk must be in the model (the least favourable null of the
     /// time-domain ramp test, [`super::ramp`]).
     pub walk: bool,
+    /// What the output LSB fixes.
+    pub output: OutputStage,
 }
 
 impl Default for Options {
@@ -461,6 +515,7 @@ impl Default for Options {
             ramp: true,
             band: None,
             walk: false,
+            output: OutputStage::default(),
         }
     }
 }
@@ -475,7 +530,7 @@ pub fn fit_axis(points: &[AdevPoint], samples: usize, dt: f64) -> Option<AxisFit
 /// alternative where a fit with it is better) and one bias-instability band for the triad —
 /// of the bands the axes choose alone, the one with the least total cost.
 pub fn fit_triad(points: [&[AdevPoint]; 3], samples: usize, dt: f64) -> [Option<AxisFit>; 3] {
-    fit_triad_with(points, samples, dt, true)
+    fit_triad_with(points, samples, dt, true, Default::default())
 }
 
 /// [`fit_triad`], the Allan-variance ramp alternative sought only when `alternative` (a
@@ -485,13 +540,20 @@ pub fn fit_triad_with(
     samples: usize,
     dt: f64,
     alternative: bool,
+    outputs: [OutputStage; 3],
 ) -> [Option<AxisFit>; 3] {
-    let no_ramp = Options {
-        ramp: false,
-        band: None,
-        walk: false,
+    let axes = |band: Option<(f64, f64)>| -> [Option<AxisFit>; 3] {
+        std::array::from_fn(|i| {
+            let o = Options {
+                ramp: false,
+                band,
+                walk: false,
+                output: outputs[i].clone(),
+            };
+            fit_axis_with(points[i], samples, dt, &o)
+        })
     };
-    let alone = points.map(|p| fit_axis_with(p, samples, dt, &no_ramp));
+    let alone = axes(None);
     let mut bands: Vec<(f64, f64)> = alone
         .iter()
         .flatten()
@@ -504,18 +566,11 @@ pub fn fit_triad_with(
     } else {
         bands
             .iter()
-            .map(|&b| {
-                let o = Options {
-                    ramp: false,
-                    band: Some(b),
-                    walk: false,
-                };
-                points.map(|p| fit_axis_with(p, samples, dt, &o))
-            })
+            .map(|&b| axes(Some(b)))
             .min_by(|a, b| total_cost(a).total_cmp(&total_cost(b)))
             .expect("two or more bands")
     };
-    for (f, p) in fits.iter_mut().zip(points) {
+    for ((f, p), output) in fits.iter_mut().zip(points).zip(&outputs) {
         let Some(f) = f.as_mut().filter(|_| alternative) else {
             continue;
         };
@@ -523,6 +578,7 @@ pub fn fit_triad_with(
             ramp: true,
             band: (f.model.c[2] > 0.0).then_some(f.model.band),
             walk: false,
+            output: output.clone(),
         };
         if let Some(r) = fit_axis_with(p, samples, dt, &with)
             && r.cost < f.cost
@@ -544,7 +600,7 @@ pub fn fit_axis_with(
     dt: f64,
     opts: &Options,
 ) -> Option<AxisFit> {
-    let mut d = Design::new(points, dt);
+    let mut d = Design::new(points, dt, opts.output.clone());
     d.walk = opts.walk;
     if d.y.is_empty() {
         return None;
@@ -555,7 +611,14 @@ pub fn fit_axis_with(
         Some(b) => vec![None, d.bands.iter().position(|c| c.0 == b)],
     };
     let gms = d.all_gms();
-    let base_exclude: &[Component] = if opts.ramp { &[] } else { &[Component::Ramp] };
+    let mut base_exclude: Vec<Component> = Vec::new();
+    if !opts.ramp {
+        base_exclude.push(Component::Ramp);
+    }
+    if !opts.output.carry {
+        base_exclude.push(Component::Quantization);
+    }
+    let base_exclude = base_exclude.as_slice();
     // First pass weighted by the data, then by the model.
     let mut model_avar = d.y.clone();
     let mut types = vec![NoiseType::WhiteRate; d.y.len()];
@@ -782,10 +845,7 @@ fn gm_pair_dof(d: &Design, model: &Model, phases: usize) -> Option<(f64, f64)> {
     let nt = Component::GaussMarkov.noise_type();
     let ab = |m: usize| {
         let total = model.avar(m);
-        let u = m as f64 * dt / model.gm_tau;
-        let h = 1e-4f64;
-        // ∂g(τ/T)/∂ln T = −u g'(u), by a central difference in ln u.
-        let dg = -(gm_shape(u * h.exp()) - gm_shape(u * (-h).exp())) / (2.0 * h);
+        let dg = gm_dlnt(dt / model.gm_tau, m);
         (
             model.part(Component::GaussMarkov, m) / total,
             model.c[5] * dg / total,
@@ -830,9 +890,7 @@ fn gm_joint_variances(d: &Design, model: &Model, phases: usize) -> Option<(f64, 
     let mut info = nalgebra::DMatrix::<f64>::zeros(p, p);
     for &m in &d.ms {
         let total = model.avar(m);
-        let u = m as f64 * dt / model.gm_tau;
-        let h = 1e-4f64;
-        let dg = -(gm_shape(u * h.exp()) - gm_shape(u * (-h).exp())) / (2.0 * h);
+        let dg = gm_dlnt(dt / model.gm_tau, m);
         let mut row: Vec<f64> = kept.iter().map(|&k| model.part(k, m) / total).collect();
         row.push(model.c[5] * dg / total);
         let w = edf(model.dominant(m)?.noise_type(), phases, m) / 2.0;
@@ -877,6 +935,7 @@ mod tests {
             band: (10.0, 1000.0),
             gm_tau: 10f64.powf(0.5),
             dt,
+            output: OutputStage::default(),
         };
         let f = fit_axis(&exact_points(&truth, 22), 1 << 23, dt).unwrap();
         assert!(

@@ -5,10 +5,13 @@
 //! comparison of two recordings ([`compare`]). No file I/O:
 //! the command reads the input and writes the outputs.
 
+pub mod checks;
 pub mod closure;
 pub mod compare;
+pub mod filter;
 pub mod gmwm;
 pub mod lines;
+pub mod output;
 pub mod ramp;
 pub mod report;
 pub mod template;

@@ -122,7 +122,8 @@ pub fn slope_variance(model: &Model, n: usize) -> f64 {
     let dt = model.dt;
     let c = &model.c;
     let mut v = c[Component::Quantization as usize] * quantization_slope_var(n, dt)
-        + c[Component::WhiteNoise as usize] * white_slope_var(n, dt)
+        + (c[Component::WhiteNoise as usize] * model.output.white_long() + model.output.rounding)
+            * white_slope_var(n, dt)
         + c[Component::RandomWalk as usize] * walk_slope_var(n, dt);
     if c[Component::GaussMarkov as usize] > 0.0 {
         v += c[Component::GaussMarkov as usize] * ar1_slope_var(n, dt, model.gm_tau);
@@ -148,6 +149,7 @@ pub fn null_variance(points: &[AdevPoint], n: usize, fit: &AxisFit) -> f64 {
         ramp: false,
         band: (fit.model.c[Component::BiasInstability as usize] > 0.0).then_some(fit.model.band),
         walk: true,
+        output: fit.model.output.clone(),
     };
     match fit_axis_with(points, n, fit.model.dt, &opts) {
         Some(w) if w.chi2 <= fit.chi2 + GM_PENALTY => v.max(slope_variance(&w.model, n)),
@@ -188,7 +190,13 @@ pub fn apply(a: &Analysis, fits: &mut [Option<AxisFit>]) {
                     _ => c.adev.as_slice(),
                 }
             });
-            let refit = fit_triad_with(points, n, a.dt, false);
+            let outputs = std::array::from_fn(|axis| {
+                fits[base + axis]
+                    .as_ref()
+                    .map(|f| f.model.output.clone())
+                    .unwrap_or_default()
+            });
+            let refit = fit_triad_with(points, n, a.dt, false, outputs);
             for (axis, f) in refit.into_iter().enumerate() {
                 fits[base + axis] = f;
             }

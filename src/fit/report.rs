@@ -4,7 +4,7 @@
 
 use std::fmt::Write;
 
-use super::closure::ClosurePoint;
+use super::closure::{ClosurePoint, PSD_BANDS_PER_DECADE, PSD_FROM_HZ, PsdPoint};
 use super::gmwm::{AxisFit, COMPONENTS, Component};
 use super::lines::Line;
 use super::ramp::{GATE_CONFIDENCE, RampTest, normal_point};
@@ -18,7 +18,7 @@ pub fn markdown(
     p: &Provenance,
     fits: &[Option<AxisFit>],
     lines: &[Vec<Line>],
-    closure: &[Vec<ClosurePoint>],
+    closure: &Closure,
     plot: Option<&str>,
 ) -> String {
     let mut s = String::new();
@@ -116,25 +116,93 @@ pub fn markdown(
             );
         }
     }
+    closure_section(&mut s, closure);
+    s
+}
+
+/// The closure check of every channel: Allan deviation per octave and PSD per band.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Closure {
+    /// Per channel, the octaves from Δt to T/8.
+    pub adev: Vec<Vec<ClosurePoint>>,
+    /// Per channel, the PSD bands from 0.01 Hz to the Nyquist frequency (empty for a table).
+    pub psd: Vec<Vec<PsdPoint>>,
+}
+
+impl Closure {
+    /// Octaves and bands outside their band, over all channels.
+    pub fn failures(&self) -> usize {
+        let a = self.adev.iter().flatten().filter(|p| !p.inside()).count();
+        a + self.psd.iter().flatten().filter(|p| !p.inside()).count()
+    }
+}
+
+fn verdict(inside: bool) -> &'static str {
+    if inside { "inside" } else { "**OUTSIDE**" }
+}
+
+/// `## Closure`: a summary line per channel, then every octave and band with its verdict.
+fn closure_section(s: &mut String, c: &Closure) {
     let _ = writeln!(
         s,
-        "\n## Closure\n\nA static record of the same length simulated from the fitted template; its Allan deviation\nagainst the recording's band (±4σ of the difference, docs/fit.md) at every octave from Δt to T/8.\n"
+        "\n## Closure\n\nA static record of the same length simulated from the fitted template (as written, loaded back):\nits Allan deviation at every octave from Δt to T/8, and its PSD over bands of 1/{} decade from {} Hz to\nthe Nyquist frequency, against the recording's bands (±4σ of the difference, docs/fit.md).\n",
+        PSD_BANDS_PER_DECADE, PSD_FROM_HZ
     );
-    for (ch, c) in closure.iter().enumerate() {
-        let inside = c.iter().filter(|p| p.inside()).count();
-        let worst = c
-            .iter()
-            .map(|p| (p.simulated / p.recorded).ln().abs() / (p.hi / p.recorded).ln())
-            .fold(0.0, f64::max);
+    if c.adev.iter().all(Vec::is_empty) {
+        let _ = writeln!(s, "No closure check was run.");
+        return;
+    }
+    for (ch, (a, name)) in c.adev.iter().zip(CHANNELS).enumerate() {
+        let p = c.psd.get(ch).map_or(&[][..], Vec::as_slice);
         let _ = writeln!(
             s,
-            "- {}: {inside} of {} octaves inside; largest deviation {:.0} % of the band's half-width",
-            CHANNELS[ch],
-            c.len(),
-            100.0 * worst
+            "- {}: Allan deviation {} of {} octaves inside; PSD {} of {} bands inside",
+            name,
+            a.iter().filter(|x| x.inside()).count(),
+            a.len(),
+            p.iter().filter(|x| x.inside()).count(),
+            p.len()
         );
     }
-    s
+    for (ch, (adev, name)) in c.adev.iter().zip(CHANNELS).enumerate() {
+        let (unit, k) = adev_unit(ch < 3);
+        let _ = writeln!(
+            s,
+            "\n### {name}\n\n| τ (s) | recording ({unit}) | simulated | band | verdict |\n| --- | --- | --- | --- | --- |"
+        );
+        for q in adev {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | [{}, {}] | {} |",
+                sig4(q.tau),
+                sig4(q.recorded * k),
+                sig4(q.simulated * k),
+                sig4(q.lo * k),
+                sig4(q.hi * k),
+                verdict(q.inside())
+            );
+        }
+        let Some(p) = c.psd.get(ch).filter(|p| !p.is_empty()) else {
+            continue;
+        };
+        let _ = writeln!(
+            s,
+            "\n| f (Hz) | bins | PSD recording (({unit})²/Hz) | simulated | band | verdict |\n| --- | --- | --- | --- | --- | --- |"
+        );
+        for q in p {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | [{}, {}] | {} |",
+                sig4(q.freq),
+                q.bins,
+                sig4(q.recorded * k * k),
+                sig4(q.simulated * k * k),
+                sig4(q.lo * k * k),
+                sig4(q.hi * k * k),
+                verdict(q.inside())
+            );
+        }
+    }
 }
 
 /// The time-domain ramp of each channel of a recording: kept ones with their interval, the
@@ -167,6 +235,48 @@ fn ramp_rows(s: &mut String, fits: &[Option<AxisFit>]) {
             if t.kept { "yes" } else { "no" }
         );
     }
+}
+
+/// One PSD panel per sensor: the recording's three axes with their 68 % bands (solid) and
+/// the simulated record's (dashed).
+pub fn psd_panels(recorded: &Analysis, simulated: Option<&Analysis>, title: &str) -> Vec<Panel> {
+    [0, 3]
+        .map(|base| {
+            let (unit, k) = adev_unit(base == 0);
+            let mut series = Vec::new();
+            for (i, a) in std::iter::once(recorded).chain(simulated).enumerate() {
+                for axis in 0..3 {
+                    let p = &a.channels[base + axis].psd;
+                    if p.segments == 0 {
+                        continue;
+                    }
+                    let b = crate::analysis::report::banded_psd(p, k);
+                    series.push(Series {
+                        label: match (i, axis) {
+                            (0, 0) => "recording x y z (68 % band)".into(),
+                            (_, 0) => "simulated from the template".into(),
+                            _ => String::new(),
+                        },
+                        x: b.freq,
+                        y: b.density,
+                        band: (i == 0).then_some((b.lo, b.hi)),
+                        color: if i == 0 { 0 } else { 2 },
+                        dashed: i > 0,
+                    });
+                }
+            }
+            Panel {
+                title: format!("{title}: {} PSD", if base == 0 { "gyro" } else { "accel" }),
+                x_label: "f (Hz)".into(),
+                y_label: format!("PSD ({unit})²/Hz"),
+                log_x: true,
+                log_y: true,
+                series,
+            }
+        })
+        .into_iter()
+        .filter(|p| !p.series.is_empty())
+        .collect()
 }
 
 /// One ADEV panel per channel (gyro x y z, accel x y z): the recording with its 68 % band,

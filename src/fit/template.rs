@@ -21,6 +21,13 @@ pub struct Provenance {
     pub samples: u64,
     /// Sampling interval (s).
     pub dt: f64,
+    /// The output LSB of the gyro and accelerometer triads, from the value lattice (rate
+    /// units, SI; None: the values sit on no grid).
+    pub lsb: [Option<f64>; 2],
+    /// The output filter read from the PSD roll-off.
+    pub filter: Option<super::filter::FittedFilter>,
+    /// Whether the LSB quantizes by carrying the residual (else by rounding each sample).
+    pub carry: bool,
 }
 
 /// A number with 4 significant digits, plain or in exponent form, that parses back.
@@ -96,10 +103,37 @@ pub fn template_toml(p: &Provenance, fits: &[Option<AxisFit>], lines: &[Vec<Line
         p.source.replace('"', "'")
     );
     let _ = writeln!(s, "rate_hz = {}", sig4(1.0 / p.dt));
+    if p.lsb.iter().any(Option::is_some) && !p.carry {
+        let _ = writeln!(
+            s,
+            "# The recorded values sit on a grid (the unit's output LSB): each rate sample is rounded to it,\n# which adds white noise of variance q²/12 per sample; the white noise below is what is left.\nquantization_mode = \"round\""
+        );
+    }
     for (gyro, base) in [(true, 0), (false, 3)] {
         let _ = writeln!(s, "\n[{}]", if gyro { "gyro" } else { "accel" });
         let axes: Vec<Option<&AxisFit>> = (0..3).map(|a| fits[base + a].as_ref()).collect();
         triad_toml(&mut s, gyro, &axes);
+        if let Some(q) = p.lsb[base / 3].filter(|_| p.carry) {
+            let u = if gyro { "rad" } else { "m/s" };
+            let _ = writeln!(
+                s,
+                "# output LSB from the value lattice of x, y, z (median), increments carried (the fit of a\n\
+                 # rounding quantizer was worse): rate grid q, increment LSB qΔt\n\
+                 quantization = \"{:.7e} {u}\"",
+                q * p.dt
+            );
+        } else if let Some(q) = p.lsb[base / 3] {
+            let (u, f) = if gyro {
+                ("deg/s", 180.0 / std::f64::consts::PI)
+            } else {
+                ("m/s^2", 1.0)
+            };
+            let _ = writeln!(
+                s,
+                "# output LSB from the value lattice of x, y, z (median): every value within 2 % of an LSB of the grid\nquantization = \"{:.7e} {u}\"",
+                q * f
+            );
+        }
         for a in 0..3 {
             for l in &lines[base + a] {
                 let (u, f) = if gyro {
@@ -117,6 +151,9 @@ pub fn template_toml(p: &Provenance, fits: &[Option<AxisFit>], lines: &[Vec<Line
                 );
             }
         }
+    }
+    if let Some(f) = &p.filter {
+        s.push_str(&super::filter::toml(f));
     }
     s
 }
@@ -338,7 +375,14 @@ pub fn sines_scene(p: &Provenance, lines: &[Vec<Line>]) -> String {
                 "\n[[vibration.sine]]\nsensor = \"{}\"\naxis = \"{}\"\namplitude = \"{} {u}\"\nfrequency = \"{} Hz\"\n",
                 if gyro { "gyro" } else { "accel" },
                 ["x", "y", "z"][ch % 3],
-                sig4(l.amplitude * f),
+                sig4(
+                    super::closure::source_amplitude(
+                        l.amplitude,
+                        l.freq,
+                        p.dt,
+                        p.filter.as_ref().map(|f| &f.spec)
+                    ) * f
+                ),
                 sig4(l.freq)
             );
         }

@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# Fits templates to public static recordings of real IMUs and checks the closure of each
+# (docs/fit.md, "Real recordings"): `imu-emu fit REC -o UNIT.toml --report REPORT.md --plot
+# PICTURE.png` simulates a record of the same length from the fitted template and lists its
+# Allan deviation per octave and PSD per band against the recording's bands. Prints one line
+# per recording and channel: octaves and PSD bands inside.
+#
+#   scripts/fit_real.sh IMUDATA SENSOR_FUSION OUT
+#
+# IMUDATA: a clone of https://github.com/SMAC-Group/imudata (ADIS16405, six 10^6-sample runs
+# at 100 Hz; CC BY-NC-SA 4.0). SENSOR_FUSION: a clone of https://github.com/sunsided/sensor-fusion
+# (MPU-6050, set-2; EUPL-1.2). Either may be `-` to skip it. The ADIS16448 and BMI160 Allan
+# deviation tables of gaowenliang/imu_utils (MIT) are in tests/data/imu_utils/. OUT receives
+# the converted CSVs, templates, reports and pictures. Needs python3 with rdata, h5py, numpy
+# (installed into OUT/venv on first use) and imu-emu built (cargo build --release).
+set -euo pipefail
+[ $# -eq 3 ] || { sed -n '2,17p' "$0"; exit 2; }
+here=$(cd "$(dirname "$0")/.." && pwd)
+imudata=$1 fusion=$2 out=$3
+mkdir -p "$out"
+bin="$here/target/release/imu-emu"
+[ -x "$bin" ] || (cd "$here" && cargo build --release --bin imu-emu)
+py="$out/venv/bin/python"
+[ -x "$py" ] || { python3 -m venv "$out/venv" && "$out/venv/bin/pip" install -q rdata h5py numpy; }
+conv="$here/scripts/fit_real_convert.py"
+
+fit() { # name input [fit flags...]
+    local name=$1 input=$2
+    shift 2
+    "$bin" fit "$input" "$@" -o "$out/$name.toml" --report "$out/$name.md" --plot "$out/$name.png" \
+        > /dev/null 2> "$out/$name.log" || { cat "$out/$name.log"; return 1; }
+    sed -n 's/^- \(gyro\|accel\) \([xyz]\): Allan deviation/'"$name"' \1 \2:/p' "$out/$name.md"
+}
+
+if [ "$imudata" != - ]; then
+    for i in 1 2 3 4 5 6; do
+        csv="$out/adis16405-run$i.csv"
+        [ -s "$csv" ] || "$py" "$conv" adis16405 "$imudata/data/adis_16405_imu$i.rda" "$csv"
+        fit "adis16405-run$i" "$csv" --gyro-unit deg/s --accel-unit g
+    done
+fi
+if [ "$fusion" != - ]; then
+    set2="$fusion/data/set-2"
+    csv="$out/mpu6050-static.csv"
+    [ -s "$csv" ] || "$py" "$conv" mpu6050 "$set2/unmoved-with-x-pointing-forward-10min" "$csv"
+    # Its time tags are the host's (reads of the sensor's buffer in bursts, steps 1.2 ms to
+    # 0.5 s): fit refuses them, so it is read without them at the mean rate, 65067 samples in
+    # 655.13 s.
+    if "$bin" fit "$csv" --gyro-unit deg/s --accel-unit g -o "$out/refused.toml" 2> "$out/refused.log"; then
+        echo "expected fit to refuse the host time tags of $csv" >&2; exit 1
+    fi
+    sed 's/^/refused: /' "$out/refused.log" | tail -1
+    fit mpu6050-static "$csv" --columns=-,gx,gy,gz,ax,ay,az --rate 99.32 --gyro-unit deg/s --accel-unit g
+    moving="$out/mpu6050-moving.csv"
+    [ -s "$moving" ] || "$py" "$conv" mpu6050 "$set2/rotate-ccw-around-z-pointing-up" "$moving"
+    if "$bin" fit "$moving" --columns=-,gx,gy,gz,ax,ay,az --rate 100 --gyro-unit deg/s --accel-unit g \
+        -o "$out/moving.toml" 2> "$out/moving.log"; then
+        echo "expected fit to refuse the moving record $moving" >&2; exit 1
+    fi
+    sed 's/^/refused: /' "$out/moving.log" | tail -1
+fi
+for unit in adis16448 bmi160; do
+    fit "$unit" "$here/tests/data/imu_utils/$unit-adev.csv"
+done

@@ -1,0 +1,257 @@
+//! The unit's output filter read from the roll-off of its PSD towards the Nyquist frequency.
+//!
+//! A unit that samples at an internal rate D/Δt, low-passes and keeps every D-th value puts
+//! out white noise whose density is the filter's |H|² folded onto the output band:
+//! S(f)/S(0) = [`WhiteAllan::psd_ratio`] (exact for the generator's `[output_filter]`,
+//! `docs/fidelity.md`). Over the top of the band (from a tenth of the Nyquist frequency, where
+//! white noise is what a unit's PSD shows) each candidate filter is fitted to the six
+//! channels' band-averaged PSDs with a free level per channel: ln P̂ = ln c + ln ratio(f), each
+//! band weighted by ν/2 (Var ln P̂ = 2/ν for a Welch mean of ν degrees of freedom,
+//! [`crate::analysis::psd_band::WelchEdf`]). The best candidate is kept when it lowers that χ²
+//! below the flat spectrum's by more than [`FILTER_PENALTY`]; the white-noise basis of the
+//! Allan-variance fit is then the filtered one, N²·r(m)/τ ([`WhiteAllan::ratio`]).
+//!
+//! Candidates (one filter for all six channels, as a template holds it): internal rates
+//! D ∈ {2, 4, 8, 16} times the output rate with a moving average of L taps, or a CIC
+//! (cascaded moving averages, the Bartlett window of the ADIS164xx family at order 2) of
+//! order 2 or 3, L from 2 to 4D; and Butterworth low-passes of order 1–4 at D ∈ {1, 2, 4},
+//! cut-off 5–45 % of the output rate.
+
+use crate::analysis::analyzer::Analysis;
+use crate::analysis::psd_band::{WelchEdf, banded};
+use crate::errors::filter_allan::WhiteAllan;
+use crate::errors::output_filter::{FilterKind, FilterSpec};
+
+/// χ² a filter must gain over a flat spectrum (χ²₃ at 99.9 %: kind, D and L chosen).
+pub const FILTER_PENALTY: f64 = 16.27;
+
+/// Lowest frequency of the roll-off fit, as a fraction of the Nyquist frequency.
+pub const FROM_NYQUIST: f64 = 0.1;
+
+/// Bands per decade of the roll-off fit.
+const BANDS_PER_DECADE: f64 = 20.0;
+
+/// A filter read from the PSD, with its decimation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FittedFilter {
+    /// The filter (internal rate and kind).
+    pub spec: FilterSpec,
+    /// Internal samples per output sample.
+    pub decimation: usize,
+    /// The χ² of the fit and of a flat spectrum over the same bands.
+    pub chi2: f64,
+    /// χ² of the flat spectrum.
+    pub flat_chi2: f64,
+    /// Bands fitted (all channels).
+    pub bands: usize,
+}
+
+impl FittedFilter {
+    /// The filtered white-noise Allan variance at the output rate.
+    pub fn white(&self) -> WhiteAllan {
+        WhiteAllan::new(&self.spec, self.decimation)
+    }
+}
+
+/// The candidate filters at output interval Δt, with their decimation.
+pub fn candidates(dt: f64) -> Vec<(FilterSpec, usize)> {
+    let mut out = Vec::new();
+    for d in [2usize, 4, 8, 16] {
+        for taps in 2..=4 * d {
+            let kinds = [
+                FilterKind::MovingAverage { taps },
+                FilterKind::Cic { order: 2, taps },
+                FilterKind::Cic { order: 3, taps },
+            ];
+            for kind in kinds {
+                let spec = FilterSpec {
+                    internal_rate_hz: d as f64 / dt,
+                    kind,
+                };
+                out.push((spec, d));
+            }
+        }
+    }
+    // IIR low-passes (a MEMS unit's digital low-pass is often one): Butterworth of order 1–4,
+    // cut-off from 5 % to 45 % of the output rate, run at 1, 2 or 4 times the output rate.
+    for d in [1usize, 2, 4] {
+        for order in 1..=4 {
+            for k in 1..=9 {
+                let cutoff_hz = 0.05 * k as f64 / dt;
+                if cutoff_hz < 0.45 * d as f64 / dt {
+                    let spec = FilterSpec {
+                        internal_rate_hz: d as f64 / dt,
+                        kind: FilterKind::Butterworth { order, cutoff_hz },
+                    };
+                    out.push((spec, d));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The top-of-band PSD of each channel: (f, ln P̂, weight ν/2) per band.
+fn bands(a: &Analysis) -> Vec<Vec<(f64, f64, f64)>> {
+    let nyquist = 0.5 / a.dt;
+    a.channels
+        .iter()
+        .map(|c| {
+            let p = &c.psd;
+            if p.segments == 0 || p.freq.len() < 3 {
+                return Vec::new();
+            }
+            let end = p.freq.len() - 1;
+            let edf = WelchEdf::new(2 * end, p.segments);
+            let b = banded(p, BANDS_PER_DECADE, 0.5);
+            b.freq
+                .iter()
+                .zip(&b.density)
+                .zip(&b.bins)
+                .filter(|((f, d), _)| **f >= FROM_NYQUIST * nyquist && **d > 0.0)
+                .map(|((&f, &d), &m)| (f, d.ln(), edf.edf(m) / 2.0))
+                .collect()
+        })
+        .collect()
+}
+
+/// χ² of the bands against a shape ln ratio(f), each channel's level free (its weighted mean).
+fn chi2(bands: &[Vec<(f64, f64, f64)>], shape: impl Fn(f64) -> f64) -> f64 {
+    bands
+        .iter()
+        .map(|ch| {
+            let r: Vec<(f64, f64)> = ch.iter().map(|&(f, y, w)| (y - shape(f), w)).collect();
+            let wsum: f64 = r.iter().map(|x| x.1).sum();
+            if wsum == 0.0 {
+                return 0.0;
+            }
+            let level = r.iter().map(|x| x.0 * x.1).sum::<f64>() / wsum;
+            r.iter().map(|(e, w)| w * (e - level).powi(2)).sum::<f64>()
+        })
+        .sum()
+}
+
+/// The filter the recording's PSD shows (a published table, which has none: its short-τ
+/// Allan deviation, [`fit_adev`]), if one earns its place.
+pub fn fit(a: &Analysis) -> Option<FittedFilter> {
+    let b = bands(a);
+    let count: usize = b.iter().map(Vec::len).sum();
+    if count < 4 {
+        return fit_adev(a);
+    }
+    let flat = chi2(&b, |_| 0.0);
+    best(a.dt, flat, count, |w| {
+        chi2(&b, |f| w.psd_ratio(f, a.dt).max(1e-300).ln())
+    })
+}
+
+/// The candidate of least χ² (`score`), kept when it gains [`FILTER_PENALTY`] over `flat`.
+fn best(
+    dt: f64,
+    flat: f64,
+    bands: usize,
+    score: impl Fn(&WhiteAllan) -> f64,
+) -> Option<FittedFilter> {
+    let best = candidates(dt)
+        .into_iter()
+        .map(|(spec, d)| {
+            let c = score(&WhiteAllan::new(&spec, d));
+            (spec, d, c)
+        })
+        .min_by(|x, y| x.2.total_cmp(&y.2))?;
+    (flat - best.2 > FILTER_PENALTY).then_some(FittedFilter {
+        spec: best.0,
+        decimation: best.1,
+        chi2: best.2,
+        flat_chi2: flat,
+        bands,
+    })
+}
+
+/// The `[output_filter]` table of a fitted filter.
+pub fn toml(f: &FittedFilter) -> String {
+    let kind = match &f.spec.kind {
+        FilterKind::MovingAverage { taps } => format!("kind = \"moving_average\"\ntaps = {taps}"),
+        FilterKind::Cic { order, taps } => {
+            format!("kind = \"cic\"\norder = {order}\ntaps = {taps}")
+        }
+        FilterKind::Fir { coefficients } => {
+            format!("kind = \"fir\"\ncoefficients = {coefficients:?}")
+        }
+        FilterKind::Butterworth { order, cutoff_hz } => {
+            format!("kind = \"butterworth\"\norder = {order}\ncutoff = \"{cutoff_hz} Hz\"")
+        }
+    };
+    format!(
+        "\n# Output filter read from the PSD roll-off above {:.0} % of the Nyquist frequency (docs/fit.md): χ² {:.1} over {} bands\n# against {:.1} for a flat spectrum (kept when it gains more than {FILTER_PENALTY}).\n[output_filter]\ninternal_rate_hz = {}\n{kind}\n",
+        100.0 * FROM_NYQUIST,
+        f.chi2,
+        f.bands,
+        f.flat_chi2,
+        f.spec.internal_rate_hz
+    )
+}
+
+/// Longest cluster size the Allan-deviation filter fit uses: the filter's mark fades as 1/τ
+/// ([`WhiteAllan::ratio`]), and beyond a few dozen samples the slow terms take over.
+pub const ADEV_MAX_M: usize = 64;
+
+/// The filter read from the Allan deviation at its shortest τ (m ≤ [`ADEV_MAX_M`]), where a
+/// table gives nothing else to read it from: per channel σ̂²(m) = N²·r(m)/τ + C, N² and a
+/// constant C (the slow terms, nearly flat over these τ) fitted by least squares on the
+/// relative residuals with weights edf/2 (Var σ̂²/σ² = 2/edf, white-noise edf); the candidate
+/// with the least χ² over the six channels is kept when it gains [`FILTER_PENALTY`] over
+/// r ≡ 1.
+pub fn fit_adev(a: &Analysis) -> Option<FittedFilter> {
+    let n = a.samples as usize;
+    let chans: Vec<Vec<(usize, f64, f64)>> = a
+        .channels
+        .iter()
+        .map(|c| {
+            c.adev
+                .iter()
+                .filter(|p| p.m <= ADEV_MAX_M && p.m <= n / 8 && p.adev > 0.0)
+                .map(|p| {
+                    let w = crate::analysis::confidence::edf(
+                        crate::analysis::confidence::NoiseType::WhiteRate,
+                        n + 1,
+                        p.m,
+                    ) / 2.0;
+                    (p.m, p.adev * p.adev, w)
+                })
+                .collect()
+        })
+        .collect();
+    let count: usize = chans.iter().map(Vec::len).sum();
+    if chans.iter().any(|c| c.len() < 4) {
+        return None;
+    }
+    let chi2 = |ratio: &dyn Fn(usize) -> f64| -> f64 {
+        chans
+            .iter()
+            .map(|pts| {
+                // Minimise Σ w (1 − (x·u + C)/y)² over (x, C), u = r(m)/τ: 2×2 normal equations.
+                let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+                for &(m, y, w) in pts {
+                    let u = ratio(m) / (m as f64 * a.dt) / y;
+                    let v = 1.0 / y;
+                    a11 += w * u * u;
+                    a12 += w * u * v;
+                    a22 += w * v * v;
+                    b1 += w * u;
+                    b2 += w * v;
+                }
+                let det = a11 * a22 - a12 * a12;
+                let (x, c) = ((b1 * a22 - b2 * a12) / det, (a11 * b2 - a12 * b1) / det);
+                pts.iter()
+                    .map(|&(m, y, w)| {
+                        let model = x * ratio(m) / (m as f64 * a.dt) + c;
+                        w * (1.0 - model / y).powi(2)
+                    })
+                    .sum::<f64>()
+            })
+            .sum()
+    };
+    let flat = chi2(&|_| 1.0);
+    best(a.dt, flat, count, |w| chi2(&|m| w.ratio(m)))
+}

@@ -1,0 +1,98 @@
+//! The unit's output stage as the Allan-variance fit takes it ([`super::gmwm`]): what an LSB
+//! found on the value lattice, an output filter read from the PSD and the spectral lines fix
+//! in each axis's model — known parts of σ² that are added, not fitted, and the filtered
+//! white-noise basis. Pure math.
+
+use crate::errors::filter_allan::WhiteAllan;
+
+/// What the unit's output stage fixes for the fit of an axis. Its filter (when the PSD shows
+/// one, [`super::filter`]) shapes the white noise: its basis is r(m)/τ
+/// ([`WhiteAllan::ratio`]) instead of 1/τ, exact for white noise generated at the internal
+/// rate and filtered; the slower components are taken unfiltered (their curves change by the
+/// filter's length over τ, where they hold a small share). Its LSB: a unit that rounds each
+/// rate sample to its LSB q adds white rate noise of variance q²/12 per sample (density²
+/// q²Δt/12, Allan variance q²Δt/(12τ)) — known from the value lattice, so it is not fitted
+/// but added, and the fitted white noise N is the noise before the rounding, as the
+/// generator's `quantization_mode = "round"` needs it. The carry-mode term Q (3Q²/τ²) is then
+/// not a candidate: a template has one quantization mode.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OutputStage {
+    /// Rounding noise density² q²Δt/12 (0: no LSB seen).
+    pub rounding: f64,
+    /// Whether the carry-mode quantization Q may be fitted.
+    pub carry: bool,
+    /// Q² of a carry-mode quantizer known from the lattice ((qΔt)²/12 for a rate grid q),
+    /// adding 3Q²/τ².
+    pub carried: f64,
+    /// The output filter's white-noise Allan variance, when there is one.
+    pub white: Option<WhiteAllan>,
+    /// Spectral lines of the axis, known from its PSD ([`super::lines`]): (amplitude B of
+    /// the recorded samples, frequency f), each adding [`sine_avar`].
+    pub sines: Vec<(f64, f64)>,
+}
+
+/// The Allan variance at cluster size m of the samples y_k = B sin(2πf kΔt + φ), averaged
+/// over φ: adjacent m-sample means differ by 2 sin(πfτ)·sin(πfτ)/(m sin(πfΔt)) times the
+/// amplitude, so σ² = B² sin⁴(πfτ)/(m² sin²(πfΔt)) — for the interval means of a sine of
+/// amplitude A (B = A·sinc(πfΔt)) the continuous A² sin⁴(πfτ)/(πfτ)² (IEEE Std 952-1997,
+/// Annex C, sinusoidal noise).
+pub fn sine_avar(b: f64, f: f64, m: usize, dt: f64) -> f64 {
+    let x = std::f64::consts::PI * f * dt;
+    let s = (x * m as f64).sin();
+    let d = m as f64 * x.sin();
+    b * b * s.powi(4) / (d * d)
+}
+
+impl Default for OutputStage {
+    fn default() -> Self {
+        OutputStage {
+            rounding: 0.0,
+            carry: true,
+            carried: 0.0,
+            white: None,
+            sines: Vec::new(),
+        }
+    }
+}
+
+impl OutputStage {
+    /// Rounding to a rate LSB `q` at interval Δt.
+    pub fn rounded(q: f64, dt: f64) -> OutputStage {
+        OutputStage {
+            rounding: q * q * dt / 12.0,
+            carry: false,
+            carried: 0.0,
+            white: None,
+            sines: Vec::new(),
+        }
+    }
+    /// A carry-mode quantizer whose outputs sit on the rate grid `q` at interval Δt: the
+    /// increments are multiples of qΔt and the residual carried, so the angle error is uniform
+    /// over an increment LSB, Q = qΔt/√12, known.
+    pub fn carried(q: f64, dt: f64) -> OutputStage {
+        OutputStage {
+            carry: false,
+            carried: (q * dt).powi(2) / 12.0,
+            ..OutputStage::default()
+        }
+    }
+    /// The white-noise basis's factor r(m) at cluster size m (1 without a filter).
+    pub fn white_ratio(&self, m: usize) -> f64 {
+        self.white.as_ref().map_or(1.0, |w| w.ratio(m))
+    }
+    /// The known part of σ² at cluster size m (interval Δt): rounding noise and lines.
+    pub fn known(&self, m: usize, dt: f64) -> f64 {
+        let tau = m as f64 * dt;
+        self.rounding / tau
+            + 3.0 * self.carried / (tau * tau)
+            + self
+                .sines
+                .iter()
+                .map(|&(b, f)| sine_avar(b, f, m, dt))
+                .sum::<f64>()
+    }
+    /// Its limit at long τ (the white density's aliasing gain, squared).
+    pub fn white_long(&self) -> f64 {
+        self.white.as_ref().map_or(1.0, WhiteAllan::long_tau)
+    }
+}
