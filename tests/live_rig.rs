@@ -461,22 +461,17 @@ fn two_units_follow_udp_input_in_real_time() {
     assert!(e[3] > 1e-3, "{e:?}");
 }
 
-/// What a live rig cannot do is refused with the reason, before any output exists (a
-/// trigger on a rig's units, which sample on their shared grids; a start instant, which a
-/// live run takes from its first state); an input too short for the model fails and leaves
-/// no file behind. (Aiding streams, the GPS time base and sinks of every kind, refused here
-/// before the run was one composable pipeline, now work: tests/combinations.rs.)
+/// What a live rig cannot do is refused with the reason, before any output exists (a start
+/// instant, which a live run takes from its first state); an input too short for the model
+/// fails and leaves no file behind. (Aiding streams, the GPS time base and sinks of every
+/// kind, refused here before the run was one composable pipeline, now work:
+/// tests/combinations.rs; a trigger on a live rig: tests/rig_trigger.rs.)
 #[test]
 fn live_rig_refusals_are_clear() {
     let dir = tempfile::TempDir::new().unwrap();
     let scene = write_scene(dir.path(), TWO_UNITS);
     let short = survey_csv(0.05);
     for (extra, stdin, msg) in [
-        (
-            &["--time-mode", "realtime", "--trigger", "udp://127.0.0.1:9"][..],
-            "",
-            "--trigger: a rig's units sample on their shared grids; triggered rig units are not built yet",
-        ),
         (
             &["--start-at", "next-second"][..],
             "",

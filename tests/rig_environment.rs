@@ -391,10 +391,13 @@ fn gps_time_applies_to_every_unit_and_the_gnss_stream() {
     );
 }
 
-/// Timing errors a rig cannot model yet are refused, naming where they come from, never
-/// left out silently: a scene file's `[timing]` and a unit template's `[timing]`.
+/// Timing errors a rig unit cannot take are refused, naming where they come from, never
+/// left out silently: a scene file's `[timing]` (every unit's) on a skew-redundant unit, whose
+/// sensors have no sampling clock, and a template's sampling-clock errors with its output
+/// filter (refused for one IMU too). Timing errors on three-axis units work:
+/// tests/rig_units.rs.
 #[test]
-fn timing_errors_are_refused_for_rig_units() {
+fn timing_errors_a_unit_cannot_take_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let head = "[trajectory]\nscene = \"circle\"\n[output]\nduration_s = 1.0\n";
@@ -409,24 +412,32 @@ fn timing_errors_are_refused_for_rig_units() {
         format!("{e}: {}", e.root())
     };
     let e = refused(format!(
-        "{head}[timing]\njitter = \"1 us\"\n[[imu]]\nname = \"a\"\n"
+        "{head}[timing]\njitter = \"1 us\"\n[[imu]]\nname = \"a\"\n[[imu]]\nname = \"s\"\n\
+         [[imu.gyro]]\naxis = [1.0, 0.0, 0.0]\n"
     ));
     assert!(e.contains("rig.toml: `timing`"), "{e}");
-    assert!(e.contains("do not model timing errors"), "{e}");
-    let model = d.join("late.toml");
-    std::fs::write(&model, "name = \"late\"\n[timing]\nlatency = \"2 ms\"\n").unwrap();
+    assert!(e.contains("unit `s` is skew-redundant"), "{e}");
+    let model = d.join("clocked.toml");
+    std::fs::write(
+        &model,
+        "name = \"clocked\"\n[timing]\njitter = \"2 us\"\n\
+         [output_filter]\ninternal_rate_hz = 800\nkind = \"moving_average\"\ntaps = 4\n",
+    )
+    .unwrap();
     let e = refused(format!(
-        "{head}[[imu]]\nname = \"a\"\n[[imu]]\nname = \"b\"\nmodel = \"{}\"\n",
+        "{head}[[imu]]\nname = \"a\"\n[[imu]]\nname = \"b\"\nrate_hz = 200.0\nmodel = \"{}\"\n",
         model.display()
     ));
     assert!(e.contains("`imu[1].model`"), "{e}");
-    assert!(e.contains("template `late` has [timing] errors"), "{e}");
+    assert!(
+        e.contains("template `clocked` has an [output_filter] and sampling-clock timing errors"),
+        "{e}"
+    );
 }
 
 /// `run` on a rig refuses what it cannot honour rather than ignoring it: time marks that do
-/// not say whose frames they mark, a pulse with no modem line to drive, a trigger (rig units
-/// sample on their shared grids), and `--gps-time` on a time base that sets the reference
-/// itself.
+/// not say whose frames they mark, a pulse with no modem line to drive, and `--gps-time` on a
+/// time base that sets the reference itself. (A trigger on a rig works: tests/rig_trigger.rs.)
 #[test]
 fn run_on_a_rig_refuses_frame_timing_flags_by_name() {
     let dir = tempfile::tempdir().unwrap();
@@ -449,11 +460,6 @@ fn run_on_a_rig_refuses_frame_timing_flags_by_name() {
             "--pulse",
             "dtr:tov",
             "--pulse: drives a serial port's modem line: give --pulse-port DEV or a serial sink of unit `nav`",
-        ),
-        (
-            "--trigger",
-            "/dev/null",
-            "--trigger: a rig's units sample on their shared grids; triggered rig units are not built yet",
         ),
         (
             "--gps-time",

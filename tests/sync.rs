@@ -503,24 +503,3 @@ fn external_trigger_one_frame_per_edge() {
         "{rest}"
     );
 }
-
-/// `run --trigger` with a template that has an output filter is refused with a message that
-/// names both, before any edge is awaited (it used to stream error-free records: the
-/// triggered path bypassed the filtered producer).
-#[test]
-fn trigger_with_an_output_filter_is_refused() {
-    let out = Command::new(BIN)
-        .args(["run", "--imu", "examples/filtered.toml", "--rate", "204.8"])
-        .args(["--duration", "0.05"])
-        .args(["--trigger", "udp://127.0.0.1:0", "--udp", "127.0.0.1:9"])
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdout(Stdio::null())
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{err}");
-    assert!(
-        err.contains("--trigger") && err.contains("output_filter"),
-        "{err}"
-    );
-}

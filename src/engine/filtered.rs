@@ -61,6 +61,23 @@ impl FilteredImu {
         self.chain.components()
     }
 
+    /// Whether the internal-rate chain needs the motion's rotation terms (a lever arm).
+    pub fn needs_rotation_terms(&self) -> bool {
+        self.chain.needs_rotation_terms()
+    }
+
+    /// Corrupts `records`, each the exact interval mean over an externally triggered interval
+    /// of `dt` s, as the unit's filter does under external sync: a uniform average over the
+    /// interval (see [`FilteredChain::apply_over`]); `rotation`: their rotation terms.
+    pub fn apply_over(
+        &mut self,
+        records: &mut [Record],
+        rotation: Option<&[RotationTerms]>,
+        dt: f64,
+    ) {
+        self.chain.apply_over(records, rotation, dt);
+    }
+
     /// Fills `out` with output records k_first, k_first + 1, … (k ≥ 1): record k filters the
     /// internal records up to the end of its output interval; its time tag is t₀ + k/rate
     /// (from the integer k, as every run's).

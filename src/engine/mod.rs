@@ -352,6 +352,18 @@ impl Encoding {
     }
 }
 
+/// Where a unit's error-free records are taken: turns the records of the motion's reference
+/// point (body axes) into those at a unit's place and in its axes (a rig unit's mounting and
+/// lever arm, `crate::rig::Placement`), for the truth a [`Producer`] keeps.
+pub trait TruthPlace: Send {
+    /// Whether [`TruthPlace::place`] needs the motion's rotation terms (a lever arm).
+    fn needs_rotation_terms(&self) -> bool;
+    /// Places `records` in place. Their rates are means over `dt` (their increments are the
+    /// rates times `dt`); `rot`, when needed, holds their rotation terms normalised by `dt`
+    /// too.
+    fn place(&self, records: &mut [Record], rot: Option<&[crate::generator::RotationTerms]>, dt: f64);
+}
+
 /// Block-wise production: ideal records → error chain → encoding, with each record's
 /// encoded bytes delimited. `run` (offline) and the real-time emulator both drive it, so the
 /// same seed gives the same bytes whatever consumes them.
@@ -367,6 +379,8 @@ pub struct Producer {
     block: Vec<Record>,
     truth: Vec<Record>,
     keep_truth: bool,
+    /// Turns the truth into the readings at a unit's place and in its axes (a rig unit).
+    truth_place: Option<Box<dyn TruthPlace>>,
     rot: Vec<crate::generator::RotationTerms>,
     /// The sensor temperature over the run, carried by frames with a temperature field.
     temperature: Option<TemperatureProfile>,
@@ -454,6 +468,7 @@ impl Producer {
             block: Vec::new(),
             truth: Vec::new(),
             keep_truth,
+            truth_place: None,
             rot: Vec::new(),
             temperature: None,
             error: None,
@@ -554,8 +569,22 @@ impl Producer {
         mut self,
         source: Box<dyn crate::engine::trigger::TriggerSource>,
     ) -> Producer {
+        self.set_trigger(source);
+        self
+    }
+
+    /// [`Producer::with_trigger`] on a producer held in place (before its first record).
+    pub fn set_trigger(&mut self, source: Box<dyn crate::engine::trigger::TriggerSource>) {
         self.trigger = Some(source);
         self.timing = None;
+    }
+
+    /// Keeps the error-free records ([`Block::truth`]) at the place and in the axes `place`
+    /// gives instead of at the motion's reference point in body axes: each block's truth is
+    /// placed over the same intervals it was integrated over (the sensor's true intervals
+    /// under timing errors, the trigger's), before skipped samples are folded in.
+    pub fn with_truth_place(mut self, place: Box<dyn TruthPlace>) -> Producer {
+        self.truth_place = Some(place);
         self
     }
 
@@ -709,23 +738,31 @@ impl Producer {
         if let Err(e) = Producer::check_finite(&self.block[..n], "in the error-free signal") {
             return self.fail(e);
         }
+        let chain_rot = self.chain.as_ref().is_some_and(|c| c.needs_rotation_terms());
+        let place_rot = self.places_with_rotation();
+        if chain_rot || place_rot {
+            if self.rot.len() < n {
+                self.rot.resize(n, Default::default());
+            }
+            // Under timing errors the accelerometers integrate over their true
+            // intervals, and so do the lever-arm terms.
+            match self.timing.as_ref() {
+                Some(t) => self
+                    .imu
+                    .rotation_terms_timed(&t.block().accel, &mut self.rot[..n]),
+                None => self.imu.rotation_terms(self.k, &mut self.rot[..n]),
+            }
+        }
         if self.keep_truth {
             self.truth.clear();
             self.truth.extend_from_slice(&self.block[..n]);
+            // Rates over the nominal Δt, as the records' (timed records too).
+            let (rot, dt) = (std::mem::take(&mut self.rot), 1.0 / self.grid.rate_hz);
+            self.place_truth(place_rot.then(|| &rot[..n]), dt);
+            self.rot = rot;
         }
         if let Some(c) = self.chain.as_mut() {
-            if c.needs_rotation_terms() {
-                if self.rot.len() < n {
-                    self.rot.resize(n, Default::default());
-                }
-                // Under timing errors the accelerometers integrate over their true
-                // intervals, and so do the lever-arm terms.
-                match self.timing.as_ref() {
-                    Some(t) => self
-                        .imu
-                        .rotation_terms_timed(&t.block().accel, &mut self.rot[..n]),
-                    None => self.imu.rotation_terms(self.k, &mut self.rot[..n]),
-                }
+            if chain_rot {
                 c.apply_with(&mut self.block[..n], Some(&self.rot[..n]));
             } else {
                 c.apply(&mut self.block[..n]);
@@ -754,6 +791,20 @@ impl Producer {
         Some((first, n))
     }
 
+    /// Whether the kept truth is placed ([`Producer::with_truth_place`]) with the motion's
+    /// rotation terms (a lever arm).
+    fn places_with_rotation(&self) -> bool {
+        self.keep_truth && (self.truth_place.as_ref()).is_some_and(|p| p.needs_rotation_terms())
+    }
+
+    /// Turns the kept truth into the readings at the unit's place and in its axes, if it has
+    /// one; `rot`: the truth records' rotation terms, normalised by `dt` as their rates are.
+    fn place_truth(&mut self, rot: Option<&[crate::generator::RotationTerms]>, dt: f64) {
+        if let Some(p) = self.truth_place.as_ref() {
+            p.place(&mut self.truth, rot, dt);
+        }
+    }
+
     /// [`Producer::step`] for a unit with an output filter: the records from the internal-rate
     /// run, the truth from the output-rate generator, the times (if any) from the timing run.
     fn step_filtered(&mut self, first: u64, n: usize) -> Option<(u64, usize)> {
@@ -769,6 +820,14 @@ impl Producer {
             if let Err(e) = Producer::check_finite(&self.truth, "in the error-free signal") {
                 return self.fail(e);
             }
+            let place_rot = self.places_with_rotation();
+            if place_rot {
+                self.rot.resize(n.max(self.rot.len()), Default::default());
+                self.imu.rotation_terms(self.k, &mut self.rot[..n]);
+            }
+            let (rot, dt) = (std::mem::take(&mut self.rot), 1.0 / self.grid.rate_hz);
+            self.place_truth(place_rot.then(|| &rot[..n]), dt);
+            self.rot = rot;
         }
         if let Some(t) = self.timing.as_mut() {
             // Nominal instants (the builder allows no clock errors with a filter): only the
@@ -787,6 +846,7 @@ impl Producer {
             Err(e) => return self.fail(EngineError::Trigger(e)),
         };
         let bounds = [lo, hi];
+        let span = hi - lo;
         if self.block.is_empty() {
             self.block.push(Record::default());
         }
@@ -794,20 +854,42 @@ impl Producer {
         if let Err(e) = Producer::check_finite(&self.block[..1], "in the error-free signal") {
             return self.fail(e);
         }
+        let chain_rot = match (&self.filtered, &self.chain) {
+            (Some(f), _) => f.needs_rotation_terms(),
+            (None, Some(c)) => c.needs_rotation_terms(),
+            (None, None) => false,
+        };
+        let place_rot = self.places_with_rotation();
+        if chain_rot || place_rot {
+            self.rot.resize(1.max(self.rot.len()), Default::default());
+            self.imu.rotation_terms_timed(&bounds, &mut self.rot[..1]);
+            // The generator averages ω ωᵀ over the nominal Δt; the record's rates are means
+            // over its own interval, and so must the lever-arm terms be.
+            self.rot[0].omega_outer *= 1.0 / (self.grid.rate_hz * span);
+        }
         if self.keep_truth {
             self.truth.clear();
             self.truth.push(self.block[0]);
+            let rot = std::mem::take(&mut self.rot);
+            self.place_truth(place_rot.then(|| &rot[..1]), span);
+            self.rot = rot;
         }
-        if let Some(c) = self.chain.as_mut() {
+        let rot = chain_rot.then(|| &self.rot[..1]);
+        if let Some(f) = self.filtered.as_mut() {
+            // KVH's 1750/1775 technical manual: under external sync (MSYNC) the unit switches
+            // its output filter to a uniform averager over the interval between the sync
+            // edges. The mean of the internal samples over (previous edge, this edge] is the
+            // interval mean of the signal (the generator's exact integral over the interval
+            // divided by its length), and the errors the unit adds to those samples average
+            // over the same interval: the internal-rate chain acts over it (white noise of
+            // density N gives σ = N/√T), then the output LSB and range.
+            f.apply_over(&mut self.block[..1], rot, span);
+            if let Err(e) = Producer::check_finite(&self.block[..1], "after the error chain") {
+                return self.fail(e);
+            }
+        } else if let Some(c) = self.chain.as_mut() {
             // The errors act over the interval since the previous edge, not the nominal step.
-            let rot = if c.needs_rotation_terms() {
-                self.rot.resize(1, Default::default());
-                self.imu.rotation_terms_timed(&bounds, &mut self.rot[..1]);
-                Some(&self.rot[..1])
-            } else {
-                None
-            };
-            c.apply_over(&mut self.block[..1], rot, hi - lo);
+            c.apply_over(&mut self.block[..1], rot, span);
             if let Err(e) = Producer::check_finite(&self.block[..1], "after the error chain") {
                 return self.fail(e);
             }

@@ -2,6 +2,9 @@
 //! unit takes one sample per trigger edge, integrating over the interval since the previous
 //! edge. Pure: edge instants in, interval bounds on the run's time axis out.
 
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
+
 /// Turns trigger edges (integer ns on any monotonic clock) into sample intervals relative to
 /// the run's t₀, which the first edge marks.
 #[derive(Clone, Debug)]
@@ -61,6 +64,40 @@ pub trait TriggerSource: Send {
     /// The next sample's interval (relative to t₀, s), blocking until its edge; `None` when
     /// the edges end (the run stops), an error when an edge cannot close an interval.
     fn next_interval(&mut self) -> Option<Result<(f64, f64), String>>;
+}
+
+/// Intervals queued by whoever receives the edges (a run's driver, through
+/// [`crate::engine::frames::WindowSource::edge`]) for the triggered producers that share the
+/// queue: a clone is the same queue. A producer takes the intervals queued so far and waits,
+/// without blocking, for more.
+#[derive(Clone, Default)]
+pub struct Queue(Arc<Mutex<VecDeque<(f64, f64)>>>);
+
+impl Queue {
+    /// Queues the interval (lo, hi] (s after t₀).
+    pub fn push(&self, lo: f64, hi: f64) {
+        self.lock().push_back((lo, hi));
+    }
+
+    /// Intervals queued and not yet taken.
+    pub fn len(&self) -> usize {
+        self.lock().len()
+    }
+
+    /// Whether no interval is waiting.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, VecDeque<(f64, f64)>> {
+        self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+impl TriggerSource for Queue {
+    fn next_interval(&mut self) -> Option<Result<(f64, f64), String>> {
+        self.lock().pop_front().map(Ok)
+    }
 }
 
 /// Edges given up front (ns), for tests and replays of recorded edge times.

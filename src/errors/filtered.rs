@@ -218,6 +218,43 @@ impl FilteredChain {
     }
 }
 
+impl FilteredChain {
+    /// Corrupts records that are each the exact mean of the signal over an interval of `dt`
+    /// s an external trigger closed, as the unit's filter works under external sync: a
+    /// uniform averager over the interval between the edges (KVH's 1750/1775 technical
+    /// manual), whose output is the interval mean of the internal samples. The internal-rate
+    /// stages act over the whole interval (their white noise averaged over it has
+    /// σ = N/√`dt`, their random processes step over `dt`: [`ErrorChain::apply_over`]), then
+    /// the output LSB and range. The lowpass filter and its decimation are not run.
+    pub fn apply_over(
+        &mut self,
+        records: &mut [Record],
+        rotation: Option<&[RotationTerms]>,
+        dt: f64,
+    ) {
+        self.inner.apply_over(records, rotation, dt);
+        // Quantization and saturation OR their flags into the internal stages' ones.
+        self.carried.clear();
+        self.carried.extend(records.iter().map(|r| r.flags));
+        self.outer.apply_over(records, None, dt);
+        for (r, f) in records.iter_mut().zip(&self.carried) {
+            r.flags |= f;
+        }
+        if let Some(s) = self.split.as_deref_mut() {
+            s.out.clear();
+            let (inner, outer) = (self.inner.components(), self.outer.components());
+            for (i, o) in inner.iter().zip(outer) {
+                let mut c = *i;
+                for (cg, og) in c.0.iter_mut().zip(o.0) {
+                    cg[0] += og[0];
+                    cg[1] += og[1];
+                }
+                s.out.push(c);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -17,11 +17,12 @@ use std::io::Write;
 use std::ops::ControlFlow;
 
 use crate::aiding::mag_samples::{FrameMag, MagHold};
+use crate::engine::frames::{Part, Until, WindowSource};
 use crate::engine::{self, DEFAULT_FRAME_CELSIUS, Encoding, EngineError, Grid, Producer};
 use crate::errors::ErrorChain;
 use crate::errors::temperature::TemperatureProfile;
 use crate::errors::vibration::Vibration;
-use crate::generator::{IdealImu, RotationTerms};
+use crate::generator::RotationTerms;
 use crate::math::Vec3;
 use crate::output::Format;
 use crate::protocol::{Channels, EncoderState, Plan};
@@ -44,6 +45,17 @@ pub(crate) enum Body {
     Triad {
         chain: Option<Box<ErrorChain>>,
         encoding: Box<Encoding>,
+    },
+    /// A three-axis IMU whose template has an output filter or timing errors (or under the
+    /// scene file's `[timing]`): the single IMU's producer of its own (the template's chain or
+    /// filtered chain with the unit's mounting, lever arm, temperature and the body's
+    /// vibration, its sampling clock, its truth placed at the unit), which evaluates the
+    /// motion itself at the instants it needs; the failures act after it, then the encoding.
+    Produced {
+        producer: Box<Producer>,
+        encoding: Box<Encoding>,
+        /// The end of the last triggered sample's interval (s after t₀): the next one's start.
+        last_tov: f64,
     },
     /// A skew-redundant unit: its sensors and their error terms; CSV output, or the frames of
     /// an N-channel protocol (its compiled plan and encoder state).
@@ -75,6 +87,8 @@ pub struct Unit {
     pub(crate) mag: Option<Box<MagHold>>,
     /// Status flags every record carries from now on (e.g. stale input).
     pub(crate) flags: u8,
+    /// The unit samples at external trigger edges ([`RigStream::triggered`]).
+    pub(crate) triggered: bool,
 }
 
 /// Reused per-unit buffers: nothing is allocated per block once they have grown.
@@ -91,6 +105,15 @@ struct Scratch {
     row: Vec<f64>,
     ends: Vec<usize>,
     mag: Vec<FrameMag>,
+    /// A producer-backed unit's block: the end of each truth row in `side`, each frame's
+    /// emission time (ns after the run's t₀), the interval each record covers (s), the
+    /// samples skipped before each (frame counters step over them), and each record's time
+    /// of validity, of the accelerometers' validity and of emission (s, record time axis).
+    side_ends: Vec<usize>,
+    emit: Vec<i64>,
+    spans: Vec<f64>,
+    gaps: Vec<u32>,
+    times: Vec<[f64; 3]>,
 }
 
 /// Where one unit's outputs go.
@@ -142,20 +165,39 @@ impl Unit {
 
     /// The compiled frame of a unit that speaks a protocol.
     pub fn plan(&self) -> Option<&crate::protocol::Plan> {
+        match self.encoding()? {
+            Encoding::Frames { plan, .. } => Some(plan),
+            Encoding::Records(_) => None,
+        }
+    }
+
+    /// A three-axis unit's output encoding.
+    fn encoding(&self) -> Option<&Encoding> {
         match &self.body {
-            Body::Triad { encoding, .. } => match &**encoding {
-                Encoding::Frames { plan, .. } => Some(plan),
-                Encoding::Records(_) => None,
-            },
+            Body::Triad { encoding, .. } | Body::Produced { encoding, .. } => Some(encoding),
             Body::Skew { .. } => None,
         }
+    }
+
+    /// Whether the unit runs a producer of its own (an output filter, timing errors) instead
+    /// of sharing its grid's evaluation of the motion.
+    pub fn has_own_producer(&self) -> bool {
+        matches!(self.body, Body::Produced { .. })
+    }
+
+    /// Whether the unit's records carry their own times of validity and emission (timing
+    /// errors, an output filter's delay, a trigger): its truth then has the `tov`,
+    /// `tov_accel` and `emit` columns, as the single IMU's has.
+    pub fn is_timed(&self) -> bool {
+        self.triggered
+            || matches!(&self.body, Body::Produced { producer, .. } if producer.is_timed())
     }
 
     /// The skew-redundant layout, if the unit is one.
     pub fn skew(&self) -> Option<&SkewLayout> {
         match &self.body {
             Body::Skew { layout, .. } => Some(layout),
-            Body::Triad { .. } => None,
+            Body::Triad { .. } | Body::Produced { .. } => None,
         }
     }
 
@@ -185,7 +227,9 @@ impl Unit {
     /// The channel names failures refer to: `gyro_x` … `accel_z`, or `gyro_0` … `accel_N`.
     pub fn channel_names(&self) -> Vec<String> {
         match &self.body {
-            Body::Triad { .. } => COLUMNS[1..7].iter().map(|s| s.to_string()).collect(),
+            Body::Triad { .. } | Body::Produced { .. } => {
+                COLUMNS[1..7].iter().map(|s| s.to_string()).collect()
+            }
             Body::Skew { layout, .. } => layout.channel_names(),
         }
     }
@@ -193,7 +237,7 @@ impl Unit {
     /// File extension of the main output: `csv`, or `bin` for binary records and frames.
     pub fn extension(&self) -> &'static str {
         match &self.body {
-            Body::Triad { encoding, .. } => match **encoding {
+            Body::Triad { encoding, .. } | Body::Produced { encoding, .. } => match **encoding {
                 Encoding::Records(Format::Csv) => "csv",
                 _ => "bin",
             },
@@ -212,13 +256,16 @@ impl Unit {
                     chain.as_ref().is_some_and(|c| c.needs_rotation_terms())
                 }
                 Body::Skew { layout, .. } => layout.has_offsets(),
+                Body::Produced { .. } => false,
             }
     }
 
     /// The header of the main output (CSV only) and of the truth file.
     pub(crate) fn headers(&self) -> (String, String) {
         let names = match &self.body {
-            Body::Triad { .. } => COLUMNS[1..].iter().map(|s| s.to_string()).collect(),
+            Body::Triad { .. } | Body::Produced { .. } => {
+                COLUMNS[1..].iter().map(|s| s.to_string()).collect()
+            }
             Body::Skew { layout, .. } => {
                 let ch = layout.channel_names();
                 let inc = |c: &String| c.replace("gyro_", "dtheta_").replace("accel_", "dv_");
@@ -228,9 +275,14 @@ impl Unit {
             }
         };
         let main = format!("t,{}\n", names.join(","));
-        let truth = format!("t,{},failed\n", names.join(","));
+        let times = if self.is_timed() {
+            ",tov,tov_accel,emit"
+        } else {
+            ""
+        };
+        let truth = format!("t,{}{times},failed\n", names.join(","));
         let main = match &self.body {
-            Body::Triad { encoding, .. }
+            Body::Triad { encoding, .. } | Body::Produced { encoding, .. }
                 if !matches!(**encoding, Encoding::Records(Format::Csv)) =>
             {
                 String::new()
@@ -243,34 +295,23 @@ impl Unit {
         (main, truth)
     }
 
-    /// One block: `reference` records (reference point, body axes) and their rotation terms
-    /// → the unit's error-free readings → errors → failures → encoded into `out`.
-    fn process(
-        &mut self,
-        motion: &AnyMotion,
-        reference: &[Record],
-        rot: Option<&[RotationTerms]>,
-        s: &mut Scratch,
-        out: &mut UnitOutputs<'_>,
-    ) -> Result<(), EngineError> {
-        self.encode(motion, reference, rot, s, &mut out.truth)?;
-        out.main.write_all(&s.buf)?;
-        Ok(())
-    }
-
-    /// [`Unit::process`] without the main output: the frames are left in `s.buf`, one per
-    /// record (ends in `s.ends`); the truth rows go to `truth`. `motion` places the
-    /// magnetometer's samples.
+    /// A shared unit's block: `reference` records (reference point, body axes, interval
+    /// means over `dt` each — the grid's step, or a trigger's interval) and their rotation
+    /// terms (normalised by `dt`) → the unit's error-free readings → errors → failures →
+    /// frames, left in `s.buf`, one per record (ends in `s.ends`); the truth rows go to
+    /// `truth`. `motion` places the magnetometer's samples.
     fn encode(
         &mut self,
         motion: &AnyMotion,
         reference: &[Record],
         rot: Option<&[RotationTerms]>,
+        dt: f64,
         s: &mut Scratch,
         truth: &mut Option<&mut dyn Write>,
     ) -> Result<(), EngineError> {
-        let dt = 1.0 / self.grid.rate_hz;
         let n = reference.len();
+        // A triggered record is valid, and sent, at its edge: its time tag.
+        let times = self.triggered;
         s.masks.clear();
         s.buf.clear();
         s.ends.clear();
@@ -295,22 +336,16 @@ impl Unit {
                         }
                         _ => None,
                     };
-                    c.apply_with(&mut s.recs, terms);
+                    if self.triggered {
+                        c.apply_over(&mut s.recs, terms, dt);
+                    } else {
+                        c.apply_with(&mut s.recs, terms);
+                    }
                     Producer::check_finite(&s.recs, "after the error chain")?;
                 }
-                for r in s.recs.iter_mut() {
-                    let (g, a) = (r.gyro, r.accel);
-                    let mut v = [g[0], g[1], g[2], a[0], a[1], a[2]];
-                    let mask = self.failures.apply(r.t, &mut v);
-                    if mask != 0 {
-                        r.gyro = Vec3::new(v[0], v[1], v[2]);
-                        r.accel = Vec3::new(v[3], v[4], v[5]);
-                        r.dtheta = r.gyro * dt;
-                        r.dv = r.accel * dt;
-                    }
-                    r.flags |= self.flags;
-                    s.masks.push(mask);
-                }
+                s.spans.clear();
+                s.spans.resize(n, dt);
+                fail_triads(&mut self.failures, self.flags, s);
                 s.mag.clear();
                 if let Some(hold) = self.mag.as_mut() {
                     for r in &s.recs {
@@ -322,11 +357,13 @@ impl Unit {
                 if let Some(w) = truth.as_mut() {
                     s.side.clear();
                     for (r, m) in s.truth.iter().zip(&s.masks) {
-                        csv_row(&mut s.side, &r.values(), *m);
+                        let t = times.then_some([r.t; 3]);
+                        truth_row(&mut s.side, &r.values(), t, *m);
                     }
                     w.write_all(&s.side)?;
                 }
             }
+            Body::Produced { .. } => unreachable!("a producer-backed unit shares no evaluation"),
             Body::Skew {
                 layout,
                 errors,
@@ -351,6 +388,7 @@ impl Unit {
                     }
                 }
                 let ng = layout.gyros.len();
+                let triggered = self.triggered;
                 for (row, r) in s.tvals.chunks(ch).zip(reference) {
                     let start = s.vals.len();
                     // The body's vibration in the unit's axes, on each sense axis.
@@ -363,7 +401,10 @@ impl Unit {
                     let axes = layout.gyros.iter().chain(&layout.accels).map(|x| x.axis);
                     s.vals.extend(
                         row.iter().zip(errors.iter_mut()).zip(axes).enumerate().map(
-                            |(i, ((x, e), u))| e.read(x + u.dot(if i < ng { &vg } else { &va })),
+                            |(i, ((x, e), u))| {
+                                let x = x + u.dot(if i < ng { &vg } else { &va });
+                                if triggered { e.read_over(x, dt) } else { e.read(x) }
+                            },
                         ),
                     );
                     s.masks.push(self.failures.apply(r.t, &mut s.vals[start..]));
@@ -395,7 +436,7 @@ impl Unit {
                     row.push(r.t);
                     row.extend_from_slice(vals);
                     row.extend(vals.iter().map(|v| v * dt));
-                    csv_row(&mut s.buf, row, u64::MAX);
+                    truth_row(&mut s.buf, row, None, u64::MAX);
                     s.ends.push(s.buf.len());
                 }
                 if let Some(w) = truth.as_mut() {
@@ -405,7 +446,7 @@ impl Unit {
                         row.push(r.t);
                         row.extend_from_slice(&s.tvals[i * ch..(i + 1) * ch]);
                         row.extend(s.tvals[i * ch..(i + 1) * ch].iter().map(|v| v * dt));
-                        csv_row(&mut s.side, row, s.masks[i]);
+                        truth_row(&mut s.side, row, times.then_some([r.t; 3]), s.masks[i]);
                     }
                     w.write_all(&s.side)?;
                 }
@@ -414,6 +455,124 @@ impl Unit {
         debug_assert_eq!(s.masks.len(), n);
         debug_assert_eq!(s.ends.len(), n);
         Ok(())
+    }
+
+    /// A producer-backed unit's next block of up to `max` records: its frames in `s.buf`
+    /// (ends in `s.ends`), their emission times in `s.emit` (ns after `origin`, the run's
+    /// t₀), and with `truth` its truth rows in `s.side` (ends in `s.side_ends`). Returns the
+    /// number of records, 0 when none can be made now (a triggered unit waits for its edge,
+    /// or the run is complete). `motion` places the magnetometer's samples.
+    fn produce(
+        &mut self,
+        motion: &AnyMotion,
+        max: usize,
+        origin: f64,
+        truth: bool,
+        s: &mut Scratch,
+    ) -> Result<usize, EngineError> {
+        let Body::Produced {
+            producer,
+            encoding,
+            last_tov,
+        } = &mut self.body
+        else {
+            unreachable!("only a producer-backed unit produces on its own")
+        };
+        let grid = self.grid;
+        let dt = 1.0 / grid.rate_hz;
+        let offset_ns = ((grid.t0 - origin) * 1e9).round() as i64;
+        for v in [&mut s.buf, &mut s.side] {
+            v.clear();
+        }
+        for v in [&mut s.ends, &mut s.side_ends] {
+            v.clear();
+        }
+        s.emit.clear();
+        s.spans.clear();
+        s.gaps.clear();
+        s.times.clear();
+        s.recs.clear();
+        s.truth.clear();
+        s.masks.clear();
+        {
+            let Some(b) = producer.next_records(max) else {
+                return producer.take_error().map_or(Ok(0), Err);
+            };
+            s.recs.extend_from_slice(b.records);
+            s.truth.extend_from_slice(b.truth);
+            match &b.times {
+                Some(t) => {
+                    for i in 0..b.records.len() {
+                        let gap = t.gaps.get(i).copied().unwrap_or(0);
+                        s.gaps.push(gap);
+                        s.emit.push((t.emit[i] * 1e9).round() as i64 + offset_ns);
+                        s.times
+                            .push([t.tov[i], t.tov_accel[i], t.emit[i]].map(|x| t.t0 + x));
+                        // The interval the record's rates are means over: the trigger's, or
+                        // the nominal steps it covers (skipped samples folded in).
+                        s.spans.push(if self.triggered {
+                            t.tov[i] - std::mem::replace(last_tov, t.tov[i])
+                        } else {
+                            f64::from(gap + 1) * dt
+                        });
+                    }
+                }
+                None => {
+                    for k in b.first + 1..=b.first + b.records.len() as u64 {
+                        s.emit
+                            .push(offset_ns + (k as f64 * dt * 1e9).round() as i64);
+                        s.spans.push(dt);
+                    }
+                }
+            }
+        }
+        let n = s.recs.len();
+        fail_triads(&mut self.failures, self.flags, s);
+        s.mag.clear();
+        if let Some(hold) = self.mag.as_mut() {
+            for r in &s.recs {
+                s.mag.push(hold.at(r.t, motion)?);
+            }
+        }
+        let profile = self.temperature.as_ref();
+        let gaps = if s.gaps.is_empty() { &[][..] } else { &s.gaps };
+        encoding.encode_with_mag(&s.recs, gaps, profile, &s.mag, &mut s.buf, &mut s.ends);
+        if truth {
+            for (i, (r, m)) in s.truth.iter().zip(&s.masks).enumerate() {
+                truth_row(&mut s.side, &r.values(), s.times.get(i).copied(), *m);
+                s.side_ends.push(s.side.len());
+            }
+        }
+        debug_assert_eq!(s.ends.len(), n);
+        Ok(n)
+    }
+
+    /// Records still to make (a producer-backed unit's; `None` for a shared unit).
+    fn remaining(&self) -> Option<u64> {
+        match &self.body {
+            Body::Produced { producer, .. } => Some(producer.remaining()),
+            _ => None,
+        }
+    }
+}
+
+/// A three-axis unit's failures on the records of `s.recs` (each over `s.spans[i]` s): the
+/// channels read what the failures make of them, the increments follow; every record gets
+/// `flags`; each record's failed-channel mask goes to `s.masks`.
+fn fail_triads(failures: &mut FailureSet, flags: u8, s: &mut Scratch) {
+    s.masks.clear();
+    for (r, span) in s.recs.iter_mut().zip(&s.spans) {
+        let (g, a) = (r.gyro, r.accel);
+        let mut v = [g[0], g[1], g[2], a[0], a[1], a[2]];
+        let mask = failures.apply(r.t, &mut v);
+        if mask != 0 {
+            r.gyro = Vec3::new(v[0], v[1], v[2]);
+            r.accel = Vec3::new(v[3], v[4], v[5]);
+            r.dtheta = r.gyro * *span;
+            r.dv = r.accel * *span;
+        }
+        r.flags |= flags;
+        s.masks.push(mask);
     }
 }
 
@@ -437,6 +596,18 @@ fn place_triad(place: &Placement, recs: &mut [Record], rot: Option<&[RotationTer
     }
 }
 
+/// The placement of a producer-backed unit's truth: the same turn into the unit's axes and
+/// lever-arm terms as a shared unit's error-free readings get.
+impl engine::TruthPlace for Placement {
+    fn needs_rotation_terms(&self) -> bool {
+        self.lever_b != Vec3::zeros()
+    }
+
+    fn place(&self, records: &mut [Record], rot: Option<&[RotationTerms]>, dt: f64) {
+        place_triad(self, records, rot, dt);
+    }
+}
+
 /// A skew unit's readings are finite, or the error names the record and the channel.
 fn check_values(vals: &[f64], reference: &[Record], ch: usize) -> Result<(), EngineError> {
     match vals.iter().position(|v| !v.is_finite()) {
@@ -450,10 +621,12 @@ fn check_values(vals: &[f64], reference: &[Record], ch: usize) -> Result<(), Eng
     }
 }
 
-/// Appends one CSV row: `values`, then `mask` unless it is `u64::MAX`.
-fn csv_row(buf: &mut Vec<u8>, values: &[f64], mask: u64) {
+/// Appends one CSV row: `values`, then the three `times` when given (time of validity, of
+/// the accelerometers' validity, of emission), then `mask` unless it is `u64::MAX`.
+fn truth_row(buf: &mut Vec<u8>, values: &[f64], times: Option<[f64; 3]>, mask: u64) {
     let mut f = ryu::Buffer::new();
-    for (i, v) in values.iter().enumerate() {
+    let extra = times.iter().flatten();
+    for (i, v) in values.iter().chain(extra).enumerate() {
         if i > 0 {
             buf.push(b',');
         }
@@ -505,7 +678,7 @@ impl Rig {
         self.gps_time = Some((week, seconds_of_week));
         for u in self.units.iter_mut() {
             let state = match &mut u.body {
-                Body::Triad { encoding, .. } => match &mut **encoding {
+                Body::Triad { encoding, .. } | Body::Produced { encoding, .. } => match &mut **encoding {
                     Encoding::Frames { state, .. } => Some(state),
                     Encoding::Records(_) => None,
                 },
@@ -545,10 +718,14 @@ impl Rig {
     }
 
     /// The groups of units that share a time grid (indices into [`Rig::units`]): each group
-    /// costs one evaluation of the motion per instant.
+    /// costs one evaluation of the motion per instant. A unit with a producer of its own
+    /// ([`Unit::has_own_producer`]: an output filter, timing errors) is in none.
     pub fn groups(&self) -> Vec<Vec<usize>> {
         let mut groups: Vec<Vec<usize>> = Vec::new();
         for (i, u) in self.units.iter().enumerate() {
+            if u.has_own_producer() {
+                continue;
+            }
             match groups.iter_mut().find(|g| self.units[g[0]].grid == u.grid) {
                 Some(g) => g.push(i),
                 None => groups.push(vec![i]),
@@ -558,9 +735,11 @@ impl Rig {
     }
 
     /// Writes every unit's outputs (`outs[i]` for unit i); `progress(records_done)`, summed
-    /// over units, is called after each block and may stop the run ([`EngineError::Stopped`]).
+    /// over units, is called after each window of simulated time and may stop the run
+    /// ([`EngineError::Stopped`]). The bytes are those the rig's frame source
+    /// ([`Rig::stream`]) gives `imu-emu run` and `generate`.
     pub fn write(
-        mut self,
+        self,
         outs: &mut [UnitOutputs<'_>],
         mut progress: impl FnMut(u64) -> ControlFlow<()>,
     ) -> Result<(), EngineError> {
@@ -570,59 +749,52 @@ impl Rig {
                 need: self.units.len(),
             });
         }
+        let n = self.units.len();
         for (u, o) in self.units.iter().zip(outs.iter_mut()) {
-            let (main, truth) = u.headers();
-            o.main
-                .write_all(main.as_bytes())
-                .map_err(EngineError::from)?;
-            if let Some(t) = o.truth.as_mut() {
-                t.write_all(truth.as_bytes()).map_err(EngineError::from)?;
-            }
             if let Some(f) = o.failures.as_mut() {
-                (f.write_all(u.failure_csv().as_bytes())).map_err(EngineError::from)?;
+                f.write_all(u.failure_csv().as_bytes())?;
             }
         }
-        let mut done = 0;
-        for group in self.groups() {
-            let grid = self.units[group[0]].grid;
-            let rot_needed = group.iter().any(|&i| self.units[i].needs_rotation_terms());
-            let mut ideal = IdealImu::new(
-                self.motion.clone(),
-                grid.rate_hz,
-                grid.t0,
-                grid.count,
-                self.nodes,
-            );
-            let (mut reference, mut rot) = (Vec::new(), Vec::new());
-            let mut scratch: Vec<Scratch> = group.iter().map(|_| Scratch::default()).collect();
-            let mut k = 1;
-            while k <= grid.count {
-                let n = ((grid.count - k + 1) as usize).min(engine::BLOCK);
-                reference.resize(n, Record::default());
-                ideal.fill(k, &mut reference);
-                Producer::check_finite(&reference, "in the error-free signal")?;
-                if rot_needed {
-                    rot.resize(n, RotationTerms::default());
-                    ideal.rotation_terms(k, &mut rot);
+        let fastest = (self.units.iter())
+            .map(|u| u.grid.rate_hz)
+            .fold(0.0, f64::max);
+        let wanted: Vec<bool> = outs.iter().map(|o| o.truth.is_some()).collect();
+        let mut stream = self.stream().with_truth(&wanted);
+        let preambles = stream.preambles();
+        let mut truth_pre = preambles[n..].iter();
+        for (o, p) in outs.iter_mut().zip(&preambles) {
+            o.main.write_all(p)?;
+            if let Some(t) = o.truth.as_mut() {
+                t.write_all(truth_pre.next().expect("a truth stream per truth output"))?;
+            }
+        }
+        // Windows of about a block of the fastest unit's records.
+        let window = (engine::BLOCK as f64 / fastest * 1e9).clamp(1e6, 1e12) as i64;
+        let origin = stream.origin();
+        let mut parts = vec![Part::default(); stream.streams()];
+        let (mut until, mut done) = (0i64, 0u64);
+        while !stream.done() {
+            until = until.saturating_add(window);
+            parts.iter_mut().for_each(Part::clear);
+            stream.fill(Until::ns(origin, until), &mut parts)?;
+            for (i, o) in outs.iter_mut().enumerate() {
+                o.main.write_all(&parts[i].bytes)?;
+                done += parts[i].ends.len() as u64;
+                if let (Some(t), Some(w)) = (stream.truth_stream(i), o.truth.as_mut()) {
+                    w.write_all(&parts[t].bytes)?;
                 }
-                let terms = rot_needed.then_some(&rot[..]);
-                for (&i, s) in group.iter().zip(scratch.iter_mut()) {
-                    self.units[i].process(&self.motion, &reference, terms, s, &mut outs[i])?;
-                }
-                k += n as u64;
-                done += (n * group.len()) as u64;
-                if progress(done).is_break() {
-                    return Err(EngineError::Stopped);
-                }
+            }
+            if progress(done).is_break() {
+                return Err(EngineError::Stopped);
             }
         }
         for o in outs.iter_mut() {
-            o.main.flush().map_err(EngineError::from)?;
+            o.main.flush()?;
             for w in [o.truth.as_mut(), o.failures.as_mut()]
                 .into_iter()
                 .flatten()
             {
-                w.flush().map_err(EngineError::from)?;
+                w.flush()?;
             }
         }
         Ok(())

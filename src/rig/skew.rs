@@ -112,7 +112,9 @@ pub fn dodecahedron_axes() -> [[f64; 3]; 6] {
 pub(crate) struct ChannelErrors {
     gain: f64,
     bias: f64,
+    /// σ of the white noise's interval mean at the unit's rate, and its density.
     sigma: f64,
+    density: f64,
     noise: NormalStream,
 }
 
@@ -128,6 +130,7 @@ impl ChannelErrors {
                     gain: 1.0 + s.scale_factor,
                     bias: s.bias,
                     sigma: s.noise_density * rate_hz.sqrt(),
+                    density: s.noise_density,
                     noise: NormalStream::new(seed, &format!("{}/{i}/noise", kind.name())),
                 })
                 .collect::<Vec<_>>()
@@ -142,6 +145,18 @@ impl ChannelErrors {
     pub(crate) fn read(&mut self, x: f64) -> f64 {
         let n = if self.sigma > 0.0 {
             self.sigma * self.noise.draw()
+        } else {
+            0.0
+        };
+        self.gain * x + self.bias + n
+    }
+
+    /// The reading of `x`, the error-free mean over an interval of `dt` s (an externally
+    /// triggered sample): the white noise's mean over it has σ = N/√`dt`.
+    #[inline]
+    pub(crate) fn read_over(&mut self, x: f64, dt: f64) -> f64 {
+        let n = if self.density > 0.0 {
+            self.density / dt.sqrt() * self.noise.draw()
         } else {
             0.0
         };

@@ -306,23 +306,6 @@ impl RunSpec {
             layout.streams.iter_mut().for_each(|s| s.planned = None);
         }
         let sync = check_sync(sync, &mode, &units_seen, &layout, time_base)?;
-        if sync.trigger.is_some() {
-            match &sig {
-                Signal::Imu(s) if s.imu().output_filter.is_some() => {
-                    return Err(refuse(
-                        "--trigger",
-                        "the IMU template has an [output_filter]; a triggered unit with an output filter is not built yet",
-                    ));
-                }
-                Signal::Rig(_) | Signal::Live { rig: true, .. } => {
-                    return Err(refuse(
-                        "--trigger",
-                        "a rig's units sample on their shared grids; triggered rig units are not built yet",
-                    ));
-                }
-                _ => {}
-            }
-        }
         let links = check_links(link, &layout, &mode)?;
         check_stdout(&layout)?;
         let warnings = match &sig {

@@ -279,12 +279,6 @@ impl Layout {
                 })
             }
             Signal::Rig(mut rig) => {
-                if triggered {
-                    return Err(RunError::spec(
-                        "--trigger",
-                        "a rig's units sample on their shared grids; triggered rig units are not built yet".into(),
-                    ));
-                }
                 let origin = rig.span().0;
                 if let Some((frames, gnss)) = gps {
                     rig.set_gps_time(frames.0, frames.1 - origin);
@@ -297,7 +291,7 @@ impl Layout {
                         records: 0,
                     })
                     .collect();
-                let (list, preambles) = self.rig_sources(*rig)?;
+                let (list, preambles) = self.rig_sources(*rig, triggered)?;
                 Ok(Built {
                     sources: Sources::new(list),
                     preambles,

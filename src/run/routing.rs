@@ -350,8 +350,9 @@ impl Layout {
         Ok((sources, preambles))
     }
 
-    /// The sources of a rig's run, emission times counted from its earliest unit's t₀.
-    pub fn rig_sources(&self, rig: Rig) -> Result<SourcesWithPreambles, RunError> {
+    /// The sources of a rig's run, emission times counted from its earliest unit's t₀; a
+    /// triggered rig's units sample at the edges they are handed (every unit at every edge).
+    pub fn rig_sources(&self, rig: Rig, triggered: bool) -> Result<SourcesWithPreambles, RunError> {
         let origin = rig.span().0;
         let mut aiding = self.aiding_sources(&rig.aiding(), origin)?;
         let failures: Vec<Vec<u8>> = (rig.units().iter())
@@ -361,7 +362,10 @@ impl Layout {
             .collect();
         let mut truth = self.rig_truth.clone();
         truth.resize(rig.units().len(), false);
-        let stream = rig.stream().with_truth(&truth);
+        let mut stream = rig.stream().with_truth(&truth);
+        if triggered {
+            stream = stream.triggered();
+        }
         let mut preambles = stream.preambles();
         let mut sources: Vec<Box<dyn WindowSource>> = vec![Box::new(stream)];
         for f in failures {

@@ -4,11 +4,8 @@
 //! k/rate after t₀, or when the IMU's timing model says; a triggered unit samples once per
 //! edge it is handed.
 
-use std::collections::VecDeque;
-use std::sync::{Arc, Mutex};
-
 use crate::engine::frames::{Part, Until, WindowSource};
-use crate::engine::trigger::TriggerSource;
+use crate::engine::trigger::Queue as EdgeQueue;
 use crate::engine::{EngineError, Grid, Producer, released};
 use crate::output::{self, Format};
 
@@ -23,17 +20,6 @@ pub struct Sides {
     pub truth: bool,
     /// The error each stage injected.
     pub errors: bool,
-}
-
-/// Trigger intervals handed to a triggered producer, shared with the source that queues them.
-#[derive(Clone, Default)]
-struct EdgeQueue(Arc<Mutex<VecDeque<(f64, f64)>>>);
-
-impl TriggerSource for EdgeQueue {
-    fn next_interval(&mut self) -> Option<Result<(f64, f64), String>> {
-        let mut q = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        q.pop_front().map(Ok)
-    }
 }
 
 /// One IMU's frames.
@@ -130,7 +116,7 @@ impl ImuFrames {
     /// none is due or the run is complete.
     fn refill(&mut self, until: Until) -> Result<bool, EngineError> {
         let max = match &self.edges {
-            Some(q) => q.0.lock().unwrap_or_else(|e| e.into_inner()).len(),
+            Some(q) => q.len(),
             None => {
                 let made = self.grid.count - self.producer.remaining();
                 let t = until.t + self.ahead_ns as f64 * 1e-9;
@@ -275,9 +261,7 @@ impl WindowSource for ImuFrames {
 
     fn edge(&mut self, lo: f64, hi: f64) {
         if let Some(q) = &self.edges {
-            q.0.lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .push_back((lo, hi));
+            q.push(lo, hi);
         }
     }
 }

@@ -4,8 +4,12 @@
 use super::{Rate, SimulationBuilder};
 use crate::aiding::GnssConfig;
 use crate::aiding::mag_samples::MagHold;
-use crate::engine::Encoding;
+use crate::engine::filtered::FilteredImu;
+use crate::engine::{Encoding, EngineError, Producer};
 use crate::errors::ErrorChain;
+use crate::errors::filtered::FilteredChain;
+use crate::errors::temperature::TemperatureProfile;
+use crate::errors::template::ImuModel;
 use crate::output::Format;
 use crate::protocol::{self, EncoderState};
 use crate::rig::failure::FailureSet;
@@ -67,13 +71,6 @@ impl SimulationBuilder {
                 "a rig needs at least one unit (`[[imu]]` in the scene file)".into(),
             ));
         }
-        if self.file.timing.is_some() {
-            // Never run the units without the timing errors the scene file names.
-            return Err(SimError::Invalid(format!(
-                "`timing`: {NO_TIMING} (a scene file's [timing] applies to one `[imu]`)"
-            ))
-            .at(Some(format!("{}: `timing`", label.display()))));
-        }
         let (source, _, _) = self.source()?;
         let motion = self.motion()?;
         let nodes = self.nodes()?;
@@ -120,7 +117,28 @@ impl SimulationBuilder {
             };
             let template = match &spec.model {
                 UnitModel::Template(t) => {
-                    Some(super::super::load_template(t).map_err(|e| e.at(Some(place("model"))))?)
+                    let mut t = super::super::load_template(t)
+                        .map_err(|e| e.at(Some(place("model"))))?;
+                    // The scene file's [timing] is every three-axis unit's, over its template's
+                    // own, key by key (as for one `[imu]`).
+                    if let Some(table) = &self.file.timing {
+                        t.timing.apply_table(table).map_err(|e| {
+                            SimError::Invalid(e.message).at(Some(format!(
+                                "{}: `timing.{}`",
+                                label.display(),
+                                e.key
+                            )))
+                        })?;
+                    }
+                    Some(t)
+                }
+                UnitModel::Skew(_) if self.file.timing.is_some() => {
+                    // Never run a unit without the timing errors the scene file names.
+                    return Err(SimError::Invalid(format!(
+                        "applies to every unit of the rig, and unit `{}` is skew-redundant: its single-axis sensors have no sampling-clock model (give the three-axis units' templates a [timing] table instead)",
+                        spec.name
+                    ))
+                    .at(Some(format!("{}: `timing`", label.display()))));
                 }
                 UnitModel::Skew(_) => None,
             };
@@ -132,7 +150,17 @@ impl SimulationBuilder {
                 hz,
                 place: Some(place("rate_hz")),
             };
-            let grid = self.grid(&motion, &source, rate)?;
+            let mut grid = self.grid(&motion, &source, rate)?;
+            // A unit with timing errors or an output filter samples on its own clock (its
+            // grid may be shortened by the clock's margin), as one IMU does.
+            let own = template
+                .as_ref()
+                .is_some_and(|t| t.output_filter.is_some() || !t.timing.is_zero());
+            let timing = match &template {
+                Some(t) if own => (self.timing(t, &motion, &mut grid, seed))
+                    .map_err(|e| e.at(Some(place("model"))))?,
+                _ => None,
+            };
             if let Some(p) = plan.as_mut() {
                 p.set_rate(grid.rate_hz)
                     .map_err(|e| SimError::Invalid(e).at(Some(place("rate_hz"))))?;
@@ -145,8 +173,11 @@ impl SimulationBuilder {
             let placement = Placement::new(spec.mounting_deg, spec.lever_arm_m);
             // The body's vibration from the master seed: every unit on one time grid senses
             // the same realization, in its own axes.
-            let vibration = (self.build_vibration(grid.rate_hz, master, &mut warnings))
-                .map_err(|e| e.at(Some(place("rate_hz"))))?;
+            let vibration = match own {
+                false => (self.build_vibration(grid.rate_hz, master, &mut warnings))
+                    .map_err(|e| e.at(Some(place("rate_hz"))))?,
+                true => None,
+            };
             let frames = plan.is_some();
             let body = match (&spec.model, template) {
                 (UnitModel::Skew(layout), _) => Body::Skew {
@@ -155,22 +186,38 @@ impl SimulationBuilder {
                     frames: plan.map(|p| Box::new((p, EncoderState::default()))),
                     vibration: vibration.map(Box::new),
                 },
+                (UnitModel::Template(_), Some(t)) if own => {
+                    let (chain, filtered) = self
+                        .unit_chain(
+                            &t,
+                            grid.rate_hz,
+                            seed,
+                            master,
+                            temperature.as_ref(),
+                            &placement,
+                            spec.mounting_deg,
+                            &mut warnings,
+                        )
+                        .map_err(|e| e.at(Some(place("model"))))?;
+                    let filtered = match filtered {
+                        Some(c) => Some(
+                            FilteredImu::new(motion.clone(), grid, nodes, c)
+                                .map_err(|e| SimError::from(EngineError::Filter(e)))
+                                .map_err(|e| e.at(Some(place("rate_hz"))))?,
+                        ),
+                        None => None,
+                    };
+                    let producer = Producer::new(motion.clone(), grid, nodes, Format::Bin, chain, false)?
+                        .with_timing(timing)
+                        .with_filter(filtered)
+                        .with_truth_place(Box::new(placement.clone()));
+                    Body::Produced {
+                        producer: Box::new(producer),
+                        encoding: Box::new(encoding(plan, &format)),
+                        last_tov: 0.0,
+                    }
+                }
                 (UnitModel::Template(_), Some(t)) => {
-                    if t.output_filter.is_some() {
-                        // Never run a unit without the filter its template names.
-                        return Err(SimError::Invalid(format!(
-                            "template `{}` has an [output_filter]: rig units do not run output filters yet (a single IMU does)",
-                            t.name
-                        ))
-                        .at(Some(place("model"))));
-                    }
-                    if !t.timing.is_zero() {
-                        return Err(SimError::Invalid(format!(
-                            "template `{}` has [timing] errors: {NO_TIMING}",
-                            t.name
-                        ))
-                        .at(Some(place("model"))));
-                    }
                     let mut chain = ErrorChain::new(&t, grid.rate_hz, seed);
                     if let Some(p) = &temperature {
                         chain = chain.with_temperature(p.clone(), &t);
@@ -178,20 +225,9 @@ impl SimulationBuilder {
                     if let Some(v) = vibration {
                         chain = chain.with_vibration(v.in_axes(placement.c_b_c));
                     }
-                    let encoding = match plan {
-                        Some(plan) => Encoding::Frames {
-                            plan: Box::new(plan),
-                            state: EncoderState::default(),
-                            temperature: DEFAULT_FRAME_CELSIUS,
-                            side: Format::Csv,
-                        },
-                        None => {
-                            Encoding::Records(Format::from_name(&format).unwrap_or(Format::Csv))
-                        }
-                    };
                     Body::Triad {
                         chain: (!chain.is_empty()).then(|| Box::new(chain)),
-                        encoding: Box::new(encoding),
+                        encoding: Box::new(encoding(plan, &format)),
                     }
                 }
                 (UnitModel::Template(_), None) => unreachable!("a template unit has its template"),
@@ -207,7 +243,7 @@ impl SimulationBuilder {
             // The unit's own magnetometer: its noise from the unit's seed (units differ; a unit
             // whose seed is the master seed draws the single IMU's samples).
             let mag = match (&sensors.magnetometer, &body) {
-                (Some(cfg), Body::Triad { .. }) if frames => Some(Box::new(MagHold::in_axes(
+                (Some(cfg), Body::Triad { .. } | Body::Produced { .. }) if frames => Some(Box::new(MagHold::in_axes(
                     cfg.clone(),
                     seed,
                     grid.t0,
@@ -236,6 +272,7 @@ impl SimulationBuilder {
                 path: spec.path.clone(),
                 sinks: spec.sinks.clone(),
                 flags: 0,
+                triggered: false,
             });
         }
         let gnss = self.resolve_aiding(&self.gnss, &self.file.gnss, GnssConfig::validate)?;
@@ -257,9 +294,66 @@ impl SimulationBuilder {
     }
 }
 
-/// Why a rig refuses timing errors: its units on one grid share the error-free signal at the
-/// grid's instants, where a unit with its own clock, jitter or latency needs its own.
-const NO_TIMING: &str = "rig units do not model timing errors yet (a single IMU does; docs/rig.md)";
+impl SimulationBuilder {
+    /// The error chain of a producer-backed unit with template `t` at `rate_hz`: the
+    /// template's chain — or, with an output filter, its filtered chain, whose internal-rate
+    /// stages get these — with the temperature, the unit's mounting and lever arm (turned
+    /// into its case frame) and the body's vibration (from the `master` seed, in the unit's
+    /// axes, on the grid the chain runs at), as [`SimulationBuilder::chain`] builds one IMU's
+    /// with its `[imu]` mounting and lever arm.
+    #[allow(clippy::too_many_arguments)] // the unit's parts, each distinct
+    fn unit_chain(
+        &self,
+        t: &ImuModel,
+        rate_hz: f64,
+        seed: u64,
+        master: u64,
+        temperature: Option<&TemperatureProfile>,
+        place: &Placement,
+        mounting_deg: [f64; 3],
+        warnings: &mut Vec<String>,
+    ) -> Result<(Option<ErrorChain>, Option<FilteredChain>), SimError> {
+        let mut configure = |mut chain: ErrorChain, hz: f64| -> Result<ErrorChain, SimError> {
+            if let Some(p) = temperature {
+                chain = chain.with_temperature(p.clone(), t);
+            }
+            if place.c_b_c.is_some() {
+                // C_c^b from the angles, as one IMU's `mounting_deg`; the chain wants C_b^c.
+                let [r, p, y] = mounting_deg.map(f64::to_radians);
+                chain = chain.with_mounting(crate::math::quat_from_euler(r, p, y).conjugate());
+            }
+            chain = chain.with_lever_arm(place.to_case(place.lever_b));
+            if let Some(v) = self.build_vibration(hz, master, warnings)? {
+                chain = chain.with_vibration(v.in_axes(place.c_b_c));
+            }
+            Ok(chain)
+        };
+        let Some(spec) = &t.output_filter else {
+            let chain = configure(ErrorChain::new(t, rate_hz, seed), rate_hz)?;
+            return Ok(((!chain.is_empty()).then_some(chain), None));
+        };
+        let filtered = FilteredChain::new(t, rate_hz, seed).map_err(|e| {
+            SimError::Invalid(format!("template `{}`: [output_filter]: {e}", t.name))
+        })?;
+        let internal = spec.internal_rate_hz;
+        let inner = ErrorChain::new(&FilteredChain::inner_model(t), internal, seed);
+        let inner = configure(inner, internal)?;
+        Ok((None, Some(filtered.map_inner(|_| inner))))
+    }
+}
+
+/// A three-axis unit's encoding: the frames of `plan`, or the records `format` names.
+fn encoding(plan: Option<protocol::Plan>, format: &str) -> Encoding {
+    match plan {
+        Some(plan) => Encoding::Frames {
+            plan: Box::new(plan),
+            state: EncoderState::default(),
+            temperature: DEFAULT_FRAME_CELSIUS,
+            side: Format::Csv,
+        },
+        None => Encoding::Records(Format::from_name(format).unwrap_or(Format::Csv)),
+    }
+}
 
 /// A protocol's frames suit the unit: an N-channel frame carries exactly a skew unit's
 /// channels (none dropped, none made up), a three-axis frame goes with a three-axis IMU.
