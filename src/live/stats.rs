@@ -73,6 +73,14 @@ impl InputStats {
             Err(e @ Rejected::Limit(_)) => {
                 self.refused += 1;
                 self.note(format!("{place}: {e}"));
+                // It arrived: the states after it are no gap.
+                if let Some(s) = d.seq
+                    && self
+                        .last_seq
+                        .is_none_or(|l| s.wrapping_sub(l) % modulo < modulo / 2)
+                {
+                    self.last_seq = Some(s);
+                }
             }
         }
     }
@@ -141,7 +149,16 @@ mod tests {
         // A late state does not move the sequence back: the next one is no gap.
         s.state(&at(3, 1.9), &ok, 256, "");
         assert_eq!(s.gaps, 2);
+        // A state refused by the limits arrived: the one after it is no gap either.
+        let limit = Err(Rejected::Limit(crate::motion::limits::Violation {
+            column: "wx",
+            message: "too fast".into(),
+        }));
+        s.state(&at(4, 2.0), &limit, 256, "x:9");
+        s.state(&at(5, 2.1), &ok, 256, "");
+        assert_eq!((s.gaps, s.refused), (2, 1));
+        assert_eq!(s.problems, vec!["x:9: `wx`: too fast".to_string()]);
         s.malformed("x:3", "bad");
-        assert_eq!(s.problems, vec!["x:3: bad".to_string()]);
+        assert_eq!(s.problems[1], "x:3: bad");
     }
 }

@@ -6,6 +6,7 @@
 
 use super::sampled::Sample;
 use crate::csvio::num;
+use crate::math::Vec3;
 
 /// Largest |t| (s): 10¹⁰ s (317 years) holds GPS and Unix times with sub-µs resolution.
 pub const MAX_ABS_TIME_S: f64 = 1.0e10;
@@ -118,6 +119,52 @@ pub fn check_step(prev: &Sample, s: &Sample) -> Result<(), Violation> {
     Ok(())
 }
 
+/// Checks the derivatives a live state may carry besides its sample: the body rate ω_ib^b
+/// (rad/s) against [`MAX_RATE_RAD_S`] and the NED acceleration v̇^n (m/s²) against
+/// [`MAX_ACCEL_M_S2`]; columns named as the live CSV names them (`wx`…, `an`…).
+pub fn check_given(omega_ib_b: Option<Vec3>, accel_n: Option<Vec3>) -> Result<(), Violation> {
+    for (v, limit, names, what, unit) in [
+        (
+            omega_ib_b,
+            MAX_RATE_RAD_S,
+            ["wx", "wy", "wz"],
+            "body rate",
+            "rad/s",
+        ),
+        (
+            accel_n,
+            MAX_ACCEL_M_S2,
+            ["an", "ae", "ad"],
+            "acceleration",
+            "m/s²",
+        ),
+    ] {
+        let Some(v) = v else { continue };
+        // Per component first: the norm of a huge (or non-finite) vector is not a number to quote.
+        if let Some(k) = (0..3).find(|&k| !(v[k].abs() <= limit)) {
+            return violation(
+                names[k],
+                format!(
+                    "the given {what} {} {unit} is beyond the limit of {} {unit}",
+                    num(v[k]),
+                    num(limit)
+                ),
+            );
+        }
+        if v.norm() > limit {
+            return violation(
+                names[0],
+                format!(
+                    "the given {what} has magnitude {} {unit}, above the limit of {} {unit}",
+                    num(v.norm()),
+                    num(limit)
+                ),
+            );
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -161,5 +208,27 @@ mod tests {
         let e = check_step(&a, &at(1e-4, 0.0, 0.0, 1.0001)).unwrap_err();
         assert_eq!(e.column, "");
         assert!(e.message.contains("above the limit of 1e4 rad/s"), "{e:?}");
+    }
+
+    /// Given body rates and accelerations are held to the rate and acceleration limits, per
+    /// component (so 1e300 and NaN name their column) and in magnitude.
+    #[test]
+    fn given_rates_and_accelerations_are_limited() {
+        let ok = Vec3::new(MAX_RATE_RAD_S, 0.0, 0.0);
+        assert!(check_given(Some(ok), Some(Vec3::new(0.0, 0.0, -MAX_ACCEL_M_S2))).is_ok());
+        let e = check_given(Some(Vec3::new(1e300, 0.0, 0.0)), None).unwrap_err();
+        assert_eq!(e.column, "wx");
+        assert!(
+            e.message
+                .contains("body rate 1e300 rad/s is beyond the limit of 1e4"),
+            "{e:?}"
+        );
+        let e = check_given(Some(Vec3::new(0.0, f64::NAN, 0.0)), None).unwrap_err();
+        assert_eq!(e.column, "wy");
+        let e = check_given(None, Some(Vec3::new(1e300, 0.0, 0.0))).unwrap_err();
+        assert_eq!(e.column, "an");
+        let diagonal = Vec3::new(0.8, 0.8, 0.0) * MAX_RATE_RAD_S;
+        let e = check_given(Some(diagonal), None).unwrap_err();
+        assert!(e.message.contains("magnitude"), "{e:?}");
     }
 }

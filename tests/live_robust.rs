@@ -1,0 +1,189 @@
+//! Live input a hostile sender could send (issue 23): a state with huge given rates or
+//! accelerations. Each is counted with its place and dropped; the run goes on and writes
+//! exactly the bytes of the same input without it. Real parts: the binary, a pipe and UDP on
+//! loopback.
+
+use std::io::Write;
+use std::net::UdpSocket;
+use std::process::{Command, ExitStatus, Stdio};
+use std::thread;
+use std::time::Duration;
+
+use imu_emu::live::InputFormat;
+use imu_emu::live::binary::{self, Datagram};
+use imu_emu::live::lockstep::Lockstep;
+use imu_emu::live::transport::Receiver;
+use imu_emu::motion::Motion;
+use imu_emu::sim::Simulation;
+use imu_emu::trajectory;
+
+fn imu_emu() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+}
+
+/// The circle scene's states (a constant turn: every state shapes the motion) every 10 ms
+/// for `seconds`, as `imu-emu trajectory` writes them (a comment, the header, then one line
+/// per state).
+fn circle_lines(seconds: f64) -> Vec<String> {
+    let m = Simulation::builder()
+        .scene("circle")
+        .build()
+        .unwrap()
+        .motion()
+        .clone();
+    trajectory::sample_motion(&m, 0.0, 100.0, (seconds * 100.0) as u64, Some("circle"))
+        .lines()
+        .map(str::to_string)
+        .collect()
+}
+
+/// `imu-emu run --motion - --time-mode lockstep` with `text` on a pipe, error-free records as
+/// CSV (every digit shows): its exit status, stderr and output file (if one was left).
+fn lockstep_pipe(text: &str) -> (ExitStatus, String, Option<Vec<u8>>) {
+    let dir = tempfile::TempDir::new().unwrap();
+    let out = dir.path().join("out.csv");
+    let mut child = imu_emu()
+        .args(["run", "--motion", "-", "--time-mode", "lockstep"])
+        .args(["--imu", "ideal", "--format", "csv", "--file"])
+        .arg(&out)
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let text = text.to_string();
+    let writer = thread::spawn(move || {
+        let _ = stdin.write_all(text.as_bytes());
+    });
+    let done = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    let err = String::from_utf8_lossy(&done.stderr).into_owned();
+    (done.status, err, std::fs::read(&out).ok())
+}
+
+/// Line `n` (1-based, as the run counts them) of `lines` with column `col` set to `value`.
+fn set(lines: &mut [String], n: usize, col: usize, value: &str) {
+    let mut f: Vec<&str> = lines[n - 1].split(',').collect();
+    f[col] = value;
+    lines[n - 1] = f.join(",");
+}
+
+fn join(lines: &[String]) -> String {
+    lines.iter().map(|l| format!("{l}\n")).collect()
+}
+
+/// A state whose given body rate is 1e300 deg/s, another whose given acceleration is 1e300
+/// m/s² (issue 23 item 1: each once stopped the run with "gyro_x is NaN in the error-free
+/// signal", exit 1, no output): both refused naming their line and column, the run ends
+/// normally, and its output is the bytes of the same input without those two lines.
+#[test]
+fn huge_given_rates_and_accelerations_are_refused_and_counted() {
+    let mut lines = circle_lines(3.0);
+    lines[1].push_str(",wx,wy,wz,an,ae,ad");
+    for l in &mut lines[2..] {
+        l.push_str(",0,0,0,0,0,0");
+    }
+    let clean = join(&lines);
+    set(&mut lines, 150, 10, "1e300");
+    set(&mut lines, 200, 13, "1e300");
+    let (status, err, out) = lockstep_pipe(&join(&lines));
+    assert!(status.success(), "{err}");
+    assert!(err.contains(", 2 refused,"), "{err}");
+    assert!(
+        err.contains("stdin: line 150: `wx`: the given body rate"),
+        "{err}"
+    );
+    assert!(
+        err.contains("stdin: line 200: `an`: the given acceleration 1e300 m/s²"),
+        "{err}"
+    );
+    let mut without = lines.clone();
+    without.remove(199);
+    without.remove(149);
+    let (status, err, want) = lockstep_pipe(&join(&without));
+    assert!(status.success(), "{err}");
+    assert!(
+        out.is_some() && out == want,
+        "not the bytes without the two lines"
+    );
+    // Without those lines the output differs: dropping a state is visible.
+    assert!(want != lockstep_pipe(&clean).2);
+}
+
+/// The motion's state at `t` as a binary datagram carrying a body rate.
+fn datagram(m: &impl Motion, t: f64, seq: u32, rate: [f64; 3]) -> Vec<u8> {
+    let p = m.pose(t);
+    binary::encode(&Datagram {
+        seq,
+        week: binary::NO_WEEK,
+        time: t,
+        flags: binary::FLAG_RATE,
+        pos: [p.lat.to_degrees(), p.lon.to_degrees(), p.h],
+        vel: p.v_n.into(),
+        acc: [0.0; 3],
+        quat: [p.q_b_n.w, p.q_b_n.i, p.q_b_n.j, p.q_b_n.k],
+        rate,
+    })
+    .to_vec()
+}
+
+/// `datagrams` sent over UDP loopback to a lockstep run of 2 s; its output and summary.
+fn over_udp(datagrams: Vec<Vec<u8>>) -> (Vec<u8>, imu_emu::live::lockstep::LiveSummary) {
+    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+    socket
+        .set_read_timeout(Some(Duration::from_millis(500)))
+        .unwrap();
+    let addr = socket.local_addr().unwrap();
+    let sender = thread::spawn(move || {
+        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        for d in datagrams {
+            s.send_to(&d, addr).unwrap();
+            // Paced so that loopback never drops one.
+            thread::sleep(Duration::from_micros(200));
+        }
+    });
+    let mut rx = Receiver::from_socket(socket, InputFormat::Binary, "udp");
+    let b = Simulation::builder().rate(400.0).duration(2.0);
+    let mut out = Vec::new();
+    let s = Lockstep::new(b, InputFormat::Binary)
+        .unwrap()
+        .run(&mut rx, &mut out, None, |_| ())
+        .unwrap();
+    sender.join().unwrap();
+    (out, s)
+}
+
+/// A binary datagram with ω = 1e300 rad/s (issue 23 item 1) over UDP: refused, named by its
+/// datagram, and the output is that of the input without it.
+#[test]
+fn a_datagram_with_a_huge_body_rate_is_refused() {
+    let m = Simulation::builder()
+        .scene("circle")
+        .build()
+        .unwrap()
+        .motion()
+        .clone();
+    let with = |bad: bool| -> Vec<Vec<u8>> {
+        (0..250u32)
+            .filter(|&i| bad || i != 120)
+            .map(|i| {
+                let w = if bad && i == 120 { 1e300 } else { 0.01 };
+                datagram(&m, f64::from(i) * 0.01, i, [w, 0.0, 0.0])
+            })
+            .collect()
+    };
+    let (out, s) = over_udp(with(true));
+    // The run ends at its 2 s; the refused datagram is no gap in the sequence numbers.
+    let st = &s.stats;
+    assert_eq!(
+        (st.refused, st.states + 1, st.gaps),
+        (1, st.messages, 0),
+        "{s:?}"
+    );
+    assert_eq!(
+        s.stats.problems,
+        vec!["udp: datagram 121: `wx`: the given body rate 1e300 rad/s is beyond the limit of 1e4 rad/s".to_string()]
+    );
+    let (want, _) = over_udp(with(false));
+    assert!(out == want, "not the bytes without the datagram");
+}
