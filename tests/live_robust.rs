@@ -1,7 +1,7 @@
 //! Live input a hostile sender could send (issue 23): a state with huge given rates or
-//! accelerations. Each is counted with its place and dropped; the run goes on and writes
-//! exactly the bytes of the same input without it. Real parts: the binary, a pipe and UDP on
-//! loopback.
+//! accelerations, a position jump the velocities do not carry. Each is counted with its place
+//! and dropped; the run goes on and writes exactly the bytes of the same input without it.
+//! Real parts: the binary, a pipe and UDP on loopback.
 
 use std::io::Write;
 use std::net::UdpSocket;
@@ -186,4 +186,56 @@ fn a_datagram_with_a_huge_body_rate_is_refused() {
     );
     let (want, _) = over_udp(with(false));
     assert!(out == want, "not the bytes without the datagram");
+}
+
+/// Five states 9° (1000 km) north of the track (issue 23 item 4: the ideal IMU spiked to
+/// 162 rad/s and 9639 m/s², exit 0): `generate --trajectory` refuses the file naming the
+/// line and `lat`, leaving no output; a live run refuses the five states, counted with their
+/// lines, and writes the bytes of the input without them.
+#[test]
+fn a_position_jump_is_refused() {
+    let mut lines = circle_lines(4.0);
+    for n in 300..305 {
+        let lat: f64 = lines[n - 1].split(',').nth(1).unwrap().parse().unwrap();
+        set(&mut lines, n, 1, &(lat + 9.0).to_string());
+    }
+    let dir = tempfile::TempDir::new().unwrap();
+    let traj = dir.path().join("jump.csv");
+    std::fs::write(&traj, join(&lines)).unwrap();
+    let out = dir.path().join("imu.csv");
+    let done = imu_emu()
+        .args(["generate", "--trajectory"])
+        .arg(&traj)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&done.stderr);
+    assert_eq!(done.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("jump.csv:300: column 2 (`lat`): the position moved 999"),
+        "{err}"
+    );
+    assert!(!out.exists());
+
+    let (status, err, got) = lockstep_pipe(&join(&lines));
+    assert!(status.success(), "{err}");
+    assert!(
+        err.contains("396 states taken;") && err.contains(", 5 refused,"),
+        "{err}"
+    );
+    for n in 300..305 {
+        assert!(
+            err.contains(&format!("stdin: line {n}: `lat`: the position moved")),
+            "{err}"
+        );
+    }
+    let mut without = lines.clone();
+    without.drain(299..304);
+    let (status, err, want) = lockstep_pipe(&join(&without));
+    assert!(status.success(), "{err}");
+    assert!(
+        got.is_some() && got == want,
+        "not the bytes without the five lines"
+    );
 }

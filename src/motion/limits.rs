@@ -6,6 +6,7 @@
 
 use super::sampled::Sample;
 use crate::csvio::num;
+use crate::earth::Geodetic;
 use crate::math::Vec3;
 
 /// Largest |t| (s): 10¹⁰ s (317 years) holds GPS and Unix times with sub-µs resolution.
@@ -23,6 +24,10 @@ pub const MAX_ACCEL_M_S2: f64 = 1.0e5;
 /// Largest angular rate implied between samples, (rotation angle)/Δt (rad/s): 10⁴ rad/s,
 /// about 1 600 revolutions per second.
 pub const MAX_RATE_RAD_S: f64 = 1.0e4;
+/// Disagreement allowed between a position step and the one the velocities imply (m), on top
+/// of what [`MAX_ACCEL_M_S2`] allows: positions rounded in a file (1e-5° is 1.1 m) or recorded
+/// apart from the velocities, never a jump of kilometres.
+pub const POSITION_SLACK_M: f64 = 10.0;
 
 /// A value beyond a limit: the trajectory column it concerns and what is wrong.
 #[derive(Clone, Debug, PartialEq)]
@@ -103,6 +108,7 @@ pub fn check_step(prev: &Sample, s: &Sample) -> Result<(), Violation> {
             ),
         );
     }
+    check_position(prev, s, dt)?;
     let dq = prev.q_b_n.conjugate() * s.q_b_n;
     let angle = 2.0 * dq.imag().norm().atan2(dq.w.abs());
     let rate = angle / dt;
@@ -117,6 +123,44 @@ pub fn check_step(prev: &Sample, s: &Sample) -> Result<(), Violation> {
         );
     }
     Ok(())
+}
+
+/// The position step against the velocities: over a step Δt, a motion whose acceleration
+/// stays within A moves (v₀ + v₁)·Δt/2 to within A·Δt²/4 (the trapezoid rule's error bound for
+/// a velocity with Lipschitz constant A), so a larger miss — a position jump the velocities do
+/// not carry — is beyond the limits. In ECEF, where the positions and velocities are one
+/// frame's.
+fn check_position(prev: &Sample, s: &Sample, dt: f64) -> Result<(), Violation> {
+    let (g0, g1) = (
+        Geodetic::from_radians(prev.lat, prev.lon, prev.h),
+        Geodetic::from_radians(s.lat, s.lon, s.h),
+    );
+    let moved = g1.to_ecef() - g0.to_ecef();
+    let carried = (g0.c_n_e() * prev.v_n + g1.c_n_e() * s.v_n) * (dt / 2.0);
+    let miss = moved - carried;
+    let allowed = MAX_ACCEL_M_S2 * dt * dt / 4.0 + POSITION_SLACK_M;
+    if miss.norm() <= allowed {
+        return Ok(());
+    }
+    // Blame the column of the miss's largest local-level component.
+    let ned = g0.c_n_e().tr_mul(&miss);
+    let k = (0..3).fold(0, |m, k| if ned[k].abs() > ned[m].abs() { k } else { m });
+    violation(
+        ["lat", "lon", "h"][k],
+        format!(
+            "the position moved {} m from the previous sample, {} m off what the velocities carry it in {} s (at most {} m within the limit of {} m/s²)",
+            num(round3(moved.norm())),
+            num(round3(miss.norm())),
+            num((dt * 1e9).round() / 1e9),
+            num(round3(allowed)),
+            num(MAX_ACCEL_M_S2)
+        ),
+    )
+}
+
+/// A length for a message: to the millimetre.
+fn round3(x: f64) -> f64 {
+    (x * 1e3).round() / 1e3
 }
 
 /// Checks the derivatives a live state may carry besides its sample: the body rate ω_ib^b
@@ -208,6 +252,34 @@ mod tests {
         let e = check_step(&a, &at(1e-4, 0.0, 0.0, 1.0001)).unwrap_err();
         assert_eq!(e.column, "");
         assert!(e.message.contains("above the limit of 1e4 rad/s"), "{e:?}");
+    }
+
+    /// A position step must be carried by the velocities to within A·Δt²/4 + the slack: at
+    /// 10 ms that is 12.5 m. A height jump of 12.51 m with the vehicle at rest is refused,
+    /// 12.49 m is not; a flight at 60 m/s north whose latitude follows its speed passes, and the
+    /// same with 9° (1000 km) more latitude is refused naming `lat`.
+    #[test]
+    fn positions_must_follow_the_velocities() {
+        let a = at(0.0, 100.0, 0.0, 0.0);
+        assert!(check_step(&a, &at(0.01, 112.49, 0.0, 0.0)).is_ok());
+        let e = check_step(&a, &at(0.01, 112.51, 0.0, 0.0)).unwrap_err();
+        assert_eq!(e.column, "h");
+        assert!(
+            e.message
+                .contains("12.51 m off what the velocities carry it in 0.01 s (at most 12.5 m"),
+            "{e:?}"
+        );
+        let g = Geodetic::from_radians(a.lat, a.lon, a.h);
+        let r_m = crate::earth::radius_meridian(g.sin_lat);
+        let flying = |t: f64, extra_lat: f64| Sample {
+            lat: a.lat + 60.0 * t / (r_m + a.h) + extra_lat,
+            ..at(t, 100.0, 60.0, 0.0)
+        };
+        assert!(check_step(&flying(0.0, 0.0), &flying(0.01, 0.0)).is_ok());
+        let e = check_step(&flying(0.0, 0.0), &flying(0.01, 9f64.to_radians())).unwrap_err();
+        assert_eq!(e.column, "lat");
+        // 9° of meridian arc from 40° N: 999 km.
+        assert!(e.message.contains("the position moved 999105."), "{e:?}");
     }
 
     /// Given body rates and accelerations are held to the rate and acceleration limits, per
