@@ -32,34 +32,42 @@ pub struct TrajectoryArgs {
 
 /// `imu-emu templates`: the built-in IMU templates and their headline figures, each typical
 /// profile on its own row under its template.
+/// Written, not printed: a full disk or a closed pipe is an error, never a panic.
 pub fn list_templates() -> Result<()> {
     use imu_emu::errors::template;
-    println!(
+    let mut out = std::io::stdout().lock();
+    writeln!(
+        out,
         "{:<17} {:<11} {:>12} {:>13} {:>12} {:>13}  description",
         "name", "grade", "gyro BI", "ARW", "accel BI", "VRW"
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "{:<17} {:<11} {:>12} {:>13} {:>12} {:>13}",
         "", "", "deg/h", "deg/sqrt(h)", "ug", "m/s/sqrt(h)"
-    );
+    )?;
     let typical = template::typical_names();
     for name in template::builtin_names() {
-        print_template_row(&template::load(name)?);
+        template_row(&mut out, &template::load(name)?)?;
         if typical.contains(&name) {
-            print_template_row(&template::load(&format!("{name}:{}", template::TYPICAL))?);
+            let m = template::load(&format!("{name}:{}", template::TYPICAL))?;
+            template_row(&mut out, &m)?;
         }
     }
-    println!(
+    writeln!(
+        out,
         "\n`--imu NAME` uses the datasheet figures (the default); `--imu NAME:typical` the \
          figures read from a public recording of a real unit (docs/fidelity.md)."
-    );
+    )?;
+    out.flush()?;
     Ok(())
 }
 
-fn print_template_row(m: &imu_emu::errors::ImuModel) {
+fn template_row(out: &mut impl Write, m: &imu_emu::errors::ImuModel) -> std::io::Result<()> {
     use std::f64::consts::PI;
     let deg_h = 180.0 / PI * 3600.0;
-    println!(
+    writeln!(
+        out,
         "{:<17} {:<11} {:>12.3} {:>13.4} {:>12.1} {:>13.4}  {}",
         m.name,
         m.grade,
@@ -68,7 +76,7 @@ fn print_template_row(m: &imu_emu::errors::ImuModel) {
         m.accel.bias_instability[0] / imu_emu::units::G0 * 1e6,
         m.accel.noise[0] * 60.0,
         m.description
-    );
+    )
 }
 
 pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {

@@ -333,7 +333,10 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
     if to_stdout {
         eprint!("{summary}");
     } else {
-        print!("{summary}");
+        // Written, not printed: a full disk or a closed pipe is an error, never a panic.
+        let mut out = std::io::stdout().lock();
+        out.write_all(summary.as_bytes())?;
+        out.flush()?;
     }
     Ok(())
 }
