@@ -123,6 +123,12 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         plan.set_rate(rate)
             .map_err(|e| anyhow::anyhow!("--rate: {e}"))?;
     }
+    if plan.evidence_bits() == 0 && matches!(plan.transport, imu_emu::protocol::Transport::Plain) {
+        eprintln!(
+            "imu-emu decode: `{}` frames have neither constant fields nor a check: any bytes decode as frames, noise included",
+            plan.name
+        );
+    }
     let live = a.serial.is_some() || a.udp_listen.is_some();
     let mut input = if let Some(dev) = &a.serial {
         let mut port = serialport::new(dev, a.baud)
@@ -226,54 +232,67 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         .duration
         .map(|d| started + Duration::from_secs_f64(d.max(0.0)));
     let limit = a.frames.unwrap_or(u64::MAX);
+    // One CSV row per good frame: the frames of a read (arrived at `now`), and those the end
+    // of the input confirms.
+    let mut on_frame = |d: &imu_emu::protocol::Decoded,
+                        now: i128,
+                        out: &mut dyn Write,
+                        gaps: &mut Lateness|
+     -> std::io::Result<()> {
+        if let Some(t) = last_arrival {
+            gaps.add(now - t);
+        }
+        last_arrival = Some(now);
+        if a.tally_only {
+            return Ok(());
+        }
+        line.clear();
+        cells.iter_mut().for_each(|c| *c = None);
+        if contract {
+            let dt = fixed_dt.or_else(|| interval.observe(d));
+            cells[..13].copy_from_slice(&d.contract(dt));
+        }
+        for (slot, (_, v)) in slots[d.message].iter().zip(&d.values) {
+            if let Some(i) = slot {
+                cells[*i] = Some(*v);
+            }
+        }
+        if multi {
+            line.push_str(&names[d.message]);
+            line.push(',');
+        }
+        for (i, c) in cells.iter().enumerate() {
+            if i > 0 {
+                line.push(',');
+            }
+            if let Some(v) = c {
+                line.push_str(fmt.format(*v));
+            }
+        }
+        line.push('\n');
+        out.write_all(line.as_bytes())
+    };
     while stop.as_ref().is_none_or(|s| s.load(Ordering::Relaxed) == 0) && dec.stats().frames < limit
     {
         if deadline.is_some_and(|d| Instant::now() >= d) {
             break;
         }
-        let Some(n) = input.read(&mut buf)? else {
-            dec.finish();
-            break;
-        };
+        let read = input.read(&mut buf)?;
         let now = monotonic_ns();
         let mut err = Ok(());
-        dec.feed(&buf[..n], |d| {
-            if let Some(t) = last_arrival {
-                gaps.add(now - t);
-            }
-            last_arrival = Some(now);
-            if a.tally_only {
-                return;
-            }
-            line.clear();
-            cells.iter_mut().for_each(|c| *c = None);
-            if contract {
-                let dt = fixed_dt.or_else(|| interval.observe(d));
-                cells[..13].copy_from_slice(&d.contract(dt));
-            }
-            for (slot, (_, v)) in slots[d.message].iter().zip(&d.values) {
-                if let Some(i) = slot {
-                    cells[*i] = Some(*v);
-                }
-            }
-            if multi {
-                line.push_str(&names[d.message]);
-                line.push(',');
-            }
-            for (i, c) in cells.iter().enumerate() {
-                if i > 0 {
-                    line.push(',');
-                }
-                if let Some(v) = c {
-                    line.push_str(fmt.format(*v));
-                }
-            }
-            line.push('\n');
+        let mut each = |d: &imu_emu::protocol::Decoded| {
             if err.is_ok() {
-                err = out.write_all(line.as_bytes());
+                err = on_frame(d, now, &mut out, &mut gaps);
             }
-        });
+        };
+        match read {
+            Some(n) => dec.feed(&buf[..n], &mut each),
+            None => dec.finish_frames(&mut each),
+        }
         err?;
+        if read.is_none() {
+            break;
+        }
         if live && last_tally.elapsed() >= Duration::from_secs(1) {
             out.flush()?;
             last_tally = Instant::now();

@@ -185,7 +185,7 @@ pub fn check_given(omega_ib_b: Option<Vec3>, accel_n: Option<Vec3>) -> Result<()
     ] {
         let Some(v) = v else { continue };
         // Per component first: the norm of a huge (or non-finite) vector is not a number to quote.
-        if let Some(k) = (0..3).find(|&k| !(v[k].abs() <= limit)) {
+        if let Some(k) = (0..3).find(|&k| v[k].is_nan() || v[k].abs() > limit) {
             return violation(
                 names[k],
                 format!(
