@@ -77,3 +77,77 @@ fn decode_warns_when_frames_cannot_be_told_from_noise() {
     );
     assert!(err.contains("500 frames"), "{err}");
 }
+
+/// `generate`s a CSV record file of `scene` (1 s at 100 Hz) into `dir/name`.
+fn records_csv(dir: &Path, scene: &str, name: &str) -> std::path::PathBuf {
+    let p = dir.join(name);
+    let o = imu_emu()
+        .args([
+            "generate",
+            "--scene",
+            scene,
+            "--rate",
+            "100",
+            "--duration",
+            "1",
+            "-o",
+        ])
+        .arg(&p)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    p
+}
+
+/// A record whose increment no IMU measures (Δθ_x = 1e300 rad) is named with its values
+/// (issue 23 item 7: a free-inertial run blamed "the GNSS-aided filter", which it did not
+/// use); numbers in `navigate`'s messages are short (a random file's t₀ was printed with
+/// 190 digits).
+#[test]
+fn navigate_names_the_record_not_a_filter_it_did_not_use() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let rec = records_csv(dir.path(), "circle", "c.csv");
+    let text = std::fs::read_to_string(&rec).unwrap();
+    let bad: String = text
+        .lines()
+        .map(|l| match l.strip_prefix("0.5,") {
+            Some(rest) => {
+                let mut f: Vec<&str> = rest.split(',').collect();
+                f[6] = "1e300";
+                format!("0.5,{}\n", f.join(","))
+            }
+            None => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(&rec, bad).unwrap();
+    let o = imu_emu()
+        .arg("navigate")
+        .arg(&rec)
+        .args(["--scene", "circle"])
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("c.csv: record 50 at t = 0.5 s: increments dtheta [1e300, "),
+        "{err}"
+    );
+    assert!(!err.contains("GNSS"), "{err}");
+
+    let noise = noise_file(dir.path(), "noise.bin", 20_000);
+    let o = imu_emu()
+        .arg("navigate")
+        .arg(&noise)
+        .args(["--scene", "circle"])
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(!err.contains("GNSS"), "{err}");
+    let longest_number = err
+        .split(|c: char| !c.is_ascii_digit())
+        .map(str::len)
+        .max()
+        .unwrap_or(0);
+    assert!(longest_number <= 17, "{err}");
+}
