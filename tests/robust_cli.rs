@@ -151,3 +151,42 @@ fn navigate_names_the_record_not_a_filter_it_did_not_use() {
         .unwrap_or(0);
     assert!(longest_number <= 17, "{err}");
 }
+
+/// A plot that cannot be written names the file and the system's reason (issue 23 item 7:
+/// `ImageError(IoError(Os { code: 2, … }))`), for PNG and SVG alike, and leaves no file.
+#[test]
+fn analyze_plot_that_cannot_be_written_says_why() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let rec = records_csv(dir.path(), "static", "s.csv");
+    // A disk that fills up while the plot is written.
+    std::os::unix::fs::symlink("/dev/full", dir.path().join("full.png")).unwrap();
+    let d = dir.path().display();
+    for (plot, why) in [
+        (
+            format!("{d}/none/adev.png"),
+            "none/adev.png: cannot write the plot: No such file or directory",
+        ),
+        (
+            format!("{d}/s.csv/adev.svg"),
+            "adev.svg: cannot write the plot: Not a directory",
+        ),
+        (
+            format!("{d}/full.png"),
+            "full.png: cannot write the plot: No space left on device",
+        ),
+    ] {
+        let o = imu_emu()
+            .arg("analyze")
+            .arg(&rec)
+            .args(["--plot", &plot])
+            .output()
+            .unwrap();
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(why), "{err}");
+        assert!(!err.contains("Os {") && !err.contains("Error("), "{err}");
+    }
+    assert!(!dir.path().join("none").exists());
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(left.len(), 2, "only the records and the link: {left:?}");
+}
