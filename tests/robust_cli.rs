@@ -190,3 +190,121 @@ fn analyze_plot_that_cannot_be_written_says_why() {
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert_eq!(left.len(), 2, "only the records and the link: {left:?}");
 }
+
+/// Frames of `protocol` from the static scene (1 s, `generate_args` added) decoded with
+/// `decode_args`: the CSV rows as columns by name, and stderr.
+fn decode_rows(
+    protocol: &str,
+    generate_args: &[&str],
+    decode_args: &[&str],
+) -> (Vec<Vec<(String, String)>>, String) {
+    let dir = tempfile::TempDir::new().unwrap();
+    let frames = dir.path().join("f.bin");
+    let o = imu_emu()
+        .args([
+            "generate",
+            "--scene",
+            "static",
+            "--imu",
+            "stim300",
+            "--duration",
+            "1",
+        ])
+        .args(["--format", protocol])
+        .args(generate_args)
+        .arg("-o")
+        .arg(&frames)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = imu_emu()
+        .args(["decode", "--protocol", protocol])
+        .args(decode_args)
+        .arg(&frames)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8(o.stdout.clone()).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows = lines
+        .map(|l| {
+            head.iter()
+                .cloned()
+                .zip(l.split(',').map(String::from))
+                .collect()
+        })
+        .collect();
+    (rows, stderr(&o))
+}
+
+fn cell(row: &[(String, String)], name: &str) -> Option<f64> {
+    let v = &row.iter().find(|c| c.0 == name).unwrap().1;
+    (!v.is_empty()).then(|| v.parse().unwrap())
+}
+
+/// iMAR iXCOM frames carry GPS whole seconds and microseconds (issue 23 item 7: `decode`
+/// said they carry no time tag and left `t` and the increments empty): `t` is their time and
+/// the increments are the rates over the interval of the tags (1/rate).
+#[test]
+fn decode_reads_ixcom_time_tags() {
+    let rate = 400.0;
+    let (rows, err) = decode_rows("imar-ixcom", &["--rate", "400"], &[]);
+    assert!(!err.contains("no time tag"), "{err}");
+    assert!(
+        err.contains("derived over the interval of their time tags"),
+        "{err}"
+    );
+    assert_eq!(rows.len() as f64, rate);
+    for (k, r) in rows.iter().enumerate() {
+        let t = cell(r, "t").unwrap();
+        let want = cell(r, "tow_seconds").unwrap() + cell(r, "tow_micros").unwrap() * 1e-6;
+        assert_eq!(t, want);
+        // The tags are whole microseconds.
+        assert!((t - (k + 1) as f64 / rate).abs() < 1e-6, "row {k}: t = {t}");
+        if k > 0 {
+            let (w, dth) = (cell(r, "gyro_x").unwrap(), cell(r, "dtheta_x").unwrap());
+            assert!(
+                (dth - w / rate).abs() <= 1e-12 * w.abs(),
+                "row {k}: {dth} vs {w}"
+            );
+        }
+    }
+}
+
+/// KVH 1750 frames carry increments and no time tag: `--rate nominal` derives the rates over
+/// the protocol's 1000 Hz, the rate `generate` wrote them at (issue 23 item 7: the README
+/// tour's decode left them empty); a spec without a nominal rate is refused.
+#[test]
+fn decode_takes_the_nominal_rate_when_asked() {
+    let (rows, err) = decode_rows("kvh1750", &[], &["--rate", "nominal"]);
+    assert!(!err.contains("left empty"), "{err}");
+    assert_eq!(rows.len(), 1000);
+    for r in &rows {
+        assert_eq!(cell(r, "t"), None);
+        let (w, dth) = (cell(r, "gyro_x").unwrap(), cell(r, "dtheta_x").unwrap());
+        assert!((w - dth * 1000.0).abs() <= 1e-12 * w.abs(), "{w} vs {dth}");
+    }
+    let dir = tempfile::TempDir::new().unwrap();
+    let spec = dir.path().join("norate.toml");
+    std::fs::write(
+        &spec,
+        "name = \"norate\"\ndescription = \"no rate\"\nbyte_order = \"little\"\n\n\
+         [[field]]\nname = \"sync\"\ntype = \"u16\"\nvalue = 0x5AA5\n\n\
+         [[field]]\nname = \"gyro_x\"\ntype = \"i16\"\nsource = \"gyro.x\"\nlsb = 0.001\n",
+    )
+    .unwrap();
+    let o = imu_emu()
+        .arg("decode")
+        .arg("--protocol-file")
+        .arg(&spec)
+        .args(["--rate", "nominal", "-"])
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--rate nominal: the `norate` spec gives no nominal rate"),
+        "{err}"
+    );
+}

@@ -23,12 +23,13 @@ pub struct DecodeArgs {
     /// A protocol spec file.
     #[arg(long)]
     pub protocol_file: Option<PathBuf>,
-    /// The stream's frame rate (Hz): for counters that advance with it (STIM300) [default: the
-    /// protocol's nominal rate], and for the record columns a frame lacks (rates from increments
-    /// or increments from rates) [default: from the frames' time tags; without them those
-    /// columns stay empty].
-    #[arg(long)]
-    pub rate: Option<f64>,
+    /// The stream's frame rate (Hz), or `nominal` for the protocol's nominal rate (the rate
+    /// `generate --format NAME` writes by default): for counters that advance with it (STIM300)
+    /// [default: the nominal rate], and for the record columns a frame lacks (rates from
+    /// increments or increments from rates) [default: from the frames' time tags; without them
+    /// those columns stay empty].
+    #[arg(long, value_parser = parse_rate)]
+    pub rate: Option<Rate>,
     /// Input file, or - for stdin [default: stdin].
     #[arg(conflicts_with_all = ["serial", "udp_listen"])]
     pub input: Option<PathBuf>,
@@ -54,6 +55,24 @@ pub struct DecodeArgs {
     /// (t, gyro, accel, dtheta, dv, then the frame's other fields: counter, status, …).
     #[arg(long)]
     pub native: bool,
+}
+
+/// `--rate`: a rate in Hz, or the protocol's nominal one.
+#[derive(Clone, Copy, Debug)]
+pub enum Rate {
+    /// This many frames per second.
+    Hz(f64),
+    /// The protocol's `rate_hz`.
+    Nominal,
+}
+
+fn parse_rate(s: &str) -> Result<Rate, String> {
+    if s == "nominal" {
+        return Ok(Rate::Nominal);
+    }
+    s.parse()
+        .map(Rate::Hz)
+        .map_err(|_| format!("`{s}`: expected a rate in Hz or `nominal`"))
 }
 
 /// Where bytes come from.
@@ -119,7 +138,17 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
             imu_emu::protocol::builtin_names().join(", ")
         ),
     };
-    if let Some(rate) = a.rate {
+    let rate = match a.rate {
+        None => None,
+        Some(Rate::Hz(r)) => Some(r),
+        Some(Rate::Nominal) => Some(plan.rate_hz.with_context(|| {
+            format!(
+                "--rate nominal: the `{}` spec gives no nominal rate (`rate_hz`); give the stream's rate in Hz",
+                plan.name
+            )
+        })?),
+    };
+    if let Some(rate) = rate {
         plan.set_rate(rate)
             .map_err(|e| anyhow::anyhow!("--rate: {e}"))?;
     }
@@ -172,7 +201,7 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     };
     // The frame interval of the record columns a frame lacks: --rate, else the frames' time
     // tags; never the nominal rate, which a stream at another rate would silently mis-scale.
-    let fixed_dt = a.rate.map(|r| 1.0 / r);
+    let fixed_dt = rate.map(|r| 1.0 / r);
     let mut interval = imu_emu::protocol::FrameInterval::default();
     if contract && !a.tally_only && fixed_dt.is_none() && plan.needs_interval() {
         if plan.carries_time() {
@@ -182,7 +211,7 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
             );
         } else {
             eprintln!(
-                "imu-emu decode: `{}` frames lack rates or increments and carry no time tag: those columns are left empty; give --rate HZ (the stream's rate) to derive them",
+                "imu-emu decode: `{}` frames lack rates or increments and carry no time tag: those columns are left empty; give --rate HZ (the stream's rate), or --rate nominal, to derive them",
                 plan.name
             );
         }

@@ -498,11 +498,15 @@ impl Plan {
         })
     }
 
-    /// Whether every message carries a time tag [`Decoded::contract`] reads.
+    /// Whether every message carries a time tag [`Decoded::time`] reads.
     pub fn carries_time(&self) -> bool {
-        self.value_sources()
-            .iter()
-            .all(|m| m.contains(&Source::Time) || m.contains(&Source::GpsSeconds))
+        self.value_sources().iter().all(|m| {
+            let has = |s: Source| m.contains(&s);
+            has(Source::Time)
+                || has(Source::GpsSeconds)
+                || (has(Source::GpsWholeSeconds)
+                    && (has(Source::GpsMicros) || has(Source::GpsMillis)))
+        })
     }
 
     /// Whether message `m` carries Δθ/ΔV summed since it was last sent.

@@ -43,7 +43,7 @@ pub struct FrameInterval {
 impl FrameInterval {
     /// Takes a frame's time tag; returns the interval known so far (s).
     pub fn observe(&mut self, d: &Decoded) -> Option<f64> {
-        if let Some(t) = d.get(Source::Time).or(d.get(Source::GpsSeconds)) {
+        if let Some(t) = d.time() {
             if let Some(l) = self.last {
                 let step = t - l;
                 if step > 0.0 && self.dt.is_none_or(|dt| step < dt) {
