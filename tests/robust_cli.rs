@@ -308,3 +308,37 @@ fn decode_takes_the_nominal_rate_when_asked() {
         "{err}"
     );
 }
+
+/// `imu-emu templates` shows the turn-on bias (issue 23 item 8: `mpu6000`'s 20°/s 1σ turn-on
+/// bias, which dominates the tour's `compare`, was in no column): 72 000 deg/h, and its
+/// accelerometers' largest, 80 mg, as the template gives them.
+#[test]
+fn templates_show_the_turn_on_bias() {
+    let o = imu_emu().arg("templates").output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8(o.stdout).unwrap();
+    let head: Vec<&str> = text
+        .lines()
+        .next()
+        .unwrap()
+        .split("  ")
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .collect();
+    assert!(
+        head.contains(&"gyro TO") && head.contains(&"accel TO"),
+        "{head:?}"
+    );
+    let row: Vec<&str> = text
+        .lines()
+        .find(|l| l.starts_with("mpu6000 "))
+        .unwrap()
+        .split_whitespace()
+        .collect();
+    let m = imu_emu::errors::template::load("mpu6000").unwrap();
+    let deg_h = m.gyro.bias_turn_on[0].to_degrees() * 3600.0;
+    let ug = m.accel.bias_turn_on[2] / imu_emu::units::G0 * 1e6;
+    assert_eq!(row[3], format!("{deg_h:.1}"), "{row:?}");
+    assert_eq!(row[6], format!("{ug:.0}"), "{row:?}");
+    assert_eq!((row[3], row[6]), ("72000.0", "80000"));
+}
