@@ -43,14 +43,20 @@ fn violation(column: &'static str, message: String) -> Result<(), Violation> {
     Err(Violation { column, message })
 }
 
-/// Checks one sample's time, height and speed.
-pub fn check_sample(s: &Sample) -> Result<(), Violation> {
-    if s.t.abs() > MAX_ABS_TIME_S {
+/// Checks a time (a sample's, or a run's start) against [`MAX_ABS_TIME_S`].
+pub fn check_time(t: f64) -> Result<(), Violation> {
+    if t.is_nan() || t.abs() > MAX_ABS_TIME_S {
         return violation(
             "t",
-            format!("time {} s is beyond ±{} s", num(s.t), num(MAX_ABS_TIME_S)),
+            format!("time {} s is beyond ±{} s", num(t), num(MAX_ABS_TIME_S)),
         );
     }
+    Ok(())
+}
+
+/// Checks one sample's time, height and speed.
+pub fn check_sample(s: &Sample) -> Result<(), Violation> {
+    check_time(s.t)?;
     if !(MIN_HEIGHT_M..=MAX_HEIGHT_M).contains(&s.h) {
         return violation(
             "h",
@@ -240,6 +246,10 @@ mod tests {
         assert!(e.message.contains("speed 1e160 m/s"), "{e:?}");
         let e = check_sample(&at(-2e10, 0.0, 0.0, 0.0)).unwrap_err();
         assert_eq!(e.column, "t");
+        // A run's start: 1e300 is quoted as such, not as its 301 digits.
+        let e = check_time(1e300).unwrap_err();
+        assert_eq!(e.message, "time 1e300 s is beyond ±1e10 s");
+        assert!(check_time(f64::NAN).is_err() && check_time(-1e10).is_ok());
         let a = at(0.0, 0.0, 0.0, 0.0);
         // 1 g over 10 ms and 1 rad/s are fine; the limits are exceeded just beyond them.
         assert!(check_step(&a, &at(0.01, 0.0, 0.098, 0.01)).is_ok());
