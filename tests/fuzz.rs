@@ -123,30 +123,17 @@ fn check_refusal(d: &mut Decoder, msg: &[u8]) -> Result<Option<LiveSample>, Test
     }
 }
 
-/// A trajectory CSV line of `p` with `wx..ad` (zeros), fields as text.
+/// The fields of the trajectory CSV line of `p` (as `imu-emu trajectory` writes it), then
+/// `wx..ad` (zeros).
 fn csv_fields(p: &Pose) -> Vec<String> {
     let (r, pi, y) = imu_emu::math::euler_from_quat(p.q_b_n);
-    [
-        p.t,
-        p.lat.to_degrees(),
-        p.lon.to_degrees(),
-        p.h,
-        p.v_n.x,
-        p.v_n.y,
-        p.v_n.z,
-        r.to_degrees(),
-        pi.to_degrees(),
-        y.to_degrees(),
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-    ]
-    .iter()
-    .map(|x| x.to_string())
-    .collect()
+    let mut line = String::new();
+    let rpy = (r.to_degrees(), pi.to_degrees(), y.to_degrees());
+    let (lat, lon) = (p.lat.to_degrees(), p.lon.to_degrees());
+    imu_emu::trajectory::format_row(&mut line, p.t, lat, lon, p.h, p.v_n, rpy);
+    let mut f: Vec<String> = line.trim_end().split(',').map(String::from).collect();
+    f.resize(16, "0".into());
+    f
 }
 
 /// A stream that hands out its bytes in reads of the given sizes (cycled).

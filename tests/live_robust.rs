@@ -5,7 +5,7 @@
 //! loopback.
 
 use std::io::Write;
-use std::net::{TcpListener, TcpStream, UdpSocket};
+use std::net::UdpSocket;
 use std::process::{Command, ExitStatus, Stdio};
 use std::thread;
 use std::time::Duration;
@@ -16,26 +16,39 @@ use imu_emu::live::transport::Receiver;
 use imu_emu::live::{InputFormat, csv::MAX_LINE_BYTES};
 use imu_emu::motion::Motion;
 use imu_emu::sim::Simulation;
+use imu_emu::source::AnyMotion;
 use imu_emu::trajectory;
+
+#[path = "common/live_cli.rs"]
+mod live_cli;
 
 fn imu_emu() -> Command {
     Command::new(env!("CARGO_BIN_EXE_imu-emu"))
 }
 
-/// The circle scene's states (a constant turn: every state shapes the motion) every 10 ms
-/// for `seconds`, as `imu-emu trajectory` writes them (a comment, the header, then one line
-/// per state).
-fn circle_lines(seconds: f64) -> Vec<String> {
-    let m = Simulation::builder()
+/// The circle scene's motion: a constant turn, so that every state shapes the motion.
+fn circle() -> AnyMotion {
+    Simulation::builder()
         .scene("circle")
         .build()
         .unwrap()
         .motion()
-        .clone();
-    trajectory::sample_motion(&m, 0.0, 100.0, (seconds * 100.0) as u64, Some("circle"))
-        .lines()
-        .map(str::to_string)
-        .collect()
+        .clone()
+}
+
+/// The circle's states every 10 ms for `seconds`, as `imu-emu trajectory` writes them (a
+/// comment, the header, then one line per state).
+fn circle_lines(seconds: f64) -> Vec<String> {
+    trajectory::sample_motion(
+        &circle(),
+        0.0,
+        100.0,
+        (seconds * 100.0) as u64,
+        Some("circle"),
+    )
+    .lines()
+    .map(str::to_string)
+    .collect()
 }
 
 /// `imu-emu run --motion - --time-mode lockstep` with `text` on a pipe, error-free records as
@@ -158,12 +171,7 @@ fn over_udp(datagrams: Vec<Vec<u8>>) -> (Vec<u8>, imu_emu::live::lockstep::LiveS
 /// datagram, and the output is that of the input without it.
 #[test]
 fn a_datagram_with_a_huge_body_rate_is_refused() {
-    let m = Simulation::builder()
-        .scene("circle")
-        .build()
-        .unwrap()
-        .motion()
-        .clone();
+    let m = circle();
     let with = |bad: bool| -> Vec<Vec<u8>> {
         (0..250u32)
             .filter(|&i| bad || i != 120)
@@ -244,35 +252,9 @@ fn a_position_jump_is_refused() {
 /// Runs `imu-emu run --motion tcp://… --time-mode lockstep` on `text` sent over TCP loopback;
 /// its exit status, stderr, output and peak resident memory (kB, from `wait4`).
 fn lockstep_tcp(text: Vec<u8>) -> (ExitStatus, String, Option<Vec<u8>>, i64) {
-    let port = TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
     let dir = tempfile::TempDir::new().unwrap();
     let out = dir.path().join("out.bin");
-    let mut child = imu_emu()
-        .args([
-            "run",
-            "--motion",
-            &format!("tcp://127.0.0.1:{port}"),
-            "--time-mode",
-            "lockstep",
-            "--file",
-        ])
-        .arg(&out)
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut conn = None;
-    for _ in 0..400 {
-        if let Ok(c) = TcpStream::connect(("127.0.0.1", port)) {
-            conn = Some(c);
-            break;
-        }
-        thread::sleep(Duration::from_millis(25));
-    }
-    let mut conn = conn.expect("the emulator listens");
+    let (mut child, mut conn) = live_cli::lockstep_over_tcp(&out);
     let sender = thread::spawn(move || {
         let _ = conn.write_all(&text);
     });

@@ -99,6 +99,19 @@ fn records_csv(dir: &Path, scene: &str, name: &str) -> std::path::PathBuf {
     p
 }
 
+/// The stderr of `imu-emu navigate RECORDS --scene circle`, which must exit 1.
+fn navigate_fails(records: &Path) -> String {
+    let o = imu_emu()
+        .arg("navigate")
+        .arg(records)
+        .args(["--scene", "circle"])
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    err
+}
+
 /// A record whose increment no IMU measures (Δθ_x = 1e300 rad) is named with its values
 /// (issue 23 item 7: a free-inertial run blamed "the GNSS-aided filter", which it did not
 /// use); numbers in `navigate`'s messages are short (a random file's t₀ was printed with
@@ -120,29 +133,14 @@ fn navigate_names_the_record_not_a_filter_it_did_not_use() {
         })
         .collect();
     std::fs::write(&rec, bad).unwrap();
-    let o = imu_emu()
-        .arg("navigate")
-        .arg(&rec)
-        .args(["--scene", "circle"])
-        .output()
-        .unwrap();
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
+    let err = navigate_fails(&rec);
     assert!(
         err.contains("c.csv: record 50 at t = 0.5 s: increments dtheta [1e300, "),
         "{err}"
     );
     assert!(!err.contains("GNSS"), "{err}");
 
-    let noise = noise_file(dir.path(), "noise.bin", 20_000);
-    let o = imu_emu()
-        .arg("navigate")
-        .arg(&noise)
-        .args(["--scene", "circle"])
-        .output()
-        .unwrap();
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
+    let err = navigate_fails(&noise_file(dir.path(), "noise.bin", 20_000));
     assert!(!err.contains("GNSS"), "{err}");
     let longest_number = err
         .split(|c: char| !c.is_ascii_digit())
