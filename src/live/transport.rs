@@ -282,7 +282,10 @@ impl Receiver {
             self.eof = true;
         }
         self.buf.extend_from_slice(&chunk[..n]);
-        self.cut();
+        match self.format {
+            InputFormat::Csv => self.cut_lines(),
+            InputFormat::Binary | InputFormat::Mavlink => self.cut_frames(),
+        }
         Ok(n > 0 || !self.pending.is_empty())
     }
 
@@ -340,18 +343,16 @@ impl Receiver {
         self.offset += at as u64;
     }
 
-    /// Cuts complete messages off the front of the buffer (everything at the end of input).
-    fn cut(&mut self) {
-        if self.format == InputFormat::Csv {
-            return self.cut_lines();
-        }
+    /// Cuts complete binary datagrams or MAVLink frames off the front of the buffer
+    /// (everything at the end of input).
+    fn cut_frames(&mut self) {
         let arrival = Instant::now();
+        let datagrams = self.format == InputFormat::Binary;
         let mut at = 0;
         loop {
             let rest = &self.buf[at..];
-            let (start, len) = match self.format {
-                InputFormat::Csv => unreachable!("lines are cut by cut_lines"),
-                InputFormat::Binary => match find(rest, &binary::MAGIC) {
+            let (start, len) = if datagrams {
+                match find(rest, &binary::MAGIC) {
                     // A candidate that fails its CRC and holds another magic is a damaged or
                     // short frame: it ends where the next one starts.
                     Some(s) if rest.len() >= s + binary::LEN && !binary::crc_ok(&rest[s..]) => {
@@ -360,14 +361,15 @@ impl Receiver {
                     }
                     Some(s) => (s, binary::LEN),
                     None => (rest.len().saturating_sub(3), 0),
-                },
-                InputFormat::Mavlink => match rest.iter().position(|&c| c == mavlink::STX) {
+                }
+            } else {
+                match rest.iter().position(|&c| c == mavlink::STX) {
                     Some(s) => match mavlink::frame_len(&rest[s..]) {
                         Some(l) => (s, l),
                         None => (s, usize::MAX),
                     },
                     None => (rest.len(), 0),
-                },
+                }
             };
             // Bytes before a frame's start are garbage; keep a possible partial magic.
             let start = if self.eof {
