@@ -297,6 +297,15 @@ impl RunSpec {
         self
     }
 
+    /// Sends `stream` to the sink written `addr` (`pty:PATH`, `serial:DEV`, `udp:HOST:PORT`,
+    /// `tcp:HOST:PORT`, `tcp-listen:ADDR:PORT`, `file:PATH`: the scene file's and the command
+    /// line's spelling) as well; an address that does not read is refused, named.
+    pub fn sink(self, stream: StreamId, addr: &str) -> Result<RunSpec, super::RunError> {
+        let sink = SinkAddr::parse(addr)
+            .map_err(|why| super::RunError::spec(&format!("sink of {stream}"), why))?;
+        Ok(self.route(stream, sink))
+    }
+
     /// Sends `stream` to `sink` as well; `origin` names where the route was given.
     pub fn add_route(&mut self, stream: StreamId, sink: SinkAddr, origin: String) {
         self.routes.push(Route {
