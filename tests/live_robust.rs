@@ -11,10 +11,10 @@ use std::thread;
 use std::time::Duration;
 
 use imu_emu::live::binary::{self, Datagram};
-use imu_emu::run::lockstep::Lockstep;
 use imu_emu::live::transport::Receiver;
 use imu_emu::live::{InputFormat, csv::MAX_LINE_BYTES};
 use imu_emu::motion::Motion;
+use imu_emu::run::lockstep::Lockstep;
 use imu_emu::sim::Simulation;
 use imu_emu::source::AnyMotion;
 use imu_emu::trajectory;
