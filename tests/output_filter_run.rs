@@ -457,7 +457,13 @@ fn a_rig_runs_a_filtered_unit() {
     )
     .unwrap();
     let path = file.to_str().unwrap();
-    let base = || Simulation::builder().scene("circle").rate(RATE).duration(1.0).seed(3);
+    let base = || {
+        Simulation::builder()
+            .scene("circle")
+            .rate(RATE)
+            .duration(1.0)
+            .seed(3)
+    };
     let mut unit = imu_emu::rig::UnitSpec::imu("a", path);
     unit.seed = Some(3);
     let rig = base().unit(unit).build_rig().unwrap();
@@ -470,6 +476,12 @@ fn a_rig_runs_a_filtered_unit() {
     rig.write(&mut outs, |_| std::ops::ControlFlow::Continue(()))
         .unwrap();
     let mut one = Vec::new();
-    base().imu(path).format("csv").build().unwrap().write(&mut one).unwrap();
+    base()
+        .imu(path)
+        .format("csv")
+        .build()
+        .unwrap()
+        .write(&mut one)
+        .unwrap();
     assert!(main.len() > 1000 && main == one);
 }

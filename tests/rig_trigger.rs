@@ -20,11 +20,11 @@ use loopback::{receive, utc_now_ns};
 const BIN: &str = env!("CARGO_BIN_EXE_imu-emu");
 
 /// An ideal unit with a 4-tap moving average from 400 Hz to 100 Hz.
-const AVERAGED: &str =
-    "name = \"avg\"\n[output_filter]\ninternal_rate_hz = 400\nkind = \"moving_average\"\ntaps = 4\n";
+const AVERAGED: &str = "name = \"avg\"\n[output_filter]\ninternal_rate_hz = 400\nkind = \"moving_average\"\ntaps = 4\n";
 
 /// An ideal unit with its own clock and latency, which the trigger replaces.
-const CLOCKED: &str = "name = \"clocked\"\n[timing]\nclock_offset = \"100 ppm\"\nlatency = \"2 ms\"\n";
+const CLOCKED: &str =
+    "name = \"clocked\"\n[timing]\nclock_offset = \"100 ppm\"\nlatency = \"2 ms\"\n";
 
 /// A free UDP port on loopback.
 fn free_port() -> u16 {
@@ -83,7 +83,11 @@ fn check_rows(name: &str, r: &[Vec<f64>], at_ms: &[f64], channels: usize, tol_s:
     let mut prev = 0.0;
     for (k, row) in r.iter().enumerate() {
         let want = at_ms[k + 1] * 1e-3;
-        assert!((row[0] - want).abs() < tol_s, "unit {name} row {k}: t {} vs edge {want}", row[0]);
+        assert!(
+            (row[0] - want).abs() < tol_s,
+            "unit {name} row {k}: t {} vs edge {want}",
+            row[0]
+        );
         let span = row[0] - prev;
         for j in 0..channels {
             let (rate, inc) = (row[1 + j], row[1 + channels + j]);
@@ -144,7 +148,11 @@ fn every_unit_samples_once_per_edge() {
             .arg(format!("{n}=file:{}", d.join(format!("{n}.csv")).display()));
     }
     c.arg("--unit-sink").arg(format!("k=udp:{frames_to}"));
-    let mut child = c.stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    let mut child = c
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
     let mut err = BufReader::new(child.stderr.take().unwrap());
     wait_for(&mut err, "waiting for the first trigger edge");
     let at_ms = [0.0, 7.0, 19.5, 23.0, 61.0, 70.0];
@@ -162,11 +170,17 @@ fn every_unit_samples_once_per_edge() {
     check_rows("s", &s, &at_ms, 3, tol);
     for k in 0..at_ms.len() - 1 {
         let t = units[0][k][0];
-        assert!(units.iter().all(|u| u[k][0] == t) && s[k][0] == t, "record {k}: tags differ");
+        assert!(
+            units.iter().all(|u| u[k][0] == t) && s[k][0] == t,
+            "record {k}: tags differ"
+        );
         for (n, u) in ["f", "c"].iter().zip(&units[1..]) {
             for j in 1..7 {
                 let (x, want) = (u[k][j], units[0][0][j]);
-                assert!((x - want).abs() <= 1e-12 * want.abs().max(1e-4), "unit {n} record {k} column {j}: {x} vs {want}");
+                assert!(
+                    (x - want).abs() <= 1e-12 * want.abs().max(1e-4),
+                    "unit {n} record {k} column {j}: {x} vs {want}"
+                );
             }
         }
     }
@@ -205,7 +219,16 @@ fn one_filtered_imu_averages_over_each_interval() {
     let mut child = Command::new(BIN)
         .args(["run", "--scene", "static", "--imu"])
         .arg(&avg)
-        .args(["--rate", "100", "--duration", "0.05", "--format", "csv", "--speed", "1"])
+        .args([
+            "--rate",
+            "100",
+            "--duration",
+            "0.05",
+            "--format",
+            "csv",
+            "--speed",
+            "1",
+        ])
         .args(["--trigger", &format!("udp://127.0.0.1:{port}"), "--file"])
         .arg(format!("{}", out.display()))
         .stdout(Stdio::null())
@@ -222,14 +245,21 @@ fn one_filtered_imu_averages_over_each_interval() {
     for (k, row) in r.iter().enumerate() {
         for j in 1..7 {
             let want = r[0][j];
-            assert!((row[j] - want).abs() <= 1e-12 * want.abs().max(1e-4), "row {k} column {j}");
+            assert!(
+                (row[j] - want).abs() <= 1e-12 * want.abs().max(1e-4),
+                "row {k} column {j}"
+            );
         }
     }
 }
 
 /// The survey scene's states every 10 ms from t = 0 to `seconds`, as trajectory CSV lines.
 fn survey_csv(seconds: f64) -> String {
-    let motion = imu_emu::sim::Simulation::builder().build().unwrap().motion().clone();
+    let motion = imu_emu::sim::Simulation::builder()
+        .build()
+        .unwrap()
+        .motion()
+        .clone();
     imu_emu::trajectory::sample_motion(&motion, 0.0, 100.0, (seconds * 100.0) as u64, None)
 }
 
@@ -278,7 +308,11 @@ fn a_live_rig_samples_on_a_trigger_in_real_time() {
         c.arg("--unit-sink")
             .arg(format!("{n}=file:{}", d.join(format!("{n}.csv")).display()));
     }
-    let mut child = c.stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    let mut child = c
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
     let mut err = BufReader::new(child.stderr.take().unwrap());
     wait_for(&mut err, "following udp://");
     let states = survey_csv(3.0);
@@ -301,24 +335,42 @@ fn a_live_rig_samples_on_a_trigger_in_real_time() {
     send_edges(trigger, utc_now_ns() + 10_000_000, &at_ms);
     sender.join().unwrap();
     let rest = finish(child, err);
-    let (a, f, s) = (rows(&d.join("a.csv")), rows(&d.join("f.csv")), rows(&d.join("s.csv")));
+    let (a, f, s) = (
+        rows(&d.join("a.csv")),
+        rows(&d.join("f.csv")),
+        rows(&d.join("s.csv")),
+    );
     eprintln!("{rest}");
-    assert!(a.len() + 2 >= at_ms.len() && a.len() < at_ms.len(), "{} records for {} edges", a.len(), at_ms.len());
+    assert!(
+        a.len() + 2 >= at_ms.len() && a.len() < at_ms.len(),
+        "{} records for {} edges",
+        a.len(),
+        at_ms.len()
+    );
     assert_eq!((f.len(), s.len()), (a.len(), a.len()));
     // The first record's interval starts at an edge that gave none: its tag difference is
     // checked from the second record on, against the spacing of the edges it lies between.
     let skipped = at_ms.len() - 1 - a.len();
     for k in 0..a.len() {
-        assert!(a[k][0] == f[k][0] && a[k][0] == s[k][0], "record {k}: tags differ");
+        assert!(
+            a[k][0] == f[k][0] && a[k][0] == s[k][0],
+            "record {k}: tags differ"
+        );
         if k > 0 {
             let got = a[k][0] - a[k - 1][0];
             let want = (at_ms[k + 1 + skipped] - at_ms[k + skipped]) * 1e-3;
-            assert!((got - want).abs() < 1e-3, "record {k}: {got} s apart, edges {want} s");
+            assert!(
+                (got - want).abs() < 1e-3,
+                "record {k}: {got} s apart, edges {want} s"
+            );
             for (name, r, ch) in [("a", &a, 6), ("f", &f, 6), ("s", &s, 2)] {
                 for j in 0..ch {
                     let (rate, inc) = (r[k][1 + j], r[k][1 + ch + j]);
                     if rate != 0.0 {
-                        assert!((inc / rate - got).abs() <= 1e-9 * got, "unit {name} record {k} channel {j}");
+                        assert!(
+                            (inc / rate - got).abs() <= 1e-9 * got,
+                            "unit {name} record {k} channel {j}"
+                        );
                     }
                 }
             }

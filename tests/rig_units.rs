@@ -149,7 +149,12 @@ fn one_unit_rig_with_a_filtered_template_is_the_single_imu() {
         assert_eq!(without_failed(&r[0].1), lines(&truth), "{format}");
         let t = rows(&r[0].1);
         assert_eq!(t.len(), 204);
-        assert!(t.iter().all(|x| x[13] < x[0] - 1e-3), "tov {} t {}", t[0][13], t[0][0]);
+        assert!(
+            t.iter().all(|x| x[13] < x[0] - 1e-3),
+            "tov {} t {}",
+            t[0][13],
+            t[0][0]
+        );
     }
 }
 
@@ -165,23 +170,35 @@ fn a_filtered_unit_leaves_its_plain_neighbour_unchanged() {
     let d = dir.path();
     let place = "mounting_deg = [10.0, -5.0, 30.0]\nlever_arm_m = [0.5, -0.2, 0.1]\n";
     let plain = "[[imu]]\nname = \"p\"\nmodel = \"ln200\"\nrate_hz = 200.0\nseed = 3\n";
-    let filtered =
-        format!("[[imu]]\nname = \"f\"\nmodel = \"{FILTERED}\"\nrate_hz = 204.8\nseed = 4\n{place}");
+    let filtered = format!(
+        "[[imu]]\nname = \"f\"\nmodel = \"{FILTERED}\"\nrate_hz = 204.8\nseed = 4\n{place}"
+    );
     let ideal = format!("[[imu]]\nname = \"i\"\nrate_hz = 204.8\n{place}");
     let at_ref = "[[imu]]\nname = \"r\"\nrate_hz = 204.8\n";
     let alone = rig(&write(d, "a.toml", &format!("{HEAD}{plain}")), 1);
     let f_alone = rig(&write(d, "f.toml", &format!("{HEAD}{filtered}")), 1);
     let all = format!("{HEAD}{plain}{filtered}{ideal}{at_ref}");
     let both = rig(&write(d, "both.toml", &all), 1);
-    assert!(alone[0] == both[0], "the plain unit changed next to a filtered one");
-    assert!(f_alone[0] == both[1], "the filtered unit changed next to others");
+    assert!(
+        alone[0] == both[0],
+        "the plain unit changed next to a filtered one"
+    );
+    assert!(
+        f_alone[0] == both[1],
+        "the filtered unit changed next to others"
+    );
     let (f, i, r) = (rows(&both[1].1), rows(&both[2].1), rows(&both[3].1));
     assert_eq!((f.len(), i.len()), (204, 204));
     let mut off_ref = 0.0f64;
     for (k, ((f, i), r)) in f.iter().zip(&i).zip(&r).enumerate() {
         assert_eq!(f[0], i[0], "record {k}: time tags");
         for j in 1..13 {
-            assert!((f[j] - i[j]).abs() <= 1e-12 * 11.0, "record {k} column {j}: {} vs {}", f[j], i[j]);
+            assert!(
+                (f[j] - i[j]).abs() <= 1e-12 * 11.0,
+                "record {k} column {j}: {} vs {}",
+                f[j],
+                i[j]
+            );
             off_ref = off_ref.max((f[j] - r[j]).abs());
         }
     }
@@ -201,7 +218,11 @@ fn timing_errors_in_a_rig_unit_are_the_single_imus() {
     let model = write(d, "timed.toml", TIMED);
     let m = model.display();
     for format in ["csv", "kvh1750"] {
-        let one = write(d, "single.toml", &format!("{HEAD}[imu]\nmodel = \"{m}\"\nrate_hz = 200.0\n"));
+        let one = write(
+            d,
+            "single.toml",
+            &format!("{HEAD}[imu]\nmodel = \"{m}\"\nrate_hz = 200.0\n"),
+        );
         let unit = format!(
             "[[imu]]\nname = \"t\"\nmodel = \"{m}\"\nrate_hz = 200.0\nseed = 9\nformat = \"{format}\"\n"
         );
@@ -220,7 +241,10 @@ fn timing_errors_in_a_rig_unit_are_the_single_imus() {
          [[imu]]\nname = \"u\"\nmodel = \"ln200\"\nrate_hz = 200.0\nseed = 10\n"
     );
     let r = rig(&write(d, "rig.toml", &format!("{HEAD}{table}{units}")), 1);
-    for (i, (model, seed)) in [(m.to_string(), 9), ("ln200".to_string(), 10)].into_iter().enumerate() {
+    for (i, (model, seed)) in [(m.to_string(), 9), ("ln200".to_string(), 10)]
+        .into_iter()
+        .enumerate()
+    {
         let one = format!("{HEAD}{table}[imu]\nmodel = \"{model}\"\nrate_hz = 200.0\n");
         let (out, truth) = single(&write(d, "single.toml", &one), seed, "csv");
         assert!(r[i].0 == out, "unit {i}: the rig unit's bytes differ");
@@ -262,7 +286,10 @@ fn a_timed_unit_goes_out_at_its_emission_times() {
         for (p, g) in parts.iter().zip(got.iter_mut()) {
             let mut start = 0;
             for (&e, &end) in p.emit_ns.iter().zip(&p.ends) {
-                assert!(from < e && e <= until, "frame at {e} ns in the window ({from}, {until}]");
+                assert!(
+                    from < e && e <= until,
+                    "frame at {e} ns in the window ({from}, {until}]"
+                );
                 g.push((e, String::from_utf8(p.bytes[start..end].to_vec()).unwrap()));
                 start = end;
             }
@@ -275,7 +302,10 @@ fn a_timed_unit_goes_out_at_its_emission_times() {
     for ((e, _), (te, row)) in frames.iter().zip(truth) {
         assert_eq!(e, te);
         let emit: f64 = row.split(',').nth(15).unwrap().parse().unwrap();
-        assert!((*e as f64 - (emit - origin) * 1e9).abs() <= 1.0, "{e} ns vs emit {emit} s");
+        assert!(
+            (*e as f64 - (emit - origin) * 1e9).abs() <= 1.0,
+            "{e} ns vs emit {emit} s"
+        );
     }
     assert_eq!(got[1].len(), 200);
     for (k, (e, _)) in got[1].iter().enumerate() {
@@ -342,7 +372,11 @@ fn a_triggered_rig_samples_every_unit_over_each_interval() {
         "fi.toml",
         "name = \"fi\"\n[output_filter]\ninternal_rate_hz = 400\nkind = \"moving_average\"\ntaps = 4\n",
     );
-    let timed = write(d, "ti.toml", "name = \"ti\"\n[timing]\nclock_offset = \"100 ppm\"\nlatency = \"1 ms\"\n");
+    let timed = write(
+        d,
+        "ti.toml",
+        "name = \"ti\"\n[timing]\nclock_offset = \"100 ppm\"\nlatency = \"1 ms\"\n",
+    );
     let axes = [[1.0, 0.0, 0.0], [0.0, 0.6, 0.8], [0.0, 1.0, 0.0]];
     let mut skew = String::from("[[imu]]\nname = \"s\"\nrate_hz = 100.0\n");
     for a in axes {
@@ -396,18 +430,36 @@ fn a_triggered_rig_samples_every_unit_over_each_interval() {
         lever = lever.max((f - f_nominal).amax());
         for (u, rows) in main[..3].iter().enumerate() {
             let x = &rows[k];
-            assert!((x[0] - (origin + hi)).abs() < 1e-12, "unit {u} record {k}: t {}", x[0]);
+            assert!(
+                (x[0] - (origin + hi)).abs() < 1e-12,
+                "unit {u} record {k}: t {}",
+                x[0]
+            );
             for j in 0..6 {
-                assert!((x[1 + j] - want[j]).abs() < 1e-10, "unit {u} record {k} column {}: {} vs {}", 1 + j, x[1 + j], want[j]);
+                assert!(
+                    (x[1 + j] - want[j]).abs() < 1e-10,
+                    "unit {u} record {k} column {}: {} vs {}",
+                    1 + j,
+                    x[1 + j],
+                    want[j]
+                );
                 let inc = x[7 + j] / x[1 + j];
-                assert!((inc - span).abs() < 1e-12, "unit {u} record {k}: increment/rate {inc} vs {span}");
+                assert!(
+                    (inc - span).abs() < 1e-12,
+                    "unit {u} record {k}: increment/rate {inc} vs {span}"
+                );
             }
             // An ideal unit's truth is its output: exactly for the shared unit; to round-off
             // for the others, whose chains turn the lever arm into their axes first.
             let t = &truth[u][k];
             for j in 0..13 {
                 let tol = if u == 0 { 0.0 } else { 1e-14 * 11.0 };
-                assert!((t[j] - x[j]).abs() <= tol, "unit {u} record {k} column {j}: truth {} vs {}", t[j], x[j]);
+                assert!(
+                    (t[j] - x[j]).abs() <= tol,
+                    "unit {u} record {k} column {j}: truth {} vs {}",
+                    t[j],
+                    x[j]
+                );
             }
             assert_eq!(t[13..], [x[0], x[0], x[0], 0.0], "unit {u} record {k}");
         }
@@ -415,8 +467,14 @@ fn a_triggered_rig_samples_every_unit_over_each_interval() {
         for (i, a) in axes.iter().enumerate() {
             let a = Vec3::from(*a);
             let u = a * (1.0 / a.norm());
-            assert!((sk[1 + i] - u.dot(&w)).abs() < 1e-12, "skew record {k} gyro_{i}");
-            assert!((sk[4 + i] / sk[1 + i] - span).abs() < 1e-12, "skew record {k}");
+            assert!(
+                (sk[1 + i] - u.dot(&w)).abs() < 1e-12,
+                "skew record {k} gyro_{i}"
+            );
+            assert!(
+                (sk[4 + i] / sk[1 + i] - span).abs() < 1e-12,
+                "skew record {k}"
+            );
         }
     }
     assert!(main.iter().all(|m| m.len() == iv.len()));
@@ -427,7 +485,10 @@ fn a_triggered_rig_samples_every_unit_over_each_interval() {
 /// the intervals as the trigger computes them from those integer ns.
 fn edges_of(iv: &[(f64, f64)]) -> (Vec<i128>, Vec<(f64, f64)>) {
     let mut ns = vec![7_000_000_000i128];
-    ns.extend(iv.iter().map(|&(_, hi)| 7_000_000_000 + (hi * 1e9).round() as i128));
+    ns.extend(
+        iv.iter()
+            .map(|&(_, hi)| 7_000_000_000 + (hi * 1e9).round() as i128),
+    );
     let s: Vec<f64> = ns.iter().map(|x| (x - ns[0]) as f64 * 1e-9).collect();
     let pairs = s.windows(2).map(|w| (w[0], w[1])).collect();
     (ns, pairs)
@@ -463,7 +524,13 @@ fn a_triggered_filtered_unit_is_the_triggered_single_imu() {
                 break;
             };
             let mut side = Vec::new();
-            imu_emu::output::encode_truth(imu_emu::output::Format::Csv, b.truth, b.times.as_ref(), None, &mut side);
+            imu_emu::output::encode_truth(
+                imu_emu::output::Format::Csv,
+                b.truth,
+                b.times.as_ref(),
+                None,
+                &mut side,
+            );
             truth.push_str(std::str::from_utf8(&side).unwrap());
             out.extend(buf);
         }
@@ -471,7 +538,10 @@ fn a_triggered_filtered_unit_is_the_triggered_single_imu() {
         let unit = format!(
             "[[imu]]\nname = \"f\"\nmodel = \"{FILTERED}\"\nrate_hz = 204.8\nseed = 7\nformat = \"{format}\"\n"
         );
-        let rig = build_rig(&write(d, "rig.toml", &format!("{HEAD}{unit}{ENVIRONMENT}")), 7);
+        let rig = build_rig(
+            &write(d, "rig.toml", &format!("{HEAD}{unit}{ENVIRONMENT}")),
+            7,
+        );
         let mut s = rig.stream().with_truth(&[true]).triggered();
         let pre = s.preambles();
         let mut parts = vec![Part::default(); 2];
@@ -480,7 +550,10 @@ fn a_triggered_filtered_unit_is_the_triggered_single_imu() {
         }
         s.fill(Until::ALL, &mut parts).unwrap();
         assert_eq!(parts[0].ends.len(), iv.len());
-        assert!([&pre[0][..], &parts[0].bytes].concat() == out, "{format}: the rig unit's bytes differ");
+        assert!(
+            [&pre[0][..], &parts[0].bytes].concat() == out,
+            "{format}: the rig unit's bytes differ"
+        );
         let rig_truth = String::from_utf8(parts[1].bytes.clone()).unwrap();
         let rig_truth: Vec<&str> = rig_truth.lines().map(drop_failed).collect();
         assert_eq!(rig_truth, truth.lines().collect::<Vec<_>>(), "{format}");
@@ -493,7 +566,8 @@ fn model(text: &str) -> imu_emu::errors::ImuModel {
 }
 
 /// The output filter of these tests: a 4-tap moving average, 400 → 100 Hz.
-const AVERAGER: &str = "[output_filter]\ninternal_rate_hz = 400\nkind = \"moving_average\"\ntaps = 4\n";
+const AVERAGER: &str =
+    "[output_filter]\ninternal_rate_hz = 400\nkind = \"moving_average\"\ntaps = 4\n";
 
 /// A producer of `m` (seed 5) on `scene` at 100 Hz over 45 s, sampling at `edges`.
 fn triggered(scene: &str, m: imu_emu::errors::ImuModel, edges: &[i128]) -> Vec<Record> {
@@ -542,17 +616,31 @@ fn a_filtered_unit_on_a_trigger_gives_the_interval_means() {
     let (edges, iv) = alternating(50);
     let plain = triggered("static", model("name = \"i\"\n"), &edges[..3]);
     let (w, f) = (plain[0].gyro, plain[0].accel);
-    let recs = triggered("static", model(&format!("name = \"fi\"\n{AVERAGER}")), &edges);
+    let recs = triggered(
+        "static",
+        model(&format!("name = \"fi\"\n{AVERAGER}")),
+        &edges,
+    );
     assert_eq!(recs.len(), iv.len());
     for (k, (r, t)) in recs.iter().zip(&iv).enumerate() {
         for j in 0..3 {
             let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1e-6);
-            assert!(close(r.gyro[j], w[j]) && close(r.accel[j], f[j]), "record {k} axis {j}");
-            assert!(close(r.dtheta[j], w[j] * t) && close(r.dv[j], f[j] * t), "record {k} axis {j}");
+            assert!(
+                close(r.gyro[j], w[j]) && close(r.accel[j], f[j]),
+                "record {k} axis {j}"
+            );
+            assert!(
+                close(r.dtheta[j], w[j] * t) && close(r.dv[j], f[j] * t),
+                "record {k} axis {j}"
+            );
         }
     }
     let ideal = triggered("circle", model("name = \"i\"\n"), &edges);
-    let filtered = triggered("circle", model(&format!("name = \"fi\"\n{AVERAGER}")), &edges);
+    let filtered = triggered(
+        "circle",
+        model(&format!("name = \"fi\"\n{AVERAGER}")),
+        &edges,
+    );
     for (k, (a, b)) in filtered.iter().zip(&ideal).enumerate() {
         let scale = b.accel.amax();
         assert!((a.gyro - b.gyro).amax() <= 1e-12 * scale, "record {k}");
@@ -580,7 +668,11 @@ fn a_filtered_units_noise_on_a_trigger_scales_with_the_interval() {
     let (edges, iv) = alternating(2000);
     let (x, ideal) = (
         triggered("static", m, &edges),
-        triggered("static", model(&format!("name = \"fi\"\n{AVERAGER}")), &edges),
+        triggered(
+            "static",
+            model(&format!("name = \"fi\"\n{AVERAGER}")),
+            &edges,
+        ),
     );
     let errors: Vec<[[f64; 3]; 2]> = (x.iter().zip(&ideal))
         .map(|(a, b)| [0, 1, 2].map(|j| (a.dtheta[j] - b.dtheta[j], a.dv[j] - b.dv[j])))
@@ -592,7 +684,10 @@ fn a_filtered_units_noise_on_a_trigger_scales_with_the_interval() {
         for s in 0..2 {
             let ms = picked.iter().flat_map(|r| r[s]).map(|v| v * v).sum::<f64>() / count;
             let ratio = ms / (n[s] * n[s] * t);
-            assert!((ratio - 1.0).abs() < TOL, "class {c} ({t} s) sensor {s}: {ratio}");
+            assert!(
+                (ratio - 1.0).abs() < TOL,
+                "class {c} ({t} s) sensor {s}: {ratio}"
+            );
         }
     }
 }

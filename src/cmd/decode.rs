@@ -23,12 +23,13 @@ pub struct DecodeArgs {
     /// A protocol spec file.
     #[arg(long)]
     pub protocol_file: Option<PathBuf>,
-    /// The stream's frame rate (Hz): for counters that advance with it (STIM300) [default: the
-    /// protocol's nominal rate], and for the record columns a frame lacks (rates from increments
-    /// or increments from rates) [default: from the frames' time tags; without them those
-    /// columns stay empty].
-    #[arg(long)]
-    pub rate: Option<f64>,
+    /// The stream's frame rate (Hz), or `nominal` for the protocol's nominal rate (the rate
+    /// `generate --format NAME` writes by default): for counters that advance with it (STIM300)
+    /// [default: the nominal rate], and for the record columns a frame lacks (rates from
+    /// increments or increments from rates) [default: from the frames' time tags; without them
+    /// those columns stay empty].
+    #[arg(long, value_parser = parse_rate)]
+    pub rate: Option<Rate>,
     /// Input file, or - for stdin [default: stdin].
     #[arg(conflicts_with_all = ["serial", "udp_listen"])]
     pub input: Option<PathBuf>,
@@ -54,6 +55,24 @@ pub struct DecodeArgs {
     /// (t, gyro, accel, dtheta, dv, then the frame's other fields: counter, status, …).
     #[arg(long)]
     pub native: bool,
+}
+
+/// `--rate`: a rate in Hz, or the protocol's nominal one.
+#[derive(Clone, Copy, Debug)]
+pub enum Rate {
+    /// This many frames per second.
+    Hz(f64),
+    /// The protocol's `rate_hz`.
+    Nominal,
+}
+
+fn parse_rate(s: &str) -> Result<Rate, String> {
+    if s == "nominal" {
+        return Ok(Rate::Nominal);
+    }
+    s.parse()
+        .map(Rate::Hz)
+        .map_err(|_| format!("`{s}`: expected a rate in Hz or `nominal`"))
 }
 
 /// Where bytes come from.
@@ -119,9 +138,25 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
             imu_emu::protocol::builtin_names().join(", ")
         ),
     };
-    if let Some(rate) = a.rate {
+    let rate = match a.rate {
+        None => None,
+        Some(Rate::Hz(r)) => Some(r),
+        Some(Rate::Nominal) => Some(plan.rate_hz.with_context(|| {
+            format!(
+                "--rate nominal: the `{}` spec gives no nominal rate (`rate_hz`); give the stream's rate in Hz",
+                plan.name
+            )
+        })?),
+    };
+    if let Some(rate) = rate {
         plan.set_rate(rate)
             .map_err(|e| anyhow::anyhow!("--rate: {e}"))?;
+    }
+    if plan.evidence_bits() == 0 && matches!(plan.transport, imu_emu::protocol::Transport::Plain) {
+        eprintln!(
+            "imu-emu decode: `{}` frames have neither constant fields nor a check: any bytes decode as frames, noise included",
+            plan.name
+        );
     }
     let live = a.serial.is_some() || a.udp_listen.is_some();
     let mut input = if let Some(dev) = &a.serial {
@@ -166,7 +201,7 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     };
     // The frame interval of the record columns a frame lacks: --rate, else the frames' time
     // tags; never the nominal rate, which a stream at another rate would silently mis-scale.
-    let fixed_dt = a.rate.map(|r| 1.0 / r);
+    let fixed_dt = rate.map(|r| 1.0 / r);
     let mut interval = imu_emu::protocol::FrameInterval::default();
     if contract && !a.tally_only && fixed_dt.is_none() && plan.needs_interval() {
         if plan.carries_time() {
@@ -176,7 +211,7 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
             );
         } else {
             eprintln!(
-                "imu-emu decode: `{}` frames lack rates or increments and carry no time tag: those columns are left empty; give --rate HZ (the stream's rate) to derive them",
+                "imu-emu decode: `{}` frames lack rates or increments and carry no time tag: those columns are left empty; give --rate HZ (the stream's rate), or --rate nominal, to derive them",
                 plan.name
             );
         }
@@ -226,54 +261,67 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         .duration
         .map(|d| started + Duration::from_secs_f64(d.max(0.0)));
     let limit = a.frames.unwrap_or(u64::MAX);
+    // One CSV row per good frame: the frames of a read (arrived at `now`), and those the end
+    // of the input confirms.
+    let mut on_frame = |d: &imu_emu::protocol::Decoded,
+                        now: i128,
+                        out: &mut dyn Write,
+                        gaps: &mut Lateness|
+     -> std::io::Result<()> {
+        if let Some(t) = last_arrival {
+            gaps.add(now - t);
+        }
+        last_arrival = Some(now);
+        if a.tally_only {
+            return Ok(());
+        }
+        line.clear();
+        cells.iter_mut().for_each(|c| *c = None);
+        if contract {
+            let dt = fixed_dt.or_else(|| interval.observe(d));
+            cells[..13].copy_from_slice(&d.contract(dt));
+        }
+        for (slot, (_, v)) in slots[d.message].iter().zip(&d.values) {
+            if let Some(i) = slot {
+                cells[*i] = Some(*v);
+            }
+        }
+        if multi {
+            line.push_str(&names[d.message]);
+            line.push(',');
+        }
+        for (i, c) in cells.iter().enumerate() {
+            if i > 0 {
+                line.push(',');
+            }
+            if let Some(v) = c {
+                line.push_str(fmt.format(*v));
+            }
+        }
+        line.push('\n');
+        out.write_all(line.as_bytes())
+    };
     while stop.as_ref().is_none_or(|s| s.load(Ordering::Relaxed) == 0) && dec.stats().frames < limit
     {
         if deadline.is_some_and(|d| Instant::now() >= d) {
             break;
         }
-        let Some(n) = input.read(&mut buf)? else {
-            dec.finish();
-            break;
-        };
+        let read = input.read(&mut buf)?;
         let now = monotonic_ns();
         let mut err = Ok(());
-        dec.feed(&buf[..n], |d| {
-            if let Some(t) = last_arrival {
-                gaps.add(now - t);
-            }
-            last_arrival = Some(now);
-            if a.tally_only {
-                return;
-            }
-            line.clear();
-            cells.iter_mut().for_each(|c| *c = None);
-            if contract {
-                let dt = fixed_dt.or_else(|| interval.observe(d));
-                cells[..13].copy_from_slice(&d.contract(dt));
-            }
-            for (slot, (_, v)) in slots[d.message].iter().zip(&d.values) {
-                if let Some(i) = slot {
-                    cells[*i] = Some(*v);
-                }
-            }
-            if multi {
-                line.push_str(&names[d.message]);
-                line.push(',');
-            }
-            for (i, c) in cells.iter().enumerate() {
-                if i > 0 {
-                    line.push(',');
-                }
-                if let Some(v) = c {
-                    line.push_str(fmt.format(*v));
-                }
-            }
-            line.push('\n');
+        let mut each = |d: &imu_emu::protocol::Decoded| {
             if err.is_ok() {
-                err = out.write_all(line.as_bytes());
+                err = on_frame(d, now, &mut out, &mut gaps);
             }
-        });
+        };
+        match read {
+            Some(n) => dec.feed(&buf[..n], &mut each),
+            None => dec.finish_frames(&mut each),
+        }
         err?;
+        if read.is_none() {
+            break;
+        }
         if live && last_tally.elapsed() >= Duration::from_secs(1) {
             out.flush()?;
             last_tally = Instant::now();

@@ -6,9 +6,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
+use imu_emu::csvio::num;
 use imu_emu::input::RecordReader;
 use imu_emu::math::Vec3;
 use imu_emu::math::euler_from_quat;
+use imu_emu::motion::limits::{MAX_ACCEL_M_S2, MAX_RATE_RAD_S};
 use imu_emu::motion::{Motion, Pose};
 use imu_emu::nav::aided::{AidedConfig, AidedNavigator};
 use imu_emu::nav::gnss_fixes::{FixEpoch, read_fixes};
@@ -141,6 +143,11 @@ impl Sink {
     }
 }
 
+/// A vector for a message: `[x, y, z]`, each number as short as it reads back.
+fn vec3(v: Vec3) -> String {
+    format!("[{}, {}, {}]", num(v.x), num(v.y), num(v.z))
+}
+
 pub fn navigate(a: NavigateArgs) -> Result<()> {
     let format = match a.format.as_deref() {
         Some(f) => Format::from_name(f)
@@ -173,17 +180,18 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
         bail!(
             "{}: record times {} and {} do not increase; give --rate",
             a.input.display(),
-            r1.t,
-            first.get(1).map_or(f64::NAN, |r| r.t)
+            num(r1.t),
+            num(first.get(1).map_or(f64::NAN, |r| r.t))
         );
     }
     let t0 = r1.t - 1.0 / rate;
-    if t0 < motion.start() - 1e-9 || t0 > motion.end() {
+    if !(t0 >= motion.start() - 1e-9 && t0 <= motion.end()) {
         bail!(
-            "{}: the records start at t₀ = {t0} s, outside the reference [{}, {}] s",
+            "{}: the records start at t₀ = {} s, outside the reference [{}, {}] s",
             a.input.display(),
-            motion.start(),
-            motion.end()
+            num(t0),
+            num(motion.start()),
+            num(motion.end())
         );
     }
     let start = motion.pose(t0);
@@ -234,11 +242,30 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
         let rec = rec?;
         k += 1;
         let want = t0 + k as f64 / rate;
-        if (rec.t - want).abs() > 1e-6 / rate + 1e-12 * want.abs() {
+        let off = (rec.t - want).abs();
+        if off.is_nan() || off > 1e-6 / rate + 1e-12 * want.abs() {
             bail!(
-                "{}: record {k}: t = {} s, expected {want} s for a {rate} Hz stream starting at {t0} s (gap, or --rate wrong)",
+                "{}: record {k}: t = {} s, expected {} s for a {} Hz stream starting at {} s (gap, or --rate wrong)",
                 a.input.display(),
-                rec.t
+                num(rec.t),
+                num(want),
+                num(rate),
+                num(t0)
+            );
+        }
+        // Increments no IMU measures (beyond 1e4 rad/s and 1e5 m/s² over the interval) make
+        // any navigation meaningless: the record is named rather than the navigator.
+        let (wmax, fmax) = (MAX_RATE_RAD_S / rate, MAX_ACCEL_M_S2 / rate);
+        if !(rec.dtheta.amax() <= wmax && rec.dv.amax() <= fmax) {
+            bail!(
+                "{}: record {k} at t = {} s: increments dtheta {} rad, dv {} m/s are not finite or beyond what an IMU measures in 1/{} s ({} rad, {} m/s)",
+                a.input.display(),
+                num(rec.t),
+                vec3(rec.dtheta),
+                vec3(rec.dv),
+                num(rate),
+                num(wmax),
+                num(fmax)
             );
         }
         nav.step(rec.dtheta, rec.dv);
@@ -266,16 +293,21 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
             bail!(
                 "{}: record {k} at t = {} s is past the end of the reference ({} s)",
                 a.input.display(),
-                s.t,
-                motion.end()
+                num(s.t),
+                num(motion.end())
             );
         }
         let e = StateError::of(&s, &motion.pose(s.t));
         if !(e.pos_ned.norm().is_finite() && e.vel_ned.norm().is_finite()) {
+            let which = if aided.is_some() {
+                "the GNSS-aided filter diverged"
+            } else {
+                "the free-inertial solution overflowed"
+            };
             bail!(
-                "{}: record {k} at t = {} s: the navigated state is not finite (the GNSS-aided filter diverged)",
+                "{}: record {k} at t = {} s: the navigated state is not finite ({which})",
                 a.input.display(),
-                s.t
+                num(s.t)
             );
         }
         max_pos = max_pos.max(e.pos_ned.norm());
@@ -333,7 +365,10 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
     if to_stdout {
         eprint!("{summary}");
     } else {
-        print!("{summary}");
+        // Written, not printed: a full disk or a closed pipe is an error, never a panic.
+        let mut out = std::io::stdout().lock();
+        out.write_all(summary.as_bytes())?;
+        out.flush()?;
     }
     Ok(())
 }

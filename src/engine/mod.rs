@@ -361,7 +361,12 @@ pub trait TruthPlace: Send {
     /// Places `records` in place. Their rates are means over `dt` (their increments are the
     /// rates times `dt`); `rot`, when needed, holds their rotation terms normalised by `dt`
     /// too.
-    fn place(&self, records: &mut [Record], rot: Option<&[crate::generator::RotationTerms]>, dt: f64);
+    fn place(
+        &self,
+        records: &mut [Record],
+        rot: Option<&[crate::generator::RotationTerms]>,
+        dt: f64,
+    );
 }
 
 /// Block-wise production: ideal records → error chain → encoding, with each record's
@@ -738,7 +743,10 @@ impl Producer {
         if let Err(e) = Producer::check_finite(&self.block[..n], "in the error-free signal") {
             return self.fail(e);
         }
-        let chain_rot = self.chain.as_ref().is_some_and(|c| c.needs_rotation_terms());
+        let chain_rot = self
+            .chain
+            .as_ref()
+            .is_some_and(|c| c.needs_rotation_terms());
         let place_rot = self.places_with_rotation();
         if chain_rot || place_rot {
             if self.rot.len() < n {

@@ -114,6 +114,9 @@ struct Scratch {
     spans: Vec<f64>,
     gaps: Vec<u32>,
     times: Vec<[f64; 3]>,
+    /// Each record's index (0-based) and time of validity (ns after the run's t₀), for the
+    /// time marks and pulses that follow the unit's records.
+    marks: Vec<(u64, i64)>,
 }
 
 /// Where one unit's outputs go.
@@ -399,14 +402,17 @@ impl Unit {
                             (self.place.to_case(g), self.place.to_case(a))
                         });
                     let axes = layout.gyros.iter().chain(&layout.accels).map(|x| x.axis);
-                    s.vals.extend(
-                        row.iter().zip(errors.iter_mut()).zip(axes).enumerate().map(
+                    s.vals
+                        .extend(row.iter().zip(errors.iter_mut()).zip(axes).enumerate().map(
                             |(i, ((x, e), u))| {
                                 let x = x + u.dot(if i < ng { &vg } else { &va });
-                                if triggered { e.read_over(x, dt) } else { e.read(x) }
+                                if triggered {
+                                    e.read_over(x, dt)
+                                } else {
+                                    e.read(x)
+                                }
                             },
-                        ),
-                    );
+                        ));
                     s.masks.push(self.failures.apply(r.t, &mut s.vals[start..]));
                 }
                 check_values(&s.vals, reference, ch)?;
@@ -491,6 +497,7 @@ impl Unit {
         s.spans.clear();
         s.gaps.clear();
         s.times.clear();
+        s.marks.clear();
         s.recs.clear();
         s.truth.clear();
         s.masks.clear();
@@ -508,6 +515,8 @@ impl Unit {
                         s.emit.push((t.emit[i] * 1e9).round() as i64 + offset_ns);
                         s.times
                             .push([t.tov[i], t.tov_accel[i], t.emit[i]].map(|x| t.t0 + x));
+                        let tov_ns = (t.tov[i] * 1e9).round() as i64 + offset_ns;
+                        s.marks.push((b.first + i as u64, tov_ns));
                         // The interval the record's rates are means over: the trigger's, or
                         // the nominal steps it covers (skipped samples folded in).
                         s.spans.push(if self.triggered {
@@ -519,8 +528,9 @@ impl Unit {
                 }
                 None => {
                     for k in b.first + 1..=b.first + b.records.len() as u64 {
-                        s.emit
-                            .push(offset_ns + (k as f64 * dt * 1e9).round() as i64);
+                        let at = offset_ns + (k as f64 * dt * 1e9).round() as i64;
+                        s.emit.push(at);
+                        s.marks.push((k - 1, at));
                         s.spans.push(dt);
                     }
                 }
@@ -678,10 +688,12 @@ impl Rig {
         self.gps_time = Some((week, seconds_of_week));
         for u in self.units.iter_mut() {
             let state = match &mut u.body {
-                Body::Triad { encoding, .. } | Body::Produced { encoding, .. } => match &mut **encoding {
-                    Encoding::Frames { state, .. } => Some(state),
-                    Encoding::Records(_) => None,
-                },
+                Body::Triad { encoding, .. } | Body::Produced { encoding, .. } => {
+                    match &mut **encoding {
+                        Encoding::Frames { state, .. } => Some(state),
+                        Encoding::Records(_) => None,
+                    }
+                }
                 Body::Skew { frames, .. } => frames.as_deref_mut().map(|f| &mut f.1),
             };
             if let Some(st) = state {

@@ -311,6 +311,10 @@ impl RigStream {
         last: impl Fn(&Grid) -> u64,
         parts: &mut [Part],
     ) -> Result<(), EngineError> {
+        // Each unit's frames are its records: time marks and pulses of that unit follow them.
+        for p in parts.iter_mut().take(self.units.len()) {
+            p.marks_records = true;
+        }
         for g in self.groups.iter_mut() {
             let last = last(&g.grid);
             let dt = 1.0 / g.grid.rate_hz;
@@ -332,7 +336,7 @@ impl RigStream {
                     let (motion, reference) = (&self.motion, &self.reference[..]);
                     self.units[i].encode(motion, reference, terms, dt, s, &mut truth)?;
                     let at = |j: usize| emit_ns(&g.grid, self.origin, k + j as u64);
-                    push_frames(s, &self.truth_buf, self.truth[i], i, at, parts);
+                    push_frames(s, &self.truth_buf, self.truth[i], i, k - 1, at, parts);
                 }
                 g.next += n as u64;
             }
@@ -374,7 +378,15 @@ impl RigStream {
                 let mut truth = self.truth[i].map(|_| &mut self.truth_buf as &mut dyn Write);
                 let (motion, reference) = (&self.motion, &self.reference[..1]);
                 self.units[i].encode(motion, reference, terms, span, s, &mut truth)?;
-                push_frames(s, &self.truth_buf, self.truth[i], i, |_| at_ns, parts);
+                push_frames(
+                    s,
+                    &self.truth_buf,
+                    self.truth[i],
+                    i,
+                    *made,
+                    |_| at_ns,
+                    parts,
+                );
                 *made += 1;
             }
         }
@@ -392,6 +404,7 @@ impl RigStream {
                 let j = h.next;
                 let from = if j == 0 { 0 } else { s.ends[j - 1] };
                 parts[i].push(&s.buf[from..s.ends[j]], s.emit[j]);
+                parts[i].records.push(s.marks[j]);
                 if let Some(t) = truth {
                     let from = if j == 0 { 0 } else { s.side_ends[j - 1] };
                     parts[t].push(&s.side[from..s.side_ends[j]], s.emit[j]);
@@ -416,7 +429,13 @@ impl RigStream {
             }
             h.next = 0;
             let (motion, origin) = (&self.motion, self.origin);
-            let n = self.units[i].produce(motion, max.min(engine::BLOCK), origin, truth.is_some(), s)?;
+            let n = self.units[i].produce(
+                motion,
+                max.min(engine::BLOCK),
+                origin,
+                truth.is_some(),
+                s,
+            )?;
             let remaining = self.units[i].remaining().unwrap_or(0);
             if n == 0 {
                 // Every sample of the block was skipped (a clocked unit goes on with the next
@@ -438,18 +457,21 @@ impl RigStream {
 }
 
 /// Appends unit `i`'s block (its frames in `s`, its truth rows in `truth_rows`, one per
-/// frame) to its stream and its truth stream `truth`, frame j emitted at `at(j)`.
+/// frame) to its stream and its truth stream `truth`, frame j — record `first + j` (0-based),
+/// valid when it is sent — emitted at `at(j)`.
 fn push_frames(
     s: &Scratch,
     truth_rows: &[u8],
     truth: Option<usize>,
     i: usize,
+    first: u64,
     at: impl Fn(usize) -> i64,
     parts: &mut [Part],
 ) {
     let mut from = 0;
     for (j, &end) in s.ends.iter().enumerate() {
         parts[i].push(&s.buf[from..end], at(j));
+        (parts[i].records).push((first + j as u64, at(j)));
         from = end;
     }
     if let Some(t) = truth {

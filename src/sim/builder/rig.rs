@@ -117,8 +117,8 @@ impl SimulationBuilder {
             };
             let template = match &spec.model {
                 UnitModel::Template(t) => {
-                    let mut t = super::super::load_template(t)
-                        .map_err(|e| e.at(Some(place("model"))))?;
+                    let mut t =
+                        super::super::load_template(t).map_err(|e| e.at(Some(place("model"))))?;
                     // The scene file's [timing] is every three-axis unit's, over its template's
                     // own, key by key (as for one `[imu]`).
                     if let Some(table) = &self.file.timing {
@@ -207,10 +207,11 @@ impl SimulationBuilder {
                         ),
                         None => None,
                     };
-                    let producer = Producer::new(motion.clone(), grid, nodes, Format::Bin, chain, false)?
-                        .with_timing(timing)
-                        .with_filter(filtered)
-                        .with_truth_place(Box::new(placement.clone()));
+                    let producer =
+                        Producer::new(motion.clone(), grid, nodes, Format::Bin, chain, false)?
+                            .with_timing(timing)
+                            .with_filter(filtered)
+                            .with_truth_place(Box::new(placement.clone()));
                     Body::Produced {
                         producer: Box::new(producer),
                         encoding: Box::new(encoding(plan, &format)),
@@ -243,12 +244,14 @@ impl SimulationBuilder {
             // The unit's own magnetometer: its noise from the unit's seed (units differ; a unit
             // whose seed is the master seed draws the single IMU's samples).
             let mag = match (&sensors.magnetometer, &body) {
-                (Some(cfg), Body::Triad { .. } | Body::Produced { .. }) if frames => Some(Box::new(MagHold::in_axes(
-                    cfg.clone(),
-                    seed,
-                    grid.t0,
-                    placement.c_b_c,
-                ))),
+                (Some(cfg), Body::Triad { .. } | Body::Produced { .. }) if frames => {
+                    Some(Box::new(MagHold::in_axes(
+                        cfg.clone(),
+                        seed,
+                        grid.t0,
+                        placement.c_b_c,
+                    )))
+                }
                 _ => None,
             };
             let model = match &spec.model {
