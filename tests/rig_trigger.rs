@@ -208,7 +208,8 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 /// triggered path bypassed the filter): one CSV record per edge after the first, each the
 /// uniform average over its interval — standing still, the constant rates, with increments
 /// the rates times the interval since the previous edge (where the unit's own filter would
-/// give 10 ms worth for every record).
+/// give 10 ms worth for every record). The run says, when it is built, that the template's
+/// filter kind and taps give way to the averager.
 #[test]
 fn one_filtered_imu_averages_over_each_interval() {
     let dir = tempfile::tempdir().unwrap();
@@ -236,7 +237,12 @@ fn one_filtered_imu_averages_over_each_interval() {
         .spawn()
         .unwrap();
     let mut err = BufReader::new(child.stderr.take().unwrap());
-    wait_for(&mut err, "waiting for the first trigger edge");
+    let said = wait_for(&mut err, "waiting for the first trigger edge");
+    // The template's filter kind and taps give way to the averager: said, not left silent.
+    assert!(
+        said.contains("output filter of template `avg` is a uniform average over each interval"),
+        "{said}"
+    );
     let at_ms = [0.0, 4.0, 17.0, 20.0, 33.5, 51.0];
     send_edges(port, utc_now_ns() + 20_000_000, &at_ms);
     finish(child, err);

@@ -188,6 +188,11 @@ impl Unit {
         matches!(self.body, Body::Produced { .. })
     }
 
+    /// Whether the unit runs its template's output filter.
+    pub fn has_output_filter(&self) -> bool {
+        matches!(&self.body, Body::Produced { producer, .. } if producer.is_filtered())
+    }
+
     /// Whether the unit's records carry their own times of validity and emission (timing
     /// errors, an output filter's delay, a trigger): its truth then has the `tov`,
     /// `tov_accel` and `emit` columns, as the single IMU's has.

@@ -295,6 +295,7 @@ impl RunSpec {
             Signal::Live { .. } => Vec::new(),
         };
         warnings.extend(unrouted);
+        warnings.extend(sync.trigger.as_ref().and_then(|_| triggered_filters(&sig)));
         let run = Run {
             signal: sig,
             layout,
@@ -491,4 +492,27 @@ fn check_stdout(layout: &Layout) -> Result<(), RunError> {
         return Err(refuse("-", "at most one stream can be written to stdout"));
     }
     Ok(())
+}
+
+/// What a trigger makes of output filters, said once when the run is built: under external
+/// sync the filter is a uniform averager over each interval between edges, whatever the
+/// template's `[output_filter]` kind and taps (docs/timing.md, external sample trigger).
+fn triggered_filters(sig: &Signal) -> Option<String> {
+    let names: Vec<String> = match sig {
+        Signal::Imu(s) => (s.imu().output_filter.is_some())
+            .then(|| format!("template `{}`", s.imu().name))
+            .into_iter()
+            .collect(),
+        Signal::Rig(r) => (r.units().iter())
+            .filter(|u| u.has_output_filter())
+            .map(|u| format!("unit `{}`", u.name()))
+            .collect(),
+        Signal::Live { .. } => Vec::new(),
+    };
+    (!names.is_empty()).then(|| {
+        format!(
+            "--trigger: the output filter of {} is a uniform average over each interval between edges (as KVH's 1775 under external sync), not its [output_filter] kind, taps and internal rate",
+            names.join(", ")
+        )
+    })
 }
