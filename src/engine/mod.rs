@@ -884,7 +884,7 @@ impl Producer {
         }
         let rot = chain_rot.then(|| &self.rot[..1]);
         if let Some(f) = self.filtered.as_mut() {
-            // KVH's 1750/1775 technical manual: under external sync (MSYNC) the unit switches
+            // KVH's 1775 IMU technical manual (§8.26): under external sync (MSYNC) the unit switches
             // its output filter to a uniform averager over the interval between the sync
             // edges. The mean of the internal samples over (previous edge, this edge] is the
             // interval mean of the signal (the generator's exact integral over the interval

@@ -221,7 +221,7 @@ impl FilteredChain {
 impl FilteredChain {
     /// Corrupts records that are each the exact mean of the signal over an interval of `dt`
     /// s an external trigger closed, as the unit's filter works under external sync: a
-    /// uniform averager over the interval between the edges (KVH's 1750/1775 technical
+    /// uniform averager over the interval between the edges (KVH's 1775 IMU technical
     /// manual), whose output is the interval mean of the internal samples. The internal-rate
     /// stages act over the whole interval (their white noise averaged over it has
     /// σ = N/√`dt`, their random processes step over `dt`: [`ErrorChain::apply_over`]), then
