@@ -15,7 +15,7 @@ use imu_emu::protocol::{self, StreamDecoder};
 
 #[path = "common/loopback.rs"]
 mod loopback;
-use loopback::{receive, utc_now_ns};
+use loopback::{receive, send_states, survey_csv, utc_now_ns};
 
 const BIN: &str = env!("CARGO_BIN_EXE_imu-emu");
 
@@ -259,16 +259,6 @@ fn one_filtered_imu_averages_over_each_interval() {
     }
 }
 
-/// The survey scene's states every 10 ms from t = 0 to `seconds`, as trajectory CSV lines.
-fn survey_csv(seconds: f64) -> String {
-    let motion = imu_emu::sim::Simulation::builder()
-        .build()
-        .unwrap()
-        .motion()
-        .clone();
-    imu_emu::trajectory::sample_motion(&motion, 0.0, 100.0, (seconds * 100.0) as u64, None)
-}
-
 /// A rig following live states in real time on a trigger: the survey's states over UDP at
 /// 100 Hz (one datagram every 10 ms), and from 1 s on, edges over UDP 5 to 15 ms apart. Each
 /// edge is mapped to simulation time through the clock map less the output delay, as for one
@@ -322,17 +312,7 @@ fn a_live_rig_samples_on_a_trigger_in_real_time() {
     let mut err = BufReader::new(child.stderr.take().unwrap());
     wait_for(&mut err, "following udp://");
     let states = survey_csv(3.0);
-    let sender = std::thread::spawn(move || {
-        let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
-        let start = std::time::Instant::now();
-        for (k, line) in states.lines().enumerate() {
-            let due = Duration::from_millis(10 * k as u64);
-            if let Some(w) = due.checked_sub(start.elapsed()) {
-                std::thread::sleep(w);
-            }
-            sock.send_to(line.as_bytes(), ("127.0.0.1", port)).unwrap();
-        }
-    });
+    let sender = std::thread::spawn(move || send_states(port, &states));
     let mut at_ms = vec![0.0];
     for i in 0..60 {
         at_ms.push(at_ms[i] + 5.0 + ((i * 7) % 11) as f64);

@@ -13,6 +13,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+#[path = "common/loopback.rs"]
+mod loopback;
+use loopback::{send_states, survey_csv};
+
 const BIN: &str = env!("CARGO_BIN_EXE_imu-emu");
 
 /// The example template with an output filter (ADIS16448 figures, 819.2 → 204.8 Hz).
@@ -168,16 +172,6 @@ fn paced_rig_units_write_generate_bytes() {
     assert!(contains(&gen_f, tail), "the pty's bytes are not generate's");
 }
 
-/// The survey scene's states every 10 ms from t = 0 to `seconds`, as trajectory CSV lines.
-fn survey_csv(seconds: f64) -> String {
-    let motion = imu_emu::sim::Simulation::builder()
-        .build()
-        .unwrap()
-        .motion()
-        .clone();
-    imu_emu::trajectory::sample_motion(&motion, 0.0, 100.0, (seconds * 100.0) as u64, None)
-}
-
 /// In lockstep on states through a pipe, a one-unit rig (the unit at the reference point in
 /// the body's axes, with the seed the single IMU is given) writes the single IMU's lockstep
 /// bytes on the same states, for a unit with an output filter and for one with every timing
@@ -300,14 +294,7 @@ fn realtime_rig_units_are_lockstep_of_their_recorded_input() {
         assert!(n > 0, "the run did not start: {text}");
         text += &line;
     }
-    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
-    let start = Instant::now();
-    for (k, line) in survey_csv(2.5).lines().enumerate() {
-        if let Some(w) = Duration::from_millis(10 * k as u64).checked_sub(start.elapsed()) {
-            std::thread::sleep(w);
-        }
-        sock.send_to(line.as_bytes(), ("127.0.0.1", port)).unwrap();
-    }
+    send_states(port, &survey_csv(2.5));
     let mut rest = String::new();
     err.read_to_string(&mut rest).unwrap();
     assert!(child.wait().unwrap().success(), "{text}{rest}");

@@ -354,12 +354,7 @@ impl Unit {
                 s.spans.clear();
                 s.spans.resize(n, dt);
                 fail_triads(&mut self.failures, self.flags, s);
-                s.mag.clear();
-                if let Some(hold) = self.mag.as_mut() {
-                    for r in &s.recs {
-                        s.mag.push(hold.at(r.t, motion)?);
-                    }
-                }
+                sample_mag(self.mag.as_deref_mut(), motion, s)?;
                 let profile = self.temperature.as_ref();
                 encoding.encode_with_mag(&s.recs, &[], profile, &s.mag, &mut s.buf, &mut s.ends);
                 if let Some(w) = truth.as_mut() {
@@ -543,12 +538,7 @@ impl Unit {
         }
         let n = s.recs.len();
         fail_triads(&mut self.failures, self.flags, s);
-        s.mag.clear();
-        if let Some(hold) = self.mag.as_mut() {
-            for r in &s.recs {
-                s.mag.push(hold.at(r.t, motion)?);
-            }
-        }
+        sample_mag(self.mag.as_deref_mut(), motion, s)?;
         let profile = self.temperature.as_ref();
         let gaps = if s.gaps.is_empty() { &[][..] } else { &s.gaps };
         encoding.encode_with_mag(&s.recs, gaps, profile, &s.mag, &mut s.buf, &mut s.ends);
@@ -569,6 +559,22 @@ impl Unit {
             _ => None,
         }
     }
+}
+
+/// The unit's magnetometer (`hold`, if its frames carry one) sampled at each record of
+/// `s.recs` into `s.mag`: the latest sample at the record's time on `motion`.
+fn sample_mag(
+    hold: Option<&mut MagHold>,
+    motion: &AnyMotion,
+    s: &mut Scratch,
+) -> Result<(), EngineError> {
+    s.mag.clear();
+    if let Some(hold) = hold {
+        for r in &s.recs {
+            s.mag.push(hold.at(r.t, motion)?);
+        }
+    }
+    Ok(())
 }
 
 /// A three-axis unit's failures on the records of `s.recs` (each over `s.spans[i]` s): the

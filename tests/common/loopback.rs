@@ -54,3 +54,27 @@ pub fn timed_ln200(dir: &std::path::Path, timing: &str) -> std::path::PathBuf {
     std::fs::write(&p, format!("base = \"ln200\"\n[timing]\n{timing}")).unwrap();
     p
 }
+
+/// The survey scene's states every 10 ms from t = 0 to `seconds`, as trajectory CSV lines
+/// (what `imu-emu trajectory --rate 100` writes).
+pub fn survey_csv(seconds: f64) -> String {
+    let motion = imu_emu::sim::Simulation::builder()
+        .build()
+        .unwrap()
+        .motion()
+        .clone();
+    imu_emu::trajectory::sample_motion(&motion, 0.0, 100.0, (seconds * 100.0) as u64, None)
+}
+
+/// Sends each line of `text` as one datagram to `port` on loopback, line k at k·10 ms after
+/// the call (a vehicle simulation's 100 Hz states in real time).
+pub fn send_states(port: u16, text: &str) {
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let start = std::time::Instant::now();
+    for (k, line) in text.lines().enumerate() {
+        if let Some(w) = Duration::from_millis(10 * k as u64).checked_sub(start.elapsed()) {
+            std::thread::sleep(w);
+        }
+        sock.send_to(line.as_bytes(), ("127.0.0.1", port)).unwrap();
+    }
+}
