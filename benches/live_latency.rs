@@ -1,5 +1,6 @@
 //! Live input latency: `cargo bench --bench live_latency` (LIVE_LATENCY_SECS per case,
-//! default 20; LIVE_LATENCY_TABLES=latency or =rig for one of the two tables).
+//! default 20; LIVE_LATENCY_TABLES=latency or =rig for one of the two tables; IMU_EMU_BIN
+//! runs another build of the emulator, e.g. an older one, for comparison).
 //!
 //! A sender thread streams the survey scene's states at 100 Hz in real time (binary
 //! datagrams over UDP loopback) to `imu-emu run --motion udp://… --time-mode realtime`,
@@ -48,10 +49,15 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
+/// The emulator measured: this build's, or `IMU_EMU_BIN` (another build, to compare).
+fn bin() -> String {
+    std::env::var("IMU_EMU_BIN").unwrap_or_else(|_| env!("CARGO_BIN_EXE_imu-emu").into())
+}
+
 /// A live run started with `args` (its `--motion` on `port`), once it listens: the child, its
 /// stderr, and the instant the bench's times count from.
 fn start(args: &[String]) -> (Child, BufReader<ChildStderr>, Instant) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+    let mut child = Command::new(bin())
         .args(args)
         .stderr(Stdio::piped())
         .spawn()
@@ -116,6 +122,8 @@ fn live_args(port: u16) -> Vec<String> {
 fn case(rate: u32, delay: Option<f64>, seconds: f64) -> (Vec<f64>, String) {
     let port = free_port();
     let sink = UdpSocket::bind("127.0.0.1:0").unwrap();
+    // A reader descheduled for a while on a loaded machine loses no datagram.
+    imu_emu::realtime::udp::grow_receive_buffer(&sink);
     let sink_port = sink.local_addr().unwrap().port();
     let mut args = live_args(port);
     args.extend([
@@ -199,6 +207,7 @@ mounting_deg = [0.0, 10.0, 90.0]
 fn write_lateness(rig: bool, live: bool, seconds: f64, dir: &Path) -> (u64, [f64; 3], String) {
     let port = free_port();
     let drain = UdpSocket::bind("127.0.0.1:0").unwrap();
+    imu_emu::realtime::udp::grow_receive_buffer(&drain);
     let to = format!("udp:{}", drain.local_addr().unwrap());
     let mut args = if live {
         live_args(port)
@@ -246,7 +255,7 @@ fn write_lateness(rig: bool, live: bool, seconds: f64, dir: &Path) -> (u64, [f64
         (child, err, origin) = start(&args);
         send_states(port, seconds, origin);
     } else {
-        child = Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+        child = Command::new(bin())
             .args(&args)
             .stderr(Stdio::piped())
             .spawn()
@@ -267,9 +276,9 @@ fn write_lateness(rig: bool, live: bool, seconds: f64, dir: &Path) -> (u64, [f64
             .and_then(|s| s.parse().ok())
             .unwrap_or_else(|| panic!("`{key}` in {line}"))
     };
-    let frames = (line.split(" frames of ").next())
-        .and_then(|s| s.rsplit(' ').next())
-        .and_then(|s| s.parse().ok())
+    // The first count of the line (`2968 frames of 2 streams`; older builds: `8369 of 8369
+    // frames`, `1100 frames of 3 units`).
+    let frames = (line.split(' ').find_map(|w| w.parse().ok()))
         .unwrap_or_else(|| panic!("frames in {line}"));
     (frames, [num("p50 "), num("p99 "), num("max ")], text)
 }
