@@ -55,6 +55,25 @@ fn extrapolated(err: &str) -> usize {
     }
 }
 
+/// Starts `imu-emu BEFORE --motion udp://127.0.0.1:PORT AFTER` in `dir`, in real time on the
+/// GPS time base, [`DELAY`] behind its input, which ends after 0.5 s of silence and is
+/// recorded to `dir/in.rec`.
+fn start_live(dir: &Path, port: u16, before: &[&str], after: &[&str]) -> hil::Started {
+    let motion = format!("udp://127.0.0.1:{port}");
+    let mut args = before.to_vec();
+    args.extend([
+        "--motion",
+        &motion,
+        "--time-base",
+        "gps",
+        "--output-delay",
+        DELAY,
+    ]);
+    args.extend(["--input-timeout", "0.5", "--record-input", "in.rec"]);
+    args.extend_from_slice(after);
+    start(dir, &args)
+}
+
 /// Replays the input a real-time run recorded in `dir/in.rec`, in lockstep, with `args`.
 fn replay(dir: &Path, args: &[&str]) -> String {
     let mut all = vec![
@@ -109,22 +128,12 @@ fn live_motion_with_gnss_and_sensors_on_gps_time() {
     let port = free_udp_port();
     let (imu_to, imu_rx) = receive();
     let (gnss_to, gnss_rx) = receive();
-    let motion = format!("udp://127.0.0.1:{port}");
     let gnss = format!("nmea:udp:{gnss_to}");
-    let run = start(
+    let run = start_live(
         d,
+        port,
+        &["run"],
         &[
-            "run",
-            "--motion",
-            &motion,
-            "--time-base",
-            "gps",
-            "--output-delay",
-            DELAY,
-            "--input-timeout",
-            "0.5",
-            "--record-input",
-            "in.rec",
             "--udp",
             &imu_to,
             "--gnss",
@@ -188,26 +197,10 @@ fn live_motion_with_gnss_and_sensors_on_gps_time() {
     }
 }
 
-/// A rig of two units: `nav`, an LN-200 at 400 Hz in its frames; `tac`, an HG1700 at 100 Hz
-/// as CSV, 1.2 m aft and 0.3 m below. `extra` follows the units.
+/// The rig scene [`hil::TWO_UNITS`] with `extra` after its units, in `dir/rig.toml`.
 fn rig_scene(dir: &Path, extra: &str) -> std::path::PathBuf {
     let p = dir.join("rig.toml");
-    let text = format!(
-        r#"[trajectory]
-scene = "circle"
-[[imu]]
-name = "nav"
-model = "ln200"
-format = "ln200"
-[[imu]]
-name = "tac"
-model = "hg1700"
-format = "csv"
-rate_hz = 100.0
-lever_arm_m = [-1.2, 0.0, 0.3]
-{extra}"#
-    );
-    std::fs::write(&p, text).unwrap();
+    std::fs::write(&p, format!("{}{extra}", hil::TWO_UNITS)).unwrap();
     p
 }
 
@@ -219,28 +212,10 @@ fn live_rig(dir: &Path, scene: &Path, extra: &[&str]) -> (String, Vec<u8>, Tagge
     let rows = survey_rows(dir, 2.0);
     let port = free_udp_port();
     let (nav_to, nav_rx) = receive();
-    let motion = format!("udp://127.0.0.1:{port}");
     let nav = format!("nav=udp:{nav_to}");
-    let mut args = vec![
-        "run",
-        scene.to_str().unwrap(),
-        "--motion",
-        &motion,
-        "--time-base",
-        "gps",
-        "--output-delay",
-        DELAY,
-        "--input-timeout",
-        "0.5",
-        "--record-input",
-        "in.rec",
-        "--unit-sink",
-        &nav,
-        "--unit-sink",
-        "tac=file:tac.csv",
-    ];
+    let mut args = vec!["--unit-sink", &nav, "--unit-sink", "tac=file:tac.csv"];
     args.extend_from_slice(extra);
-    let run = start(dir, &args);
+    let run = start_live(dir, port, &["run", scene.to_str().unwrap()], &args);
     let tags = Tagged::from_now(rows, 0.3);
     tags.send_ahead(port, AHEAD_NS);
     let err = run.finish();
@@ -498,20 +473,11 @@ fn live_motion_with_sync_lines() {
         assert!(err.contains(flag) && err.contains(why), "{err}");
         assert!(!d.join("x.bin").exists());
     }
-    let run = start(
+    let run = start_live(
         d,
+        port,
+        &["run"],
         &[
-            "run",
-            "--motion",
-            &motion,
-            "--time-base",
-            "gps",
-            "--output-delay",
-            DELAY,
-            "--input-timeout",
-            "0.5",
-            "--record-input",
-            "in.rec",
             "--file",
             "imu.bin",
             "--time-marks",

@@ -9,6 +9,9 @@ use std::collections::BTreeSet;
 use std::path::Path;
 use std::process::{Command, Output};
 
+#[path = "common/hil.rs"]
+mod hil;
+
 const BIN: &str = env!("CARGO_BIN_EXE_imu-emu");
 
 /// `imu-emu ARGS` in `dir`.
@@ -164,24 +167,8 @@ fn setup(dir: &Path) {
         dir.join("kvh1750.toml"),
     )
     .unwrap();
-    std::fs::write(
-        dir.join("rig.toml"),
-        r#"[trajectory]
-scene = "circle"
-[output]
-duration_s = 1.0
-[[imu]]
-name = "nav"
-model = "ln200"
-format = "ln200"
-[[imu]]
-name = "tac"
-model = "hg1700"
-format = "csv"
-rate_hz = 100.0
-"#,
-    )
-    .unwrap();
+    let rig = format!("{}[output]\nduration_s = 1.0\n", hil::TWO_UNITS);
+    std::fs::write(dir.join("rig.toml"), rig).unwrap();
 }
 
 /// The mode's flags with `flag` (and its value) added; a flag the mode gives is replaced.

@@ -16,6 +16,22 @@ use std::time::{Duration, Instant};
 use imu_emu::realtime::hostclock::GpsClock;
 use imu_emu::timebase::LeapTable;
 
+/// A rig scene on the circle: `nav`, an LN-200 at 400 Hz in its frames; `tac`, an HG1700 at
+/// 100 Hz as CSV, 1.2 m aft and 0.3 m below.
+pub const TWO_UNITS: &str = r#"[trajectory]
+scene = "circle"
+[[imu]]
+name = "nav"
+model = "ln200"
+format = "ln200"
+[[imu]]
+name = "tac"
+model = "hg1700"
+format = "csv"
+rate_hz = 100.0
+lever_arm_m = [-1.2, 0.0, 0.3]
+"#;
+
 /// Nanoseconds in a GPS week.
 pub const WEEK_NS: i128 = 604_800_000_000_000;
 
