@@ -107,7 +107,7 @@ fn a_scene_file_holds_the_whole_run() {
     assert_eq!(no_truth(from_file.clone()), no_truth(describe(&args)));
     assert!(from_file.contains("stream imu truth"), "{from_file}");
 
-    let err = ok(&imu_emu(d, &["run", &file]));
+    let ran = ok(&imu_emu(d, &["run", &file]));
     let g = |args: &[&str]| {
         let mut all = vec!["generate", bare.as_str(), "--seed", "20261124"];
         all.extend(args);
@@ -124,8 +124,15 @@ fn a_scene_file_holds_the_whole_run() {
         "g-odo.csv",
     ]);
     let read = |f: &str| std::fs::read(d.join(f)).unwrap();
+    // `generate` of the whole file writes the signal's files, saying it sets `run`'s aside.
+    let err = ok(&imu_emu(
+        d,
+        &["generate", &file, "-o", "w.csv", "--seed", "20261124"],
+    ));
+    assert!(err.contains("note: whole.toml: the [run] table"), "{err}");
+    assert_eq!(read("w.csv"), read("g.csv"));
     let datagrams = imu_rx.join().unwrap();
-    assert_eq!(joined(&datagrams), read("g.ln200"), "{err}");
+    assert_eq!(joined(&datagrams), read("g.ln200"), "{ran}");
     assert!(
         datagrams.iter().all(|x| x.1.len() == 2 * 26),
         "two frames a datagram"
@@ -265,4 +272,8 @@ timeout_s = 3
         err.contains("bad.toml: `run.input.output_delay_s`"),
         "{err}"
     );
+    // `generate` has no live input: refused, named.
+    let err = failed(&imu_emu(d, &["generate", "live.toml", "-o", "x.csv"]));
+    assert!(err.contains("live.toml: `run.input`"), "{err}");
+    assert!(!d.join("x.csv").exists());
 }

@@ -241,10 +241,13 @@ pub fn sleep_to(i0: Instant, g0: i128, at_ns: i128) {
     }
 }
 
+/// Datagrams, each with the host's GPS time of its arrival (ns).
+pub type Datagrams = Vec<(i128, Vec<u8>)>;
+
 /// A loopback UDP receiver collecting every datagram until it has been quiet for 3 s after
 /// the first (60 s for the first): its address, and the datagrams with the host's GPS time
 /// of their arrival (ns).
-pub fn receive() -> (String, thread::JoinHandle<Vec<(i128, Vec<u8>)>>) {
+pub fn receive() -> (String, thread::JoinHandle<Datagrams>) {
     let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
     let addr = sock.local_addr().unwrap().to_string();
     let h = thread::spawn(move || {
