@@ -261,6 +261,23 @@ timeout_s = 3
         ],
     ));
     assert!(read("short.bin").len() < read("from-flags.bin").len());
+    // The file's other input keys stay: the same bytes as the flags' lockstep run of it.
+    let mut again = flags;
+    again[4] = "other.csv";
+    again[12] = "short-flags.bin";
+    ok(&imu_emu(d, &again));
+    assert_eq!(read("short.bin"), read("short-flags.bin"));
+    // An input flag without --motion amends the file's input.
+    let out = imu_emu(
+        d,
+        &["run", "live.toml", "--time-mode", "realtime", "--describe"],
+    );
+    ok(&out);
+    let described = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        described.contains("clock: real time behind the input"),
+        "{described}"
+    );
     // A refused value the file gave is named by its file and key.
     std::fs::write(
         d.join("bad.toml"),
