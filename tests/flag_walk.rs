@@ -267,3 +267,146 @@ fn verbose_logs_the_description() {
     assert!(run(true).contains("clock: unpaced"));
     assert!(!run(false).contains("clock: unpaced"));
 }
+
+/// The keys of a struct of src/config/run.rs (`RunSection`, `InputSection`): its `pub` fields.
+fn keys_of(source: &str, name: &str) -> Vec<String> {
+    let start = source.find(&format!("pub struct {name} {{")).unwrap();
+    let body = &source[start..start + source[start..].find("\n}").unwrap()];
+    (body.lines().skip(1))
+        .filter_map(|l| l.trim().strip_prefix("pub "))
+        .filter_map(|l| l.split_once(':').map(|(k, _)| k.trim().to_string()))
+        .collect()
+}
+
+/// A value (TOML) for each key of `[run]` and `[run.input]` (`input.KEY`), other than its
+/// default, and the flag that gives the same setting (a mode giving that flag overrides the
+/// key, so the pair is skipped there).
+fn key_value(key: &str) -> (&'static str, Option<&'static str>) {
+    match key {
+        "speed" => ("2", Some("--speed")),
+        "start_at" => ("\"next-second\"", Some("--start-at")),
+        "time_base" => ("\"gps\"", Some("--time-base")),
+        "max_behind_ms" => ("50", Some("--max-behind-ms")),
+        "realtime_priority" => ("true", Some("--realtime")),
+        "truth" => ("\"file:t.bin\"", None),
+        "truth_errors" => ("\"file:e.bin\"", None),
+        "gnss" => ("\"nmea:udp:127.0.0.1:13\"", Some("--gnss")),
+        "gnss_truth" => ("\"file:gt.csv\"", None),
+        "odometer" => ("\"udp:127.0.0.1:14\"", Some("--odometer")),
+        "baro" => ("\"udp:127.0.0.1:15\"", Some("--baro")),
+        "magnetometer" => ("\"udp:127.0.0.1:16\"", Some("--magnetometer")),
+        "time_marks" => ("\"marks.csv\"", Some("--time-marks")),
+        "pulse" => ("\"rts:pps\"", Some("--pulse")),
+        "pulse_port" => ("\"/dev/ttyX8\"", Some("--pulse-port")),
+        "pulse_unit" => ("\"tac\"", Some("--pulse-unit")),
+        "pps_in" => ("\"udp://127.0.0.1:47997\"", Some("--pps-in")),
+        "trigger" => ("\"udp://127.0.0.1:47996\"", Some("--trigger")),
+        "baud" => ("115200", Some("--baud")),
+        "framing" => ("\"7E1\"", Some("--framing")),
+        "udp_batch" => ("4", Some("--udp-batch")),
+        "take_over" => ("true", Some("--take-over")),
+        "input.source" => ("\"udp://127.0.0.1:47999\"", Some("--motion")),
+        "input.format" => ("\"bin\"", Some("--input-format")),
+        "input.mode" => ("\"lockstep\"", Some("--time-mode")),
+        "input.output_delay_s" => ("0.05", Some("--output-delay")),
+        "input.max_extrapolation_s" => ("0.1", Some("--max-extrapolation")),
+        "input.correction_horizon_s" => ("0.05", Some("--correction-horizon")),
+        "input.on_timeout" => ("\"hold\"", Some("--on-timeout")),
+        "input.timeout_s" => ("3", Some("--input-timeout")),
+        "input.record" => ("\"rec.bin\"", Some("--record-input")),
+        k => panic!("`run.{k}`: a key of src/config/run.rs this walk has no value for; add one"),
+    }
+}
+
+/// The scene file of `mode` with `run` as its `[run]` tables: the rig's units for the rig
+/// mode, nothing else for the others; its name.
+fn scene_with(dir: &Path, mode: &str, run: &str) -> String {
+    let name = format!("s-{}.toml", mode.replace(' ', "-"));
+    let signal = if mode == "rig" {
+        format!("{}[output]\nduration_s = 1.0\n", hil::TWO_UNITS)
+    } else {
+        String::new()
+    };
+    std::fs::write(dir.join(&name), format!("{signal}{run}")).unwrap();
+    name
+}
+
+/// `imu-emu run SCENE MODE… --describe`: its success, stdout and stderr.
+fn describe_with(dir: &Path, scene: &str, mode: &[&str]) -> (bool, String, String) {
+    let mut args = vec!["run".to_string(), scene.to_string()];
+    args.extend(
+        mode.iter()
+            .filter(|a| **a != "rig.toml")
+            .map(|a| a.to_string()),
+    );
+    args.push("--describe".into());
+    let out = imu_emu(dir, &args);
+    let text = |b: Vec<u8>| String::from_utf8_lossy(&b).into_owned();
+    (out.status.success(), text(out.stdout), text(out.stderr))
+}
+
+/// Each key of a scene file's `[run]` and `[run.input]` tables (read from src/config/run.rs,
+/// so a new key cannot be left out) in each mode: the description changes, or the run is
+/// refused naming the file's key. A `[run.input]` key is tried beside a `source`, against
+/// the run with the source alone.
+#[test]
+fn every_run_key_is_used_or_refused_in_every_mode() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    setup(d);
+    let source =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("src/config/run.rs"))
+            .unwrap();
+    let mut keys: Vec<String> = (keys_of(&source, "RunSection").into_iter())
+        .filter(|k| k != "input")
+        .collect();
+    keys.extend(
+        keys_of(&source, "InputSection")
+            .iter()
+            .map(|k| format!("input.{k}")),
+    );
+    assert!(keys.len() >= 30, "{keys:?}");
+    let mut ignored = Vec::new();
+    for (name, mode) in modes() {
+        for key in &keys {
+            let (value, flag) = key_value(key);
+            if flag.is_some_and(|f| mode.contains(&f)) {
+                continue;
+            }
+            let (table, base) = match key.strip_prefix("input.") {
+                Some("source") => ("[run.input]\n".to_string(), String::new()),
+                Some(_) => {
+                    let s = "[run.input]\nsource = \"udp://127.0.0.1:47999\"\n".to_string();
+                    (s.clone(), s)
+                }
+                None => ("[run]\n".to_string(), "[run]\n".to_string()),
+            };
+            let k = key.strip_prefix("input.").unwrap_or(key);
+            let base = scene_with(d, name, &base);
+            let (base_ok, base_out, _) = describe_with(d, &base, &mode);
+            if !base_ok {
+                // The mode refuses a live input (`run.input.source`, walked on its own).
+                continue;
+            }
+            let with_key = scene_with(d, name, &format!("{table}{k} = {value}\n"));
+            let (ok, out, err) = describe_with(d, &with_key, &mode);
+            let shown = format!("{name}: `run.{key}` = {value}");
+            if ok {
+                if out == base_out {
+                    ignored.push(format!("{shown}: the description did not change"));
+                }
+            } else {
+                assert!(!err.contains("panicked"), "{err}");
+                if !err.contains(&format!("`run.{key}`")) {
+                    let first = err.lines().next().unwrap_or("");
+                    ignored.push(format!("{shown}: refused without naming the key: {first}"));
+                }
+            }
+        }
+    }
+    assert!(
+        ignored.is_empty(),
+        "silently ignored or refused without their key:\n{}",
+        ignored.join("\n")
+    );
+}
