@@ -635,3 +635,45 @@ fn filtered_template_keeps_its_rate() {
     ok(&imu_emu(d, &p));
     assert_eq!(joined(&rx.join().unwrap()), read("g.bin"));
 }
+
+/// Lockstep with a GNSS epoch on t₀ itself: states tagged from 375 445.12 s of the week (the
+/// model's t₀, 8 states later, is 375 445.20 s, on the 5 Hz epoch grid). The epoch at t₀ used
+/// to be made when the model held one knot and no piece, and the run failed on a NaN latitude
+/// (a 1-in-20 chance for live states tagged on a 10 ms grid); it is now made from the first
+/// piece, and stamped with t₀'s UTC (GPS − 18 s).
+#[test]
+fn lockstep_gnss_epoch_on_t0() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let rows = survey_rows(d, 1.0);
+    let week = 2400;
+    let tags = Tagged {
+        week,
+        first_ns: week as i128 * hil::WEEK_NS + 375_445_120_000_000,
+        rows,
+    };
+    std::fs::write(d.join("in.csv"), tags.csv().join("\n") + "\n").unwrap();
+    let args = [
+        "run",
+        "--motion",
+        "in.csv",
+        "--time-mode",
+        "lockstep",
+        "--time-base",
+        "gps",
+    ];
+    let mut all = args.to_vec();
+    all.extend([
+        "--file",
+        "imu.bin",
+        "--gnss",
+        "nmea:file:g.nmea",
+        "--baro",
+        "file:b.csv",
+    ]);
+    ok(&imu_emu(d, &all));
+    let text = std::fs::read_to_string(d.join("g.nmea")).unwrap();
+    let first = text.lines().find(|l| l.starts_with("$GPGGA")).unwrap();
+    // 375 445.2 s of the week − 18 s = day 4, 08:17:07.20 UTC.
+    assert_eq!(first.split(',').nth(1), Some("081707.20"), "{text}");
+}
