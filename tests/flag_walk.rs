@@ -79,6 +79,8 @@ fn values(flag: &str) -> Option<&'static [&'static str]> {
         "--framing" => &["7E1"],
         "--udp" => &["127.0.0.1:10", "127.0.0.1:11"],
         "--file" => &["f.bin", "g.bin"],
+        "--tcp" => &["127.0.0.1:17"],
+        "--tcp-listen" => &["127.0.0.1:18"],
         "--unit-sink" => &["nav=udp:127.0.0.1:12"],
         "--gnss" => &["nmea:udp:127.0.0.1:13"],
         "--odometer" => &["udp:127.0.0.1:14"],
