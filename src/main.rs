@@ -2,6 +2,8 @@
 
 mod cmd;
 
+use std::io::Write;
+
 use clap::{Parser, Subcommand};
 
 use imu_emu::scenes;
@@ -44,7 +46,7 @@ enum Command {
 }
 
 fn main() {
-    let cli = Cli::parse();
+    let cli = Cli::try_parse().unwrap_or_else(|e| clap_exit(e));
     let result = match cli.command {
         Command::Generate(a) => cmd::generate::generate(*a),
         Command::Trajectory(a) => cmd::info::export_trajectory(a),
@@ -57,19 +59,7 @@ fn main() {
         Command::Analyze(a) => cmd::analyze::analyze(*a),
         Command::PlotErrors(a) => cmd::plot_errors::plot_errors(a),
         Command::Fit(a) => cmd::fit::fit(*a),
-        Command::Scenes => {
-            for name in scenes::NAMES {
-                println!(
-                    "{name}{}",
-                    if name == scenes::DEFAULT {
-                        " (default)"
-                    } else {
-                        ""
-                    }
-                );
-            }
-            Ok(())
-        }
+        Command::Scenes => list_scenes(),
     };
     if let Err(e) = result {
         // A reader that stopped early (`… -o - | head`) is not an error of ours.
@@ -86,5 +76,35 @@ fn main() {
         }
         eprintln!("error: {e:#}");
         std::process::exit(1);
+    }
+}
+
+/// `imu-emu scenes`: written, not printed, so that a full disk or a closed pipe is an error
+/// the caller sees rather than a panic.
+fn list_scenes() -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    for name in scenes::NAMES {
+        let default = if name == scenes::DEFAULT {
+            " (default)"
+        } else {
+            ""
+        };
+        writeln!(out, "{name}{default}")?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+/// Prints clap's help, version or usage error and exits with its status; a help that could
+/// not be written is an error (exit 1: `--help > /dev/full` is no success), except into a
+/// reader that stopped early (`--help | head`).
+fn clap_exit(e: clap::Error) -> ! {
+    match e.print().and_then(|()| std::io::stdout().flush()) {
+        Ok(()) => std::process::exit(e.exit_code()),
+        Err(io) if io.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(0),
+        Err(io) => {
+            eprintln!("error: writing the help: {io}");
+            std::process::exit(1);
+        }
     }
 }

@@ -56,13 +56,22 @@ pub enum PlotError {
     /// The output name does not end in .png or .svg.
     #[error("{0}: plot file must end in .png or .svg")]
     Extension(PathBuf),
-    /// Drawing or writing failed.
+    /// Drawing failed.
     #[error("{path}: {message}")]
     Draw {
         /// Output file.
         path: PathBuf,
         /// What failed.
         message: String,
+    },
+    /// The finished picture could not be written (the reason is the error's `source()`, not
+    /// repeated in the message, so a chain printed with `{:#}` names it once).
+    #[error("{path}: cannot write the plot")]
+    Write {
+        /// Output file.
+        path: PathBuf,
+        /// The system's reason.
+        source: std::io::Error,
     },
 }
 
@@ -92,6 +101,9 @@ fn register_font() {
 
 #[cfg(feature = "plot")]
 /// Renders `panels` in a grid of `columns` columns into `path` (.png or .svg) of `size` pixels.
+/// The picture is made in memory and written with [`crate::output::AtomicFile`]: a file that
+/// cannot be written is an I/O error naming it and the system's reason, and a failed write
+/// leaves no partial file.
 pub fn render(
     path: &std::path::Path,
     panels: &[Panel],
@@ -107,19 +119,50 @@ pub fn render(
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
+    let bytes = match ext.as_deref() {
         Some("png") => {
-            let root = BitMapBackend::new(path, size).into_drawing_area();
-            draw(&root, panels, columns).map_err(err)?;
-            root.present().map_err(|e| err(e.to_string()))
+            let mut rgb = vec![0u8; size.0 as usize * size.1 as usize * 3];
+            {
+                let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
+                draw(&root, panels, columns).map_err(err)?;
+                root.present().map_err(|e| err(e.to_string()))?;
+            }
+            png(&rgb, size).map_err(err)?
         }
         Some("svg") => {
-            let root = SVGBackend::new(path, size).into_drawing_area();
-            draw(&root, panels, columns).map_err(err)?;
-            root.present().map_err(|e| err(e.to_string()))
+            let mut text = String::new();
+            {
+                let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
+                draw(&root, panels, columns).map_err(err)?;
+                root.present().map_err(|e| err(e.to_string()))?;
+            }
+            text.into_bytes()
         }
-        _ => Err(PlotError::Extension(path.to_path_buf())),
-    }
+        _ => return Err(PlotError::Extension(path.to_path_buf())),
+    };
+    write_atomically(path, &bytes).map_err(|source| PlotError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+#[cfg(feature = "plot")]
+/// An RGB picture of `size` pixels as PNG bytes.
+fn png(rgb: &[u8], size: (u32, u32)) -> Result<Vec<u8>, String> {
+    use image::ImageEncoder;
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(rgb, size.0, size.1, image::ColorType::Rgb8)
+        .map_err(|e| format!("encoding the PNG: {e}"))?;
+    Ok(out)
+}
+
+#[cfg(feature = "plot")]
+fn write_atomically(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut f = crate::output::AtomicFile::create(path)?;
+    f.write_all(bytes)?;
+    f.commit()
 }
 
 #[cfg(feature = "plot")]

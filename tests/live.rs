@@ -30,6 +30,9 @@ use imu_emu::sim::Simulation;
 use imu_emu::source::AnyMotion;
 use imu_emu::trajectory;
 
+#[path = "common/live_cli.rs"]
+mod live_cli;
+
 fn survey() -> AnyMotion {
     Simulation::builder().build().unwrap().motion().clone()
 }
@@ -487,37 +490,10 @@ fn imu_emu() -> std::process::Command {
 fn cli_tcp_run_equals_the_library_and_reports() {
     let mut text = survey_csv(2.0);
     text.insert_str(text.find("\n1.0").unwrap() + 1, "1.0,x,0,0,0,0,0,0,0,0\n");
-    let port = TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
     let dir = tempfile::TempDir::new().unwrap();
     let out = dir.path().join("out.bin");
-    let child = imu_emu()
-        .args([
-            "run",
-            "--motion",
-            &format!("tcp://127.0.0.1:{port}"),
-            "--time-mode",
-            "lockstep",
-            "--file",
-        ])
-        .arg(&out)
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut conn = None;
-    for _ in 0..200 {
-        if let Ok(c) = TcpStream::connect(("127.0.0.1", port)) {
-            conn = Some(c);
-            break;
-        }
-        thread::sleep(Duration::from_millis(25));
-    }
-    conn.expect("the emulator listens")
-        .write_all(text.as_bytes())
-        .unwrap();
+    let (child, mut conn) = live_cli::lockstep_over_tcp(&out);
+    conn.write_all(text.as_bytes()).unwrap();
     let done = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&done.stderr);
     assert!(done.status.success(), "{err}");

@@ -39,7 +39,8 @@ pub struct GnssConfig {
     pub satellites: u8,
     /// User-equivalent range error (m): dilutions of precision are the σ's over it.
     pub uere_m: f64,
-    /// GPS − UTC (s): 18 since 2017-01-01.
+    /// GPS − UTC (s) from the built-in table's last leap second on (18 since 2017-01-01);
+    /// before it the encoders take the table's value ([`super::GnssEncoder::new`]).
     pub leap_seconds: i64,
     /// Master seed of the receiver's errors (default: the run's seed).
     pub seed: Option<u64>,

@@ -292,24 +292,29 @@ fn read_frames(
     let mut n = 0u64;
     // Chosen from the first frame: each axis from its rate, else its increment over Δt.
     let mut layout: Option<Result<FrameLayout, ReadError>> = None;
+    let mut each = |d: &crate::protocol::Decoded| {
+        let l = layout.get_or_insert_with(|| frame_layout(path, d, dt));
+        if let Ok((sources, time)) = l {
+            let v: [f64; 6] =
+                std::array::from_fn(|i| d.get(sources[i].0).unwrap_or(f64::NAN) * sources[i].1);
+            let t = time.and_then(|s| d.get(s)).unwrap_or(f64::NAN);
+            sample(t, &v);
+            n += 1;
+        }
+        l.is_ok()
+    };
     loop {
         let k = file
             .read(&mut buf)
             .map_err(|source| FileError::io(path, source))?;
+        let mut ok = true;
         if k == 0 {
+            // The end of the file confirms the frames still waiting for their run.
+            dec.finish_frames(|d| ok &= each(d));
             break;
         }
-        dec.feed(&buf[..k], |d| {
-            let l = layout.get_or_insert_with(|| frame_layout(path, d, dt));
-            if let Ok((sources, time)) = l {
-                let v: [f64; 6] =
-                    std::array::from_fn(|i| d.get(sources[i].0).unwrap_or(f64::NAN) * sources[i].1);
-                let t = time.and_then(|s| d.get(s)).unwrap_or(f64::NAN);
-                sample(t, &v);
-                n += 1;
-            }
-        });
-        if let Some(Err(_)) = &layout {
+        dec.feed(&buf[..k], |d| ok &= each(d));
+        if !ok {
             break;
         }
     }

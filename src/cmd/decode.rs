@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 
 use imu_emu::decode::capture::{self, CaptureError, Source};
-use imu_emu::decode::{Options, Session};
+use imu_emu::decode::{self, Options, Rate, Session};
 
 #[derive(clap::Args)]
 pub struct DecodeArgs {
@@ -19,12 +19,13 @@ pub struct DecodeArgs {
     /// A protocol spec file.
     #[arg(long)]
     pub protocol_file: Option<PathBuf>,
-    /// The stream's frame rate (Hz): for counters that advance with it (STIM300) [default: the
-    /// protocol's nominal rate], and for the record columns a frame lacks (rates from increments
-    /// or increments from rates) [default: from the frames' time tags; without them those
-    /// columns stay empty].
-    #[arg(long)]
-    pub rate: Option<f64>,
+    /// The stream's frame rate (Hz), or `nominal` for the protocol's nominal rate (the rate
+    /// `generate --format NAME` writes by default): for counters that advance with it (STIM300)
+    /// [default: the nominal rate], and for the record columns a frame lacks (rates from
+    /// increments or increments from rates) [default: from the frames' time tags; without them
+    /// those columns stay empty].
+    #[arg(long, value_parser = parse_rate)]
+    pub rate: Option<Rate>,
     /// Input file, or - for stdin [default: stdin].
     #[arg(conflicts_with_all = ["serial", "udp_listen"])]
     pub input: Option<PathBuf>,
@@ -52,6 +53,15 @@ pub struct DecodeArgs {
     pub native: bool,
 }
 
+fn parse_rate(s: &str) -> Result<Rate, String> {
+    if s == "nominal" {
+        return Ok(Rate::Nominal);
+    }
+    s.parse()
+        .map(Rate::Hz)
+        .map_err(|_| format!("`{s}`: expected a rate in Hz or `nominal`"))
+}
+
 /// `imu-emu decode`: frames in, CSV of the decoded values out, a tally on stderr.
 pub fn decode(a: DecodeArgs) -> Result<()> {
     let (_, mut plan) = match (&a.protocol, &a.protocol_file) {
@@ -62,9 +72,9 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
             imu_emu::protocol::builtin_names().join(", ")
         ),
     };
-    if let Some(rate) = a.rate {
-        plan.set_rate(rate)
-            .map_err(|e| anyhow::anyhow!("--rate: {e}"))?;
+    let rate = decode::set_rate(&mut plan, a.rate).map_err(anyhow::Error::msg)?;
+    if let Some(w) = decode::unchecked(&plan) {
+        eprintln!("imu-emu decode: {w}");
     }
     let source = match (&a.serial, &a.udp_listen, &a.input) {
         (Some(dev), _, _) => Source::Serial(dev.clone(), a.baud),
@@ -83,7 +93,7 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     };
     let opts = Options {
         native: a.native,
-        rate: a.rate,
+        rate,
         tally_only: a.tally_only,
     };
     let mut session = Session::new(plan, opts);

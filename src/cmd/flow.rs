@@ -91,6 +91,10 @@ pub fn run(run: Run, quiet: bool) -> Result<RunReport> {
         }
     } else {
         eprintln!("imu-emu: {prefix}{}", report.summary());
+        if report.stopped && !paced {
+            // An unpaced run's files are whole or absent: a stop before the end removes them.
+            eprintln!("imu-emu: stopped before the end, unfinished output files removed");
+        }
     }
     match interrupted {
         Some(i) => Err(i.into()),

@@ -31,44 +31,58 @@ pub struct TrajectoryArgs {
 }
 
 /// `imu-emu templates`: the built-in IMU templates and their headline figures, each typical
-/// profile on its own row under its template.
+/// profile on its own row under its template. Written, not printed: a full disk or a closed
+/// pipe is an error, never a panic.
 pub fn list_templates() -> Result<()> {
     use imu_emu::errors::template;
-    println!(
-        "{:<17} {:<11} {:>12} {:>13} {:>12} {:>13}  description",
-        "name", "grade", "gyro BI", "ARW", "accel BI", "VRW"
-    );
-    println!(
-        "{:<17} {:<11} {:>12} {:>13} {:>12} {:>13}",
-        "", "", "deg/h", "deg/sqrt(h)", "ug", "m/s/sqrt(h)"
-    );
+    let mut out = std::io::stdout().lock();
+    writeln!(
+        out,
+        "{:<17} {:<11} {:>12} {:>10} {:>13} {:>12} {:>10} {:>13}  description",
+        "name", "grade", "gyro BI", "gyro TO", "ARW", "accel BI", "accel TO", "VRW"
+    )?;
+    writeln!(
+        out,
+        "{:<17} {:<11} {:>12} {:>10} {:>13} {:>12} {:>10} {:>13}",
+        "", "", "deg/h", "deg/h", "deg/sqrt(h)", "ug", "ug", "m/s/sqrt(h)"
+    )?;
     let typical = template::typical_names();
     for name in template::builtin_names() {
-        print_template_row(&template::load(name)?);
+        template_row(&mut out, &template::load(name)?)?;
         if typical.contains(&name) {
-            print_template_row(&template::load(&format!("{name}:{}", template::TYPICAL))?);
+            let m = template::load(&format!("{name}:{}", template::TYPICAL))?;
+            template_row(&mut out, &m)?;
         }
     }
-    println!(
-        "\n`--imu NAME` uses the datasheet figures (the default); `--imu NAME:typical` the \
+    writeln!(
+        out,
+        "\nBI: bias instability; TO: turn-on bias, the 1σ of the constant bias drawn at each \
+         start (largest axis), which often dominates a low-cost unit's navigation error.\n\
+         `--imu NAME` uses the datasheet figures (the default); `--imu NAME:typical` the \
          figures read from a public recording of a real unit (docs/fidelity.md)."
-    );
+    )?;
+    out.flush()?;
     Ok(())
 }
 
-fn print_template_row(m: &imu_emu::errors::ImuModel) {
+fn template_row(out: &mut impl Write, m: &imu_emu::errors::ImuModel) -> std::io::Result<()> {
     use std::f64::consts::PI;
     let deg_h = 180.0 / PI * 3600.0;
-    println!(
-        "{:<17} {:<11} {:>12.3} {:>13.4} {:>12.1} {:>13.4}  {}",
+    let ug = 1e6 / imu_emu::units::G0;
+    let largest = |v: [f64; 3]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    writeln!(
+        out,
+        "{:<17} {:<11} {:>12.3} {:>10.1} {:>13.4} {:>12.1} {:>10.0} {:>13.4}  {}",
         m.name,
         m.grade,
         m.gyro.bias_instability[0] * deg_h,
+        largest(m.gyro.bias_turn_on) * deg_h,
         m.gyro.noise[0] * 180.0 / PI * 60.0,
-        m.accel.bias_instability[0] / imu_emu::units::G0 * 1e6,
+        m.accel.bias_instability[0] * ug,
+        largest(m.accel.bias_turn_on) * ug,
         m.accel.noise[0] * 60.0,
         m.description
-    );
+    )
 }
 
 pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {

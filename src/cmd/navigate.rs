@@ -1,6 +1,7 @@
 //! `imu-emu navigate`: records in, the free-inertial trajectory and its errors against a
 //! reference out.
 
+use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
@@ -129,7 +130,10 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
     if to_stdout {
         eprint!("{summary}");
     } else {
-        print!("{summary}");
+        // Written, not printed: a full disk or a closed pipe is an error, never a panic.
+        let mut out = std::io::stdout().lock();
+        write!(out, "{summary}")?;
+        out.flush()?;
     }
     Ok(())
 }

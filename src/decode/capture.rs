@@ -186,19 +186,22 @@ pub fn run(
         if deadline.is_some_and(|d| Instant::now() >= d) {
             break;
         }
-        let Some(n) = input.read(&mut buf)? else {
-            session.finish();
-            break;
-        };
+        let read = input.read(&mut buf)?;
         let now = monotonic_ns();
-        // Every frame of a read arrived at `now`: the first one `now − last` after the
-        // previous frame, the others at once.
-        let frames = session.feed(&buf[..n], out)?;
+        // Every frame of a read (or confirmed by the input's end) arrived at `now`: the first
+        // one `now − last` after the previous frame, the others at once.
+        let frames = match read {
+            Some(n) => session.feed(&buf[..n], out)?,
+            None => session.finish(out)?,
+        };
         for _ in 0..frames {
             if let Some(t) = last_arrival {
                 gaps.add(now - t);
             }
             last_arrival = Some(now);
+        }
+        if read.is_none() {
+            break;
         }
         if live && last_tally.elapsed() >= Duration::from_secs(1) {
             out.flush()?;

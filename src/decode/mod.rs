@@ -11,6 +11,44 @@ use std::io::{self, Write};
 
 use crate::protocol::{Decoded, FrameInterval, Plan, StreamDecoder, StreamStats};
 
+/// The stream's frame rate, as the user gives it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Rate {
+    /// This many frames per second.
+    Hz(f64),
+    /// The protocol's nominal rate (`rate_hz`), the one `generate --format NAME` writes.
+    Nominal,
+}
+
+/// Sets `plan`'s frame rate (for counters that advance with it) from `rate`; returns it in
+/// Hz. The messages name `--rate`.
+pub fn set_rate(plan: &mut Plan, rate: Option<Rate>) -> Result<Option<f64>, String> {
+    let hz = match rate {
+        None => return Ok(None),
+        Some(Rate::Hz(r)) => r,
+        Some(Rate::Nominal) => plan.rate_hz.ok_or_else(|| {
+            format!(
+                "--rate nominal: the `{}` spec gives no nominal rate (`rate_hz`); give the stream's rate in Hz",
+                plan.name
+            )
+        })?,
+    };
+    plan.set_rate(hz).map_err(|e| format!("--rate: {e}"))?;
+    Ok(Some(hz))
+}
+
+/// A warning for frames that nothing in them tells apart from noise (no constant field, no
+/// check, no framing of their own).
+pub fn unchecked(plan: &Plan) -> Option<String> {
+    (plan.evidence_bits() == 0 && matches!(plan.transport, crate::protocol::Transport::Plain))
+        .then(|| {
+            format!(
+                "`{}` frames have neither constant fields nor a check: any bytes decode as frames, noise included",
+                plan.name
+            )
+        })
+}
+
 /// What a [`Session`] writes.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Options {
@@ -125,7 +163,7 @@ impl Session {
             )
         } else {
             format!(
-                "`{}` frames lack rates or increments and carry no time tag: those columns are left empty; give --rate HZ (the stream's rate) to derive them",
+                "`{}` frames lack rates or increments and carry no time tag: those columns are left empty; give --rate HZ (the stream's rate), or --rate nominal, to derive them",
                 plan.name
             )
         })
@@ -134,6 +172,18 @@ impl Session {
     /// Decodes `bytes` (the stream's next chunk), writing a row per good frame to `out`;
     /// returns the number of good frames.
     pub fn feed(&mut self, bytes: &[u8], out: &mut impl Write) -> io::Result<u64> {
+        self.decode(Some(bytes), out)
+    }
+
+    /// The end of the stream: a frame cut short there is counted, and the frames the end
+    /// confirms (a run too short to lock on that ends with the input) are written; returns
+    /// their number.
+    pub fn finish(&mut self, out: &mut impl Write) -> io::Result<u64> {
+        self.decode(None, out)
+    }
+
+    /// Feeds `bytes`, or finishes the stream on `None`, writing the frames' rows.
+    fn decode(&mut self, bytes: Option<&[u8]>, out: &mut impl Write) -> io::Result<u64> {
         let mut err = Ok(());
         let mut n = 0;
         let Session {
@@ -150,7 +200,7 @@ impl Session {
             ..
         } = self;
         let fixed_dt = opts.rate.map(|r| 1.0 / r);
-        dec.feed(bytes, |d| {
+        let mut each = |d: &Decoded| {
             n += 1;
             if opts.tally_only {
                 return;
@@ -182,13 +232,12 @@ impl Session {
             if err.is_ok() {
                 err = out.write_all(line.as_bytes());
             }
-        });
+        };
+        match bytes {
+            Some(b) => dec.feed(b, &mut each),
+            None => dec.finish_frames(&mut each),
+        }
         err.map(|()| n)
-    }
-
-    /// The end of the stream: a frame cut short there is counted.
-    pub fn finish(&mut self) {
-        self.dec.finish();
     }
 
     /// The counts so far.

@@ -28,6 +28,11 @@ const GPS: usize = 16;
 /// Seconds in a GPS week.
 const WEEK_S: f64 = 604_800.0;
 
+/// Longest line taken (bytes): as long as the largest datagram, a hundred times a state line
+/// with every column at full precision. A stream's longer line is cut by
+/// [`super::transport::Receiver`] after one byte more, so it holds no more than this per line.
+pub const MAX_LINE_BYTES: usize = 65_536;
+
 /// The decoder's view of the columns: where each known column is in a line.
 #[derive(Clone, Debug)]
 pub struct CsvDecoder {
@@ -77,6 +82,14 @@ impl CsvDecoder {
     /// [`CsvDecoder::decode`], with the time tag as sent: the state's time is `gps_sow` with
     /// the `gps_week` returned, or `t` when there is none.
     pub fn decode_tag(&mut self, line: &[u8]) -> Result<Option<(Decoded, Option<u32>)>, Malformed> {
+        if line.len() > MAX_LINE_BYTES {
+            return Err(Malformed::at(
+                MAX_LINE_BYTES,
+                format!(
+                    "line longer than {MAX_LINE_BYTES} bytes (is this a stream of state lines?); the rest of it is skipped"
+                ),
+            ));
+        }
         let text = std::str::from_utf8(line)
             .map_err(|e| Malformed::at(e.valid_up_to(), "not UTF-8 text"))?;
         let text = text.trim_end_matches(['\n', '\r']);

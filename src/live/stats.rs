@@ -12,6 +12,9 @@ pub const KEEP_PROBLEMS: usize = 10;
 pub struct InputStats {
     /// Messages received (lines, datagrams, frames), with or without a state.
     pub messages: u64,
+    /// Messages without a state: CSV headers, comments and blank lines, other MAVLink
+    /// messages (counted by [`InputStats::no_state`]).
+    pub without_state: u64,
     /// States taken into the motion model.
     pub states: u64,
     /// Messages that could not be decoded.
@@ -34,6 +37,11 @@ pub struct InputStats {
 }
 
 impl InputStats {
+    /// Counts a message that decoded to no state (the decoder's `Ok(None)`).
+    pub fn no_state(&mut self) {
+        self.without_state += 1;
+    }
+
     /// Counts a malformed message.
     pub fn malformed(&mut self, place: &str, message: &str) {
         self.malformed += 1;
@@ -73,14 +81,27 @@ impl InputStats {
             Err(e @ Rejected::Limit(_)) => {
                 self.refused += 1;
                 self.note(format!("{place}: {e}"));
+                // It arrived: the states after it are no gap.
+                if let Some(s) = d.seq
+                    && self
+                        .last_seq
+                        .is_none_or(|l| s.wrapping_sub(l) % modulo < modulo / 2)
+                {
+                    self.last_seq = Some(s);
+                }
             }
         }
     }
 
-    /// One line for the summary.
+    /// One line for the summary; the messages without a state are told apart, so that a CSV
+    /// header is not taken for a lost state.
     pub fn summary(&self) -> String {
+        let without = match self.without_state {
+            0 => String::new(),
+            n => format!(" ({n} without a state: headers, comments, other messages)"),
+        };
         format!(
-            "{} messages, {} states taken; {} malformed, {} duplicate, {} reordered/late, {} missing in {} gaps, {} refused, {} bytes skipped",
+            "{} messages{without}, {} states taken; {} malformed, {} duplicate, {} reordered/late, {} missing in {} gaps, {} refused, {} bytes skipped",
             self.messages,
             self.states,
             self.malformed,
@@ -141,7 +162,36 @@ mod tests {
         // A late state does not move the sequence back: the next one is no gap.
         s.state(&at(3, 1.9), &ok, 256, "");
         assert_eq!(s.gaps, 2);
+        // A state refused by the limits arrived: the one after it is no gap either.
+        let limit = Err(Rejected::Limit(crate::motion::limits::Violation {
+            column: "wx",
+            message: "too fast".into(),
+        }));
+        s.state(&at(4, 2.0), &limit, 256, "x:9");
+        s.state(&at(5, 2.1), &ok, 256, "");
+        assert_eq!((s.gaps, s.refused), (2, 1));
+        assert_eq!(s.problems, vec!["x:9: `wx`: too fast".to_string()]);
         s.malformed("x:3", "bad");
-        assert_eq!(s.problems, vec!["x:3: bad".to_string()]);
+        assert_eq!(s.problems[1], "x:3: bad");
+    }
+
+    /// A CSV header is a message without a state, and the summary says so (issue 23 item 7:
+    /// "203 messages, 201 states taken" read as two states lost).
+    #[test]
+    fn the_summary_tells_headers_from_states() {
+        let mut s = InputStats {
+            messages: 3,
+            ..InputStats::default()
+        };
+        s.no_state();
+        s.state(&at(1, 1.0), &Ok(()), 256, "");
+        s.state(&at(2, 1.1), &Ok(()), 256, "");
+        assert!(
+            s.summary().starts_with(
+                "3 messages (1 without a state: headers, comments, other messages), 2 states taken;"
+            ),
+            "{}",
+            s.summary()
+        );
     }
 }

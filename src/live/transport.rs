@@ -9,6 +9,7 @@ use std::net::{Ipv4Addr, SocketAddr, TcpListener, ToSocketAddrs, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use super::csv::MAX_LINE_BYTES;
 use super::{InputFormat, binary, mavlink};
 
 /// A source of states, as given on the command line.
@@ -97,6 +98,11 @@ pub struct Receiver {
     eof: bool,
     pending: VecDeque<Message>,
     skipped: u64,
+    /// CSV: bytes at the front of `buf` already searched for a line end (each byte is searched
+    /// once, however slowly a long line arrives).
+    scanned: usize,
+    /// CSV: the rest of an over-long line is being skipped, up to its end.
+    discarding: bool,
     /// The UDP timeout to set once the first datagram is in.
     idle: Option<Duration>,
     rbuf: Vec<u8>,
@@ -167,6 +173,8 @@ impl Receiver {
             eof: false,
             pending: VecDeque::new(),
             skipped: 0,
+            scanned: 0,
+            discarding: false,
             idle: None,
             rbuf: Vec::new(),
         }
@@ -241,8 +249,10 @@ impl Receiver {
             if line.is_empty() {
                 continue;
             }
+            let kept = capped(line.len());
+            self.skipped += (line.len() - kept) as u64;
             self.pending.push_back(Message {
-                bytes: line.to_vec(),
+                bytes: line[..kept].to_vec(),
                 place: Place::Datagram(n, l as u64 + 1),
                 arrival,
             });
@@ -272,23 +282,77 @@ impl Receiver {
             self.eof = true;
         }
         self.buf.extend_from_slice(&chunk[..n]);
-        self.cut();
+        match self.format {
+            InputFormat::Csv => self.cut_lines(),
+            InputFormat::Binary | InputFormat::Mavlink => self.cut_frames(),
+        }
         Ok(n > 0 || !self.pending.is_empty())
     }
 
-    /// Cuts complete messages off the front of the buffer (everything at the end of input).
-    fn cut(&mut self) {
+    /// Cuts complete lines off the front of the buffer (everything at the end of input). A
+    /// line longer than [`MAX_LINE_BYTES`] becomes a message of its first `MAX_LINE_BYTES + 1`
+    /// bytes, which the decoder refuses as too long, as soon as that many are in; the rest of
+    /// it is skipped and counted as it arrives, so the buffer never holds more than one
+    /// read beyond the limit and every byte is searched for the line end once.
+    fn cut_lines(&mut self) {
         let arrival = Instant::now();
         let mut at = 0;
         loop {
             let rest = &self.buf[at..];
-            let (start, len) = match self.format {
-                InputFormat::Csv => match rest.iter().position(|&c| c == b'\n') {
-                    Some(i) => (0, i + 1),
-                    None if self.eof && !rest.is_empty() => (0, rest.len()),
-                    None => break,
-                },
-                InputFormat::Binary => match find(rest, &binary::MAGIC) {
+            if self.discarding {
+                let (n, end) = match rest.iter().position(|&c| c == b'\n') {
+                    Some(i) => (i + 1, true),
+                    None => (rest.len(), false),
+                };
+                self.skipped += n as u64;
+                at += n;
+                self.discarding = !end;
+                if !end {
+                    break;
+                }
+                continue;
+            }
+            let from = self.scanned.min(rest.len());
+            let len = match rest[from..].iter().position(|&c| c == b'\n') {
+                Some(i) => from + i + 1,
+                None if rest.len() > MAX_LINE_BYTES || (self.eof && !rest.is_empty()) => rest.len(),
+                None => {
+                    self.scanned = rest.len();
+                    break;
+                }
+            };
+            self.scanned = 0;
+            let line = &rest[..len];
+            let ended = line.last() == Some(&b'\n');
+            let text = trim_line_end(line);
+            let kept = capped(text.len());
+            // A line beyond the limit is not one a simulation sends: its head goes to the
+            // decoder, which refuses it, and the rest of it is skipped.
+            self.skipped += (text.len() - kept) as u64;
+            self.discarding = kept < text.len() && !ended && !self.eof;
+            let bytes = text[..kept].to_vec();
+            self.lines += 1;
+            self.pending.push_back(Message {
+                bytes,
+                place: Place::Line(self.lines),
+                arrival,
+            });
+            at += len;
+        }
+        self.buf.drain(..at);
+        self.offset += at as u64;
+    }
+
+    /// Cuts complete binary datagrams or MAVLink frames off the front of the buffer
+    /// (everything at the end of input).
+    fn cut_frames(&mut self) {
+        let arrival = Instant::now();
+        let datagrams = self.format == InputFormat::Binary;
+        let mut at = 0;
+        loop {
+            let rest = &self.buf[at..];
+            let (start, len) = if datagrams {
+                match find(rest, &binary::MAGIC) {
                     // A candidate that fails its CRC and holds another magic is a damaged or
                     // short frame: it ends where the next one starts.
                     Some(s) if rest.len() >= s + binary::LEN && !binary::crc_ok(&rest[s..]) => {
@@ -297,14 +361,15 @@ impl Receiver {
                     }
                     Some(s) => (s, binary::LEN),
                     None => (rest.len().saturating_sub(3), 0),
-                },
-                InputFormat::Mavlink => match rest.iter().position(|&c| c == mavlink::STX) {
+                }
+            } else {
+                match rest.iter().position(|&c| c == mavlink::STX) {
                     Some(s) => match mavlink::frame_len(&rest[s..]) {
                         Some(l) => (s, l),
                         None => (s, usize::MAX),
                     },
                     None => (rest.len(), 0),
-                },
+                }
             };
             // Bytes before a frame's start are garbage; keep a possible partial magic.
             let start = if self.eof {
@@ -322,20 +387,9 @@ impl Receiver {
                 }
                 break;
             }
-            let bytes = rest[..len].to_vec();
-            let place = if self.format == InputFormat::Csv {
-                self.lines += 1;
-                Place::Line(self.lines)
-            } else {
-                Place::Byte(self.offset + at as u64)
-            };
-            let bytes = match self.format {
-                InputFormat::Csv => trim_line_end(bytes),
-                _ => bytes,
-            };
             self.pending.push_back(Message {
-                bytes,
-                place,
+                bytes: rest[..len].to_vec(),
+                place: Place::Byte(self.offset + at as u64),
                 arrival,
             });
             at += len;
@@ -345,9 +399,15 @@ impl Receiver {
     }
 }
 
-fn trim_line_end(mut b: Vec<u8>) -> Vec<u8> {
-    while b.last().is_some_and(|&c| c == b'\n' || c == b'\r') {
-        b.pop();
+/// Bytes of a line of `len` bytes a message keeps: all of them, or one past the limit so the
+/// decoder sees that it is too long.
+fn capped(len: usize) -> usize {
+    len.min(MAX_LINE_BYTES + 1)
+}
+
+fn trim_line_end(mut b: &[u8]) -> &[u8] {
+    while let [rest @ .., b'\n' | b'\r'] = b {
+        b = rest;
     }
     b
 }
@@ -438,5 +498,77 @@ mod tests {
         assert_eq!(m.len(), 2);
         assert_eq!(m[1].place, Place::Byte(3 + f.len() as u64));
         assert_eq!(skipped, 3);
+    }
+
+    /// A stream that yields `head`, then `n` bytes of `x` with no line end, then `tail`, a few
+    /// bytes per read (as a slow sender's TCP segments).
+    struct LongLine {
+        head: Vec<u8>,
+        n: usize,
+        tail: Vec<u8>,
+        at: usize,
+    }
+
+    impl Read for LongLine {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            let total = self.head.len() + self.n + self.tail.len();
+            let k = buf.len().min(1000).min(total - self.at);
+            for b in &mut buf[..k] {
+                let i = self.at;
+                *b = if i < self.head.len() {
+                    self.head[i]
+                } else if i < self.head.len() + self.n {
+                    b'x'
+                } else {
+                    self.tail[i - self.head.len() - self.n]
+                };
+                self.at += 1;
+            }
+            Ok(k)
+        }
+    }
+
+    /// An 8 MB line without a line end (issue 23: once read whole and searched from its start
+    /// on every read, quadratic in its length) becomes one message of the limit plus one byte,
+    /// refused by the decoder as too long; the rest is skipped and counted; the buffer never
+    /// holds more than the limit and a read; the lines after it come out with their numbers,
+    /// and so does an over-long last line without an end.
+    #[test]
+    fn an_overlong_line_is_cut_and_counted() {
+        let n = 8 << 20;
+        for tail in [&b"\n1,2\n"[..], b""] {
+            let stream = LongLine {
+                head: b"a,b\n".to_vec(),
+                n,
+                tail: tail.to_vec(),
+                at: 0,
+            };
+            let mut r = Receiver::from_stream(Box::new(stream), InputFormat::Csv, "x");
+            let mut out = Vec::new();
+            while let Some(m) = r.next_message().unwrap() {
+                assert!(
+                    r.buf.len() <= MAX_LINE_BYTES + 4096,
+                    "{} buffered",
+                    r.buf.len()
+                );
+                out.push(m);
+            }
+            let lines: Vec<usize> = out.iter().map(|m| m.bytes.len()).collect();
+            let mut want = vec![3, MAX_LINE_BYTES + 1];
+            if !tail.is_empty() {
+                want.push(3);
+            }
+            assert_eq!(lines, want);
+            assert_eq!(out[1].place, Place::Line(2));
+            assert_eq!(out.last().unwrap().place, Place::Line(want.len() as u64));
+            // The line's other bytes and its line end.
+            let end = usize::from(!tail.is_empty());
+            assert_eq!(r.skipped_bytes(), (n - MAX_LINE_BYTES - 1 + end) as u64);
+            let e = crate::live::Decoder::new(InputFormat::Csv)
+                .decode(&out[1].bytes)
+                .unwrap_err();
+            assert_eq!(e.offset, MAX_LINE_BYTES);
+            assert!(e.message.contains("line longer than 65536 bytes"), "{e:?}");
+        }
     }
 }

@@ -19,7 +19,7 @@ use std::sync::{Arc, Mutex};
 
 use super::chain::{Chain, ChainSettings, Corrections, Tail};
 use super::fd::fornberg;
-use super::limits::{Violation, check_sample, check_step};
+use super::limits::{Violation, check_given, check_sample, check_step};
 use super::sampled::{Conv, Degree, Knot, ModelSettings, Sample, convert, hermite, knot_at};
 use super::{Motion, Pose};
 use crate::earth::{Geodetic, OMEGA_IE, omega_en_n};
@@ -147,13 +147,7 @@ impl CausalMotion {
         if let Some((p, _)) = prev {
             check_step(&p, &s.sample).map_err(Rejected::Limit)?;
         }
-        let finite = |v: Option<Vec3>| v.is_none_or(|v| all_finite(&v));
-        if !finite(s.omega_ib_b) || !finite(s.accel_n) {
-            return Err(Rejected::Limit(Violation {
-                column: "",
-                message: "a given rate or acceleration is not finite".into(),
-            }));
-        }
+        check_given(s.omega_ib_b, s.accel_n).map_err(Rejected::Limit)?;
         let conv = convert(&s.sample, prev.map(|p| p.1));
         let x = &s.sample;
         let g = Geodetic::from_radians(x.lat, x.lon, x.h);
@@ -166,17 +160,32 @@ impl CausalMotion {
         let omega_eb_b = s
             .omega_ib_b
             .map(|w| w - conv.q.rotate_inv(Vec3::new(0.0, 0.0, OMEGA_IE)));
-        m.recent.push_back(Entry {
+        let entry = Entry {
             conv,
             sample: s.sample,
             a_e,
             omega_eb_b,
-        });
-        if m.recent.len() > m.stencil {
-            m.recent.pop_front();
-        }
+        };
+        m.recent.push_back(entry);
+        let dropped = if m.recent.len() > m.stencil {
+            m.recent.pop_front()
+        } else {
+            None
+        };
         if m.recent.len() == m.stencil {
             let k = causal_knot(m.recent.make_contiguous());
+            if !knot_finite(&k) {
+                // Within the limits every knot is finite; should a combination still overflow,
+                // the state is refused like any other and the model stays as it was.
+                m.recent.pop_back();
+                if let Some(d) = dropped {
+                    m.recent.push_front(d);
+                }
+                return Err(Rejected::Limit(Violation {
+                    column: "",
+                    message: "the motion through this state is not finite (its values are too large together with the previous states')".into(),
+                }));
+            }
             if m.knots.is_empty() && m.base == 0 {
                 m.first = k.t;
             }
@@ -281,6 +290,12 @@ fn causal_knot(st: &[Entry]) -> Knot {
         }
     };
     knot_at(&c, a, j, omega, omega_dot)
+}
+
+/// Whether every value of a knot is finite.
+fn knot_finite(k: &Knot) -> bool {
+    let q = |q: &Quat| q.coords.iter().all(|x| x.is_finite());
+    [k.r, k.v, k.a, k.j].iter().all(all_finite) && [k.q, k.qd, k.qdd].iter().all(q)
 }
 
 /// Σ_m w[m]·f(entry m).
@@ -574,7 +589,23 @@ mod tests {
         let mut nan = LiveSample::plain(c.sample(0.12));
         nan.omega_ib_b = Some(Vec3::new(f64::NAN, 0.0, 0.0));
         assert!(matches!(m.push(&nan), Err(Rejected::Limit(_))));
+        // A huge but finite given rate or acceleration (issue 23: `wx = 1e300` deg/s once
+        // made every record after it NaN) is refused naming its column.
+        let mut huge = LiveSample::plain(c.sample(0.12));
+        huge.omega_ib_b = Some(Vec3::new(1e300f64.to_radians(), 0.0, 0.0));
+        assert!(matches!(m.push(&huge), Err(Rejected::Limit(v)) if v.column == "wx"));
+        huge.omega_ib_b = None;
+        huge.accel_n = Some(Vec3::new(1e300, 0.0, 0.0));
+        assert!(matches!(m.push(&huge), Err(Rejected::Limit(v)) if v.column == "an"));
         assert_eq!((m.knots(), m.newest()), before);
+        // The next sound state is taken, and the model stays finite.
+        m.push(&LiveSample::plain(c.sample(0.12))).unwrap();
+        let t = 0.115;
+        let got = m.sense(m.piece_at(t, 0), t);
+        assert!(
+            all_finite(&got.omega_ib_b) && all_finite(&got.f_b),
+            "{got:?}"
+        );
         // Before the first knot and after the kept ones: NaN, never a stale piece.
         let fresh = CausalMotion::new(ModelSettings::default());
         assert!(fresh.sense(0, 0.0).f_b.x.is_nan());

@@ -12,8 +12,9 @@ use std::path::Path;
 use super::aided::{AidedConfig, AidedNavigator};
 use super::gnss_fixes::{FixEpoch, read_fixes};
 use super::strapdown::{NavState, Navigator, Settings, SettingsError, StateError};
-use crate::csvio::FileError;
+use crate::csvio::{FileError, num};
 use crate::math::{Vec3, euler_from_quat};
+use crate::motion::limits::{MAX_ACCEL_M_S2, MAX_RATE_RAD_S};
 use crate::motion::{Motion, Pose};
 use crate::record::Record;
 
@@ -35,6 +36,11 @@ pub enum ReplayError {
 /// and the position error's norm.
 pub const ERROR_HEADER: &str =
     "t,north_m,east_m,down_m,vn_m_s,ve_m_s,vd_m_s,att_n_rad,att_e_rad,att_d_rad,position_m\n";
+
+/// A vector for a message: `[x, y, z]`, each number as short as it reads back.
+fn vec3(v: Vec3) -> String {
+    format!("[{}, {}, {}]", num(v.x), num(v.y), num(v.z))
+}
 
 /// The navigated state at one record time, and its error against the reference.
 #[derive(Clone, Copy, Debug)]
@@ -185,16 +191,17 @@ impl<M: Motion, R: Iterator<Item = Result<Record, FileError>>> Replay<M, R> {
         if !(rate.is_finite() && rate > 0.0) {
             return refuse(format!(
                 "record times {} and {} do not increase; give --rate",
-                r1.t,
-                first.get(1).map_or(f64::NAN, |r| r.t)
+                num(r1.t),
+                num(first.get(1).map_or(f64::NAN, |r| r.t))
             ));
         }
         let t0 = r1.t - 1.0 / rate;
-        if t0 < motion.start() - 1e-9 || t0 > motion.end() {
+        if !(t0 >= motion.start() - 1e-9 && t0 <= motion.end()) {
             return refuse(format!(
-                "the records start at t₀ = {t0} s, outside the reference [{}, {}] s",
-                motion.start(),
-                motion.end()
+                "the records start at t₀ = {} s, outside the reference [{}, {}] s",
+                num(t0),
+                num(motion.start()),
+                num(motion.end())
             ));
         }
         let start = motion.pose(t0);
@@ -273,10 +280,28 @@ impl<M: Motion, R: Iterator<Item = Result<Record, FileError>>> Replay<M, R> {
             let rec = rec.map_err(|e| E::from(ReplayError::Read(e)))?;
             k += 1;
             let want = t0 + k as f64 / rate;
-            if (rec.t - want).abs() > 1e-6 / rate + 1e-12 * want.abs() {
+            let off = (rec.t - want).abs();
+            if off.is_nan() || off > 1e-6 / rate + 1e-12 * want.abs() {
                 return Err(refuse(format!(
-                    "record {k}: t = {} s, expected {want} s for a {rate} Hz stream starting at {t0} s (gap, or --rate wrong)",
-                    rec.t
+                    "record {k}: t = {} s, expected {} s for a {} Hz stream starting at {} s (gap, or --rate wrong)",
+                    num(rec.t),
+                    num(want),
+                    num(rate),
+                    num(t0)
+                )));
+            }
+            // Increments no IMU measures (beyond 1e4 rad/s and 1e5 m/s² over the interval)
+            // make any navigation meaningless: the record is named rather than the navigator.
+            let (wmax, fmax) = (MAX_RATE_RAD_S / rate, MAX_ACCEL_M_S2 / rate);
+            if !(rec.dtheta.amax() <= wmax && rec.dv.amax() <= fmax) {
+                return Err(refuse(format!(
+                    "record {k} at t = {} s: increments dtheta {} rad, dv {} m/s are not finite or beyond what an IMU measures in 1/{} s ({} rad, {} m/s)",
+                    num(rec.t),
+                    vec3(rec.dtheta),
+                    vec3(rec.dv),
+                    num(rate),
+                    num(wmax),
+                    num(fmax)
                 )));
             }
             nav.step(rec.dtheta, rec.dv);
@@ -303,15 +328,20 @@ impl<M: Motion, R: Iterator<Item = Result<Record, FileError>>> Replay<M, R> {
             if s.t > motion.end() + 1e-9 {
                 return Err(refuse(format!(
                     "record {k} at t = {} s is past the end of the reference ({} s)",
-                    s.t,
-                    motion.end()
+                    num(s.t),
+                    num(motion.end())
                 )));
             }
             let e = StateError::of(&s, &motion.pose(s.t));
             if !(e.pos_ned.norm().is_finite() && e.vel_ned.norm().is_finite()) {
+                let which = if aided.is_some() {
+                    "the GNSS-aided filter diverged"
+                } else {
+                    "the free-inertial solution overflowed"
+                };
                 return Err(refuse(format!(
-                    "record {k} at t = {} s: the navigated state is not finite (the GNSS-aided filter diverged)",
-                    s.t
+                    "record {k} at t = {} s: the navigated state is not finite ({which})",
+                    num(s.t)
                 )));
             }
             for (m, v) in max.iter_mut().zip([e.pos_ned, e.vel_ned, e.att_ned]) {

@@ -145,12 +145,29 @@ impl Decoded {
         self.values.iter().find(|v| v.0 == s).map(|v| v.1)
     }
 
+    /// The frame's time tag (s): its time field, else its GPS seconds of week, whole or as
+    /// whole seconds plus microseconds or milliseconds (iMAR iXCOM's `tow_seconds`,
+    /// `tow_micros`).
+    pub fn time(&self) -> Option<f64> {
+        let split = || {
+            let whole = self.get(Source::GpsWholeSeconds)?;
+            let sub = match self.get(Source::GpsMicros) {
+                Some(us) => us * 1e-6,
+                None => self.get(Source::GpsMillis)? * 1e-3,
+            };
+            Some(whole + sub)
+        };
+        self.get(Source::Time)
+            .or(self.get(Source::GpsSeconds))
+            .or_else(split)
+    }
+
     /// The record contract's columns `t, gyro, accel, dtheta, dv` (13) from this frame: the
-    /// time from the time tag or GPS seconds of week; a rate the frame lacks from its
-    /// increment over `dt`, an increment from its rate times `dt` (None without `dt`).
+    /// time from its time tag ([`Decoded::time`]); a rate the frame lacks from its increment
+    /// over `dt`, an increment from its rate times `dt` (None without `dt`).
     pub fn contract(&self, dt: Option<f64>) -> [Option<f64>; 13] {
         let mut out = [None; 13];
-        out[0] = self.get(Source::Time).or(self.get(Source::GpsSeconds));
+        out[0] = self.time();
         for a in 0..3 {
             for (rate, inc, col) in [
                 (Source::Gyro(a), Source::DTheta(a), 1 + a),

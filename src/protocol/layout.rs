@@ -300,6 +300,18 @@ impl Layout {
         }) && self.constants_in(bytes, end).is_ok()
     }
 
+    /// Bits a frame of this layout matches that random bytes match only by chance: its
+    /// constant fields' and its check's.
+    pub(super) fn evidence_bits(&self) -> u32 {
+        let constants: usize = self
+            .ops
+            .iter()
+            .filter(|op| matches!(op.what, What::Constant(_)))
+            .map(|op| 8 * op.ty.bytes())
+            .sum();
+        constants as u32 + self.check.as_ref().map_or(0, |c| 8 * c.ty.bytes() as u32)
+    }
+
     /// Checks the constants that lie before byte `end` and inside `bytes`.
     fn constants_in(&self, bytes: &[u8], end: usize) -> Result<(), DecodeError> {
         for op in self.ops.iter().filter(|op| op.offset < end) {

@@ -14,6 +14,11 @@ use super::spec::{FrameSpec, MAX_MESSAGES, MAX_RATE_HZ, ScheduleBy, Source, Spec
 use crate::math::Vec3;
 use crate::record::{FLAG_INVALID, Record};
 
+/// A decoder hunting for a frame boundary believes a run of frames once random bytes would
+/// pass its constants and checks by chance less than once in 2^LOCK_BITS positions (about once
+/// in 4 GB of noise).
+pub const LOCK_BITS: u32 = 32;
+
 /// What carries the frame on the line.
 #[derive(Clone, Debug)]
 pub enum Transport {
@@ -376,6 +381,30 @@ impl Plan {
         })
     }
 
+    /// Frames in a row a decoder hunting for a frame boundary must find before it believes
+    /// the first: enough that random bytes pass their constants and checks together by chance
+    /// less than once in 2^[`LOCK_BITS`] positions. 1 for frames that are that strong alone
+    /// (every built-in but `ln200`, whose 16-bit sum and no sync word noise passes once in
+    /// 65 536 positions: 2), and 1 for frames with neither constants nor a check, which no
+    /// run of frames tells from noise.
+    pub fn frames_to_lock(&self) -> usize {
+        match self.evidence_bits() {
+            0 => 1,
+            b => LOCK_BITS.div_ceil(b).min(8) as usize,
+        }
+    }
+
+    /// Bits of a frame that random bytes match only by chance (its constant fields and its
+    /// check), for the weakest message: 0 when some message has neither, and then no decoder
+    /// tells noise from frames.
+    pub fn evidence_bits(&self) -> u32 {
+        self.layouts
+            .iter()
+            .map(Layout::evidence_bits)
+            .min()
+            .unwrap_or(0)
+    }
+
     /// Whether the frames have constant fields (sync words, IDs) that mark their start.
     pub fn has_sync(&self) -> bool {
         self.layouts
@@ -469,11 +498,15 @@ impl Plan {
         })
     }
 
-    /// Whether every message carries a time tag [`Decoded::contract`] reads.
+    /// Whether every message carries a time tag [`Decoded::time`] reads.
     pub fn carries_time(&self) -> bool {
-        self.value_sources()
-            .iter()
-            .all(|m| m.contains(&Source::Time) || m.contains(&Source::GpsSeconds))
+        self.value_sources().iter().all(|m| {
+            let has = |s: Source| m.contains(&s);
+            has(Source::Time)
+                || has(Source::GpsSeconds)
+                || (has(Source::GpsWholeSeconds)
+                    && (has(Source::GpsMicros) || has(Source::GpsMillis)))
+        })
     }
 
     /// Whether message `m` carries Δθ/ΔV summed since it was last sent.

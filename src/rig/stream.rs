@@ -194,6 +194,10 @@ impl RigStream {
         last: impl Fn(&Grid) -> u64,
         parts: &mut [Part],
     ) -> Result<(), EngineError> {
+        // Each unit's frames are its records: time marks and pulses of that unit follow them.
+        for p in parts.iter_mut().take(self.units.len()) {
+            p.marks_records = true;
+        }
         for g in self.groups.iter_mut() {
             let last = last(&g.grid);
             while g.next <= last {
@@ -216,6 +220,8 @@ impl RigStream {
                     let mut from = 0;
                     for (j, &end) in s.ends.iter().enumerate() {
                         parts[i].push(&s.buf[from..end], at(j));
+                        // Record k (1-based) is valid at the end of its interval, when it is sent.
+                        (parts[i].records).push((k + j as u64 - 1, at(j)));
                         from = end;
                     }
                     if let Some(t) = self.truth[i] {

@@ -13,10 +13,12 @@ use crate::output::SinkAddr;
 use crate::rig::Rig;
 use crate::sim::{Simulation, SimulationBuilder};
 
-use super::error::RunError;
-use super::routing::{Layout, Units};
+use super::clock::{Clock, decide_clock};
+use super::error::{RunError, refuse};
+use super::routing::{Layout, Units, unrouted_aiding};
 use super::sinks::Links;
-use super::spec::{LiveSpec, RunSpec, Speed, TimeBase};
+use super::spec::{LiveSpec, RunSpec, TimeBase};
+use super::sync::{Sync, check_sync};
 
 /// Default longest extrapolation past the newest live state (s).
 pub const DEFAULT_MAX_EXTRAPOLATION_S: f64 = 0.25;
@@ -24,9 +26,6 @@ pub const DEFAULT_MAX_EXTRAPOLATION_S: f64 = 0.25;
 pub const DEFAULT_CORRECTION_HORIZON_S: f64 = 0.1;
 /// Default silence after which a live input counts as ended (s).
 pub const DEFAULT_INPUT_TIMEOUT_S: f64 = 10.0;
-/// Default limit of burst catch-up after a stall (ms).
-pub const DEFAULT_MAX_BEHIND_MS: f64 = 100.0;
-
 /// What happens once a live input is silent for its timeout (or its stream ended).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OnTimeout {
@@ -69,55 +68,8 @@ pub struct LivePlan {
     pub idle_s: f64,
     /// Every message, written here.
     pub record: Option<PathBuf>,
-}
-
-/// When the frames go out.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Clock {
-    /// As fast as the machine allows, no wall clock.
-    Free,
-    /// As the live input arrives: each state releases what it completes.
-    Lockstep,
-    /// Known motion at wall-clock rate.
-    Paced(Wall),
-    /// Live motion at the host instants of its simulation time plus an output delay.
-    Realtime(Wall),
-}
-
-/// The wall-clock side of a paced or real-time run.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Wall {
-    /// Simulated seconds per wall-clock second.
-    pub speed: f64,
-    /// Wall-clock instant of t₀ as given.
-    pub start_at: Option<String>,
-    /// Frames later than this are skipped (ns).
-    pub max_behind_ns: i128,
-    /// Ask for `SCHED_FIFO`.
-    pub fifo: bool,
-}
-
-impl Clock {
-    /// The wall-clock settings of a paced or real-time run.
-    pub fn wall(&self) -> Option<&Wall> {
-        match self {
-            Clock::Paced(w) | Clock::Realtime(w) => Some(w),
-            Clock::Free | Clock::Lockstep => None,
-        }
-    }
-}
-
-/// The sync lines, checked.
-#[derive(Clone, Debug, Default)]
-pub struct Sync {
-    /// Time-mark targets, each of one unit (index into the units).
-    pub time_marks: Vec<(usize, String)>,
-    /// The pulse: its spec as given, the serial device of its modem line, the unit it marks.
-    pub pulse: Option<(String, String, usize)>,
-    /// The PPS source the output phase-locks to.
-    pub pps_in: Option<String>,
-    /// The trigger source every unit samples on.
-    pub trigger: Option<String>,
+    /// The motion model the states are joined by.
+    pub model: crate::motion::sampled::ModelSettings,
 }
 
 /// What the run simulates.
@@ -198,14 +150,25 @@ impl Run {
     }
 }
 
-/// A refusal naming a flag and its scene-file key.
-fn refuse(flag: &str, why: impl Into<String>) -> RunError {
-    RunError::spec(flag, why.into())
-}
-
 impl RunSpec {
-    /// Checks the whole description and assembles the run.
+    /// Checks the whole description and assembles the run. A refused setting that a scene
+    /// file's `[run]` table gave is named by its file and key.
     pub fn build(self) -> Result<Run, RunError> {
+        let keys = RunSpec {
+            signal: SimulationBuilder::default(),
+            routes: Vec::new(),
+            ..self.clone()
+        };
+        self.build_checked().map_err(|e| match e {
+            RunError::Spec { what, why } => RunError::Spec {
+                what: keys.origin_of(&what),
+                why,
+            },
+            e => e,
+        })
+    }
+
+    fn build_checked(self) -> Result<Run, RunError> {
         let RunSpec {
             signal,
             input,
@@ -213,10 +176,11 @@ impl RunSpec {
             sync,
             clock,
             link,
+            file_keys: _,
         } = self;
         let time_base = clock.time_base.unwrap_or_default();
         let live = input.as_ref().map(|i| live_plan(i, &signal)).transpose()?;
-        let mode = decide_clock(&clock, live.as_ref(), input.as_ref(), &routes)?;
+        let mode = decide_clock(&clock, input.as_ref(), &routes)?;
         if time_base != TimeBase::Sim && signal.gps_time_given() {
             return Err(refuse(
                 "--gps-time",
@@ -259,6 +223,7 @@ impl RunSpec {
             }
         };
         let engine_line = format!("{} Gauss–Legendre nodes per interval", signal.quadrature()?);
+        let signal_file = signal.scene_file_path().map(|p| p.display().to_string());
         // The signal: built now on a known motion; checked on a stand-in one for live input.
         let rig = signal.is_rig();
         let (sig, units_seen): (Signal, Vec<String>) = match live {
@@ -288,15 +253,31 @@ impl RunSpec {
                 )
             }
         };
-        let layout = match &sig {
-            Signal::Imu(sim) => Layout::resolve(&routes, &Units::Imu(sim))?,
-            Signal::Rig(r) => Layout::resolve(&routes, &Units::Rig(r))?,
+        // The aiding sensors configured but not routed are told, never silently dropped.
+        let file = signal_file.as_deref();
+        let (layout, unrouted) = match &sig {
+            Signal::Imu(sim) => {
+                let l = Layout::resolve(&routes, &Units::Imu(sim))?;
+                let w = unrouted_aiding(&sim.aiding(), &l, file);
+                (l, w)
+            }
+            Signal::Rig(r) => {
+                let l = Layout::resolve(&routes, &Units::Rig(r))?;
+                let w = unrouted_aiding(&r.aiding(), &l, file);
+                (l, w)
+            }
             Signal::Live { builder, rig, .. } => {
                 let stand_in = stand_in(builder);
                 if *rig {
-                    Layout::resolve(&routes, &Units::Rig(&stand_in.build_rig()?))?
+                    let r = stand_in.build_rig()?;
+                    let l = Layout::resolve(&routes, &Units::Rig(&r))?;
+                    let w = unrouted_aiding(&r.aiding(), &l, file);
+                    (l, w)
                 } else {
-                    Layout::resolve(&routes, &Units::Imu(&stand_in.build()?))?
+                    let s = stand_in.build()?;
+                    let l = Layout::resolve(&routes, &Units::Imu(&s))?;
+                    let w = unrouted_aiding(&s.aiding(), &l, file);
+                    (l, w)
                 }
             }
         };
@@ -325,11 +306,12 @@ impl RunSpec {
         }
         let links = check_links(link, &layout, &mode)?;
         check_stdout(&layout)?;
-        let warnings = match &sig {
+        let mut warnings = match &sig {
             Signal::Imu(s) => s.warnings().to_vec(),
             Signal::Rig(r) => r.warnings().to_vec(),
             Signal::Live { .. } => Vec::new(),
         };
+        warnings.extend(unrouted);
         let run = Run {
             signal: sig,
             layout,
@@ -434,6 +416,7 @@ fn live_plan(i: &LiveSpec, signal: &SimulationBuilder) -> Result<LivePlan, RunEr
         on_timeout,
         idle_s: idle,
         record: i.record.clone(),
+        model: signal.model_settings()?,
     })
 }
 
@@ -444,238 +427,19 @@ fn live_line(l: &LivePlan) -> String {
         InputFormat::Binary => "bin",
         InputFormat::Mavlink => "mavlink",
     };
-    let mut s = format!("live {} ({format}), input timeout {} s", l.source, l.idle_s);
+    let m = l.model;
+    let degree = match m.degree {
+        Degree::Quintic => "quintic",
+        Degree::Cubic => "cubic",
+    };
+    let mut s = format!(
+        "live {} ({format}), input timeout {} s, motion model {degree}, stencil {}",
+        l.source, l.idle_s, m.stencil
+    );
     if let Some(r) = &l.record {
         s += &format!(", every message recorded to {}", r.display());
     }
     s
-}
-
-/// The clock the settings give.
-fn decide_clock(
-    c: &super::spec::ClockSpec,
-    live: Option<&LivePlan>,
-    input: Option<&LiveSpec>,
-    routes: &[super::spec::Route],
-) -> Result<Clock, RunError> {
-    let max_behind = c.max_behind_ms.unwrap_or(DEFAULT_MAX_BEHIND_MS);
-    if !(max_behind.is_finite() && max_behind >= 0.0) {
-        return Err(refuse(
-            &format!("--max-behind-ms {max_behind}"),
-            "expected a non-negative number",
-        ));
-    }
-    if let Some(Speed::Factor(x)) = c.speed
-        && !(x.is_finite() && x > 0.0)
-    {
-        return Err(refuse(
-            &format!("--speed {x}"),
-            "expected a positive factor (1 = real time) or `max`",
-        ));
-    }
-    let wall = |speed: f64| Wall {
-        speed,
-        start_at: c.start_at.clone(),
-        max_behind_ns: (max_behind * 1e6) as i128,
-        fifo: c.realtime_priority,
-    };
-    let mode = match (live, input) {
-        (Some(_), Some(i)) => {
-            if c.speed.is_some() {
-                return Err(refuse(
-                    "--speed",
-                    "a --motion run follows its input's clock (lockstep: as the states come; realtime: at their instants)",
-                ));
-            }
-            if c.start_at.is_some() {
-                return Err(refuse(
-                    "--start-at",
-                    "a --motion run starts with its first state",
-                ));
-            }
-            if i.lockstep {
-                Clock::Lockstep
-            } else {
-                Clock::Realtime(wall(1.0))
-            }
-        }
-        _ => {
-            let only_files =
-                !routes.is_empty() && routes.iter().all(|r| matches!(r.sink, SinkAddr::File(_)));
-            match c.speed {
-                Some(Speed::Max) => Clock::Free,
-                Some(Speed::Factor(x)) => Clock::Paced(wall(x)),
-                None if only_files => Clock::Free,
-                None => Clock::Paced(wall(1.0)),
-            }
-        }
-    };
-    if matches!(mode, Clock::Free | Clock::Lockstep) {
-        let why = match mode {
-            Clock::Lockstep => {
-                "lockstep has no wall clock: each state releases its records at once"
-            }
-            _ => "an unpaced run has no wall clock (give --speed 1, or a sink that is not a file)",
-        };
-        let wall_only = [
-            ("--max-behind-ms", c.max_behind_ms.is_some()),
-            ("--realtime", c.realtime_priority),
-        ];
-        if let Some((flag, _)) = wall_only.iter().find(|x| x.1) {
-            return Err(refuse(flag, why));
-        }
-    }
-    if let (Clock::Paced(_) | Clock::Free, Some(s)) = (&mode, &c.start_at)
-        && let Err(e) = crate::timebase::parse_start(s, 0, &crate::timebase::LeapTable::builtin())
-    {
-        return Err(refuse("--start-at", e));
-    }
-    Ok(mode)
-}
-
-/// The sync lines against the clock and the units.
-fn check_sync(
-    s: super::spec::SyncSpec,
-    mode: &Clock,
-    units: &[String],
-    layout: &Layout,
-    time_base: TimeBase,
-) -> Result<Sync, RunError> {
-    let any =
-        !s.time_marks.is_empty() || s.pulse.is_some() || s.pps_in.is_some() || s.trigger.is_some();
-    let flag = if !s.time_marks.is_empty() {
-        "--time-marks"
-    } else if s.pulse.is_some() {
-        "--pulse"
-    } else if s.pps_in.is_some() {
-        "--pps-in"
-    } else {
-        "--trigger"
-    };
-    if s.pulse.is_none() {
-        if s.pulse_port.is_some() {
-            return Err(refuse("--pulse-port", "without --pulse"));
-        }
-        if s.pulse_unit.is_some() {
-            return Err(refuse("--pulse-unit", "without --pulse"));
-        }
-    }
-    let speed = match mode {
-        Clock::Free if any => {
-            return Err(refuse(
-                flag,
-                "needs a paced run: time marks, pulses, a PPS lock and a trigger live on the wall clock (give --speed 1)",
-            ));
-        }
-        Clock::Lockstep if any => {
-            return Err(refuse(
-                flag,
-                "needs a wall clock, which lockstep does not have (--time-mode realtime)",
-            ));
-        }
-        Clock::Paced(w) | Clock::Realtime(w) => w.speed,
-        _ => 1.0,
-    };
-    if (s.pps_in.is_some() || s.trigger.is_some()) && speed != 1.0 {
-        let f = if s.pps_in.is_some() {
-            "--pps-in"
-        } else {
-            "--trigger"
-        };
-        return Err(refuse(
-            f,
-            "locks to real seconds and real edges: give --speed 1",
-        ));
-    }
-    if s.trigger.is_some() && s.pps_in.is_some() {
-        return Err(refuse(
-            "--trigger",
-            "the units sample at its edges, not on the schedule a PPS lock slews: drop --pps-in",
-        ));
-    }
-    if s.trigger.is_some() && matches!(mode, Clock::Paced(w) if w.start_at.is_some()) {
-        return Err(refuse(
-            "--trigger",
-            "sets t₀ at its first edge: drop --start-at",
-        ));
-    }
-    if s.pps_in.is_some() && matches!(mode, Clock::Realtime(_)) && time_base == TimeBase::Sim {
-        return Err(refuse(
-            "--pps-in",
-            "with --motion the output's seconds follow the sender's clock, which a PPS cannot discipline: use --time-base gps (the input's tags and the PPS are both GPS time)",
-        ));
-    }
-    let unit = |name: &Option<String>, flag: &str| -> Result<Option<usize>, RunError> {
-        match name {
-            None => Ok(None),
-            Some(n) => (units.iter().position(|u| u == n))
-                .map(Some)
-                .ok_or_else(|| {
-                    refuse(flag, format!("no unit `{n}` (units: {})", units.join(", ")))
-                }),
-        }
-    };
-    let mut time_marks = Vec::new();
-    for (u, target) in &s.time_marks {
-        match unit(u, "--time-marks")? {
-            Some(i) => time_marks.push((i, target.clone())),
-            None if units.len() == 1 => time_marks.push((0, target.clone())),
-            None => {
-                return Err(refuse(
-                    "--time-marks",
-                    format!(
-                        "`{target}`: a rig's time marks are per unit: give UNIT={target} (units: {})",
-                        units.join(", ")
-                    ),
-                ));
-            }
-        }
-    }
-    let pulse = match &s.pulse {
-        None => None,
-        Some(p) => {
-            check_pulse_spec(p)?;
-            let i = unit(&s.pulse_unit, "--pulse-unit")?.unwrap_or(0);
-            let serial = (layout.streams.iter())
-                .filter(|st| st.unit == Some(i))
-                .flat_map(|st| &st.sinks)
-                .find_map(|(a, _)| match a {
-                    SinkAddr::Serial(d) => Some(d.clone()),
-                    _ => None,
-                });
-            let port = s.pulse_port.clone().or(serial).ok_or_else(|| {
-                refuse(
-                    "--pulse",
-                    format!(
-                        "drives a serial port's modem line: give --pulse-port DEV or a serial sink of unit `{}`",
-                        units[i]
-                    ),
-                )
-            })?;
-            Some((p.clone(), port, i))
-        }
-    };
-    Ok(Sync {
-        time_marks,
-        pulse,
-        pps_in: s.pps_in,
-        trigger: s.trigger,
-    })
-}
-
-#[cfg(feature = "realtime")]
-fn check_pulse_spec(p: &str) -> Result<(), RunError> {
-    p.parse::<crate::realtime::pulse::PulseSpec>()
-        .map(drop)
-        .map_err(|e| refuse("--pulse", e))
-}
-
-#[cfg(not(feature = "realtime"))]
-fn check_pulse_spec(_: &str) -> Result<(), RunError> {
-    Err(refuse(
-        "--pulse",
-        "this build has no real-time emulator (the `realtime` feature)",
-    ))
 }
 
 /// The link settings against the sinks they apply to.

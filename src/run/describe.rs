@@ -1,8 +1,10 @@
 //! A run in words: one line per part, the text `imu-emu run --describe` prints and a test
 //! compares flag by flag (every setting that changes the run changes this text).
 
-use super::build::{Clock, OnTimeout, Run, Signal};
+use super::build::{OnTimeout, Run, Signal};
+use super::clock::Clock;
 use super::spec::TimeBase;
+use super::sync::PulseOut;
 use crate::output::SinkAddr;
 use crate::rig::Rig;
 use crate::sim::Simulation;
@@ -27,17 +29,15 @@ fn lines(run: &Run) -> Vec<String> {
         Signal::Imu(sim) => out.push(imu_line(sim)),
         Signal::Rig(r) => out.extend(rig_lines(r)),
         Signal::Live { builder, rig, .. } => {
+            // The stand-in motion gives the units' settings; the span is the live input's.
             let stand_in = super::build::stand_in(builder);
+            let span = live_span(builder.span_given());
             if *rig {
                 if let Ok(r) = stand_in.build_rig() {
-                    out.extend(
-                        rig_lines(&r)
-                            .into_iter()
-                            .map(|l| l + ", from the first state"),
-                    );
+                    out.extend(rig_lines(&r).into_iter().map(|l| cut_span(l) + &span));
                 }
             } else if let Ok(s) = stand_in.build() {
-                out.push(imu_line(&s) + ", from the first state");
+                out.push(cut_span(imu_line(&s)) + &span);
             }
         }
     }
@@ -63,8 +63,13 @@ fn lines(run: &Run) -> Vec<String> {
     for (u, target) in &sync.time_marks {
         out.push(format!("time marks of {}: {target}", run.units[*u]));
     }
-    if let Some((spec, port, u)) = &sync.pulse {
-        out.push(format!("pulse {spec} on {port}, marking {}", run.units[*u]));
+    if let Some((spec, line, u)) = &sync.pulse {
+        let on = match line {
+            PulseOut::Port(port) => port.clone(),
+            #[cfg(feature = "realtime")]
+            PulseOut::Line(_) => "the line given in code".into(),
+        };
+        out.push(format!("pulse {spec} on {on}, marking {}", run.units[*u]));
     }
     if let Some(p) = &sync.pps_in {
         out.push(format!("phase-locked to the PPS of {p}"));
@@ -95,7 +100,7 @@ fn lines(run: &Run) -> Vec<String> {
 }
 
 fn clock(run: &Run) -> String {
-    let wall = |w: &super::build::Wall| {
+    let wall = |w: &super::clock::Wall| {
         let mut s = format!(
             "frames later than {} ms skipped",
             w.max_behind_ns as f64 / 1e6
@@ -142,13 +147,50 @@ fn time_base(run: &Run) -> String {
             let gps = match &run.signal {
                 Signal::Imu(s) => s.gps_time(),
                 Signal::Rig(r) => r.gps_time(),
-                Signal::Live { .. } => None,
+                Signal::Live { builder, rig, .. } => {
+                    let stand_in = super::build::stand_in(builder);
+                    if *rig {
+                        stand_in.build_rig().ok().and_then(|r| r.gps_time())
+                    } else {
+                        stand_in.build().ok().and_then(|s| s.gps_time())
+                    }
+                }
             };
+            let live = matches!(run.signal, Signal::Live { .. });
             match gps {
+                Some((w, sow)) if live => format!(
+                    "sim, record time 0 at GPS week {w}, {sow} s (unless the input's tags carry a GPS week)"
+                ),
                 Some((w, sow)) => format!("sim, record time 0 at GPS week {w}, {sow} s"),
                 None => "sim".into(),
             }
         }
+    }
+}
+
+/// The span of a live run's units: from the given start or the motion's first piece, for
+/// the given duration or until the input ends.
+fn live_span((start, duration): (Option<f64>, Option<f64>)) -> String {
+    let from = start.map_or("t₀ at the live motion's first piece".into(), |t| {
+        format!("t₀ {t} s")
+    });
+    let till = duration.map_or("until the input ends".into(), |d| format!("for {d} s"));
+    format!(", {from}, {till}")
+}
+
+/// A unit line without its span (`, t₀ … s, N records` and what follows), which a live
+/// run's stand-in motion would give.
+fn cut_span(line: String) -> String {
+    match line.find(", t₀ ") {
+        Some(i) => {
+            // The faults and anything else after the record count stay.
+            let rest = &line[i + 2..];
+            let after = rest
+                .find(" records")
+                .map_or("", |j| &rest[j + " records".len()..]);
+            format!("{}{after}", &line[..i])
+        }
+        None => line,
     }
 }
 

@@ -64,3 +64,8 @@ impl RunError {
         }
     }
 }
+
+/// A refusal of the flag (or key, or route) `what`, saying why.
+pub(super) fn refuse(what: &str, why: impl Into<String>) -> RunError {
+    RunError::spec(what, why.into())
+}

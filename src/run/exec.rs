@@ -14,7 +14,8 @@ use crate::motion::causal::CausalMotion;
 use crate::output::AtomicFile;
 use crate::sim::SimulationBuilder;
 
-use super::build::{Clock, LivePlan, Run, Signal};
+use super::build::{LivePlan, Run, Signal};
+use super::clock::Clock;
 use super::error::RunError;
 use super::pipeline::{Built, Control, Outlets, gps_ref, input_base, modulo, unit_streams};
 use super::routing::StreamPlan;

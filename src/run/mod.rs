@@ -5,6 +5,7 @@
 //! a whole by [`RunSpec::build`] and run by [`Run::execute`].
 
 pub mod build;
+pub mod clock;
 mod describe;
 pub mod error;
 mod exec;
@@ -18,10 +19,12 @@ pub mod sinks;
 pub mod sources;
 pub mod spec;
 pub mod status;
+pub mod sync;
 #[cfg(feature = "realtime")]
 mod wall;
 
-pub use build::{Clock, Run};
+pub use build::Run;
+pub use clock::Clock;
 pub use error::RunError;
 pub use pipeline::Control;
 pub use spec::{LiveSpec, Route, RunSpec, Speed, StreamId, TimeBase};

@@ -334,6 +334,16 @@ impl Layout {
             let t0 = s.grid().t0;
             (Signal::Imu(Box::new(s)), t0)
         };
+        // The motion is known from its first knot on: before it there is nothing to sense.
+        let first = crate::motion::Motion::start(model);
+        if t0 < first - 1e-9 {
+            return Err(RunError::spec(
+                "--start",
+                format!(
+                    "{t0} s is before the live motion's first piece, at {first} s (the first state with a full stencil behind it): give a later start, or none to start there"
+                ),
+            ));
+        }
         // `build` takes the GPS time of t₀, which is t₀ seconds into the week.
         let gps = week.map(|w| ((w, t0), (w, t0)));
         self.build(signal, gps, triggered)

@@ -405,6 +405,51 @@ impl Layout {
     }
 }
 
+/// The aiding sensors `aid` has settings for (a scene file's `[gnss]`, `[odometer]`, `[baro]`,
+/// `[magnetometer]` tables, or the builder's) whose streams `layout` does not route: one
+/// warning each, naming the table and how to route it. A magnetometer that a unit's frames
+/// carry is used by them.
+pub(super) fn unrouted_aiding(
+    aid: &AidingStreams<'_>,
+    layout: &Layout,
+    file: Option<&str>,
+) -> Vec<String> {
+    use crate::aiding::sensors::SensorKind;
+    use crate::protocol::spec::Source;
+    let place = |table: &str| match file {
+        Some(f) => format!("{f}: [{table}]"),
+        None => format!("the {table} settings"),
+    };
+    let mut out = Vec::new();
+    if aid.gnss.is_some() && layout.gnss.is_empty() && !layout.gnss_truth {
+        out.push(format!(
+            "{} configures a GNSS receiver, but no GNSS stream is routed, so none is made: give --gnss FORMAT:SINK (`generate`: FORMAT:FILE), or for `run` the `gnss` key in the scene file's [run] table (`gnss = [\"nmea:udp:127.0.0.1:9010\"]`)",
+            place("gnss")
+        ));
+    }
+    let in_frames = (layout.streams.iter())
+        .filter_map(|s| s.plan.as_ref())
+        .any(|p| (p.value_sources().iter().flatten()).any(|s| matches!(s, Source::Mag(_))));
+    let s = &aid.sensors;
+    for (kind, set) in [
+        (SensorKind::Odometer, s.odometer.is_some()),
+        (SensorKind::Baro, s.baro.is_some()),
+        (
+            SensorKind::Magnetometer,
+            s.magnetometer.is_some() && !in_frames,
+        ),
+    ] {
+        if set && !layout.sensors.contains(&kind) {
+            let n = kind.name();
+            out.push(format!(
+                "{} configures the {n}, but its stream is not routed, so it is not made: give --{n} SINK (`generate`: FILE), or for `run` the `{n}` key in the scene file's [run] table (`{n} = [\"udp:127.0.0.1:9011\"]`)",
+                place(n)
+            ));
+        }
+    }
+    out
+}
+
 /// The compiled frame of a further protocol of one IMU's records, at its rate.
 fn extra_plan(name: &str, rate_hz: f64) -> Result<Plan, RunError> {
     let e = |m: String| RunError::Sim(SimError::Invalid(format!("sink protocol `{name}`: {m}")));

@@ -8,7 +8,7 @@ use crate::live::InputFormat;
 use crate::output::SinkAddr;
 use crate::sim::SimError;
 
-use super::spec::{LiveSpec, RunSpec, Speed, StreamId, TimeBase};
+use super::spec::{FileKey, LiveSpec, RunSpec, Speed, StreamId, TimeBase};
 use crate::sim::SimulationBuilder;
 
 impl RunSpec {
@@ -60,6 +60,36 @@ pub fn apply(spec: &mut RunSpec, file: &str) -> Result<(), SimError> {
     let Some(r) = spec.signal.scene_contents().run.clone() else {
         return Ok(());
     };
+    // The keys given, with the flags that give the same settings.
+    let given: Vec<(&str, &'static str)> = [
+        ("speed", "--speed", r.speed.is_some()),
+        ("start_at", "--start-at", r.start_at.is_some()),
+        ("time_base", "--time-base", r.time_base.is_some()),
+        (
+            "max_behind_ms",
+            "--max-behind-ms",
+            r.max_behind_ms.is_some(),
+        ),
+        (
+            "realtime_priority",
+            "--realtime",
+            r.realtime_priority.is_some(),
+        ),
+        ("time_marks", "--time-marks", r.time_marks.is_some()),
+        ("pulse", "--pulse", r.pulse.is_some()),
+        ("pulse_port", "--pulse-port", r.pulse_port.is_some()),
+        ("pulse_unit", "--pulse-unit", r.pulse_unit.is_some()),
+        ("pps_in", "--pps-in", r.pps_in.is_some()),
+        ("trigger", "--trigger", r.trigger.is_some()),
+        ("baud", "--baud", r.baud.is_some()),
+        ("framing", "--framing", r.framing.is_some()),
+        ("udp_batch", "--udp-batch", r.udp_batch.is_some()),
+        ("take_over", "--take-over", r.take_over.is_some()),
+    ]
+    .into_iter()
+    .filter(|g| g.2)
+    .map(|g| (g.0, g.1))
+    .collect();
     let RunSection {
         speed,
         start_at,
@@ -161,7 +191,7 @@ pub fn apply(spec: &mut RunSpec, file: &str) -> Result<(), SimError> {
     l.framing = framing;
     l.udp_batch = udp_batch;
     l.take_over = take_over.unwrap_or(false);
-    if let Some(i) = input {
+    if let Some(i) = &input {
         let lockstep = match i.mode.as_deref() {
             None | Some("realtime") => false,
             Some("lockstep") => true,
@@ -187,13 +217,101 @@ pub fn apply(spec: &mut RunSpec, file: &str) -> Result<(), SimError> {
             output_delay_s: i.output_delay_s,
             max_extrapolation_s: i.max_extrapolation_s,
             correction_horizon_s: i.correction_horizon_s,
-            on_timeout: i.on_timeout,
+            on_timeout: i.on_timeout.clone(),
             input_timeout_s: i.timeout_s,
-            record: i.record,
-            ..LiveSpec::new(i.source)
+            record: i.record.clone(),
+            ..LiveSpec::new(i.source.clone())
         });
     }
+    // What the file gave, for refusals to name its keys.
+    for (key, flag) in given {
+        let value = spec.setting(flag);
+        (spec.file_keys).push(FileKey {
+            flag,
+            origin: format!("{file}: `run.{key}`"),
+            value,
+        });
+    }
+    if let Some(i) = &input {
+        let keys = [
+            ("source", "--motion", true),
+            ("format", "--input-format", i.format.is_some()),
+            ("mode", "--time-mode", i.mode.is_some()),
+            (
+                "output_delay_s",
+                "--output-delay",
+                i.output_delay_s.is_some(),
+            ),
+            (
+                "max_extrapolation_s",
+                "--max-extrapolation",
+                i.max_extrapolation_s.is_some(),
+            ),
+            (
+                "correction_horizon_s",
+                "--correction-horizon",
+                i.correction_horizon_s.is_some(),
+            ),
+            ("on_timeout", "--on-timeout", i.on_timeout.is_some()),
+            ("timeout_s", "--input-timeout", i.timeout_s.is_some()),
+            ("record", "--record-input", i.record.is_some()),
+        ];
+        for (key, flag, _) in keys.into_iter().filter(|k| k.2) {
+            let value = spec.setting(flag);
+            (spec.file_keys).push(FileKey {
+                flag,
+                origin: format!("{file}: `run.input.{key}`"),
+                value,
+            });
+        }
+    }
     Ok(())
+}
+
+impl RunSpec {
+    /// The value of the setting `flag` gives, in words: whether a scene file's value is still
+    /// in place when the run is built.
+    pub fn setting(&self, flag: &str) -> String {
+        let (c, s, l) = (&self.clock, &self.sync, &self.link);
+        let i = self.input.as_ref();
+        match flag {
+            "--speed" => format!("{:?}", c.speed),
+            "--start-at" => format!("{:?}", c.start_at),
+            "--time-base" => format!("{:?}", c.time_base),
+            "--max-behind-ms" => format!("{:?}", c.max_behind_ms),
+            "--realtime" => format!("{:?}", c.realtime_priority),
+            "--time-marks" => format!("{:?}", s.time_marks),
+            "--pulse" => format!("{:?}", s.pulse),
+            "--pulse-port" => format!("{:?}", s.pulse_port),
+            "--pulse-unit" => format!("{:?}", s.pulse_unit),
+            "--pps-in" => format!("{:?}", s.pps_in),
+            "--trigger" => format!("{:?}", s.trigger),
+            "--baud" => format!("{:?}", l.baud),
+            "--framing" => format!("{:?}", l.framing),
+            "--udp-batch" => format!("{:?}", l.udp_batch),
+            "--take-over" => format!("{:?}", l.take_over),
+            "--motion" => format!("{:?}", i.map(|i| &i.source)),
+            "--input-format" => format!("{:?}", i.map(|i| i.format)),
+            "--time-mode" => format!("{:?}", i.map(|i| i.lockstep)),
+            "--output-delay" => format!("{:?}", i.map(|i| i.output_delay_s)),
+            "--max-extrapolation" => format!("{:?}", i.map(|i| i.max_extrapolation_s)),
+            "--correction-horizon" => format!("{:?}", i.map(|i| i.correction_horizon_s)),
+            "--on-timeout" => format!("{:?}", i.map(|i| &i.on_timeout)),
+            "--input-timeout" => format!("{:?}", i.map(|i| i.input_timeout_s)),
+            "--record-input" => format!("{:?}", i.map(|i| &i.record)),
+            _ => String::new(),
+        }
+    }
+
+    /// Where a refused setting came from: `FILE: `run.KEY` (FLAG …)` when the scene file's
+    /// value of the flag that `what` starts with is still in place, else `what`.
+    pub fn origin_of(&self, what: &str) -> String {
+        let flag = what.split_whitespace().next().unwrap_or("");
+        match (self.file_keys.iter()).find(|k| k.flag == flag && k.value == self.setting(flag)) {
+            Some(k) => format!("{} ({what})", k.origin),
+            None => what.to_string(),
+        }
+    }
 }
 
 /// `UNIT=TARGET` names a rig's unit; a target itself has no `=` before its scheme.

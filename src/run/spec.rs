@@ -206,10 +206,34 @@ pub struct SyncSpec {
     /// The unit whose records the pulse marks (a rig's; default: the single IMU, or the first
     /// unit).
     pub pulse_unit: Option<String>,
+    /// A line given in code that the pulse drives instead of a serial port's modem line (a
+    /// GPIO, a test's recorder).
+    #[cfg(feature = "realtime")]
+    pub pulse_line: Option<PulseLine>,
     /// Phase-lock the output's whole seconds to a PPS source.
     pub pps_in: Option<String>,
     /// External sample trigger: every unit samples once per edge.
     pub trigger: Option<String>,
+}
+
+/// A pulse line given in code ([`RunSpec::pulse_on`]), shared with the run's pulse thread.
+#[cfg(feature = "realtime")]
+#[derive(Clone)]
+pub struct PulseLine(pub std::sync::Arc<std::sync::Mutex<dyn crate::realtime::pulse::Line>>);
+
+#[cfg(feature = "realtime")]
+impl fmt::Debug for PulseLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("PulseLine")
+    }
+}
+
+#[cfg(feature = "realtime")]
+impl PartialEq for PulseLine {
+    /// The same line.
+    fn eq(&self, other: &PulseLine) -> bool {
+        std::sync::Arc::ptr_eq(&self.0, &other.0)
+    }
 }
 
 /// Settings of the links the sinks open.
@@ -241,6 +265,20 @@ pub struct RunSpec {
     pub clock: ClockSpec,
     /// Link settings of the sinks.
     pub link: LinkSpec,
+    /// The settings a scene file's `[run]` table gave, so that a refusal names the file's key
+    /// while the value is still the file's (a flag may have replaced it since).
+    pub file_keys: Vec<FileKey>,
+}
+
+/// A setting a scene file's `[run]` table gave.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FileKey {
+    /// The flag that gives the same setting (`--pulse-port`).
+    pub flag: &'static str,
+    /// `FILE: `run.KEY``.
+    pub origin: String,
+    /// The value the file gave, in words ([`RunSpec::setting`]).
+    pub value: String,
 }
 
 impl RunSpec {
@@ -257,6 +295,15 @@ impl RunSpec {
         let origin = format!("route {stream} → {sink}");
         self.add_route(stream, sink, origin);
         self
+    }
+
+    /// Sends `stream` to the sink written `addr` (`pty:PATH`, `serial:DEV`, `udp:HOST:PORT`,
+    /// `tcp:HOST:PORT`, `tcp-listen:ADDR:PORT`, `file:PATH`: the scene file's and the command
+    /// line's spelling) as well; an address that does not read is refused, named.
+    pub fn sink(self, stream: StreamId, addr: &str) -> Result<RunSpec, super::RunError> {
+        let sink = SinkAddr::parse(addr)
+            .map_err(|why| super::RunError::spec(&format!("sink of {stream}"), why))?;
+        Ok(self.route(stream, sink))
     }
 
     /// Sends `stream` to `sink` as well; `origin` names where the route was given.
@@ -312,6 +359,22 @@ impl RunSpec {
     /// Phase-lock to the PPS `source`.
     pub fn pps_in(mut self, source: impl Into<String>) -> RunSpec {
         self.sync.pps_in = Some(source.into());
+        self
+    }
+
+    /// A pulse `LINE:MARK[:OFFSET][:WIDTH]` (see [`SyncSpec::pulse`]) on the records of `unit`
+    /// (`None`: the single IMU, or a rig's first unit).
+    pub fn pulse(mut self, spec: impl Into<String>, unit: Option<&str>) -> RunSpec {
+        self.sync.pulse = Some(spec.into());
+        self.sync.pulse_unit = unit.map(str::to_string);
+        self
+    }
+
+    /// Drives the pulse on `line` (a GPIO, a recorder) instead of a serial port's modem line.
+    #[cfg(feature = "realtime")]
+    pub fn pulse_on(mut self, line: impl crate::realtime::pulse::Line + 'static) -> RunSpec {
+        let line = std::sync::Arc::new(std::sync::Mutex::new(line));
+        self.sync.pulse_line = Some(PulseLine(line));
         self
     }
 }

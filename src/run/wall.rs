@@ -31,13 +31,15 @@ use crate::realtime::{self as rt, FrameBlock};
 use crate::record::FLAG_STALE;
 use crate::timebase::LeapTable;
 
-use super::build::{Clock, OnTimeout, Run, Signal, Sync, Wall};
+use super::build::{OnTimeout, Run, Signal};
+use super::clock::{Clock, Wall};
 use super::error::RunError;
 use super::input::{self, GPS_TAG_TOLERANCE_S, GpsBase, MARGIN_S};
 use super::pipeline::{Built, Control, Outlets, unit_streams};
 use super::routing::StreamPlan;
 use super::spec::TimeBase;
 use super::status::{LiveStatus, RunReport, RunStatus, StreamCounts};
+use super::sync::{PulseOut, Sync};
 
 /// A just-in-time run makes each frame this long before its deadline (s): making a frame
 /// takes microseconds; the rest absorbs the driver's own wake-up lateness.
@@ -262,14 +264,19 @@ fn extras(
             .hooks
             .push(Box::new(OfStream::new(stream_of[*unit], Box::new(marks))));
     }
-    if let Some((spec, port, unit)) = &sync.pulse {
+    if let Some((spec, out, unit)) = &sync.pulse {
         let spec: pulse::PulseSpec = spec.parse().map_err(|e| RunError::spec("--pulse", e))?;
         let s = stream_of[*unit];
         spec.check(1e9 / (streams[s].rate_hz * speed))
             .map_err(|e| RunError::spec("--pulse", e))?;
-        let line = pulse::ModemLine::open(port, spec.pin)
-            .map_err(|e| RunError::io(format!("--pulse {port}"), e))?;
-        let p = pulse::Pulse::new(spec, Box::new(line)).map_err(|e| RunError::io("--pulse", e))?;
+        let line: Box<dyn pulse::Line> = match out {
+            PulseOut::Port(port) => Box::new(
+                pulse::ModemLine::open(port, spec.pin)
+                    .map_err(|e| RunError::io(format!("--pulse {port}"), e))?,
+            ),
+            PulseOut::Line(l) => Box::new(SharedLine(l.clone())),
+        };
+        let p = pulse::Pulse::new(spec, line).map_err(|e| RunError::io("--pulse", e))?;
         extras
             .hooks
             .push(Box::new(OfStream::new(s, Box::new(p))) as Box<dyn FrameHook>);
@@ -280,6 +287,39 @@ fn extras(
         extras.lock = Some((edges, PhaseLock::new(1_000_000_000)));
     }
     Ok(extras)
+}
+
+/// The pacer's latest schedule, once a phase lock has slewed it: a just-in-time driver makes
+/// each frame before its slewed deadline.
+#[derive(Clone, Default)]
+struct ScheduleWatch(Arc<Mutex<Option<crate::realtime::lock::Schedule>>>);
+
+impl ScheduleWatch {
+    /// The schedule now (`None`: never slewed).
+    fn get(&self) -> Option<crate::realtime::lock::Schedule> {
+        *self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+impl FrameHook for ScheduleWatch {
+    fn rescheduled(&mut self, sched: &crate::realtime::lock::Schedule) {
+        *self.0.lock().unwrap_or_else(|e| e.into_inner()) = Some(*sched);
+    }
+
+    fn written(&mut self, _: &crate::realtime::hook::FrameTime) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// A pulse line given in code, driven from the pulse thread.
+struct SharedLine(super::spec::PulseLine);
+
+impl crate::realtime::pulse::Line for SharedLine {
+    fn set(&mut self, high: bool) -> std::io::Result<()> {
+        (self.0.0.lock())
+            .unwrap_or_else(|e| e.into_inner())
+            .set(high)
+    }
 }
 
 /// Frames per wall-clock second over every stream at `speed`.
@@ -700,8 +740,20 @@ fn realtime(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport, RunError> 
         }
     };
     out.preamble(&built.preambles)?;
-    let extras = extras(&sync, &layout.streams, 1.0, &stop)?;
-    let anchor = monotonic_ns();
+    let mut extras = extras(&sync, &layout.streams, 1.0, &stop)?;
+    // The pacer's whole seconds are what a PPS lock pulls onto its edges: on the GPS time
+    // base they are the host's whole GPS seconds (the week began on one), so the lock
+    // disciplines the map from the input's GPS tags to the host clock.
+    let now = monotonic_ns();
+    let anchor = match gps {
+        Some(g) => now - (now - g.host_at_week_ns).rem_euclid(1_000_000_000),
+        None => now,
+    };
+    // With a lock the pacer slews its deadlines: frames are made before the slewed ones.
+    let slewed = ScheduleWatch::default();
+    if sync.pps_in.is_some() {
+        extras.hooks.push(Box::new(slewed.clone()));
+    }
     let mut c = clocking(&layout.streams, &wall, Some(anchor))?;
     if triggered {
         c = c.with_edges();
@@ -736,8 +788,12 @@ fn realtime(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport, RunError> 
         }
         let (map, _) = input::observe(&mut st, &shared);
         let host = |t: f64| map.host_ns(t) + delay_ns;
+        let sched = slewed.get();
+        // The pacer's deadline of the host instant `h`, and the host instant due at `w`.
+        let due = |h: i128| sched.map_or(h, |s| s.at(h - anchor));
+        let undue = |w: i128| sched.map_or(w, |s| anchor + s.nominal(w));
         let wake = (built.sources.next_due()).map_or(monotonic_ns() + 10_000_000, |d| {
-            host(origin + d as f64 * 1e-9) - lead
+            due(host(origin + d as f64 * 1e-9)) - lead
         });
         match &edges {
             Some(rx) => {
@@ -764,7 +820,7 @@ fn realtime(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport, RunError> 
         let (map, input_ended) = input::observe(&mut st, &shared);
         st.stale = input_ended;
         let newest = model.newest();
-        let mut horizon = map.sim_at(now + lead - delay_ns);
+        let mut horizon = map.sim_at(undue(now + lead) - delay_ns);
         if input_ended {
             match live.on_timeout {
                 OnTimeout::Stop => {

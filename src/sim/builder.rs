@@ -350,6 +350,13 @@ impl SimulationBuilder {
         self.nodes()
     }
 
+    /// The start and the duration (s) a setter or the scene file gives, each `None` when
+    /// neither does (the motion's start; its end, or the run's default length).
+    pub fn span_given(&self) -> (Option<f64>, Option<f64>) {
+        let o = &self.file.output;
+        (self.start.or(o.start_s), self.duration.or(o.duration_s))
+    }
+
     /// Whether a GPS time of record time 0 was given (setter or nothing else: the scene file
     /// has no such key).
     pub fn gps_time_given(&self) -> bool {

@@ -151,9 +151,12 @@ impl Kind {
                 ("min", 60.0, false),
                 ("h", 3600.0, false),
             ],
+            // Every angle unit of `Angle` is an increment step too.
             Kind::GyroLsb => &[
                 ("rad", 1.0, true),
+                ("mrad", 1e-3, true),
                 ("urad", 1e-6, true),
+                ("deg", DEG, true),
                 ("arcsec", DEG / 3600.0, true),
                 ("deg/s", DEG, false),
                 ("rad/s", 1.0, false),
@@ -267,6 +270,9 @@ mod tests {
             9.80665e-4
         ));
         assert_eq!(parse("2 urad", Kind::GyroLsb).unwrap(), (2e-6, true));
+        // An increment step in degrees, as in rad and arcsec (issue 23: `deg` was refused).
+        assert_eq!(parse("0.5 deg", Kind::GyroLsb).unwrap(), (0.5 * DEG, true));
+        assert_eq!(parse("3 mrad", Kind::GyroLsb).unwrap(), (3e-3, true));
         assert!(!parse("0.01 deg/s", Kind::GyroLsb).unwrap().1);
         assert!(matches!(
             parse("1 furlong", Kind::Angle),

@@ -123,7 +123,7 @@ impl ImuFrames {
 
     /// Nominal emission time of record k (1-based) after the run's t₀ (ns).
     fn nominal_ns(&self, k: u64) -> i64 {
-        self.offset_ns + (k as f64 / self.grid.rate_hz * 1e9).round() as i64
+        self.offset_ns + round_ns(k as f64 / self.grid.rate_hz * 1e9)
     }
 
     /// Makes the records the window up to `until` releases (at most a block); false when
@@ -171,7 +171,7 @@ impl ImuFrames {
             None => {
                 let rate = self.grid.rate_hz;
                 let off = self.offset_ns;
-                let nominal = |k: u64| off + (k as f64 / rate * 1e9).round() as i64;
+                let nominal = |k: u64| off + round_ns(k as f64 / rate * 1e9);
                 self.emit.extend((first + 1..=first + n).map(nominal));
                 self.tov
                     .extend((first..first + n).zip(self.emit.iter().copied()));
@@ -195,6 +195,15 @@ impl ImuFrames {
         }
         Ok(true)
     }
+}
+
+/// `ns` (≥ 0) rounded to the nearest integer, halves away from zero: `f64::round` to the bit,
+/// without its libm call (x86-64's baseline has no rounding instruction), which cost ~24
+/// instructions per record offline (docs/performance.md).
+fn round_ns(ns: f64) -> i64 {
+    let whole = ns as i64;
+    // Exact: the fraction of a double below 2⁵² is representable.
+    whole + i64::from(ns - whole as f64 >= 0.5)
 }
 
 /// The end of each of `n` records in `bytes`: after each line of CSV, every `len/n` bytes of
@@ -228,14 +237,22 @@ impl WindowSource for ImuFrames {
                 && self.emit.last().is_some_and(|&e| e <= until_ns)
                 && parts.iter().all(|p| p.ends.is_empty());
             if all_due {
-                // The whole block is due: hand its buffers over instead of copying frames.
-                for ((bytes, ends), p) in self.held.iter_mut().zip(parts.iter_mut()) {
+                // The whole block is due: hand its buffers over instead of copying frames
+                // (its times too: the emission times to the first stream, copies to the
+                // others; the held ones are then empty, every frame given).
+                for ((bytes, ends), p) in self.held.iter_mut().zip(parts.iter_mut()).skip(1) {
                     std::mem::swap(bytes, &mut p.bytes);
                     std::mem::swap(ends, &mut p.ends);
                     p.emit_ns.clone_from(&self.emit);
                 }
-                parts[0].records.clone_from(&self.tov);
-                self.next = self.emit.len();
+                let (bytes, ends) = &mut self.held[0];
+                std::mem::swap(bytes, &mut parts[0].bytes);
+                std::mem::swap(ends, &mut parts[0].ends);
+                std::mem::swap(&mut self.emit, &mut parts[0].emit_ns);
+                std::mem::swap(&mut self.tov, &mut parts[0].records);
+                self.emit.clear();
+                self.tov.clear();
+                self.next = 0;
             }
             while self.next < self.emit.len() && self.emit[self.next] <= until_ns {
                 let i = self.next;
@@ -278,6 +295,27 @@ impl WindowSource for ImuFrames {
             q.0.lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .push_back((lo, hi));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `round_ns` is `f64::round` on every non-negative value an emission time takes: halves,
+    /// the values beside them, and integer-nanosecond ones up to days.
+    #[test]
+    fn round_ns_is_round() {
+        let mut xs = vec![0.0, 0.5, 1.5, 2.5, 0.49999999999999994, 1e15 + 0.5];
+        for k in 1..100_000u64 {
+            xs.push(k as f64 / 1000.0 * 1e9);
+            xs.push(k as f64 / 333.0 * 1e9);
+            xs.push(k as f64 * 0.5);
+            xs.push(f64::from_bits((k as f64 * 0.5).to_bits() - 1));
+        }
+        for x in xs {
+            assert_eq!(round_ns(x), x.round() as i64, "{x}");
         }
     }
 }

@@ -1,0 +1,317 @@
+//! Live input a hostile sender could send (issue 23): a state with huge given rates or
+//! accelerations, a position jump the velocities do not carry, a line of megabytes without a
+//! line end. Each is counted with its place and dropped; the run goes on and writes exactly
+//! the bytes of the same input without it. Real parts: the binary, a pipe, TCP and UDP on
+//! loopback.
+
+use std::io::Write;
+use std::net::UdpSocket;
+use std::process::{Command, ExitStatus, Stdio};
+use std::thread;
+use std::time::Duration;
+
+use imu_emu::live::binary::{self, Datagram};
+use imu_emu::live::lockstep::Lockstep;
+use imu_emu::live::transport::Receiver;
+use imu_emu::live::{InputFormat, csv::MAX_LINE_BYTES};
+use imu_emu::motion::Motion;
+use imu_emu::sim::Simulation;
+use imu_emu::source::AnyMotion;
+use imu_emu::trajectory;
+
+#[path = "common/live_cli.rs"]
+mod live_cli;
+
+fn imu_emu() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+}
+
+/// The circle scene's motion: a constant turn, so that every state shapes the motion.
+fn circle() -> AnyMotion {
+    Simulation::builder()
+        .scene("circle")
+        .build()
+        .unwrap()
+        .motion()
+        .clone()
+}
+
+/// The circle's states every 10 ms for `seconds`, as `imu-emu trajectory` writes them (a
+/// comment, the header, then one line per state).
+fn circle_lines(seconds: f64) -> Vec<String> {
+    trajectory::sample_motion(
+        &circle(),
+        0.0,
+        100.0,
+        (seconds * 100.0) as u64,
+        Some("circle"),
+    )
+    .lines()
+    .map(str::to_string)
+    .collect()
+}
+
+/// `imu-emu run --motion - --time-mode lockstep` with `text` on a pipe, error-free records as
+/// CSV (every digit shows): its exit status, stderr and output file (if one was left).
+fn lockstep_pipe(text: &str) -> (ExitStatus, String, Option<Vec<u8>>) {
+    let dir = tempfile::TempDir::new().unwrap();
+    let out = dir.path().join("out.csv");
+    let mut child = imu_emu()
+        .args(["run", "--motion", "-", "--time-mode", "lockstep"])
+        .args(["--imu", "ideal", "--format", "csv", "--file"])
+        .arg(&out)
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let text = text.to_string();
+    let writer = thread::spawn(move || {
+        let _ = stdin.write_all(text.as_bytes());
+    });
+    let done = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    let err = String::from_utf8_lossy(&done.stderr).into_owned();
+    (done.status, err, std::fs::read(&out).ok())
+}
+
+/// Line `n` (1-based, as the run counts them) of `lines` with column `col` set to `value`.
+fn set(lines: &mut [String], n: usize, col: usize, value: &str) {
+    let mut f: Vec<&str> = lines[n - 1].split(',').collect();
+    f[col] = value;
+    lines[n - 1] = f.join(",");
+}
+
+fn join(lines: &[String]) -> String {
+    lines.iter().map(|l| format!("{l}\n")).collect()
+}
+
+/// A state whose given body rate is 1e300 deg/s, another whose given acceleration is 1e300
+/// m/s² (issue 23 item 1: each once stopped the run with "gyro_x is NaN in the error-free
+/// signal", exit 1, no output): both refused naming their line and column, the run ends
+/// normally, and its output is the bytes of the same input without those two lines.
+#[test]
+fn huge_given_rates_and_accelerations_are_refused_and_counted() {
+    let mut lines = circle_lines(3.0);
+    lines[1].push_str(",wx,wy,wz,an,ae,ad");
+    for l in &mut lines[2..] {
+        l.push_str(",0,0,0,0,0,0");
+    }
+    let clean = join(&lines);
+    set(&mut lines, 150, 10, "1e300");
+    set(&mut lines, 200, 13, "1e300");
+    let (status, err, out) = lockstep_pipe(&join(&lines));
+    assert!(status.success(), "{err}");
+    assert!(err.contains(", 2 refused,"), "{err}");
+    assert!(
+        err.contains("stdin: line 150: `wx`: the given body rate"),
+        "{err}"
+    );
+    assert!(
+        err.contains("stdin: line 200: `an`: the given acceleration 1e300 m/s²"),
+        "{err}"
+    );
+    let mut without = lines.clone();
+    without.remove(199);
+    without.remove(149);
+    let (status, err, want) = lockstep_pipe(&join(&without));
+    assert!(status.success(), "{err}");
+    assert!(
+        out.is_some() && out == want,
+        "not the bytes without the two lines"
+    );
+    // Without those lines the output differs: dropping a state is visible.
+    assert!(want != lockstep_pipe(&clean).2);
+}
+
+/// The motion's state at `t` as a binary datagram carrying a body rate.
+fn datagram(m: &impl Motion, t: f64, seq: u32, rate: [f64; 3]) -> Vec<u8> {
+    let p = m.pose(t);
+    binary::encode(&Datagram {
+        seq,
+        week: binary::NO_WEEK,
+        time: t,
+        flags: binary::FLAG_RATE,
+        pos: [p.lat.to_degrees(), p.lon.to_degrees(), p.h],
+        vel: p.v_n.into(),
+        acc: [0.0; 3],
+        quat: [p.q_b_n.w, p.q_b_n.i, p.q_b_n.j, p.q_b_n.k],
+        rate,
+    })
+    .to_vec()
+}
+
+/// `datagrams` sent over UDP loopback to a lockstep run of 2 s; its output and summary.
+fn over_udp(datagrams: Vec<Vec<u8>>) -> (Vec<u8>, imu_emu::live::lockstep::LiveSummary) {
+    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+    socket
+        .set_read_timeout(Some(Duration::from_millis(500)))
+        .unwrap();
+    let addr = socket.local_addr().unwrap();
+    let sender = thread::spawn(move || {
+        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        for d in datagrams {
+            s.send_to(&d, addr).unwrap();
+            // Paced so that loopback never drops one.
+            thread::sleep(Duration::from_micros(200));
+        }
+    });
+    let mut rx = Receiver::from_socket(socket, InputFormat::Binary, "udp");
+    let b = Simulation::builder().rate(400.0).duration(2.0);
+    let mut out = Vec::new();
+    let s = Lockstep::new(b, InputFormat::Binary)
+        .unwrap()
+        .run(&mut rx, &mut out, None, |_| ())
+        .unwrap();
+    sender.join().unwrap();
+    (out, s)
+}
+
+/// A binary datagram with ω = 1e300 rad/s (issue 23 item 1) over UDP: refused, named by its
+/// datagram, and the output is that of the input without it.
+#[test]
+fn a_datagram_with_a_huge_body_rate_is_refused() {
+    let m = circle();
+    let with = |bad: bool| -> Vec<Vec<u8>> {
+        (0..250u32)
+            .filter(|&i| bad || i != 120)
+            .map(|i| {
+                let w = if bad && i == 120 { 1e300 } else { 0.01 };
+                datagram(&m, f64::from(i) * 0.01, i, [w, 0.0, 0.0])
+            })
+            .collect()
+    };
+    let (out, s) = over_udp(with(true));
+    // The run ends at its 2 s; the refused datagram is no gap in the sequence numbers.
+    let st = &s.stats;
+    assert_eq!(
+        (st.refused, st.states + 1, st.gaps),
+        (1, st.messages, 0),
+        "{s:?}"
+    );
+    assert_eq!(
+        s.stats.problems,
+        vec!["udp: datagram 121: `wx`: the given body rate 1e300 rad/s is beyond the limit of 1e4 rad/s".to_string()]
+    );
+    let (want, _) = over_udp(with(false));
+    assert!(out == want, "not the bytes without the datagram");
+}
+
+/// Five states 9° (1000 km) north of the track (issue 23 item 4: the ideal IMU spiked to
+/// 162 rad/s and 9639 m/s², exit 0): `generate --trajectory` refuses the file naming the
+/// line and `lat`, leaving no output; a live run refuses the five states, counted with their
+/// lines, and writes the bytes of the input without them.
+#[test]
+fn a_position_jump_is_refused() {
+    let mut lines = circle_lines(4.0);
+    for n in 300..305 {
+        let lat: f64 = lines[n - 1].split(',').nth(1).unwrap().parse().unwrap();
+        set(&mut lines, n, 1, &(lat + 9.0).to_string());
+    }
+    let dir = tempfile::TempDir::new().unwrap();
+    let traj = dir.path().join("jump.csv");
+    std::fs::write(&traj, join(&lines)).unwrap();
+    let out = dir.path().join("imu.csv");
+    let done = imu_emu()
+        .args(["generate", "--trajectory"])
+        .arg(&traj)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&done.stderr);
+    assert_eq!(done.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("jump.csv:300: column 2 (`lat`): the position moved 999"),
+        "{err}"
+    );
+    assert!(!out.exists());
+
+    let (status, err, got) = lockstep_pipe(&join(&lines));
+    assert!(status.success(), "{err}");
+    assert!(
+        err.contains("396 states taken;") && err.contains(", 5 refused,"),
+        "{err}"
+    );
+    for n in 300..305 {
+        assert!(
+            err.contains(&format!("stdin: line {n}: `lat`: the position moved")),
+            "{err}"
+        );
+    }
+    let mut without = lines.clone();
+    without.drain(299..304);
+    let (status, err, want) = lockstep_pipe(&join(&without));
+    assert!(status.success(), "{err}");
+    assert!(
+        got.is_some() && got == want,
+        "not the bytes without the five lines"
+    );
+}
+
+/// Runs `imu-emu run --motion tcp://… --time-mode lockstep` on `text` sent over TCP loopback;
+/// its exit status, stderr, output and peak resident memory (kB, from `wait4`).
+fn lockstep_tcp(text: Vec<u8>) -> (ExitStatus, String, Option<Vec<u8>>, i64) {
+    let dir = tempfile::TempDir::new().unwrap();
+    let out = dir.path().join("out.bin");
+    let (mut child, mut conn) = live_cli::lockstep_over_tcp(&out);
+    let sender = thread::spawn(move || {
+        let _ = conn.write_all(&text);
+    });
+    let stderr = child.stderr.take().unwrap();
+    let reader = thread::spawn(move || std::io::read_to_string(stderr).unwrap());
+    let (status, maxrss) = wait_with_rusage(child);
+    sender.join().unwrap();
+    let err = reader.join().unwrap();
+    (status, err, std::fs::read(&out).ok(), maxrss)
+}
+
+/// Waits for `child` and returns its status and its own peak resident set size (kB): from
+/// `wait4`, which reports the one child waited for, whatever other tests run meanwhile.
+fn wait_with_rusage(child: std::process::Child) -> (ExitStatus, i64) {
+    use std::os::unix::process::ExitStatusExt;
+    let pid = child.id() as libc::pid_t;
+    let mut status = 0;
+    // SAFETY: an all-zero rusage is valid; wait4 fills it and `status` for our own child,
+    // which `child` (dropped without waiting) never reaps itself.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let r = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+    assert_eq!(r, pid, "wait4: {}", std::io::Error::last_os_error());
+    (ExitStatus::from_raw(status), usage.ru_maxrss)
+}
+
+/// A 24 MB line without a line end over TCP (issue 23 item 3: read whole, searched from its
+/// start on every read — quadratic CPU, memory the size of the line): refused as too long,
+/// named by its line; its bytes are skipped and counted; the states after it are taken, the
+/// output is the bytes of the input without that line, and the run's peak memory is within
+/// 8 MB of the same run without it (it was over 24 MB more).
+#[test]
+fn a_megabyte_line_without_a_line_end_is_cut_and_counted() {
+    let lines = circle_lines(3.0);
+    let n = 24 << 20;
+    let mut text = join(&lines[..100]).into_bytes();
+    text.extend(std::iter::repeat_n(b'7', n));
+    text.push(b'\n');
+    text.extend(join(&lines[100..]).into_bytes());
+    let (status, err, got, peak) = lockstep_tcp(text);
+    assert!(status.success(), "{err}");
+    assert!(err.contains("1 malformed"), "{err}");
+    assert!(
+        err.contains(&format!(
+            "line 101, byte {MAX_LINE_BYTES}: line longer than {MAX_LINE_BYTES} bytes"
+        )),
+        "{err}"
+    );
+    assert!(
+        err.contains(&format!("{} bytes skipped", n - MAX_LINE_BYTES)),
+        "{err}"
+    );
+    let (status, err, want, base) = lockstep_tcp(join(&lines).into_bytes());
+    assert!(status.success(), "{err}");
+    assert!(
+        got.is_some() && got == want,
+        "not the bytes without the long line"
+    );
+    println!("peak memory {peak} kB, {base} kB without the long line");
+    assert!(peak < base + 8 * 1024, "{peak} kB vs {base} kB");
+}

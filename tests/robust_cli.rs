@@ -1,0 +1,342 @@
+//! The command line's answers to hostile or unlucky input (issue 23 items 6–8): exit statuses
+//! that say what happened and messages that name the place and the cause, never a
+//! library's debug output.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use rand::{RngExt, SeedableRng};
+
+fn imu_emu() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_imu-emu"))
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// `n` random bytes (fixed seed) in `dir/name`.
+fn noise_file(dir: &Path, name: &str, n: usize) -> std::path::PathBuf {
+    let mut r = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(2323);
+    let bytes: Vec<u8> = (0..n).map(|_| r.random::<u8>()).collect();
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+/// 4 MB of random bytes hold no frame of any built-in protocol: `decode` exits 1 saying so
+/// (issue 23 item 6: `ln200`, without a sync word and with a 16-bit sum, found 313 "frames"
+/// in 20 MB and exited 0).
+#[test]
+fn decode_of_noise_finds_no_frame_of_any_protocol() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let noise = noise_file(dir.path(), "noise.bin", 4 << 20);
+    for name in imu_emu::protocol::builtin_names() {
+        let o = imu_emu()
+            .args(["decode", "--protocol", name, "--tally-only"])
+            .arg(&noise)
+            .output()
+            .unwrap();
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{name}: {err}");
+        assert!(err.contains(" 0 frames,"), "{name}: {err}");
+        assert!(
+            err.contains(&format!("no valid `{name}` frame in the input")),
+            "{name}: {err}"
+        );
+    }
+}
+
+/// A spec whose frames have neither a constant field nor a check decodes noise as frames,
+/// and `decode` says so.
+#[test]
+fn decode_warns_when_frames_cannot_be_told_from_noise() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let spec = dir.path().join("bare.toml");
+    std::fs::write(
+        &spec,
+        "name = \"bare\"\ndescription = \"one word, no sync, no check\"\nrate_hz = 100\n\
+         byte_order = \"little\"\n\n[[field]]\nname = \"gyro_x\"\ntype = \"i16\"\n\
+         source = \"gyro.x\"\nlsb = 0.001\n",
+    )
+    .unwrap();
+    let noise = noise_file(dir.path(), "noise.bin", 1000);
+    let o = imu_emu()
+        .arg("decode")
+        .arg("--protocol-file")
+        .arg(&spec)
+        .arg("--tally-only")
+        .arg(&noise)
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("`bare` frames have neither constant fields nor a check"),
+        "{err}"
+    );
+    assert!(err.contains("500 frames"), "{err}");
+}
+
+/// `generate`s a CSV record file of `scene` (1 s at 100 Hz) into `dir/name`.
+fn records_csv(dir: &Path, scene: &str, name: &str) -> std::path::PathBuf {
+    let p = dir.join(name);
+    let o = imu_emu()
+        .args([
+            "generate",
+            "--scene",
+            scene,
+            "--rate",
+            "100",
+            "--duration",
+            "1",
+            "-o",
+        ])
+        .arg(&p)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    p
+}
+
+/// The stderr of `imu-emu navigate RECORDS --scene circle`, which must exit 1.
+fn navigate_fails(records: &Path) -> String {
+    let o = imu_emu()
+        .arg("navigate")
+        .arg(records)
+        .args(["--scene", "circle"])
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    err
+}
+
+/// A record whose increment no IMU measures (Δθ_x = 1e300 rad) is named with its values
+/// (issue 23 item 7: a free-inertial run blamed "the GNSS-aided filter", which it did not
+/// use); numbers in `navigate`'s messages are short (a random file's t₀ was printed with
+/// 190 digits).
+#[test]
+fn navigate_names_the_record_not_a_filter_it_did_not_use() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let rec = records_csv(dir.path(), "circle", "c.csv");
+    let text = std::fs::read_to_string(&rec).unwrap();
+    let bad: String = text
+        .lines()
+        .map(|l| match l.strip_prefix("0.5,") {
+            Some(rest) => {
+                let mut f: Vec<&str> = rest.split(',').collect();
+                f[6] = "1e300";
+                format!("0.5,{}\n", f.join(","))
+            }
+            None => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(&rec, bad).unwrap();
+    let err = navigate_fails(&rec);
+    assert!(
+        err.contains("c.csv: record 50 at t = 0.5 s: increments dtheta [1e300, "),
+        "{err}"
+    );
+    assert!(!err.contains("GNSS"), "{err}");
+
+    let err = navigate_fails(&noise_file(dir.path(), "noise.bin", 20_000));
+    assert!(!err.contains("GNSS"), "{err}");
+    let longest_number = err
+        .split(|c: char| !c.is_ascii_digit())
+        .map(str::len)
+        .max()
+        .unwrap_or(0);
+    assert!(longest_number <= 17, "{err}");
+}
+
+/// A plot that cannot be written names the file and the system's reason (issue 23 item 7:
+/// `ImageError(IoError(Os { code: 2, … }))`), for PNG and SVG alike, and leaves no file.
+#[test]
+fn analyze_plot_that_cannot_be_written_says_why() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let rec = records_csv(dir.path(), "static", "s.csv");
+    // A disk that fills up while the plot is written.
+    std::os::unix::fs::symlink("/dev/full", dir.path().join("full.png")).unwrap();
+    let d = dir.path().display();
+    for (plot, why) in [
+        (
+            format!("{d}/none/adev.png"),
+            "none/adev.png: cannot write the plot: No such file or directory",
+        ),
+        (
+            format!("{d}/s.csv/adev.svg"),
+            "adev.svg: cannot write the plot: Not a directory",
+        ),
+        (
+            format!("{d}/full.png"),
+            "full.png: cannot write the plot: No space left on device",
+        ),
+    ] {
+        let o = imu_emu()
+            .arg("analyze")
+            .arg(&rec)
+            .args(["--plot", &plot])
+            .output()
+            .unwrap();
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(why), "{err}");
+        assert!(!err.contains("Os {") && !err.contains("Error("), "{err}");
+    }
+    assert!(!dir.path().join("none").exists());
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(left.len(), 2, "only the records and the link: {left:?}");
+}
+
+/// Frames of `protocol` from the static scene (1 s, `generate_args` added) decoded with
+/// `decode_args`: the CSV rows as columns by name, and stderr.
+fn decode_rows(
+    protocol: &str,
+    generate_args: &[&str],
+    decode_args: &[&str],
+) -> (Vec<Vec<(String, String)>>, String) {
+    let dir = tempfile::TempDir::new().unwrap();
+    let frames = dir.path().join("f.bin");
+    let o = imu_emu()
+        .args([
+            "generate",
+            "--scene",
+            "static",
+            "--imu",
+            "stim300",
+            "--duration",
+            "1",
+        ])
+        .args(["--format", protocol])
+        .args(generate_args)
+        .arg("-o")
+        .arg(&frames)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = imu_emu()
+        .args(["decode", "--protocol", protocol])
+        .args(decode_args)
+        .arg(&frames)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8(o.stdout.clone()).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows = lines
+        .map(|l| {
+            head.iter()
+                .cloned()
+                .zip(l.split(',').map(String::from))
+                .collect()
+        })
+        .collect();
+    (rows, stderr(&o))
+}
+
+fn cell(row: &[(String, String)], name: &str) -> Option<f64> {
+    let v = &row.iter().find(|c| c.0 == name).unwrap().1;
+    (!v.is_empty()).then(|| v.parse().unwrap())
+}
+
+/// iMAR iXCOM frames carry GPS whole seconds and microseconds (issue 23 item 7: `decode`
+/// said they carry no time tag and left `t` and the increments empty): `t` is their time and
+/// the increments are the rates over the interval of the tags (1/rate).
+#[test]
+fn decode_reads_ixcom_time_tags() {
+    let rate = 400.0;
+    let (rows, err) = decode_rows("imar-ixcom", &["--rate", "400"], &[]);
+    assert!(!err.contains("no time tag"), "{err}");
+    assert!(
+        err.contains("derived over the interval of their time tags"),
+        "{err}"
+    );
+    assert_eq!(rows.len() as f64, rate);
+    for (k, r) in rows.iter().enumerate() {
+        let t = cell(r, "t").unwrap();
+        let want = cell(r, "tow_seconds").unwrap() + cell(r, "tow_micros").unwrap() * 1e-6;
+        assert_eq!(t, want);
+        // The tags are whole microseconds.
+        assert!((t - (k + 1) as f64 / rate).abs() < 1e-6, "row {k}: t = {t}");
+        if k > 0 {
+            let (w, dth) = (cell(r, "gyro_x").unwrap(), cell(r, "dtheta_x").unwrap());
+            assert!(
+                (dth - w / rate).abs() <= 1e-12 * w.abs(),
+                "row {k}: {dth} vs {w}"
+            );
+        }
+    }
+}
+
+/// KVH 1750 frames carry increments and no time tag: `--rate nominal` derives the rates over
+/// the protocol's 1000 Hz, the rate `generate` wrote them at (issue 23 item 7: the README
+/// tour's decode left them empty); a spec without a nominal rate is refused.
+#[test]
+fn decode_takes_the_nominal_rate_when_asked() {
+    let (rows, err) = decode_rows("kvh1750", &[], &["--rate", "nominal"]);
+    assert!(!err.contains("left empty"), "{err}");
+    assert_eq!(rows.len(), 1000);
+    for r in &rows {
+        assert_eq!(cell(r, "t"), None);
+        let (w, dth) = (cell(r, "gyro_x").unwrap(), cell(r, "dtheta_x").unwrap());
+        assert!((w - dth * 1000.0).abs() <= 1e-12 * w.abs(), "{w} vs {dth}");
+    }
+    let dir = tempfile::TempDir::new().unwrap();
+    let spec = dir.path().join("norate.toml");
+    std::fs::write(
+        &spec,
+        "name = \"norate\"\ndescription = \"no rate\"\nbyte_order = \"little\"\n\n\
+         [[field]]\nname = \"sync\"\ntype = \"u16\"\nvalue = 0x5AA5\n\n\
+         [[field]]\nname = \"gyro_x\"\ntype = \"i16\"\nsource = \"gyro.x\"\nlsb = 0.001\n",
+    )
+    .unwrap();
+    let o = imu_emu()
+        .arg("decode")
+        .arg("--protocol-file")
+        .arg(&spec)
+        .args(["--rate", "nominal", "-"])
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--rate nominal: the `norate` spec gives no nominal rate"),
+        "{err}"
+    );
+}
+
+/// `imu-emu templates` shows the turn-on bias (issue 23 item 8: `mpu6000`'s 20°/s 1σ turn-on
+/// bias, which dominates the tour's `compare`, was in no column): 72 000 deg/h, and its
+/// accelerometers' largest, 80 mg, as the template gives them.
+#[test]
+fn templates_show_the_turn_on_bias() {
+    let o = imu_emu().arg("templates").output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8(o.stdout).unwrap();
+    let head: Vec<&str> = text
+        .lines()
+        .next()
+        .unwrap()
+        .split("  ")
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .collect();
+    assert!(
+        head.contains(&"gyro TO") && head.contains(&"accel TO"),
+        "{head:?}"
+    );
+    let row: Vec<&str> = text
+        .lines()
+        .find(|l| l.starts_with("mpu6000 "))
+        .unwrap()
+        .split_whitespace()
+        .collect();
+    let m = imu_emu::errors::template::load("mpu6000").unwrap();
+    let deg_h = m.gyro.bias_turn_on[0].to_degrees() * 3600.0;
+    let ug = m.accel.bias_turn_on[2] / imu_emu::units::G0 * 1e6;
+    assert_eq!(row[3], format!("{deg_h:.1}"), "{row:?}");
+    assert_eq!(row[6], format!("{ug:.0}"), "{row:?}");
+    assert_eq!((row[3], row[6]), ("72000.0", "80000"));
+}
