@@ -273,3 +273,61 @@ pub fn tally(s: &StreamStats, gaps: Option<&str>) -> String {
     }
     t
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::Simulation;
+
+    /// A second of the circle as kvh1750 frames.
+    fn frames() -> Vec<u8> {
+        let mut bytes = Vec::new();
+        Simulation::builder()
+            .scene("circle")
+            .format("kvh1750")
+            .rate(200.0)
+            .duration(1.0)
+            .build()
+            .unwrap()
+            .write(&mut bytes)
+            .unwrap();
+        bytes
+    }
+
+    fn session(rate: Option<f64>) -> Session {
+        let (_, plan) = crate::protocol::load("kvh1750").unwrap();
+        let opts = Options {
+            rate,
+            ..Options::default()
+        };
+        Session::new(plan, opts)
+    }
+
+    /// The rows do not depend on how the bytes arrive: whole, or 7 bytes at a time (frames
+    /// cut anywhere), with the same count and no row lost at the end.
+    #[test]
+    fn rows_do_not_depend_on_chunking() {
+        let bytes = frames();
+        let mut whole = Vec::new();
+        let mut s = session(Some(200.0));
+        let n = s.feed(&bytes, &mut whole).unwrap() + s.finish(&mut whole).unwrap();
+        let mut pieces = Vec::new();
+        let mut t = session(Some(200.0));
+        let mut m = 0;
+        for c in bytes.chunks(7) {
+            m += t.feed(c, &mut pieces).unwrap();
+        }
+        m += t.finish(&mut pieces).unwrap();
+        assert_eq!((n, m, s.stats().frames), (200, 200, 200));
+        assert_eq!(whole, pieces);
+        assert_eq!(String::from_utf8(whole).unwrap().lines().count(), 200);
+    }
+
+    /// Without a rate or time tags the derived columns stay empty, and the note says so.
+    #[test]
+    fn the_note_says_when_columns_stay_empty() {
+        assert!(session(Some(200.0)).note().is_none());
+        let note = session(None).note().unwrap();
+        assert!(note.contains("left empty"), "{note}");
+    }
+}

@@ -364,3 +364,70 @@ impl<M: Motion, R: Iterator<Item = Result<Record, FileError>>> Replay<M, R> {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::Simulation;
+
+    /// Error-free records of the circle at 400 Hz for 2 s, and the motion they came from.
+    fn circle() -> (Vec<Record>, crate::source::AnyMotion) {
+        let sim = Simulation::builder()
+            .scene("circle")
+            .rate(400.0)
+            .duration(2.0)
+            .build()
+            .unwrap();
+        let motion = sim.motion().clone();
+        let records = sim.records().unwrap().flat_map(|b| b.unwrap()).collect();
+        (records, motion)
+    }
+
+    /// Its own error-free records navigate back onto the reference (the closure `validate`
+    /// bounds by 1 mm over 600 s; 2 s stay far inside it), one step per record.
+    #[test]
+    fn error_free_records_close_on_their_reference() {
+        let (records, motion) = circle();
+        let replay = Replay::start(
+            "c",
+            records.into_iter().map(Ok),
+            motion,
+            None,
+            Settings::default(),
+        )
+        .unwrap();
+        let mut steps = 0;
+        let summary = replay
+            .run(|_| {
+                steps += 1;
+                Ok::<(), ReplayError>(())
+            })
+            .unwrap();
+        assert_eq!((summary.records, steps, summary.rate), (800, 800, 400.0));
+        assert!(
+            summary.max[0] < 1e-6,
+            "max position error {}",
+            summary.max[0]
+        );
+    }
+
+    /// A missing record is named (its number and times), not navigated over.
+    #[test]
+    fn a_gap_names_the_record() {
+        let (mut records, motion) = circle();
+        records.remove(99);
+        let replay = Replay::start(
+            "gap.bin",
+            records.into_iter().map(Ok),
+            motion,
+            None,
+            Settings::default(),
+        )
+        .unwrap();
+        let e = replay.run(|_| Ok::<(), ReplayError>(())).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "gap.bin: record 100: t = 0.2525 s, expected 0.25 s for a 400 Hz stream starting at 0 s (gap, or --rate wrong)"
+        );
+    }
+}
