@@ -29,12 +29,12 @@ pub struct SourceArgs {
 impl SourceArgs {
     /// The source these flags name.
     pub fn choice(&self) -> SourceChoice {
-        SourceChoice {
-            scene_file: self.scene_file.clone(),
-            scene: self.scene.clone(),
-            trajectory: self.trajectory.clone(),
-            motion_def: self.motion_def.clone(),
-        }
+        choice(
+            &self.scene_file,
+            &self.scene,
+            &self.trajectory,
+            &self.motion_def,
+        )
     }
 
     /// How messages name the source.
@@ -70,12 +70,12 @@ pub struct ReferenceArgs {
 impl ReferenceArgs {
     /// The reference these flags name.
     pub fn choice(&self) -> SourceChoice {
-        SourceChoice {
-            scene_file: self.scene_file.clone(),
-            scene: self.scene.clone(),
-            trajectory: self.trajectory.clone(),
-            motion_def: self.motion_def.clone(),
-        }
+        choice(
+            &self.scene_file,
+            &self.scene,
+            &self.trajectory,
+            &self.motion_def,
+        )
     }
 
     /// Whether any source was given.
@@ -91,6 +91,20 @@ impl ReferenceArgs {
     /// The builder of the reference (see [`SourceArgs::builder`]).
     pub fn builder(&self) -> Result<SimulationBuilder> {
         Ok(self.choice().builder()?)
+    }
+}
+
+fn choice(
+    scene_file: &Option<PathBuf>,
+    scene: &Option<String>,
+    trajectory: &Option<PathBuf>,
+    motion_def: &Option<PathBuf>,
+) -> SourceChoice {
+    SourceChoice {
+        scene_file: scene_file.clone(),
+        scene: scene.clone(),
+        trajectory: trajectory.clone(),
+        motion_def: motion_def.clone(),
     }
 }
 

@@ -13,7 +13,7 @@ use super::aided::{AidedConfig, AidedNavigator};
 use super::gnss_fixes::{FixEpoch, read_fixes};
 use super::strapdown::{NavState, Navigator, Settings, SettingsError, StateError};
 use crate::csvio::{FileError, num};
-use crate::math::{Vec3, euler_from_quat};
+use crate::math::Vec3;
 use crate::motion::limits::{MAX_ACCEL_M_S2, MAX_RATE_RAD_S};
 use crate::motion::{Motion, Pose};
 use crate::record::Record;
@@ -54,17 +54,7 @@ pub struct Step {
 impl Step {
     /// Appends the pose as a trajectory CSV row ([`crate::trajectory::COLUMNS`]).
     pub fn trajectory_row(&self, text: &mut String) {
-        let p = &self.pose;
-        let (r, pi, y) = euler_from_quat(p.q_b_n);
-        crate::trajectory::format_row(
-            text,
-            p.t,
-            p.lat.to_degrees(),
-            p.lon.to_degrees(),
-            p.h,
-            p.v_n,
-            (r.to_degrees(), pi.to_degrees(), y.to_degrees()),
-        );
+        crate::trajectory::pose_row(text, &self.pose);
     }
 
     /// Appends the error as a row of the error CSV ([`ERROR_HEADER`]).
