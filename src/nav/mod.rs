@@ -1,11 +1,13 @@
 //! The reference strapdown navigator: free-inertial navigation on WGS-84 from our own
 //! increments (`strapdown`), the causal signal reconstruction and collocation tableau it uses
-//! (`poly`), closure runs on the built-in scenes (`closure`) and Monte Carlo comparison of
-//! IMU templates (`montecarlo`), the GNSS-aided error-state Kalman filter (`aided`), the GNSS
-//! fixes read back for it (`gnss_fixes`), and recorded increments navigated against their
-//! reference (`replay`). Computation; the only reading is of records and fixes.
+//! (`poly`), closure runs on the built-in scenes (`closure`), Monte Carlo comparison of IMU
+//! templates (`montecarlo`) and the campaigns `compare` runs (`campaign`), the GNSS-aided
+//! error-state Kalman filter (`aided`), the GNSS fixes read back for it (`gnss_fixes`), and
+//! recorded increments navigated against their reference (`replay`). Computation; the only
+//! reading is of records and fixes.
 
 pub mod aided;
+pub mod campaign;
 pub mod closure;
 pub mod gnss_fixes;
 pub mod montecarlo;
