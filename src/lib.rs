@@ -17,6 +17,7 @@ pub mod aiding;
 pub mod analysis;
 pub mod config;
 pub mod csvio;
+pub mod decode;
 pub mod earth;
 pub mod engine;
 pub mod errors;

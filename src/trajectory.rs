@@ -359,19 +359,23 @@ pub fn sample_motion(
     text.push_str(&COLUMNS.join(","));
     text.push('\n');
     for k in 0..=count {
-        let p = motion.pose(t0 + k as f64 / rate_hz);
-        let (r, pi, y) = crate::math::euler_from_quat(p.q_b_n);
-        format_row(
-            &mut text,
-            p.t,
-            p.lat.to_degrees(),
-            p.lon.to_degrees(),
-            p.h,
-            p.v_n,
-            (r.to_degrees(), pi.to_degrees(), y.to_degrees()),
-        );
+        pose_row(&mut text, &motion.pose(t0 + k as f64 / rate_hz));
     }
     text
+}
+
+/// Appends `p` as a row of [`COLUMNS`] (angles in degrees).
+pub fn pose_row(text: &mut String, p: &crate::motion::Pose) {
+    let (r, pi, y) = crate::math::euler_from_quat(p.q_b_n);
+    format_row(
+        text,
+        p.t,
+        p.lat.to_degrees(),
+        p.lon.to_degrees(),
+        p.h,
+        p.v_n,
+        (r.to_degrees(), pi.to_degrees(), y.to_degrees()),
+    );
 }
 
 #[cfg(test)]

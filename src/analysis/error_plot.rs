@@ -7,6 +7,57 @@
 use crate::plot::{Panel, Series};
 use crate::units::G0;
 
+/// Why a `--truth-errors` file cannot be plotted; each message names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum ErrorPlotError {
+    /// The file cannot be read.
+    #[error("{0}: cannot read")]
+    Read(String, #[source] std::io::Error),
+    /// Its contents are not a `--truth-errors` table.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// The six panels of the `--truth-errors` CSV at `path` (see [`error_panels`]): a header,
+/// then rows of finite numbers, one per header column; `#` lines are comments.
+pub fn file_panels(
+    path: &std::path::Path,
+    max_points: usize,
+) -> Result<Vec<Panel>, ErrorPlotError> {
+    let name = path.display();
+    let text =
+        std::fs::read_to_string(path).map_err(|e| ErrorPlotError::Read(name.to_string(), e))?;
+    let invalid = |m: String| ErrorPlotError::Invalid(format!("{name}: {m}"));
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines
+        .next()
+        .ok_or_else(|| invalid("empty file".into()))?
+        .split(',')
+        .map(str::trim)
+        .collect();
+    let mut rows = Vec::new();
+    for (i, line) in lines.enumerate() {
+        let row = line
+            .split(',')
+            .map(|v| v.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
+            .collect::<Option<Vec<f64>>>();
+        match row {
+            Some(r) if r.len() == header.len() => rows.push(r),
+            _ => {
+                return Err(invalid(format!(
+                    "line {}: expected {} finite numbers",
+                    i + 2,
+                    header.len()
+                )));
+            }
+        }
+    }
+    if rows.is_empty() {
+        return Err(invalid("no data rows".into()));
+    }
+    error_panels(&header, &rows, max_points).map_err(invalid)
+}
+
 const DEG_H: f64 = std::f64::consts::PI / 180.0 / 3600.0;
 
 /// The six panels of the injected errors; `header` names the columns of `rows`.

@@ -15,6 +15,7 @@ pub mod octave_adev;
 pub mod psd;
 pub mod psd_band;
 pub mod reader;
+pub mod recording;
 pub mod report;
 pub mod stats;
 pub mod theory;

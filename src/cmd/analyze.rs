@@ -1,17 +1,15 @@
 //! `imu-emu analyze`: statistics, Allan deviation with fitted IEEE terms, and PSD of a
 //! recording (ours or anyone's), optionally against a template, with plots.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
 use imu_emu::analysis::analyzer::DEFAULT_SEGMENT;
-use imu_emu::analysis::conformance::{channel_theory, term_rows, white_allan};
-use imu_emu::analysis::report;
-use imu_emu::fit::compare;
+use imu_emu::analysis::recording::{Recording, file_name};
+use imu_emu::fit::analysis_report::{Subject, report_on};
 
-use super::input::InputArgs;
+use super::input::{self, InputArgs};
 
 #[derive(clap::Args)]
 pub struct AnalyzeArgs {
@@ -48,122 +46,48 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         .as_deref()
         .map(imu_emu::errors::template::load)
         .transpose()?;
-
-    let (res, summary) = a.input.analyze(a.segment, "analyze")?;
+    let (res, summary) = input::analyze(&a.input.recording(), a.segment, "analyze")?;
     let references = a
         .reference
         .iter()
         .map(|p| {
-            Ok(InputArgs::other(p.clone(), a.reference_format.clone())
-                .analyze(a.segment, "analyze")
-                .with_context(|| format!("--reference {}", p.display()))?
-                .0)
+            let r = Recording::new(p.clone(), a.reference_format.clone());
+            let (res, _) = input::analyze(&r, a.segment, "analyze")
+                .with_context(|| format!("--reference {}", p.display()))?;
+            Ok((res, file_name(p)))
         })
         .collect::<Result<Vec<_>>>()?;
-    let dt = res.dt;
-    // The report goes to stdout in one write at the end, so a reader that stops early
-    // (`… | head`) ends the command quietly (main treats a broken pipe as success) instead of
-    // a panic in println!.
-    let mut text = String::new();
-    if let Some(s) = summary.frames {
-        writeln!(
-            text,
-            "frames: {} decoded, {} check failures, {} counter gaps, {} bytes skipped",
-            s.frames, s.check_failures, s.counter_gaps, s.skipped_bytes
-        )?;
-    }
-    writeln!(
-        text,
-        "{}: {} samples, Δt = {} s ({} Hz), {:.1} s",
-        a.input.input.display(),
-        res.samples,
-        digits12(dt),
-        digits12(1.0 / dt),
-        res.samples as f64 * dt
-    )?;
-    writeln!(text)?;
-    write!(text, "{}", report::stats_table(&res))?;
-    writeln!(text)?;
-    writeln!(
-        text,
-        "IEEE 952 terms, least squares on the octave Allan variance: σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π)B² + K²τ/3 + R²τ²/2"
-    )?;
-    let rows = model.as_ref().map(|m| term_rows(m, &res));
-    write!(text, "{}", report::term_table(&res, rows.as_deref()))?;
-    // The verdict against the template: like `validate`, a FAIL makes the command fail, after
-    // the report, plots and CSV are written.
-    let mut verdict = None;
-    if let Some(rows) = &rows {
-        let failed = rows.iter().filter(|r| r.pass == Some(false)).count();
-        let checked = rows.iter().filter(|r| r.pass.is_some()).count();
-        let name = model.as_ref().map_or("", |m| m.name.as_str());
-        writeln!(
-            text,
-            "template `{name}`: {} of {checked} specified terms within their bands",
-            checked - failed
-        )?;
-        if failed > 0 {
-            verdict = Some(format!(
-                "template `{name}`: {failed} of {checked} specified terms FAIL (outside their 99 % bands)"
-            ));
-        }
-    }
-    let theory = model.as_ref().map(|m| channel_theory(m, dt));
-    let title = a
-        .input
-        .input
-        .file_name()
-        .map_or("input".into(), |n| n.to_string_lossy().into_owned());
-    let file_name = |p: &Path| {
-        p.file_name()
-            .map_or("input".into(), |n| n.to_string_lossy().into_owned())
+    let subject = Subject {
+        analysis: &res,
+        summary: &summary,
+        name: a.input.input.display().to_string(),
+        title: file_name(&a.input.input),
+        model: model.as_ref(),
+        references: &references,
     };
-    if !references.is_empty() {
-        let this = compare::fit_all(&res);
-        let mut csv = String::from(compare::csv_header());
-        for (r, path) in references.iter().zip(&a.reference) {
-            let rows = compare::compare(&this, &compare::fit_all(r));
-            writeln!(text)?;
-            write!(text, "{}", compare::markdown(&rows, &file_name(path)))?;
-            csv += &compare::csv(&rows, &file_name(path));
-        }
-        if let Some(p) = &a.compare_csv {
-            write_file(p, csv.as_bytes())?;
-        }
-        if let Some(p) = &a.plot {
-            let mut curves = vec![(&res, title.clone())];
-            curves.extend(
-                references
-                    .iter()
-                    .zip(&a.reference)
-                    .map(|(r, p)| (r, file_name(p))),
-            );
-            let panels = compare::panels(&curves);
-            let columns = if panels.len() == 8 { 4 } else { 3 };
-            imu_emu::plot::render(p, &panels, columns, (500 * columns as u32, 1000))?;
-            eprintln!("imu-emu analyze: plot written to {}", p.display());
-        }
-    } else if let Some(p) = &a.plot {
-        let filter = model.as_ref().and_then(|m| white_allan(m, dt));
-        let panels = report::panels_filtered(&res, theory.as_deref(), filter.as_ref(), &title);
-        imu_emu::plot::render(p, &panels, 2, (1600, 1200))?;
+    let r = report_on(&subject, a.plot.is_some());
+    if let (Some(p), Some(csv)) = (&a.compare_csv, &r.compare_csv) {
+        write_file(p, csv.as_bytes())?;
+    }
+    if let Some(p) = &a.plot {
+        let (panels, columns, size) = &r.plot;
+        imu_emu::plot::render(p, panels, *columns, *size)?;
         eprintln!("imu-emu analyze: plot written to {}", p.display());
     }
     if let Some(p) = &a.csv {
-        write_file(p, report::curves_csv(&res, theory.as_deref()).as_bytes())?;
+        write_file(p, r.curves_csv.as_bytes())?;
     }
-    std::io::Write::write_all(&mut std::io::stdout().lock(), text.as_bytes())?;
-    if let Some(v) = verdict {
+    // The report goes to stdout in one write at the end, so a reader that stops early
+    // (`… | head`) ends the command quietly (main treats a broken pipe as success) instead of
+    // a panic in println!.
+    std::io::Write::write_all(&mut std::io::stdout().lock(), r.text.as_bytes())?;
+    if let Some(v) = r.verdict {
         anyhow::bail!(v);
     }
     Ok(())
 }
 
-/// x rounded to 12 significant digits (a measured Δt prints as 0.0025, not 0.0024999999999999996).
-fn digits12(x: f64) -> f64 {
-    format!("{x:.11e}").parse().unwrap_or(x)
-}
-
+/// Writes `bytes` to `p` whole or not at all.
 pub fn write_file(p: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
     let mut f = imu_emu::output::AtomicFile::create(p)

@@ -86,29 +86,7 @@ fn template_row(out: &mut impl Write, m: &imu_emu::errors::ImuModel) -> std::io:
 }
 
 pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
-    let mut b = a.source.builder()?.rate(a.rate);
-    if let Some(s) = a.start {
-        b = b.start(s);
-    }
-    if let Some(d) = a.duration {
-        b = b.duration(d);
-    }
-    // Samples at t₀ + k/rate for k = 0..=n, including the start; a rig's motion over its
-    // span (the states to feed the rig with `run --motion`, docs/rig.md).
-    let (motion, grid) = if b.is_rig() {
-        let rig = b.build_rig()?;
-        let (t0, t1) = rig.span();
-        let count = ((t1 - t0) * a.rate + 1e-9).floor() as u64;
-        let grid = imu_emu::engine::Grid {
-            t0,
-            rate_hz: a.rate,
-            count,
-        };
-        (rig.motion().clone(), grid)
-    } else {
-        let sim = b.build()?;
-        (sim.motion().clone(), sim.grid())
-    };
+    let (motion, grid) = a.source.choice().reference(a.rate, a.start, a.duration)?;
     let motion = &motion;
     let text = imu_emu::trajectory::sample_motion(
         motion,

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 
 use imu_emu::protocol::FaultSpec;
-use imu_emu::sim::{Simulation, SimulationBuilder};
+use imu_emu::sim::{SimulationBuilder, SourceChoice};
 
 /// Where the trajectory comes from: a scene file, a built-in scene or a trajectory CSV.
 #[derive(clap::Args)]
@@ -27,9 +27,9 @@ pub struct SourceArgs {
 }
 
 impl SourceArgs {
-    /// How messages name the source.
-    pub fn name(&self) -> String {
-        source_name(
+    /// The source these flags name.
+    pub fn choice(&self) -> SourceChoice {
+        choice(
             &self.scene_file,
             &self.scene,
             &self.trajectory,
@@ -37,14 +37,14 @@ impl SourceArgs {
         )
     }
 
+    /// How messages name the source.
+    pub fn name(&self) -> String {
+        self.choice().name()
+    }
+
     /// The builder of the scene file (if any) with the scene or trajectory flag over it.
     pub fn builder(&self) -> Result<SimulationBuilder> {
-        source_builder(
-            self.scene_file.as_ref(),
-            self.scene.as_ref(),
-            self.trajectory.as_ref(),
-            self.motion_def.as_ref(),
-        )
+        Ok(self.choice().builder()?)
     }
 }
 
@@ -68,17 +68,9 @@ pub struct ReferenceArgs {
 }
 
 impl ReferenceArgs {
-    /// Whether any source was given.
-    pub fn given(&self) -> bool {
-        self.scene_file.is_some()
-            || self.scene.is_some()
-            || self.trajectory.is_some()
-            || self.motion_def.is_some()
-    }
-
-    /// How messages name the reference.
-    pub fn name(&self) -> String {
-        source_name(
+    /// The reference these flags name.
+    pub fn choice(&self) -> SourceChoice {
+        choice(
             &self.scene_file,
             &self.scene,
             &self.trajectory,
@@ -86,54 +78,34 @@ impl ReferenceArgs {
         )
     }
 
+    /// Whether any source was given.
+    pub fn given(&self) -> bool {
+        self.choice().given()
+    }
+
+    /// How messages name the reference.
+    pub fn name(&self) -> String {
+        self.choice().name()
+    }
+
     /// The builder of the reference (see [`SourceArgs::builder`]).
     pub fn builder(&self) -> Result<SimulationBuilder> {
-        source_builder(
-            self.scene_file.as_ref(),
-            self.scene.as_ref(),
-            self.trajectory.as_ref(),
-            self.motion_def.as_ref(),
-        )
+        Ok(self.choice().builder()?)
     }
 }
 
-fn source_name(
+fn choice(
     scene_file: &Option<PathBuf>,
     scene: &Option<String>,
     trajectory: &Option<PathBuf>,
     motion_def: &Option<PathBuf>,
-) -> String {
-    if let Some(m) = motion_def {
-        return format!("motion definition {}", m.display());
+) -> SourceChoice {
+    SourceChoice {
+        scene_file: scene_file.clone(),
+        scene: scene.clone(),
+        trajectory: trajectory.clone(),
+        motion_def: motion_def.clone(),
     }
-    match (trajectory, scene, scene_file) {
-        (Some(t), _, _) => format!("trajectory file {}", t.display()),
-        (None, Some(n), _) => format!("scene {n}"),
-        (None, None, Some(f)) => format!("scene file {}", f.display()),
-        (None, None, None) => format!("scene {}", imu_emu::scenes::DEFAULT),
-    }
-}
-
-fn source_builder(
-    scene_file: Option<&PathBuf>,
-    scene: Option<&String>,
-    trajectory: Option<&PathBuf>,
-    motion_def: Option<&PathBuf>,
-) -> Result<SimulationBuilder> {
-    let mut b = match scene_file {
-        Some(p) => Simulation::from_scene_file(p)?,
-        None => Simulation::builder(),
-    };
-    if let Some(s) = scene {
-        b = b.scene(s);
-    }
-    if let Some(t) = trajectory {
-        b = b.trajectory(t);
-    }
-    if let Some(m) = motion_def {
-        b = b.motion_def(m);
-    }
-    Ok(b)
 }
 
 /// The simulation flags of `generate` and `run`: one set, the same names and meanings.

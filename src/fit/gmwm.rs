@@ -257,9 +257,25 @@ pub struct AxisFit {
     /// the ramp that fit finds and its χ² gain.
     pub ramp_alternative: Option<Estimate>,
     /// The time-domain ramp test of a recording ([`super::ramp`]; None for a table).
-    pub ramp: Option<super::ramp::RampTest>,
+    pub ramp: Option<RampTest>,
     /// Octave points used.
     pub points: usize,
+}
+
+/// The time-domain ramp test of one channel (SI: rate per second), part of its [`AxisFit`]:
+/// defined here, run by [`super::ramp`], which builds on this module's fits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RampTest {
+    /// Least-squares slope of the rate.
+    pub slope: f64,
+    /// Its standard deviation under the model fitted without a ramp.
+    pub sigma_null: f64,
+    /// slope / sigma_null.
+    pub z: f64,
+    /// Whether |z| passed the gate (the ramp is then in the template).
+    pub kept: bool,
+    /// The 99 % interval of R (σ from the model refitted around the line) when kept.
+    pub interval: Option<(f64, f64)>,
 }
 
 impl AxisFit {

@@ -5,6 +5,7 @@
 //! comparison of two recordings ([`compare`]). No file I/O:
 //! the command reads the input and writes the outputs.
 
+pub mod analysis_report;
 pub mod checks;
 pub mod closure;
 pub mod compare;
@@ -13,5 +14,6 @@ pub mod gmwm;
 pub mod lines;
 pub mod output;
 pub mod ramp;
+pub mod recording_fit;
 pub mod report;
 pub mod template;

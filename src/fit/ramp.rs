@@ -28,6 +28,7 @@
 //!   Cov = σ²φ^{|j−k|}, φ = e^{−Δt/T}): Σ_j Σ_k w_j w_k φ^{|j−k|}/Δt², in O(n) by the
 //!   recursion h_k = φ(h_{k−1} + w_{k−1}), Σ = Σw² + 2Σ w_k h_k.
 
+pub use super::gmwm::RampTest;
 use super::gmwm::{AxisFit, Component, GM_PENALTY, Model, Options, fit_axis_with, fit_triad_with};
 use crate::analysis::analyzer::Analysis;
 use crate::analysis::confidence::chi2_quantile;
@@ -43,21 +44,6 @@ pub const INTERVAL_CONFIDENCE: f64 = 0.99;
 /// The two-sided standard normal point of confidence c.
 pub fn normal_point(c: f64) -> f64 {
     chi2_quantile(c, 1.0).sqrt()
-}
-
-/// The time-domain ramp test of one channel (SI: rate per second).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RampTest {
-    /// Least-squares slope of the rate.
-    pub slope: f64,
-    /// Its standard deviation under the model fitted without a ramp.
-    pub sigma_null: f64,
-    /// slope / sigma_null.
-    pub z: f64,
-    /// Whether |z| passed the gate (the ramp is then in the template).
-    pub kept: bool,
-    /// The 99 % interval of R (σ from the model refitted around the line) when kept.
-    pub interval: Option<(f64, f64)>,
 }
 
 fn s_sum(n: f64) -> f64 {

@@ -4,7 +4,7 @@
 //! weights, specific force — many orders of magnitude inside the range of `f64`, so a value
 //! that passes can never make the signal overflow to NaN or infinity.
 
-use super::sampled::Sample;
+use super::knot::Sample;
 use crate::csvio::num;
 use crate::earth::Geodetic;
 use crate::math::Vec3;

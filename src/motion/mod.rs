@@ -8,6 +8,7 @@
 pub mod causal;
 pub mod chain;
 pub mod fd;
+pub mod knot;
 pub mod limits;
 pub mod sampled;
 pub mod stream;

@@ -14,8 +14,8 @@
 use std::sync::Arc;
 
 use super::fd::stencil;
+use super::knot::{Conv, Knot, ModelError, ModelSettings, Sample, convert, make_knot};
 use super::limits::{check_sample, check_step};
-use super::sampled::{Conv, Knot, ModelError, ModelSettings, Sample, convert, make_knot};
 use crate::math::Quat;
 
 /// Samples between checkpoints (at least twice the largest stencil, see [`Window::restart`]).

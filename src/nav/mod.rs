@@ -1,8 +1,10 @@
 //! The reference strapdown navigator: free-inertial navigation on WGS-84 from our own
 //! increments (`strapdown`), the causal signal reconstruction and collocation tableau it uses
-//! (`poly`), closure runs on the built-in scenes (`closure`) and Monte Carlo comparison of
-//! IMU templates (`montecarlo`), and the GNSS-aided error-state Kalman filter (`aided`). Pure
-//! computation, no I/O.
+//! (`poly`), closure runs on the built-in scenes (`closure`), Monte Carlo comparison of IMU
+//! templates (`montecarlo`) and the campaigns `compare` runs (`campaign`), the GNSS-aided
+//! error-state Kalman filter (`aided`), the GNSS fixes read back for it (`gnss_fixes`), and
+//! recorded increments navigated against their reference (`replay`). Computation; the only
+//! reading is of records and fixes.
 
 pub mod aided;
 pub mod campaign;
@@ -10,6 +12,7 @@ pub mod closure;
 pub mod gnss_fixes;
 pub mod montecarlo;
 pub mod poly;
+pub mod replay;
 pub mod strapdown;
 
 pub use closure::{CloseError, Closure, close, close_scene};

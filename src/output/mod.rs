@@ -3,6 +3,7 @@
 
 pub mod addr;
 pub mod sink;
+pub mod text;
 
 pub use addr::SinkAddr;
 

@@ -20,6 +20,7 @@ mod builder;
 mod gnss;
 mod rig_aiding;
 mod sensors;
+pub mod source_choice;
 mod streams;
 
 use std::io::Write;
@@ -27,6 +28,7 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 pub use builder::SimulationBuilder;
+pub use source_choice::SourceChoice;
 pub use streams::AidingStreams;
 
 use crate::aiding::GnssConfig;

@@ -4,6 +4,9 @@
 //! and on CSV text it wrote itself, so a failure here is a bug, and it panics rather than
 //! returning errors.
 
+#[cfg(feature = "plot")]
+pub mod report;
+
 use crate::generator::IdealImu;
 use crate::motion::Motion;
 use crate::motion::sampled::{ModelSettings, SampledMotion};

@@ -1,0 +1,179 @@
+//! A template fitted to a static recording end to end (`imu-emu fit`): refused when the
+//! recording is too short, not uniform or not static; the IEEE terms (with an output filter
+//! and quantization where the recording shows them) and spectral lines fitted; the template
+//! written as TOML and loaded back; a record simulated from it to check the fit closes (its
+//! Allan deviation and PSD within the recording's bands); the report and the plot's panels.
+
+use std::path::PathBuf;
+
+use super::closure;
+use super::compare;
+use super::report::Closure;
+use super::template::{Provenance, sines_scene, template_toml};
+use super::{checks, lines, report};
+use crate::analysis::analyzer::{Analysis, Analyzer};
+use crate::plot::Panel;
+
+/// How to fit and what to make.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    /// The fitted template's name.
+    pub name: String,
+    /// How the template and report name the recording.
+    pub source: String,
+    /// The template's file name, for messages about it.
+    pub template_path: PathBuf,
+    /// Simulate a record from the template and check the fit closes.
+    pub closure: bool,
+    /// Seed of the closure simulation.
+    pub seed: u64,
+    /// Welch segment length (samples).
+    pub segment: usize,
+    /// The plot's file name (the report links it) and title, when one is wanted.
+    pub plot: Option<(String, String)>,
+}
+
+/// What a fit made.
+pub struct Fitted {
+    /// The template (TOML, loadable by `--imu`).
+    pub toml: String,
+    /// The Markdown report (with the closure check when it ran).
+    pub report: String,
+    /// The spectral lines found, as `[[vibration.sine]]` entries of a scene file.
+    pub sines: String,
+    /// The plot's panels and columns, when one was wanted.
+    pub plot: Option<(Vec<Panel>, usize)>,
+    /// Octaves or PSD bands of the simulated record outside the recording's band.
+    pub failures: usize,
+}
+
+/// Why a recording cannot be fitted.
+#[derive(Debug, thiserror::Error)]
+pub enum FitError {
+    /// The recording is too short, not uniform or not static.
+    #[error("{0}")]
+    Refused(String),
+    /// The fitted template does not load (a bug).
+    #[error("the fitted template does not load (a bug: please report it)")]
+    Template(#[source] crate::errors::TemplateError),
+    /// The closure simulation failed.
+    #[error(transparent)]
+    Simulation(#[from] crate::sim::SimError),
+}
+
+/// Fits a template to `rec`.
+pub fn fit(rec: &Analysis, s: &Settings) -> Result<Fitted, FitError> {
+    // Refused before anything is fitted or written: too short, not uniform, not static.
+    checks::check(rec).map_err(|e| FitError::Refused(format!("{}: {e}", s.source)))?;
+    let samples = rec.samples as usize;
+    let fitted = compare::fit_all_with_filter(rec);
+    let fits = fitted.fits;
+    let found: Vec<Vec<lines::Line>> = rec.channels.iter().map(|c| lines::find(&c.psd)).collect();
+    let prov = Provenance {
+        name: s.name.clone(),
+        source: s.source.clone(),
+        samples: rec.samples,
+        dt: rec.dt,
+        lsb: compare::triad_lsbs(rec),
+        filter: fitted.filter,
+        carry: fitted.carry,
+    };
+    let toml = template_toml(&prov, &fits, &found);
+    // The template must load as written: what `--imu` will read is what was fitted.
+    let model =
+        crate::errors::template::parse(&toml, &s.template_path).map_err(FitError::Template)?;
+    // The closure check is part of every report (stdout with -o, --report) and of the plot.
+    let closing = s.closure;
+    let table = rec.channels.iter().all(|c| c.trend.is_none());
+    // A table's τ are its own: the simulated record is kept as series, to take its Allan
+    // deviation at each of them (and analysed once more for the plot).
+    let series = if closing && table {
+        Some(closure::simulate_series(
+            model.clone(),
+            rec.dt,
+            rec.samples,
+            s.seed,
+        )?)
+    } else {
+        None
+    };
+    let simulated = if let Some(series) = &series {
+        let mut an = Analyzer::new(s.segment);
+        (0..series[0].len())
+            .for_each(|k| an.push(f64::NAN, &std::array::from_fn(|i| series[i][k])));
+        Some(an.finish(rec.dt))
+    } else if closing {
+        let filter = prov.filter.as_ref().map(|f| &f.spec);
+        Some(closure::simulate_with(
+            model,
+            closure::vibration(&found, rec.dt, filter),
+            rec.dt,
+            rec.samples,
+            s.seed,
+            s.segment,
+        )?)
+    } else {
+        None
+    };
+    let check = match &simulated {
+        Some(_) if let Some(series) = &series => Closure {
+            adev: (0..6)
+                .map(|ch| match &fits[ch] {
+                    Some(f) => {
+                        let pts = &rec.channels[ch].adev;
+                        let sim = closure::adev_at(&series[ch], rec.dt, pts);
+                        closure::compare(pts, &sim, &f.model, samples)
+                    }
+                    None => Vec::new(),
+                })
+                .collect(),
+            psd: vec![Vec::new(); 6],
+        },
+        Some(sim) => Closure {
+            adev: (0..6)
+                .map(|ch| match &fits[ch] {
+                    Some(f) => closure::compare(
+                        &rec.channels[ch].adev,
+                        &sim.channels[ch].adev,
+                        &f.model,
+                        samples,
+                    ),
+                    None => Vec::new(),
+                })
+                .collect(),
+            psd: (0..6)
+                .map(|ch| closure::compare_psd(&rec.channels[ch].psd, &sim.channels[ch].psd))
+                .collect(),
+        },
+        None => Closure::default(),
+    };
+    let text = report::markdown(
+        &prov,
+        &fits,
+        &found,
+        &check,
+        s.plot.as_ref().map(|p| p.0.as_str()),
+    );
+    let plot = s.plot.as_ref().map(|(_, title)| {
+        let adev = report::panels(rec, &fits, simulated.as_ref(), title);
+        let psd = report::psd_panels(rec, simulated.as_ref(), title);
+        // Rows: gyro x y z (and the gyro PSD), accel x y z (and the accel PSD).
+        let columns = if psd.len() == 2 { 4 } else { 3 };
+        let mut panels = Vec::new();
+        let mut psd = psd.into_iter();
+        for (i, p) in adev.into_iter().enumerate() {
+            panels.push(p);
+            if i % 3 == 2 && columns == 4 {
+                panels.extend(psd.next());
+            }
+        }
+        (panels, columns)
+    });
+    Ok(Fitted {
+        sines: sines_scene(&prov, &found),
+        toml,
+        report: text,
+        plot,
+        failures: check.failures(),
+    })
+}
