@@ -301,6 +301,11 @@ fn shuffled_summaries_merge_into_the_thread_run_table() {
         })
         .collect();
     assert_eq!(c.merge(sums.clone()).unwrap(), local);
+    // The printed table names each row by unit and outage length.
+    let table = imu_emu::nav::campaign::report::table(&local);
+    for label in ["ln200 5s ", "ln200 10s ", "adis16405 5s ", "adis16405 10s "] {
+        assert!(table.contains(label), "{label}: {table}");
+    }
     let e = c.merge(sums[1..].to_vec()).unwrap_err().to_string();
     assert!(e.contains("no summary of task"), "{e}");
     let mut twice = sums.clone();

@@ -7,17 +7,28 @@ use super::Row;
 use crate::nav::montecarlo::Point;
 use crate::plot::{Panel, Series};
 
-/// The row's label in the table, the CSV and the plot: the unit, and the outage when the
-/// campaign has several lengths.
-fn label(r: &Row, several: bool) -> String {
-    match (several, r.outage_s) {
-        (true, Some(s)) => format!("{} {s}s", r.unit),
-        _ => r.unit.clone(),
+/// The row's label in the table, the CSV and the plot: the unit, with the outage when the
+/// rows have several lengths and the mission when they have several missions.
+fn label(r: &Row, several: (bool, bool)) -> String {
+    let mut s = r.unit.clone();
+    if let (true, Some(o)) = (several.0, r.outage_s) {
+        s += &format!(" {o}s");
     }
+    if several.1 {
+        s += &format!(" @ {}", r.mission);
+    }
+    s
 }
 
-fn several_outages(rows: &[Row]) -> bool {
-    rows.iter().any(|r| r.outage_s != rows[0].outage_s)
+/// Whether the rows have several outage lengths, and several missions.
+fn several_outages(rows: &[Row]) -> (bool, bool) {
+    let first = rows.first();
+    (
+        rows.iter()
+            .any(|r| Some(r.outage_s) != first.map(|f| f.outage_s)),
+        rows.iter()
+            .any(|r| Some(&r.mission) != first.map(|f| &f.mission)),
+    )
 }
 
 /// The table: per row the errors at the window's end (median and 95 %); aided with outages,
