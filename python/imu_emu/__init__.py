@@ -111,6 +111,10 @@ class Result:
     seed: int
     imu: str
     warnings: list = field(default_factory=list)
+    #: With ``pose=True``: the truth trajectory at t₀ + k/rate, k = 0 … n (one more row than
+    #: the records: record k covers (t_{k-1}, t_k]) as ``{"t", "lat", "lon" (deg), "h" (m),
+    #: "v_ned" (n+1, 3) m/s, "rpy" (n+1, 3) deg}`` — the arrays ``trajectory=`` takes.
+    pose: Optional[dict] = None
 
 
 _TRAJECTORY_KEYS = ("t", "lat", "lon", "h", "v_ned", "rpy")
@@ -162,6 +166,7 @@ def simulate(
     quadrature: Optional[int] = None,
     truth: bool = True,
     errors: bool = True,
+    pose: bool = False,
 ) -> Result:
     """Simulates one IMU on a motion, as ``imu-emu generate`` does.
 
@@ -205,6 +210,7 @@ def simulate(
         quadrature=quadrature,
         truth=truth,
         errors=errors,
+        pose=pose,
     )
     err = None
     err_rows = d.get("errors")
@@ -223,7 +229,12 @@ def simulate(
         seed=d["seed"],
         imu=d["imu"],
         warnings=list(d["warnings"]),
+        pose=_pose(d["pose"]) if "pose" in d else None,
     )
+
+
+def _pose(a: np.ndarray) -> dict:
+    return dict(t=a[:, 0], lat=a[:, 1], lon=a[:, 2], h=a[:, 3], v_ned=a[:, 4:7], rpy=a[:, 7:10])
 
 
 def _rows(records: Any) -> np.ndarray:

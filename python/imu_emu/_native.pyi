@@ -29,6 +29,7 @@ def simulate(
     quadrature: Optional[int] = None,
     truth: bool = True,
     errors: bool = True,
+    pose: bool = False,
 ) -> dict[str, Any]: ...
 def names() -> dict[str, list[str]]: ...
 def encode(

@@ -220,7 +220,7 @@ pub fn fit(
                 crate::errors::message(&e)
             )
         })?;
-        Ok(toml)
+        Ok::<String, String>(toml)
     })
     .map_err(invalid)
 }

@@ -173,6 +173,8 @@ impl Settings {
 /// What one simulation produced, in flat buffers (row-major) until handed to numpy.
 struct Produced {
     records: Vec<f64>,
+    /// t, lat°, lon°, h, v_N, v_E, v_D, roll°, pitch°, yaw° at t₀ + k/rate, k = 0 ..= count.
+    pose: Vec<f64>,
     truth: Vec<f64>,
     errors: Vec<f64>,
     output: Vec<u8>,
@@ -186,7 +188,12 @@ struct Produced {
 const ERROR_WIDTH: usize = 1 + 6 * StageKind::ALL.len();
 
 /// Runs the simulation into flat buffers (no Python object touched: runs without the GIL).
-fn produce(b: SimulationBuilder, truth: bool, errors: bool) -> Result<Produced, SimError> {
+fn produce(
+    b: SimulationBuilder,
+    truth: bool,
+    errors: bool,
+    pose: bool,
+) -> Result<Produced, SimError> {
     if b.is_rig() {
         return Err(SimError::Invalid(
             "the scene file lists `[[imu]]` units (a rig): simulate runs one IMU; run the rig with `imu_emu.LiveRun` or the CLI".into(),
@@ -196,6 +203,7 @@ fn produce(b: SimulationBuilder, truth: bool, errors: bool) -> Result<Produced, 
     let (rate, seed, imu) = (sim.grid().rate_hz, sim.seed(), sim.imu().name.clone());
     let warnings = sim.warnings().to_vec();
     let count = sim.grid().count as usize;
+    let poses = if pose { poses(&sim) } else { Vec::new() };
     let mut p = sim.producer()?;
     if errors {
         p = p.with_components();
@@ -203,6 +211,7 @@ fn produce(b: SimulationBuilder, truth: bool, errors: bool) -> Result<Produced, 
     p.set_keep_truth(truth);
     let mut out = Produced {
         records: Vec::with_capacity(count * 13),
+        pose: poses,
         truth: Vec::with_capacity(if truth { count * 13 } else { 0 }),
         errors: Vec::with_capacity(if errors { count * ERROR_WIDTH } else { 0 }),
         output: p.preamble().into_bytes(),
@@ -236,6 +245,31 @@ fn produce(b: SimulationBuilder, truth: bool, errors: bool) -> Result<Produced, 
     Ok(out)
 }
 
+/// The truth trajectory at t₀ + k/rate, k = 0 ..= count (as `imu-emu trajectory --rate`
+/// samples it: degrees for angles), 10 values per row.
+fn poses(sim: &Simulation) -> Vec<f64> {
+    use imu_emu::motion::Motion;
+    let g = sim.grid();
+    let mut v = Vec::with_capacity((g.count as usize + 1) * 10);
+    for k in 0..=g.count {
+        let p = sim.motion().pose(g.t0 + k as f64 / g.rate_hz);
+        let (r, pi, y) = imu_emu::math::euler_from_quat(p.q_b_n);
+        v.extend_from_slice(&[
+            p.t,
+            p.lat.to_degrees(),
+            p.lon.to_degrees(),
+            p.h,
+            p.v_n.x,
+            p.v_n.y,
+            p.v_n.z,
+            r.to_degrees(),
+            pi.to_degrees(),
+            y.to_degrees(),
+        ]);
+    }
+    v
+}
+
 /// A row-major buffer of `width` columns as a numpy array that owns it (no copy).
 fn array<'py>(py: Python<'py>, v: Vec<f64>, width: usize) -> PyResult<Bound<'py, PyAny>> {
     let rows = v.len() / width;
@@ -261,7 +295,7 @@ fn error_columns() -> Vec<String> {
 #[pyo3(signature = (
     scene=None, *, scene_file=None, trajectory=None, trajectory_rows=None, motion_def=None,
     imu=None, rate=None, duration=None, start=None, seed=None, format=None, protocol_file=None,
-    interpolation=None, stencil=None, quadrature=None, truth=true, errors=true
+    interpolation=None, stencil=None, quadrature=None, truth=true, errors=true, pose=false
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn simulate<'py>(
@@ -283,6 +317,7 @@ pub fn simulate<'py>(
     quadrature: Option<usize>,
     truth: bool,
     errors: bool,
+    pose: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let rows = trajectory_rows.as_ref().map(samples).transpose()?;
     let settings = Settings {
@@ -305,7 +340,7 @@ pub fn simulate<'py>(
         imu.as_ref(),
         &settings,
     )?;
-    let p = py.detach(|| produce(b, truth, errors)).map_err(err)?;
+    let p = py.detach(|| produce(b, truth, errors, pose)).map_err(err)?;
     let d = PyDict::new(py);
     d.set_item("records", array(py, p.records, 13)?)?;
     if truth {
@@ -314,6 +349,9 @@ pub fn simulate<'py>(
     if errors {
         d.set_item("errors", array(py, p.errors, ERROR_WIDTH)?)?;
         d.set_item("error_columns", error_columns())?;
+    }
+    if pose {
+        d.set_item("pose", array(py, p.pose, 10)?)?;
     }
     d.set_item("output", PyBytes::new(py, &p.output))?;
     d.set_item("rate", p.rate)?;

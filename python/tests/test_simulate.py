@@ -52,7 +52,7 @@ def test_frames_are_generate_frames(cli, tmp_path):
 
 
 def trajectory_arrays(path):
-    text = path.read_text().splitlines()
+    text = [line for line in path.read_text().splitlines() if not line.startswith("#")]
     header = text[0].split(",")
     assert header == ["t", "lat", "lon", "h", "vn", "ve", "vd", "roll", "pitch", "yaw"]
     a = np.array([[float(x) for x in line.split(",")] for line in text[1:]])
@@ -86,7 +86,7 @@ def test_template_dict_is_the_template_file():
 
 def test_scene_file(cli, tmp_path):
     scene = REPO / "examples" / "survey.toml"
-    cli("generate", "--scene-file", scene, "--duration", 1, "--format", "bin", "-o", "s.bin",
+    cli("generate", scene, "--duration", 1, "--format", "bin", "-o", "s.bin",
         cwd=tmp_path)
     r = imu_emu.simulate(scene_file=scene, duration=1.0, format="bin")
     assert r.output == (tmp_path / "s.bin").read_bytes()
@@ -114,3 +114,12 @@ def test_trajectory_array_errors_name_row_and_array():
         imu_emu.simulate(trajectory=arrays)
     with pytest.raises(imu_emu.ImuEmuError, match=r"`rpy` has shape \(4,\)"):
         imu_emu.simulate(trajectory=dict(arrays, rpy=z))
+
+
+def test_pose_is_cli_trajectory(cli, tmp_path):
+    cli("trajectory", "--scene", "circle", "--rate", 200, "--duration", 2, "-o", "c.csv",
+        cwd=tmp_path)
+    want = trajectory_arrays(tmp_path / "c.csv")
+    got = imu_emu.simulate("circle", rate=200.0, duration=2.0, pose=True).pose
+    for k in want:
+        np.testing.assert_array_equal(got[k], want[k])
