@@ -5,6 +5,7 @@
 //! message (the same text the CLI prints).
 
 mod analysis;
+mod campaign;
 mod codec;
 mod errors;
 mod live;
@@ -24,6 +25,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(analysis::analyze, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::fit, m)?)?;
     m.add_class::<live::LiveRun>()?;
+    m.add_class::<campaign::Campaign>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
