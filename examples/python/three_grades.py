@@ -32,23 +32,32 @@ HERE = pathlib.Path(__file__).resolve().parent
 MISSION = HERE.parent / "mission.toml"
 GRADES = {"navigation (LN-200)": "ln200", "tactical (STIM300)": "stim300",
           "MEMS (ADIS16488)": "adis16488"}
+# The filter's sensor models, from each template's turn-on bias and white noise (1σ, SI):
+# gyro bias (rad/s), ARW (rad/√s), accel bias (m/s²), VRW (m/s/√s).
+DEG_H, G = np.deg2rad(1) / 3600, 9.80665
+FILTER_MODEL = {
+    "ln200": (1 * DEG_H, np.deg2rad(0.07) / 60, 50e-6 * G, 50e-6 * G),
+    "stim300": (4 * DEG_H, np.deg2rad(0.15) / 60, 0.75e-3 * G, 0.07 / 60),
+    "adis16488": (0.2 * 3600 * DEG_H, np.deg2rad(0.3) / 60, 16e-3 * G, 0.029 / 60),
+}
 
 parser = argparse.ArgumentParser(description=__doc__)
 parser.add_argument("--short", action="store_true",
-                    help="a reduced run for tests: 150 s of the mission, a 30 s outage")
+                    help="a reduced run for tests: 100 s of the mission at 50 Hz, a 30 s outage")
 parser.add_argument("-o", "--output", default="three_grades.png", help="figure file")
 args = parser.parse_args([] if "ipykernel" in sys.modules else None)
 
-RATE = 100.0                                  # IMU rate (Hz)
-DURATION = 150.0 if args.short else 400.0     # mission span simulated (s)
-OUTAGE = (120.0, 150.0) if args.short else (250.0, 370.0)   # GNSS outage (s)
+RATE = 50.0 if args.short else 100.0          # IMU rate (Hz)
+DURATION = 100.0 if args.short else 400.0     # mission span simulated (s)
+OUTAGE = (70.0, 100.0) if args.short else (250.0, 370.0)    # GNSS outage (s)
 GNSS_SD = 1.0                                 # GNSS position noise (m, 1σ)
 SEED = 1
 
 # %% [markdown]
 # ## Simulate: records, truth and the trajectory
 # One call per grade; the same seed gives the same records as
-# `imu-emu generate --motion-def examples/mission.toml --imu NAME --rate 100 --seed 1`.
+# `imu-emu generate --motion-def examples/mission.toml --imu NAME --rate 100 --duration 400
+# --seed 1`.
 
 # %%
 runs = {label: imu_emu.simulate(motion_def=MISSION, imu=name, rate=RATE, duration=DURATION,
@@ -80,7 +89,8 @@ gnss = measurements.Position(fixes, GNSS_SD)
 # sensor type applies its own, after a duplicated "before" sample as its convention asks.
 
 # %%
-def navigate(r):
+def navigate(name, r):
+    gb, arw, ab, vrw = FILTER_MODEL[name]
     rows = np.vstack([r.records.rows[:1], r.records.rows])
     t = np.r_[truth.index[0], r.records.t]
     imu = pd.DataFrame(np.hstack([rows[:, 7:10], rows[:, 10:13]]), index=t,
@@ -88,14 +98,14 @@ def navigate(r):
     increments = strapdown.compute_increments_from_imu(imu, "increment")
     result = filters.run_feedback_filter(
         truth.iloc[0], 1.0, 0.1, 0.05, 0.5, increments,
-        gyro_model=inertial_sensor.EstimationModel(bias_sd=1e-4),
-        accel_model=inertial_sensor.EstimationModel(bias_sd=0.01),
+        gyro_model=inertial_sensor.EstimationModel(bias_sd=gb, noise=arw),
+        accel_model=inertial_sensor.EstimationModel(bias_sd=ab, noise=vrw),
         measurements=[gnss], time_step=1.0)
     err = transform.compute_state_difference(result.trajectory, truth)
     return np.hypot(err["north"], err["east"])
 
 
-horizontal = {label: navigate(r) for label, r in runs.items()}
+horizontal = {label: navigate(GRADES[label], r) for label, r in runs.items()}
 
 # %% [markdown]
 # ## Error growth in the outage

@@ -22,7 +22,11 @@ enum Input {
 }
 
 /// The input described by the arguments: an array or a file.
-fn input(records: Option<PyReadonlyArray2<'_, f64>>, path: Option<PathBuf>, format: Option<String>) -> PyResult<(Input, String)> {
+fn input(
+    records: Option<PyReadonlyArray2<'_, f64>>,
+    path: Option<PathBuf>,
+    format: Option<String>,
+) -> PyResult<(Input, String)> {
     match (records, path) {
         (Some(r), None) => {
             let a = r.as_array();
@@ -32,14 +36,20 @@ fn input(records: Option<PyReadonlyArray2<'_, f64>>, path: Option<PathBuf>, form
                     a.ncols()
                 )));
             }
-            let rows = a.rows().into_iter().map(|r| std::array::from_fn(|i| r[i])).collect();
+            let rows = a
+                .rows()
+                .into_iter()
+                .map(|r| std::array::from_fn(|i| r[i]))
+                .collect();
             Ok((Input::Rows(rows), "records".into()))
         }
         (None, Some(p)) => {
             let name = p.display().to_string();
             Ok((Input::File(p, format), name))
         }
-        _ => Err(invalid("give records (an array) or a recording file, not both")),
+        _ => Err(invalid(
+            "give records (an array) or a recording file, not both",
+        )),
     }
 }
 
@@ -64,9 +74,8 @@ fn analysis(input: &Input, rate: Option<f64>, segment: usize) -> Result<Analysis
                 Some("csv") => (InputFormat::Csv(CsvOptions::default()), None),
                 Some("bin") => (InputFormat::Bin, None),
                 Some(name) => {
-                    let (spec, plan) = imu_emu::protocol::load(name).map_err(|e| {
-                        format!("format `{name}`: {}", crate::errors::message(&e))
-                    })?;
+                    let (spec, plan) = imu_emu::protocol::load(name)
+                        .map_err(|e| format!("format `{name}`: {}", crate::errors::message(&e)))?;
                     (InputFormat::Frames(plan), spec.rate_hz)
                 }
                 None if is_bin => (InputFormat::Bin, None),

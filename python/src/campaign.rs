@@ -34,9 +34,7 @@ impl Campaign {
     fn new(py: Python<'_>, spec_json: String) -> PyResult<Campaign> {
         let spec: CampaignSpec =
             serde_json::from_str(&spec_json).map_err(|e| invalid(format!("campaign spec: {e}")))?;
-        let inner = py
-            .detach(|| campaign::Campaign::new(spec))
-            .map_err(err)?;
+        let inner = py.detach(|| campaign::Campaign::new(spec)).map_err(err)?;
         Ok(Campaign {
             inner: Arc::new(inner),
             spec_json,
@@ -44,7 +42,9 @@ impl Campaign {
     }
 
     /// Pickles as the spec: a worker rebuilds the campaign from it.
-    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
         let py = slf.py();
         let cls = py.get_type::<Campaign>().into_any();
         let args = PyTuple::new(py, [slf.get().spec_json.clone()])?;
@@ -83,7 +83,10 @@ impl Campaign {
 
     /// Whether a mission's runs are GNSS-aided.
     fn aided(&self, mission: usize) -> bool {
-        self.inner.missions.get(mission).is_some_and(|m| m.gnss.is_some())
+        self.inner
+            .missions
+            .get(mission)
+            .is_some_and(|m| m.gnss.is_some())
     }
 
     /// Every task as (mission, unit, outage, run), in the merge's order.
@@ -103,7 +106,9 @@ impl Campaign {
             run,
         };
         if !self.inner.tasks().contains(&t) {
-            return Err(invalid(format!("task {task:?} is not one of this campaign's")));
+            return Err(invalid(format!(
+                "task {task:?} is not one of this campaign's"
+            )));
         }
         let inner = self.inner.clone();
         let s = py.detach(move || inner.run_task(&t)).map_err(err)?;

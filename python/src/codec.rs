@@ -30,7 +30,8 @@ fn plan(protocol: &str, rate: Option<&Bound<'_, PyAny>>) -> PyResult<(Plan, Opti
         })?),
     };
     if let Some(r) = rate {
-        plan.set_rate(r).map_err(|e| invalid(format!("rate: {e}")))?;
+        plan.set_rate(r)
+            .map_err(|e| invalid(format!("rate: {e}")))?;
     }
     Ok((plan, rate))
 }
@@ -96,7 +97,10 @@ struct Table {
 fn decode_table(plan: Plan, data: &[u8], fixed_dt: Option<f64>, native: bool) -> Table {
     let contract = !native && plan.channels().is_none();
     let mut columns: Vec<String> = if contract {
-        imu_emu::record::COLUMNS.iter().map(|c| c.to_string()).collect()
+        imu_emu::record::COLUMNS
+            .iter()
+            .map(|c| c.to_string())
+            .collect()
     } else {
         Vec::new()
     };

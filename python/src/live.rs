@@ -85,7 +85,11 @@ impl LiveRun {
             )));
         }
         if !spec.signal.is_rig() && spec.routes.is_empty() {
-            spec.add_route(StreamId::imu(), SinkAddr::Pty(None), "the default pty".into());
+            spec.add_route(
+                StreamId::imu(),
+                SinkAddr::Pty(None),
+                "the default pty".into(),
+            );
         }
         spec.clock.speed = Some(Speed::Factor(speed));
         Ok(LiveRun {
@@ -108,7 +112,10 @@ impl LiveRun {
         let describe = run.describe();
         let notes = self.notes.clone();
         self.ctl = Control::with_notes(move |n| {
-            notes.lock().unwrap_or_else(|e| e.into_inner()).push(n.to_string())
+            notes
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(n.to_string())
         });
         let ctl = self.ctl.clone();
         self.thread = Some(std::thread::spawn(move || run.execute(&ctl)));
@@ -128,7 +135,11 @@ impl LiveRun {
     /// Waits (without the GIL) until the run ends or `timeout` seconds pass; returns the
     /// report (`None` on a timeout). A run that failed raises its error.
     #[pyo3(signature = (timeout=None))]
-    fn wait<'py>(&mut self, py: Python<'py>, timeout: Option<f64>) -> PyResult<Option<Bound<'py, PyDict>>> {
+    fn wait<'py>(
+        &mut self,
+        py: Python<'py>,
+        timeout: Option<f64>,
+    ) -> PyResult<Option<Bound<'py, PyDict>>> {
         if let Some(t) = self.thread.take() {
             let deadline = timeout.map(|s| Instant::now() + Duration::from_secs_f64(s.max(0.0)));
             let done = py.detach(|| {

@@ -19,8 +19,16 @@ use crate::errors::{err, invalid};
 
 /// Names of the trajectory array columns, in the order of a trajectory CSV's.
 const ARRAY_COLUMNS: [&str; 10] = [
-    "t", "lat", "lon", "h", "v_ned[:, 0]", "v_ned[:, 1]", "v_ned[:, 2]", "rpy[:, 0]",
-    "rpy[:, 1]", "rpy[:, 2]",
+    "t",
+    "lat",
+    "lon",
+    "h",
+    "v_ned[:, 0]",
+    "v_ned[:, 1]",
+    "v_ned[:, 2]",
+    "rpy[:, 0]",
+    "rpy[:, 1]",
+    "rpy[:, 2]",
 ];
 
 /// The label of trajectory arrays in messages.
@@ -65,7 +73,11 @@ fn row_message(e: &FileError) -> String {
         Some((i, _)) if (1..=10).contains(i) => format!(" `{}`", ARRAY_COLUMNS[i - 1]),
         _ => String::new(),
     };
-    let sep = if row.is_empty() && column.is_empty() { "" } else { "," };
+    let sep = if row.is_empty() && column.is_empty() {
+        ""
+    } else {
+        ","
+    };
     format!("{ARRAYS}:{row}{sep}{column}: {}", e.message).replace(":,", ":")
 }
 

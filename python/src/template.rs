@@ -30,7 +30,11 @@ fn to_toml(v: &Bound<'_, PyAny>, at: &str) -> PyResult<toml::Value> {
             let k: String = k
                 .extract()
                 .map_err(|_| invalid(format!("template dict {at}: keys must be strings")))?;
-            let here = if at.is_empty() { k.clone() } else { format!("{at}.{k}") };
+            let here = if at.is_empty() {
+                k.clone()
+            } else {
+                format!("{at}.{k}")
+            };
             t.insert(k, to_toml(&x, &here)?);
         }
         return Ok(toml::Value::Table(t));

@@ -158,12 +158,13 @@ pub fn build_motion(source: &SourceSpec, model: ModelSettings) -> Result<AnyMoti
         SourceSpec::File(path) => Ok(AnyMotion::Sampled(trajectory::open_motion(path, model)?)),
         SourceSpec::MotionDef(path) => Ok(AnyMotion::Defined(crate::motiondef::open(path)?)),
         SourceSpec::Samples { label, samples } => {
-            let m = crate::motion::sampled::SampledMotion::new(samples, model).map_err(|source| {
-                EngineError::Model {
-                    path: label.clone(),
-                    source,
-                }
-            })?;
+            let m =
+                crate::motion::sampled::SampledMotion::new(samples, model).map_err(|source| {
+                    EngineError::Model {
+                        path: label.clone(),
+                        source,
+                    }
+                })?;
             Ok(AnyMotion::Sampled(m))
         }
     }
