@@ -100,48 +100,15 @@ pub fn compare(a: CompareArgs) -> Result<()> {
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let rows = campaign.run_local(threads)?;
-    let m = &campaign.missions[0];
-    let rates: Vec<String> = m.units.iter().map(|(_, g)| g.rate_hz.to_string()).collect();
-    let mut rates_shown = rates.clone();
-    rates_shown.dedup();
-    let windows = rows.first().map_or(0, |r| r.windows);
-    let mode = match (m.gnss.is_some(), a.outage.is_empty()) {
-        (false, true) => "free-inertial from the true state over the run".to_string(),
-        (false, false) => {
-            format!("{windows} outages per run, back to back (reset to the truth at each start)")
-        }
-        (true, true) => "GNSS-aided over the run".to_string(),
-        (true, false) => format!(
-            "GNSS-aided, {windows} outages per run each after {} s of fixes",
-            a.aided
-        ),
-    };
     let mut out = std::io::stdout().lock();
-    writeln!(
-        out,
-        "compare: {}, {} Hz, {mode}; {} runs per unit, seed {}",
-        a.reference.name(),
-        rates_shown.join("/"),
-        a.runs,
-        campaign.seed
-    )?;
+    let header = report::header(&campaign, &rows, &a.reference.name());
+    writeln!(out, "{header}")?;
     for n in &campaign.notes {
         writeln!(out, "note: {n}")?;
     }
     out.write_all(report::table(&rows).as_bytes())?;
     if let Some(path) = &a.plot {
-        let what = match (a.outage.is_empty(), m.gnss.is_some()) {
-            (true, false) => "free inertial".to_string(),
-            (true, true) => "GNSS-aided".to_string(),
-            (false, aided) => {
-                let s: Vec<String> = a.outage.iter().map(|s| s.to_string()).collect();
-                format!(
-                    "{} s outages{}",
-                    s.join("/"),
-                    if aided { ", GNSS-aided before" } else { "" }
-                )
-            }
-        };
+        let what = report::plot_title(&campaign);
         imu_emu::plot::render(path, &report::growth_panels(&rows, &what), 1, (1200, 1500))?;
         eprintln!("imu-emu compare: plot written to {}", path.display());
     }

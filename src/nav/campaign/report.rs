@@ -160,3 +160,52 @@ pub fn growth_panels(rows: &[Row], what: &str) -> Vec<Panel> {
         })
         .collect()
 }
+
+/// What the runs were, for the table's first line: the mission's name `name`, the rates, the
+/// mode (free-inertial or aided, the outages and how many per run), runs and seed.
+pub fn header(c: &super::Campaign, rows: &[Row], name: &str) -> String {
+    let mut rates: Vec<String> = c.missions[0]
+        .units
+        .iter()
+        .map(|(_, g)| g.rate_hz.to_string())
+        .collect();
+    rates.dedup();
+    // Windows per run of each outage length (the first unit's rows).
+    let unit0 = rows.first().map(|r| r.unit.as_str()).unwrap_or_default();
+    let windows: Vec<String> = (rows.iter().filter(|r| r.unit == unit0))
+        .map(|r| format!("{} × {} s", r.windows, r.outage_s.unwrap_or(0.0)))
+        .collect();
+    let windows = windows.join(", ");
+    let aided = c.missions[0].gnss.is_some();
+    let mode = match (aided, c.spec.outages_s.is_empty()) {
+        (false, true) => "free-inertial from the true state over the run".to_string(),
+        (false, false) => {
+            format!("outages back to back, {windows} per run (reset to the truth at each start)")
+        }
+        (true, true) => "GNSS-aided over the run".to_string(),
+        (true, false) => format!(
+            "GNSS-aided, outages of {windows} per run, each after {} s of fixes",
+            c.spec.aided_s
+        ),
+    };
+    format!(
+        "compare: {name}, {} Hz, {mode}; {} runs per unit, seed {}",
+        rates.join("/"),
+        c.spec.runs,
+        c.seed
+    )
+}
+
+/// The plot's subtitle: free inertial, GNSS-aided, or the outage lengths.
+pub fn plot_title(c: &super::Campaign) -> String {
+    let aided = c.missions[0].gnss.is_some();
+    match (c.spec.outages_s.is_empty(), aided) {
+        (true, false) => "free inertial".to_string(),
+        (true, true) => "GNSS-aided".to_string(),
+        (false, aided) => {
+            let s: Vec<String> = c.spec.outages_s.iter().map(|s| s.to_string()).collect();
+            let before = if aided { ", GNSS-aided before" } else { "" };
+            format!("{} s outages{before}", s.join("/"))
+        }
+    }
+}
