@@ -56,6 +56,10 @@ class CampaignResult:
     #: (m/s), attitude (rad)).
     rows: list
     rows_json: str
+    #: What ``imu-emu compare`` prints above the table (the runs, the notes).
+    header: str
+    #: The growth plot's subtitle.
+    plot_title: str
 
     @property
     def table(self) -> str:
@@ -63,13 +67,18 @@ class CampaignResult:
         return _native.Campaign.table(self.rows_json)
 
     @property
+    def report(self) -> str:
+        """``imu-emu compare``'s whole output: the header, the notes and the table."""
+        return self.header + self.table
+
+    @property
     def growth_csv(self) -> str:
         """The growth CSV, as ``imu-emu compare --csv`` writes it."""
         return _native.Campaign.growth_csv(self.rows_json)
 
-    def plot(self, path: str, what: str = "") -> None:
+    def plot(self, path: str) -> None:
         """The growth plot (PNG or SVG), as ``imu-emu compare --plot`` draws it."""
-        _native.Campaign.plot(self.rows_json, str(path), what)
+        _native.Campaign.plot(self.rows_json, str(path), self.plot_title)
 
 
 class Campaign:
@@ -99,15 +108,17 @@ class Campaign:
 
     def merge(self, summaries: Iterable[str]) -> CampaignResult:
         """Merges task summaries (any order, every task once)."""
-        rows_json = self._native.merge(list(summaries))
-        return CampaignResult(json.loads(rows_json), rows_json)
+        return self._result(self._native.merge(list(summaries)))
+
+    def _result(self, rows_json: str) -> CampaignResult:
+        return CampaignResult(json.loads(rows_json), rows_json, self._native.header(rows_json),
+                              self._native.plot_title())
 
 
 def run_local(spec: dict[str, Any], threads: int = 1) -> CampaignResult:
     """Runs every task on ``threads`` local threads (``imu-emu compare``'s way) and merges."""
     c = Campaign(spec)
-    rows_json = c._native.run_local(threads)
-    return CampaignResult(json.loads(rows_json), rows_json)
+    return c._result(c._native.run_local(threads))
 
 
 def run_dask(spec: dict[str, Any], client: Any, batch: int = 1) -> CampaignResult:

@@ -135,6 +135,24 @@ impl Campaign {
         serde_json::to_string(&rows).map_err(|e| invalid(e.to_string()))
     }
 
+    /// The lines `imu-emu compare` prints above the table for rows (JSON): what the runs
+    /// were (mission, rates, mode, runs, seed), then the notes.
+    fn header(&self, rows_json: &str) -> PyResult<String> {
+        let rows = rows(rows_json)?;
+        let name = (self.inner.missions.first()).map_or(String::new(), |m| m.name.clone());
+        let mut s = report::header(&self.inner, &rows, &name);
+        s.push('\n');
+        for n in &self.inner.notes {
+            s.push_str(&format!("note: {n}\n"));
+        }
+        Ok(s)
+    }
+
+    /// The growth plot's subtitle, as `imu-emu compare --plot` titles it.
+    fn plot_title(&self) -> String {
+        report::plot_title(&self.inner)
+    }
+
     /// The median/95 % table of rows (JSON), as `imu-emu compare` prints it.
     #[staticmethod]
     fn table(rows_json: &str) -> PyResult<String> {
