@@ -63,7 +63,10 @@ def main():
     serial = time.perf_counter() - t0
     rows = [("in-process, 1 thread", serial, 1, statistics.mean(per))]
 
-    reference = c.merge([campaign.run_task(c.spec_json, t) for t in tasks]).rows_json
+    summaries = [campaign.run_task(c.spec_json, t) for t in tasks]
+    t0 = time.perf_counter()
+    reference = c.merge(summaries).rows_json
+    merge = time.perf_counter() - t0
     for workers in (1, 2):
         with distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                       dashboard_address=None) as cluster, \
@@ -91,7 +94,8 @@ def main():
     print(f"run itself in-process (simulate + navigate one task, Rust): mean "
           f"{statistics.mean(per) * 1e3:.1f} ms, min {min(per) * 1e3:.1f}, max {max(per) * 1e3:.1f}")
     print(f"campaign build (once per worker and spec): {build * 1e3:.1f} ms")
-    print(f"summary: {statistics.mean(sizes) / 1e3:.1f} kB of JSON per task")
+    print(f"summary: {statistics.mean(sizes) / 1e3:.1f} kB of JSON per task; merging "
+          f"{len(tasks)} summaries: {merge * 1e3:.1f} ms")
     print(f"cores here: {os.cpu_count()}, load average {os.getloadavg()[0]:.1f} at the end")
 
 

@@ -43,3 +43,30 @@ def test_emulator_runs_to_its_end_and_refuses_bad_sinks(tmp_path):
     assert r is not None and not r["stopped"] and r["frames"] == 200
     offline = imu_emu.simulate("static", imu="ln200", format="kvh1750", duration=0.2, seed=4)
     assert out.read_bytes() == offline.output
+
+
+def test_emulator_pty_sends_the_offline_bytes(tmp_path):
+    import os
+    import tty
+
+    link = tmp_path / "imu"
+    args = dict(imu="ln200", format="kvh1750", seed=2, rate=1000.0)
+    got = bytearray()
+    with imu_emu.Emulator("circle", sinks=[f"pty:{link}"], speed=2.0, **args) as emu:
+        deadline = time.monotonic() + 10
+        while not link.exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        fd = os.open(link, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        tty.setraw(fd)  # bytes as sent: no line discipline
+        try:
+            while len(got) < 4000 and time.monotonic() < deadline:
+                try:
+                    got += os.read(fd, 65536)
+                except BlockingIOError:
+                    time.sleep(0.005)
+        finally:
+            os.close(fd)
+    assert emu.report["stopped"]
+    offline = imu_emu.simulate("circle", duration=emu.report["frames"] / 1000.0, **args).output
+    # The reader joined after the first frames: what it got is a run of the offline bytes.
+    assert len(got) >= 4000 and bytes(got) in offline
