@@ -232,7 +232,7 @@ fn compare_cli_rig_scene_with_gnss() {
     let text = String::from_utf8(a.stdout).unwrap();
     println!("{text}");
     assert!(
-        text.contains("GNSS-aided, 2 outages per run each after 3 s of fixes"),
+        text.contains("GNSS-aided, outages of 2 × 2 s per run, each after 3 s of fixes"),
         "{text}"
     );
     assert!(text.contains("position at start m"), "{text}");

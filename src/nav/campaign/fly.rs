@@ -65,7 +65,7 @@ pub enum Mode {
     /// window over the run, always aided).
     Aided {
         /// The receiver's settings.
-        gnss: GnssConfig,
+        gnss: Box<GnssConfig>,
         /// Whether the windows are outages.
         outage: bool,
     },
@@ -123,7 +123,7 @@ pub fn fly(
     let time = |k: u64| g.t0 + k as f64 / g.rate_hz;
     let truth = |k: u64| unit.truth(motion, time(k));
     let mut nav = match mode {
-        Mode::Free => Nav::Free(Navigator::new(truth(0), g.rate_hz, settings)?),
+        Mode::Free => Nav::Free(Box::new(Navigator::new(truth(0), g.rate_hz, settings)?)),
         Mode::Aided { gnss, .. } => {
             let cfg = filter_model(&unit.model, gnss, unit);
             let rx = Receiver::new(receiver_config(gnss, motion), seed)
@@ -168,7 +168,7 @@ pub fn fly(
             match &mut nav {
                 Nav::Free(n) => {
                     let before = k - 1;
-                    if before > 0 && before % windows.len == 0 {
+                    if before > 0 && before.is_multiple_of(windows.len) {
                         n.reset(&truth(before));
                     }
                     n.step(r.dtheta, r.dv);
@@ -203,7 +203,7 @@ pub fn fly(
 
 /// The navigator of a run.
 enum Nav {
-    Free(Navigator),
+    Free(Box<Navigator>),
     Aided(Box<AidedNavigator>, Box<Receiver>),
 }
 

@@ -372,7 +372,7 @@ impl Campaign {
         match &self.missions[t.mission].gnss {
             None => Mode::Free,
             Some(g) => Mode::Aided {
-                gnss: g.clone(),
+                gnss: Box::new(g.clone()),
                 outage: self.outage_s(t).is_some(),
             },
         }
