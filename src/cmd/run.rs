@@ -40,10 +40,18 @@ pub struct RunArgs {
     /// UDP sink HOST:PORT (unicast, broadcast or multicast); repeatable.
     #[arg(long, value_name = "HOST:PORT[,protocol=NAME]")]
     pub udp: Vec<String>,
+    /// TCP sink: connects to a consumer listening at HOST:PORT (reconnects when it goes,
+    /// frames count as "no reader" meanwhile); repeatable.
+    #[arg(long, value_name = "HOST:PORT[,protocol=NAME]")]
+    pub tcp: Vec<String>,
+    /// TCP sink: listens on ADDR:PORT and sends every frame to every client connected;
+    /// repeatable.
+    #[arg(long, value_name = "ADDR:PORT[,protocol=NAME]")]
+    pub tcp_listen: Vec<String>,
     /// File sink, or - for stdout; repeatable.
     #[arg(long, value_name = "PATH[,protocol=NAME]")]
     pub file: Vec<String>,
-    /// A rig unit's sink, NAME=KIND:TARGET with KIND pty, serial, udp or file (e.g.
+    /// A rig unit's sink, NAME=KIND:TARGET with KIND pty, serial, udp, tcp, tcp-listen or file (e.g.
     /// `nav=udp:127.0.0.1:9001`); repeatable; replaces the scene file's `sink` of that unit.
     #[arg(long, value_name = "NAME=SINK")]
     pub unit_sink: Vec<String>,
@@ -223,6 +231,8 @@ pub fn spec(a: &RunArgs) -> Result<RunSpec> {
         ("pty", &a.pty),
         ("serial", &a.serial),
         ("udp", &a.udp),
+        ("tcp", &a.tcp),
+        ("tcp-listen", &a.tcp_listen),
         ("file", &a.file),
     ];
     for (kind, values) in sinks {
