@@ -42,6 +42,14 @@ pub enum SourceSpec {
     File(PathBuf),
     /// A motion-definition file (gnss-ins-sim CSV).
     MotionDef(PathBuf),
+    /// Trajectory samples held in memory (checked as a trajectory file's rows are), named by
+    /// `label` in messages: for callers that have the trajectory as arrays (Python).
+    Samples {
+        /// What the samples are, for messages (`trajectory arrays`).
+        label: PathBuf,
+        /// The samples, in time order.
+        samples: std::sync::Arc<Vec<crate::motion::sampled::Sample>>,
+    },
 }
 
 /// Everything the engine can refuse, each naming what to fix.
@@ -149,6 +157,16 @@ pub fn build_motion(source: &SourceSpec, model: ModelSettings) -> Result<AnyMoti
         SourceSpec::Scene(name, params) => Ok(AnyMotion::Scene(scenes::build(name, params)??)),
         SourceSpec::File(path) => Ok(AnyMotion::Sampled(trajectory::open_motion(path, model)?)),
         SourceSpec::MotionDef(path) => Ok(AnyMotion::Defined(crate::motiondef::open(path)?)),
+        SourceSpec::Samples { label, samples } => {
+            let m =
+                crate::motion::sampled::SampledMotion::new(samples, model).map_err(|source| {
+                    EngineError::Model {
+                        path: label.clone(),
+                        source,
+                    }
+                })?;
+            Ok(AnyMotion::Sampled(m))
+        }
     }
 }
 

@@ -17,7 +17,7 @@ use crate::errors::temperature::TemperatureProfile;
 use crate::errors::template::ImuModel;
 use crate::errors::vibration::VibrationSpec;
 use crate::motion::causal::CausalMotion;
-use crate::motion::sampled::Degree;
+use crate::motion::sampled::{Degree, ModelSettings};
 use crate::protocol::{self, FaultSpec};
 
 /// The IMU of a builder: a template name or file, or a model built in code.
@@ -35,6 +35,8 @@ pub struct SimulationBuilder {
     scene: Option<String>,
     trajectory: Option<PathBuf>,
     motion_def: Option<PathBuf>,
+    /// Trajectory samples held in memory (label, samples).
+    samples: Option<(PathBuf, std::sync::Arc<Vec<crate::motion::sampled::Sample>>)>,
     imu: Option<Imu>,
     rate: Option<f64>,
     start: Option<f64>,
@@ -70,6 +72,7 @@ impl Default for SimulationBuilder {
             scene: None,
             trajectory: None,
             motion_def: None,
+            samples: None,
             imu: None,
             rate: None,
             start: None,
@@ -97,6 +100,16 @@ impl Default for SimulationBuilder {
             live: None,
         }
     }
+}
+
+/// A sampled model's settings in words (`quintic, stencil 9`).
+fn model_words(m: ModelSettings) -> String {
+    let degree = if m.degree == Degree::Quintic {
+        "quintic"
+    } else {
+        "cubic"
+    };
+    format!("{degree}, stencil {}", m.stencil)
 }
 
 /// The default IMU rate when neither a setting, the protocol nor the template gives one (Hz).
@@ -127,6 +140,7 @@ impl SimulationBuilder {
         self.scene = Some(name.into());
         self.trajectory = None;
         self.motion_def = None;
+        self.samples = None;
         self
     }
 
@@ -135,6 +149,7 @@ impl SimulationBuilder {
         self.trajectory = Some(path.into());
         self.scene = None;
         self.motion_def = None;
+        self.samples = None;
         self
     }
 
@@ -143,6 +158,22 @@ impl SimulationBuilder {
         self.motion_def = Some(path.into());
         self.scene = None;
         self.trajectory = None;
+        self.samples = None;
+        self
+    }
+
+    /// Trajectory samples held in memory instead of a scene or a file, modelled as a
+    /// trajectory file's rows are; `label` names them in messages. The caller checks them as
+    /// [`crate::trajectory::parse`] does (e.g. by building them with it).
+    pub fn trajectory_samples(
+        mut self,
+        label: impl Into<PathBuf>,
+        samples: Vec<crate::motion::sampled::Sample>,
+    ) -> SimulationBuilder {
+        self.samples = Some((label.into(), std::sync::Arc::new(samples)));
+        self.scene = None;
+        self.trajectory = None;
+        self.motion_def = None;
         self
     }
 
@@ -303,7 +334,10 @@ impl SimulationBuilder {
     /// Whether a setter chose the trajectory (a scene, a trajectory file or a motion
     /// definition), over the scene file's `[trajectory]`.
     pub fn has_source(&self) -> bool {
-        self.scene.is_some() || self.trajectory.is_some() || self.motion_def.is_some()
+        self.scene.is_some()
+            || self.trajectory.is_some()
+            || self.motion_def.is_some()
+            || self.samples.is_some()
     }
 
     /// The trajectory in words (`scene survey`, `trajectory file f.csv (quintic, stencil 9)`,
@@ -312,16 +346,10 @@ impl SimulationBuilder {
         let m = self.model_settings()?;
         Ok(match self.source()?.0 {
             SourceSpec::Scene(name, _) => format!("scene {name}"),
-            SourceSpec::File(p) => format!(
-                "trajectory file {} ({}, stencil {})",
-                p.display(),
-                if m.degree == Degree::Quintic {
-                    "quintic"
-                } else {
-                    "cubic"
-                },
-                m.stencil
-            ),
+            SourceSpec::File(p) => format!("trajectory file {} ({})", p.display(), model_words(m)),
+            SourceSpec::Samples { label, .. } => {
+                format!("{} ({})", label.display(), model_words(m))
+            }
             SourceSpec::MotionDef(p) => format!("motion definition {}", p.display()),
         })
     }
@@ -329,7 +357,10 @@ impl SimulationBuilder {
     /// Whether the trajectory is sampled (a trajectory file), the only motion the
     /// interpolation and stencil settings shape (a live motion's too).
     pub fn is_sampled(&self) -> Result<bool, SimError> {
-        Ok(matches!(self.source()?.0, SourceSpec::File(_)))
+        Ok(matches!(
+            self.source()?.0,
+            SourceSpec::File(_) | SourceSpec::Samples { .. }
+        ))
     }
 
     /// Whether a setter (a flag) chose the interpolation or the stencil; the scene file's

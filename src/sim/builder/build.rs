@@ -33,6 +33,11 @@ impl SimulationBuilder {
         if let Some(path) = &self.motion_def {
             return Ok((SourceSpec::MotionDef(path.clone()), false, false));
         }
+        if let Some((label, samples)) = &self.samples {
+            let samples = samples.clone();
+            let label = label.clone();
+            return Ok((SourceSpec::Samples { label, samples }, false, false));
+        }
         let embedded = self.file.motion.is_some() && self.scene.is_none();
         if embedded {
             if t.scene.is_some() || t.file.is_some() || t.motion_def.is_some() {
@@ -194,7 +199,10 @@ impl SimulationBuilder {
         if let (Some(f), false) = (&self.file_path, keys.is_empty()) {
             place.push(format!("{}: {}", f.display(), keys.join(", ")));
         }
-        if let SourceSpec::File(path) | SourceSpec::MotionDef(path) = source {
+        if let SourceSpec::File(path)
+        | SourceSpec::MotionDef(path)
+        | SourceSpec::Samples { label: path, .. } = source
+        {
             place.push(path.display().to_string());
         }
         (!place.is_empty()).then(|| place.join(": "))

@@ -1,0 +1,235 @@
+//! `analyze` (statistics, octave Allan deviation with its χ² bands, Welch PSD, IEEE terms,
+//! the verdict against a template) and `fit` (a template fitted to a static recording), on
+//! records in memory or a recording file, as `imu-emu analyze` and `imu-emu fit` compute them.
+
+use std::path::{Path, PathBuf};
+
+use numpy::{IntoPyArray, PyReadonlyArray2};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use imu_emu::analysis::analyzer::{Analysis, Analyzer, CHANNELS};
+use imu_emu::analysis::reader::{self, CsvOptions, InputFormat};
+
+use crate::errors::{err, invalid};
+
+/// Where the samples come from.
+enum Input {
+    /// Rows of t, gyro xyz, accel xyz (the first 7 columns of records).
+    Rows(Vec<[f64; 7]>),
+    /// A recording file in `format` (csv, bin or a protocol; None: by extension).
+    File(PathBuf, Option<String>),
+}
+
+/// The input described by the arguments: an array or a file.
+fn input(
+    records: Option<PyReadonlyArray2<'_, f64>>,
+    path: Option<PathBuf>,
+    format: Option<String>,
+) -> PyResult<(Input, String)> {
+    match (records, path) {
+        (Some(r), None) => {
+            let a = r.as_array();
+            if a.ncols() < 7 {
+                return Err(invalid(format!(
+                    "records: {} columns, expected at least 7 (t, gyro ×3, accel ×3, …)",
+                    a.ncols()
+                )));
+            }
+            let rows = a
+                .rows()
+                .into_iter()
+                .map(|r| std::array::from_fn(|i| r[i]))
+                .collect();
+            Ok((Input::Rows(rows), "records".into()))
+        }
+        (None, Some(p)) => {
+            let name = p.display().to_string();
+            Ok((Input::File(p, format), name))
+        }
+        _ => Err(invalid(
+            "give records (an array) or a recording file, not both",
+        )),
+    }
+}
+
+/// Reads the input through an analyzer, as the CLI's `InputArgs::analyze` does.
+fn analysis(input: &Input, rate: Option<f64>, segment: usize) -> Result<Analysis, String> {
+    if let Some(r) = rate
+        && !(r > 0.0 && r.is_finite())
+    {
+        return Err(format!("rate: expected a positive number of Hz, got {r}"));
+    }
+    let mut an = Analyzer::new(segment);
+    let (label, spec_rate) = match input {
+        Input::Rows(rows) => {
+            for r in rows {
+                an.push(r[0], &std::array::from_fn(|i| r[i + 1]));
+            }
+            ("records".to_string(), None)
+        }
+        Input::File(p, format) => {
+            let is_bin = p.extension().is_some_and(|e| e == "bin");
+            let (format, spec_rate) = match format.as_deref() {
+                Some("csv") => (InputFormat::Csv(CsvOptions::default()), None),
+                Some("bin") => (InputFormat::Bin, None),
+                Some(name) => {
+                    let (spec, plan) = imu_emu::protocol::load(name)
+                        .map_err(|e| format!("format `{name}`: {}", crate::errors::message(&e)))?;
+                    (InputFormat::Frames(plan), spec.rate_hz)
+                }
+                None if is_bin => (InputFormat::Bin, None),
+                None => (InputFormat::Csv(CsvOptions::default()), None),
+            };
+            let rate = rate.or(spec_rate);
+            reader::read(p, &format, rate.map(|r| 1.0 / r), |t, v| an.push(t, v))
+                .map_err(|e| crate::errors::message(&e))?;
+            (p.display().to_string(), spec_rate)
+        }
+    };
+    let rate = rate.or(spec_rate);
+    if an.samples() < 8 {
+        return Err(format!(
+            "{label}: {} samples; the analysis needs at least 8",
+            an.samples()
+        ));
+    }
+    let dt = match (rate, an.measured_dt()) {
+        (Some(r), _) => 1.0 / r,
+        (None, Some(dt)) => dt,
+        (None, None) => {
+            return Err(format!(
+                "{label}: no usable time column; give the sampling rate with rate="
+            ));
+        }
+    };
+    Ok(an.finish(dt))
+}
+
+/// Analyses records or a recording; see `imu_emu.analyze`.
+#[pyfunction]
+#[pyo3(signature = (records=None, *, path=None, format=None, rate=None, imu=None, segment=imu_emu::analysis::analyzer::DEFAULT_SEGMENT))]
+pub fn analyze<'py>(
+    py: Python<'py>,
+    records: Option<PyReadonlyArray2<'py, f64>>,
+    path: Option<PathBuf>,
+    format: Option<String>,
+    rate: Option<f64>,
+    imu: Option<String>,
+    segment: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (inp, _) = input(records, path, format)?;
+    let model = imu
+        .as_deref()
+        .map(imu_emu::errors::template::load)
+        .transpose()
+        .map_err(err)?;
+    let (res, rows) = py
+        .detach(|| {
+            let res = analysis(&inp, rate, segment)?;
+            let rows = model
+                .as_ref()
+                .map(|m| imu_emu::analysis::conformance::term_rows(m, &res));
+            Ok::<_, String>((res, rows))
+        })
+        .map_err(invalid)?;
+    let d = PyDict::new(py);
+    d.set_item("samples", res.samples)?;
+    d.set_item("dt", res.dt)?;
+    let channels = PyList::empty(py);
+    for (i, c) in res.channels.iter().enumerate() {
+        let ch = PyDict::new(py);
+        ch.set_item("name", CHANNELS[i])?;
+        ch.set_item("mean", c.stats.mean)?;
+        ch.set_item("std", c.stats.std())?;
+        ch.set_item("min", c.stats.min)?;
+        ch.set_item("max", c.stats.max)?;
+        let col = |f: fn(&imu_emu::analysis::octave_adev::AdevPoint) -> f64| {
+            c.adev.iter().map(f).collect::<Vec<f64>>().into_pyarray(py)
+        };
+        let adev = PyDict::new(py);
+        adev.set_item("tau", col(|p| p.tau))?;
+        adev.set_item("adev", col(|p| p.adev))?;
+        adev.set_item("lo", col(|p| p.lo))?;
+        adev.set_item("hi", col(|p| p.hi))?;
+        adev.set_item("edf", col(|p| p.edf))?;
+        ch.set_item("adev", adev)?;
+        let psd = PyDict::new(py);
+        psd.set_item("freq", c.psd.freq.clone().into_pyarray(py))?;
+        psd.set_item("density", c.psd.density.clone().into_pyarray(py))?;
+        psd.set_item("segments", c.psd.segments)?;
+        ch.set_item("psd", psd)?;
+        let terms = PyDict::new(py);
+        for t in c.fit.terms {
+            let e = PyDict::new(py);
+            e.set_item("name", t.term.name())?;
+            e.set_item("value", t.value)?;
+            e.set_item("tau", t.tau)?;
+            e.set_item("share", t.share)?;
+            terms.set_item(t.term.symbol(), e)?;
+        }
+        ch.set_item("terms", terms)?;
+        channels.append(ch)?;
+    }
+    d.set_item("channels", channels)?;
+    if let Some(rows) = rows {
+        let list = PyList::empty(py);
+        for r in rows {
+            let e = PyDict::new(py);
+            e.set_item("sensor", r.sensor)?;
+            e.set_item("axis", r.axis)?;
+            e.set_item("term", r.term.symbol())?;
+            e.set_item("specified", r.specified)?;
+            e.set_item("fitted", r.fitted)?;
+            e.set_item("tau", r.tau)?;
+            e.set_item("band", r.band)?;
+            e.set_item("pass", r.pass)?;
+            e.set_item("resolved", r.resolved)?;
+            list.append(e)?;
+        }
+        d.set_item("template", list)?;
+    }
+    Ok(d)
+}
+
+/// Fits a template to a static recording; see `imu_emu.fit`.
+#[pyfunction]
+#[pyo3(signature = (records=None, *, path=None, format=None, rate=None, name=None, segment=imu_emu::analysis::analyzer::DEFAULT_SEGMENT))]
+pub fn fit(
+    py: Python<'_>,
+    records: Option<PyReadonlyArray2<'_, f64>>,
+    path: Option<PathBuf>,
+    format: Option<String>,
+    rate: Option<f64>,
+    name: Option<String>,
+    segment: usize,
+) -> PyResult<String> {
+    use imu_emu::fit::{checks, compare, lines, template};
+    let (inp, source) = input(records, path, format)?;
+    py.detach(|| {
+        let rec = analysis(&inp, rate, segment)?;
+        checks::check(&rec).map_err(|e| format!("{source}: {e}"))?;
+        let fitted = compare::fit_all_with_filter(&rec);
+        let found: Vec<Vec<lines::Line>> =
+            rec.channels.iter().map(|c| lines::find(&c.psd)).collect();
+        let prov = template::Provenance {
+            name: name.unwrap_or_else(|| "fitted".into()),
+            source,
+            samples: rec.samples,
+            dt: rec.dt,
+            lsb: compare::triad_lsbs(&rec),
+            filter: fitted.filter,
+            carry: fitted.carry,
+        };
+        let toml = template::template_toml(&prov, &fitted.fits, &found);
+        // As `imu-emu fit`: what is returned must load as a template.
+        imu_emu::errors::template::parse(&toml, Path::new("fitted.toml")).map_err(|e| {
+            format!(
+                "the fitted template does not load (a bug: please report it): {}",
+                crate::errors::message(&e)
+            )
+        })?;
+        Ok::<String, String>(toml)
+    })
+    .map_err(invalid)
+}
