@@ -529,11 +529,13 @@ mod tests {
             "re-locked at {at}"
         );
         assert_eq!(m.host_ns(10.5), arrival(10.5, pause));
-        assert_eq!(m.clock_rate(), 0.0);
+        // The rate kept from before the step: zero but for the fit's round-off.
+        assert!(m.clock_rate().abs() < 1e-12, "{}", m.clock_rate());
     }
 
     /// A sender that stalls 3 s and then sends the states it owes at once (tags on schedule,
-    /// then on time again) does not re-lock: the map stays where it was.
+    /// then on time again) does not re-lock: the map stays where it was, but for the few µs
+    /// the stall's late bins tilt the rate fit (a re-lock would move it by the whole stall).
     #[test]
     fn a_stall_caught_up_by_a_burst_does_not_relock() {
         let mut m = ClockMap::new();
@@ -548,6 +550,7 @@ mod tests {
             m.observe(t, a);
         }
         assert_eq!(m.relocks(), 0);
-        assert_eq!(m.host_ns(10.0), 10_000_000_000 + delay);
+        let off = m.host_ns(10.0) - (10_000_000_000 + delay);
+        assert!(off.abs() < 10_000, "{off} ns");
     }
 }
