@@ -11,10 +11,10 @@ use std::thread;
 use std::time::Duration;
 
 use imu_emu::live::binary::{self, Datagram};
-use imu_emu::live::lockstep::Lockstep;
 use imu_emu::live::transport::Receiver;
 use imu_emu::live::{InputFormat, csv::MAX_LINE_BYTES};
 use imu_emu::motion::Motion;
+use imu_emu::run::lockstep::Lockstep;
 use imu_emu::sim::Simulation;
 use imu_emu::source::AnyMotion;
 use imu_emu::trajectory;
@@ -142,7 +142,7 @@ fn datagram(m: &impl Motion, t: f64, seq: u32, rate: [f64; 3]) -> Vec<u8> {
 }
 
 /// `datagrams` sent over UDP loopback to a lockstep run of 2 s; its output and summary.
-fn over_udp(datagrams: Vec<Vec<u8>>) -> (Vec<u8>, imu_emu::live::lockstep::LiveSummary) {
+fn over_udp(datagrams: Vec<Vec<u8>>) -> (Vec<u8>, imu_emu::run::lockstep::LiveSummary) {
     let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
     socket
         .set_read_timeout(Some(Duration::from_millis(500)))
