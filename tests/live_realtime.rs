@@ -882,7 +882,7 @@ fn gps_time_base_refuses_simulation_second_tags() {
 fn a_sender_pause_relocks_and_the_frames_return_to_lockstep() {
     let dir = tempfile::TempDir::new().unwrap();
     std::fs::write(dir.path().join("f64.toml"), F64_SPEC).unwrap();
-    let mut args = vec![
+    let args = [
         "--protocol-file",
         "f64.toml",
         "--max-behind-ms",
