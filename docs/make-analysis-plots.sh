@@ -14,3 +14,6 @@ trap 'rm -rf "$tmp"' EXIT
 # compare: error growth over 60 s GNSS outages on the survey scene, five grades.
 "$bin" compare --imu ln200,hg1700,stim300,adis16405,mpu6000 --scene survey --runs 20 --outage 60 \
     --csv "$tmp/growth.csv" --plot docs/compare-survey-60s.png
+# compare: a rig's three units, GNSS-aided before 10 s and 30 s outages (docs/navigator.md).
+"$bin" compare --scene-file examples/compare_rig.toml --outage 10,30 --aided 60 --runs 20 \
+    --plot docs/compare-rig-aided.png

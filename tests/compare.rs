@@ -4,32 +4,30 @@
 use std::path::Path;
 use std::process::Command;
 
-use imu_emu::engine;
-use imu_emu::errors::template;
-use imu_emu::nav::Settings;
-use imu_emu::nav::montecarlo::{Plan, TemplateResult, compare};
-use imu_emu::scenes::{self, SceneParams};
-use imu_emu::source::AnyMotion;
+use imu_emu::nav::campaign::{Aiding, Campaign, CampaignSpec, MissionSpec, Row};
 
-fn plan(scene: &str, seconds: f64, rate: f64, runs: usize, seed: u64, threads: usize) -> Plan {
-    let p = SceneParams::defaults_for(scene);
-    let motion = AnyMotion::Scene(scenes::build(scene, &p).unwrap().unwrap());
-    let grid = engine::plan(&motion, rate, None, Some(seconds)).unwrap();
-    Plan {
-        motion,
-        grid,
-        outage_records: None,
+fn plan(scene: &str, seconds: f64, rate: f64, runs: usize, seed: u64) -> CampaignSpec {
+    CampaignSpec {
+        missions: vec![MissionSpec {
+            scene: Some(scene.into()),
+            ..MissionSpec::default()
+        }],
+        rate_hz: Some(rate),
+        duration_s: Some(seconds),
         runs,
-        seed,
+        seed: Some(seed),
         points: 10,
-        settings: Settings::default(),
-        threads,
+        aiding: Aiding::Free,
+        ..CampaignSpec::default()
     }
 }
 
-fn run(plan: &Plan, names: &[&str]) -> Vec<TemplateResult> {
-    let models: Vec<_> = names.iter().map(|n| template::load(n).unwrap()).collect();
-    compare(plan, &models).unwrap()
+fn run(plan: &CampaignSpec, names: &[&str], threads: usize) -> Vec<Row> {
+    let spec = CampaignSpec {
+        templates: names.iter().map(|s| s.to_string()).collect(),
+        ..plan.clone()
+    };
+    Campaign::new(spec).unwrap().run_local(threads).unwrap()
 }
 
 /// Same seed → the same table, bit for bit, whatever the thread count; another seed → a
@@ -37,10 +35,10 @@ fn run(plan: &Plan, names: &[&str]) -> Vec<TemplateResult> {
 #[test]
 fn reproducible_for_a_seed() {
     let names = ["ln200", "mpu6000"];
-    let a = run(&plan("straight", 5.0, 100.0, 3, 7, 1), &names);
-    let b = run(&plan("straight", 5.0, 100.0, 3, 7, 3), &names);
+    let a = run(&plan("straight", 5.0, 100.0, 3, 7), &names, 1);
+    let b = run(&plan("straight", 5.0, 100.0, 3, 7), &names, 3);
     assert_eq!(a, b);
-    let c = run(&plan("straight", 5.0, 100.0, 3, 8, 2), &names);
+    let c = run(&plan("straight", 5.0, 100.0, 3, 8), &names, 2);
     assert_ne!(a[0].last(), c[0].last());
 }
 
@@ -51,8 +49,9 @@ fn reproducible_for_a_seed() {
 #[test]
 fn grades_order_as_expected() {
     let r = run(
-        &plan("straight", 10.0, 100.0, 8, 20261124, 2),
+        &plan("straight", 10.0, 100.0, 8, 20261124),
         &["ideal", "ln200", "adis16405", "mpu6000"],
+        2,
     );
     for q in 0..3 {
         let med: Vec<f64> = r
@@ -76,13 +75,13 @@ fn grades_order_as_expected() {
 /// growth curve spans one outage, and errors stay at the outage scale.
 #[test]
 fn outages_reset_to_truth() {
-    let mut p = plan("straight", 12.0, 100.0, 2, 1, 2);
-    p.outage_records = Some(300);
-    let r = run(&p, &["ln200"]);
-    assert_eq!(r[0].outages, 4);
+    let mut p = plan("straight", 12.0, 100.0, 2, 1);
+    p.outages_s = vec![3.0];
+    let r = run(&p, &["ln200"], 2);
+    assert_eq!(r[0].windows, 4);
     assert_eq!(r[0].samples, 8);
     assert_eq!(r[0].growth.last().unwrap().t, 3.0);
-    let free = run(&plan("straight", 12.0, 100.0, 2, 1, 2), &["ln200"]);
+    let free = run(&plan("straight", 12.0, 100.0, 2, 1), &["ln200"], 2);
     assert!(r[0].last().position.median < free[0].last().position.median);
 }
 
@@ -204,4 +203,54 @@ fn navigate_cli_closes_generated_records() {
 /// Rows of a trajectory CSV, read back by the library's own trajectory parser.
 fn imu_emu_lib_read(path: &Path) -> usize {
     imu_emu::trajectory::read(path).unwrap().len()
+}
+
+/// The CLI on a rig scene file with `[gnss]`: each unit a row, aided before each outage (the
+/// aided error column), `--no-gnss` says the receiver is not used; a scene table compare
+/// cannot use (an odometer) is refused naming the file and the table.
+#[test]
+fn compare_cli_rig_scene_with_gnss() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/compare_rig.toml");
+    let args = [
+        "compare",
+        "--scene-file",
+        scene,
+        "--duration",
+        "13",
+        "--outage",
+        "2",
+        "--aided",
+        "3",
+        "--runs",
+        "2",
+        "--points",
+        "3",
+    ];
+    let a = imu_emu(dir.path(), &args);
+    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    let text = String::from_utf8(a.stdout).unwrap();
+    println!("{text}");
+    assert!(
+        text.contains("GNSS-aided, outages of 2 × 2 s per run, each after 3 s of fixes"),
+        "{text}"
+    );
+    assert!(text.contains("position at start m"), "{text}");
+    for unit in ["ln200", "adis16405", "mpu6000"] {
+        assert!(text.lines().any(|l| l.starts_with(unit)), "{unit}: {text}");
+    }
+    let free = imu_emu(dir.path(), &[&args[..], &["--no-gnss"]].concat());
+    let text = String::from_utf8(free.stdout).unwrap();
+    assert!(
+        text.contains("note: ") && text.contains("[gnss] receiver is not used"),
+        "{text}"
+    );
+    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/rig_aided.toml");
+    let bad = imu_emu(dir.path(), &["compare", "--scene-file", rig]);
+    assert!(!bad.status.success());
+    let e = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        e.contains("rig_aided.toml") && e.contains("`odometer`"),
+        "{e}"
+    );
 }

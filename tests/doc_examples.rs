@@ -12,7 +12,8 @@
 //! * A block that cannot run here is preceded by `<!-- no-test: REASON -->` (a real device, a
 //!   Docker daemon, the test suite itself…); the reason is mandatory.
 //! * Long runs are shortened, not skipped: `imu-emu` on `PATH` is a small wrapper that caps every
-//!   `--duration` and `--outage` at `IMU_EMU_DOC_SECONDS` simulated seconds (default 2) and gives
+//!   `--duration` and `--outage` at `IMU_EMU_DOC_SECONDS` simulated seconds (default 2; `compare
+//!   --aided` and its outages at half that, so that one outage fits) and gives
 //!   `run`, `compare`, `validate` and live `decode` that duration when they have none. The binary
 //!   itself reads no such variable; `IMU_EMU_DOC_SECONDS=0` runs every example exactly as
 //!   written (the better part of an hour).
@@ -125,10 +126,12 @@ fn wrapper(real: &Path) -> String {
 real='{real}'
 cap=${{IMU_EMU_DOC_SECONDS:-2}}
 [ "$cap" = 0 ] && exec "$real" "$@"
-capped() {{ awk -v d="$1" -v c="$cap" 'BEGIN {{ if (d + 0 > c + 0) print c; else print d }}'; }}
+capped() {{ awk -v d="$1" -v c="${{2:-$cap}}" 'BEGIN {{ if (d + 0 > c + 0) print c; else print d }}'; }}
+# compare --aided S: S aided seconds before each outage; both halve so that one fits the cap.
+half=$cap; for a in "$@"; do [ "$a" = --aided ] && half=$(awk -v c="$cap" 'BEGIN {{ print c / 2 }}'); done
 args=(); prev=; has_duration=0; has_frames=0; live=0
 for a in "$@"; do
-  case $prev in --duration|--outage) a=$(capped "$a") ;; esac
+  case $prev in --duration) a=$(capped "$a") ;; --outage|--aided) a=$(capped "$a" "$half") ;; esac
   case $a in
     --duration) has_duration=1 ;;
     --frames) has_frames=1 ;;
@@ -346,6 +349,13 @@ fn the_wrapper_caps_durations_only() {
     assert_eq!(
         run(&["compare", "--outage", "60"], "2"),
         "compare --outage 2 --duration 2"
+    );
+    assert_eq!(
+        run(
+            &["compare", "--gnss", "--outage", "10,30", "--aided", "60"],
+            "2"
+        ),
+        "compare --gnss --outage 1 --aided 1 --duration 2"
     );
     assert_eq!(
         run(&["decode", "--protocol", "x", "f.bin"], "2"),

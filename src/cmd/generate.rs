@@ -67,6 +67,26 @@ pub fn spec(a: &GenerateArgs) -> Result<(RunSpec, Vec<PathBuf>)> {
     let mut dirs = Vec::new();
     // The files of a generate run: the scene file's unit sinks are `run`'s.
     spec.routes.clear();
+    // The `[run]` table and the units' `sink` keys are `run`'s: said, then set aside.
+    let contents = spec.signal.scene_contents();
+    let sinks = contents.imu.sink.is_some() || units.iter().any(|(_, u)| !u.sinks.is_empty());
+    if contents.run.is_some() || sinks {
+        let file = spec
+            .signal
+            .scene_file_path()
+            .map(|p| p.display().to_string());
+        let file = file.unwrap_or_default();
+        if contents.run.as_ref().is_some_and(|r| r.input.is_some()) {
+            bail!("{file}: `run.input`: a live input is followed by `imu-emu run`, not generate");
+        }
+        eprintln!(
+            "imu-emu: note: {file}: the [run] table and the units' `sink` keys are `imu-emu run`'s; generate writes the files its flags name, unpaced"
+        );
+        spec.clock = Default::default();
+        spec.sync = Default::default();
+        spec.link = Default::default();
+        spec.file_keys.clear();
+    }
     spec.clock.speed = Some(Speed::Max);
     if rig {
         let dir = out_path.unwrap_or_else(|| PathBuf::from("."));

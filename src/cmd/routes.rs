@@ -32,13 +32,22 @@ pub fn unit_sinks(spec: &mut RunSpec, values: &[String]) -> Result<()> {
 }
 
 /// `--gnss FORMAT:SINK` and the sensor flags (odometer, baro, magnetometer); `sink` reads a
-/// flag's sink text.
+/// flag's sink text. Like the IMU's sink flags, each replaces the scene file's routes of its
+/// streams (`[run] gnss`, `odometer`, …).
 pub fn aiding(
     spec: &mut RunSpec,
     gnss: &[String],
     sensors: [&[String]; 3],
     sink: impl Fn(&str) -> Result<SinkAddr, String>,
 ) -> Result<()> {
+    if !gnss.is_empty() {
+        spec.replace_routes(|s| matches!(s, StreamId::Gnss(_)));
+    }
+    for (kind, values) in SensorKind::ALL.into_iter().zip(sensors) {
+        if !values.is_empty() {
+            spec.replace_routes(|s| *s == StreamId::Sensor(kind));
+        }
+    }
     for v in gnss {
         let (name, target) = v.split_once(':').unwrap_or((v, ""));
         let Some(f) = GnssFormat::from_name(name) else {

@@ -40,10 +40,18 @@ pub struct RunArgs {
     /// UDP sink HOST:PORT (unicast, broadcast or multicast); repeatable.
     #[arg(long, value_name = "HOST:PORT[,protocol=NAME]")]
     pub udp: Vec<String>,
+    /// TCP sink: connects to a consumer listening at HOST:PORT (reconnects when it goes,
+    /// frames count as "no reader" meanwhile); repeatable.
+    #[arg(long, value_name = "HOST:PORT[,protocol=NAME]")]
+    pub tcp: Vec<String>,
+    /// TCP sink: listens on ADDR:PORT and sends every frame to every client connected;
+    /// repeatable.
+    #[arg(long, value_name = "ADDR:PORT[,protocol=NAME]")]
+    pub tcp_listen: Vec<String>,
     /// File sink, or - for stdout; repeatable.
     #[arg(long, value_name = "PATH[,protocol=NAME]")]
     pub file: Vec<String>,
-    /// A rig unit's sink, NAME=KIND:TARGET with KIND pty, serial, udp or file (e.g.
+    /// A rig unit's sink, NAME=KIND:TARGET with KIND pty, serial, udp, tcp, tcp-listen or file (e.g.
     /// `nav=udp:127.0.0.1:9001`); repeatable; replaces the scene file's `sink` of that unit.
     #[arg(long, value_name = "NAME=SINK")]
     pub unit_sink: Vec<String>,
@@ -176,14 +184,19 @@ pub fn spec(a: &RunArgs) -> Result<RunSpec> {
     let signal = a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?;
     let mut spec = super::routes::from_scene(signal)?;
     let l = &a.live;
-    match &l.motion {
+    // A live input from the flags, or from the scene file's `[run.input]` (which they amend).
+    let source = (l.motion.clone()).or(spec.input.as_ref().map(|i| i.source.clone()));
+    match &source {
         Some(source) => {
-            if a.sim.source.scene.is_some() || a.sim.source.trajectory.is_some() {
+            if l.motion.is_some()
+                && (a.sim.source.scene.is_some() || a.sim.source.trajectory.is_some())
+            {
                 bail!("--motion replaces --scene and --trajectory: give one source");
             }
             let lockstep = match l.time_mode.as_deref() {
-                None | Some("realtime") => false,
-                Some("lockstep") => true,
+                None => None,
+                Some("realtime") => Some(false),
+                Some("lockstep") => Some(true),
                 Some(m) => bail!("--time-mode {m}: expected realtime or lockstep"),
             };
             let format = match &l.input_format {
@@ -192,16 +205,21 @@ pub fn spec(a: &RunArgs) -> Result<RunSpec> {
                     format!("--input-format {f}: expected csv, bin or mavlink")
                 })?),
             };
+            // The flags replace the scene file's `[run.input]` keys they give, not the others.
+            let file = spec
+                .input
+                .take()
+                .unwrap_or_else(|| LiveSpec::new(source.clone()));
             spec.input = Some(LiveSpec {
-                format,
-                lockstep,
-                output_delay_s: l.output_delay,
-                max_extrapolation_s: l.max_extrapolation,
-                correction_horizon_s: l.correction_horizon,
-                on_timeout: l.on_timeout.clone(),
-                input_timeout_s: l.input_timeout,
-                record: l.record_input.clone(),
-                ..LiveSpec::new(source.clone())
+                source: source.clone(),
+                format: format.or(file.format),
+                lockstep: lockstep.unwrap_or(file.lockstep),
+                output_delay_s: l.output_delay.or(file.output_delay_s),
+                max_extrapolation_s: l.max_extrapolation.or(file.max_extrapolation_s),
+                correction_horizon_s: l.correction_horizon.or(file.correction_horizon_s),
+                on_timeout: l.on_timeout.clone().or(file.on_timeout),
+                input_timeout_s: l.input_timeout.or(file.input_timeout_s),
+                record: l.record_input.clone().or(file.record),
             });
         }
         None => {
@@ -225,6 +243,8 @@ pub fn spec(a: &RunArgs) -> Result<RunSpec> {
         ("pty", &a.pty),
         ("serial", &a.serial),
         ("udp", &a.udp),
+        ("tcp", &a.tcp),
+        ("tcp-listen", &a.tcp_listen),
         ("file", &a.file),
     ];
     for (kind, values) in sinks {

@@ -5,6 +5,7 @@
 //! computation, no I/O.
 
 pub mod aided;
+pub mod campaign;
 pub mod closure;
 pub mod gnss_fixes;
 pub mod montecarlo;

@@ -1,5 +1,6 @@
 //! Where a unit's stream goes, written as one string (a scene file's `sink` key, `--unit-sink`):
-//! `pty:PATH`, `serial:DEV`, `udp:HOST:PORT` or `file:PATH` (`KIND://TARGET` also reads).
+//! `pty:PATH`, `serial:DEV`, `udp:HOST:PORT`, `tcp:HOST:PORT`, `tcp-listen:ADDR:PORT` or
+//! `file:PATH` (`KIND://TARGET` also reads).
 
 use std::fmt;
 
@@ -13,6 +14,10 @@ pub enum SinkAddr {
     Serial(String),
     /// A UDP destination `HOST:PORT`.
     Udp(String),
+    /// A consumer's TCP port `HOST:PORT`, connected to (and reconnected) by the emulator.
+    Tcp(String),
+    /// A TCP port `ADDR:PORT` the emulator listens on, sending every frame to every client.
+    TcpListen(String),
     /// A file, or `-` for stdout.
     File(String),
 }
@@ -20,7 +25,8 @@ pub enum SinkAddr {
 impl SinkAddr {
     /// Reads `KIND:TARGET`; the error says what was expected.
     pub fn parse(s: &str) -> Result<SinkAddr, String> {
-        let expected = "expected pty:PATH, serial:DEV, udp:HOST:PORT or file:PATH";
+        let expected = "expected pty:PATH, serial:DEV, udp:HOST:PORT, tcp:HOST:PORT, \
+                        tcp-listen:ADDR:PORT or file:PATH";
         let Some((kind, target)) = s.split_once(':') else {
             return Err(format!("`{s}`: {expected}"));
         };
@@ -38,11 +44,19 @@ impl SinkAddr {
             )),
             "serial" => need("a device").map(SinkAddr::Serial),
             "file" => need("a path").map(SinkAddr::File),
-            "udp" => match target.rsplit_once(':') {
+            "udp" | "tcp" | "tcp-listen" => match target.rsplit_once(':') {
                 Some((h, p)) if !h.is_empty() && p.parse::<u16>().is_ok() => {
-                    Ok(SinkAddr::Udp(target.to_string()))
+                    let t = target.to_string();
+                    Ok(match kind {
+                        "udp" => SinkAddr::Udp(t),
+                        "tcp" => SinkAddr::Tcp(t),
+                        _ => SinkAddr::TcpListen(t),
+                    })
                 }
-                _ => Err(format!("`{s}`: expected udp:HOST:PORT")),
+                _ => {
+                    let host = if kind == "tcp-listen" { "ADDR" } else { "HOST" };
+                    Err(format!("`{s}`: expected {kind}:{host}:PORT"))
+                }
             },
             _ => Err(format!("`{s}`: unknown sink kind `{kind}`; {expected}")),
         }
@@ -60,6 +74,8 @@ impl fmt::Display for SinkAddr {
             SinkAddr::Pty(p) => write!(f, "pty:{}", p.as_deref().unwrap_or("")),
             SinkAddr::Serial(d) => write!(f, "serial:{d}"),
             SinkAddr::Udp(d) => write!(f, "udp:{d}"),
+            SinkAddr::Tcp(d) => write!(f, "tcp:{d}"),
+            SinkAddr::TcpListen(a) => write!(f, "tcp-listen:{a}"),
             SinkAddr::File(p) => write!(f, "file:{p}"),
         }
     }
@@ -85,13 +101,30 @@ mod tests {
             Ok(SinkAddr::Serial("/dev/ttyUSB0".into()))
         );
         assert!(SinkAddr::parse("file:-").unwrap().is_file());
-        for bad in ["udp:9001", "udp:host:port", "tcp:x:1", "nothing", "file:"] {
+        assert_eq!(
+            SinkAddr::parse("tcp://127.0.0.1:9002"),
+            Ok(SinkAddr::Tcp("127.0.0.1:9002".into()))
+        );
+        assert_eq!(
+            SinkAddr::parse("tcp-listen:0.0.0.0:9003"),
+            Ok(SinkAddr::TcpListen("0.0.0.0:9003".into()))
+        );
+        let bad = [
+            "udp:9001",
+            "udp:host:port",
+            "tcp:9002",
+            "tcp-listen::9003",
+            "tcp-listen:0.0.0.0:x",
+            "tcpx:a:1",
+            "nothing",
+            "file:",
+        ];
+        for bad in bad {
             let e = SinkAddr::parse(bad).unwrap_err();
             assert!(e.contains(bad), "{e}");
         }
-        assert_eq!(
-            SinkAddr::parse("udp:[::1]:5").unwrap().to_string(),
-            "udp:[::1]:5"
-        );
+        for s in ["udp:[::1]:5", "tcp:[::1]:6", "tcp-listen:[::]:7"] {
+            assert_eq!(SinkAddr::parse(s).unwrap().to_string(), s);
+        }
     }
 }

@@ -1,5 +1,5 @@
 //! Real-time emulation: encoded frames written at their wall-clock deadlines to any number of
-//! sinks (pseudo-terminal, serial device, UDP, file). No physics here: the frames come from
+//! sinks (pseudo-terminal, serial device, UDP, TCP, file). No physics here: the frames come from
 //! the run ([`crate::run`]), the same code that writes `generate`'s output.
 //!
 //! Shape: a producer (its own thread) runs ahead of the clock and sends blocks of encoded
@@ -20,6 +20,7 @@ pub mod serial;
 pub mod signal;
 pub mod sink;
 pub mod stats;
+pub mod tcp;
 pub mod timemark;
 pub mod udp;
 

@@ -1,12 +1,13 @@
-//! Non-blocking whole-frame writes to a file descriptor, which the pty and serial sinks share;
-//! the [`Sink`] trait and the file sink are `crate::output::sink`'s.
+//! Non-blocking whole-frame writes to a file descriptor or a socket, which the pty, serial and
+//! TCP sinks share; the [`Sink`] trait and the file sink are `crate::output::sink`'s.
 
 use std::io;
 use std::os::fd::{AsFd, BorrowedFd};
 
 pub use crate::output::sink::{FileSink, Sink, SinkStats};
 
-/// Non-blocking writes of whole frames to a file descriptor (pty master, serial device).
+/// Non-blocking writes of whole frames to a file descriptor (pty master, serial device) or a
+/// socket (a TCP connection).
 ///
 /// A write the kernel takes only partly leaves the rest of that frame in `pending`, sent
 /// before anything else next time, so the byte stream never carries a torn frame; the frames
@@ -23,7 +24,8 @@ pub struct FdWriter {
 pub enum FdState {
     /// Written, or dropped because the consumer is slow (counted).
     Ok,
-    /// `EIO`: nobody holds the other end (a pty with no reader). Frames counted as `no_reader`.
+    /// Nobody holds the other end (`EIO` on a pty with no reader, a TCP peer that closed).
+    /// Frames counted as `no_reader`.
     NoReader,
 }
 
@@ -33,16 +35,30 @@ impl FdWriter {
         self.pending.clear();
     }
 
-    /// Writes the frames to `fd` (opened `O_NONBLOCK`).
+    /// Writes the frames to `fd` (opened `O_NONBLOCK`); `EIO` says nobody holds the other end.
     pub fn write(&mut self, fd: BorrowedFd, bytes: &[u8], ends: &[usize]) -> io::Result<FdState> {
+        let eio = |e: &io::Error| e.raw_os_error() == Some(libc::EIO);
+        self.write_via(|b| raw_write(fd, b), eio, bytes, ends)
+    }
+
+    /// Writes the frames with `raw` (one non-blocking write, returning the bytes taken);
+    /// an error `gone` accepts means the consumer went away (counted as `no_reader`, what is
+    /// left of a cut frame forgotten), any other but `WouldBlock` is returned.
+    pub fn write_via(
+        &mut self,
+        mut raw: impl FnMut(&[u8]) -> io::Result<usize>,
+        gone: impl Fn(&io::Error) -> bool,
+        bytes: &[u8],
+        ends: &[usize],
+    ) -> io::Result<FdState> {
         if !self.pending.is_empty() {
-            match raw_write(fd, &self.pending) {
+            match raw(&self.pending) {
                 Ok(n) => {
                     self.stats.bytes += n as u64;
                     self.pending.drain(..n);
                 }
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => {}
-                Err(e) if e.raw_os_error() == Some(libc::EIO) => {
+                Err(e) if gone(&e) => {
                     self.pending.clear();
                 }
                 Err(e) => return Err(e),
@@ -55,7 +71,7 @@ impl FdWriter {
         if bytes.is_empty() {
             return Ok(FdState::Ok);
         }
-        match raw_write(fd, bytes) {
+        match raw(bytes) {
             Ok(n) => {
                 self.stats.bytes += n as u64;
                 let whole = ends.partition_point(|&e| e <= n);
@@ -77,7 +93,7 @@ impl FdWriter {
                 self.stats.dropped += ends.len() as u64;
                 Ok(FdState::Ok)
             }
-            Err(e) if e.raw_os_error() == Some(libc::EIO) => {
+            Err(e) if gone(&e) => {
                 self.stats.no_reader += ends.len() as u64;
                 Ok(FdState::NoReader)
             }

@@ -161,8 +161,8 @@ impl RunSpec {
         };
         self.build_checked().map_err(|e| match e {
             RunError::Spec { what, why } => RunError::Spec {
+                why: keys.why_of(&why),
                 what: keys.origin_of(&what),
-                why,
             },
             e => e,
         })

@@ -157,6 +157,11 @@ impl Run {
                 }
             }
             let b = built.as_mut().expect("built above");
+            if feed.model.knots() < 2 {
+                // One knot is t₀ but no piece yet: the motion is not known even at t₀ (an
+                // aiding epoch falling on t₀ would read NaN).
+                continue;
+            }
             let until = Until::time(b.origin, feed.model.newest());
             let step = (b.sources.fill(until))
                 .map_err(RunError::from)

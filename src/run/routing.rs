@@ -99,11 +99,14 @@ impl Layout {
                         unit: None,
                         protocol,
                     },
-                    Units::Imu(_),
+                    Units::Imu(sim),
                 ) => {
                     if let Some(p) = protocol
                         && !l.protocols.contains(p)
                     {
+                        // Checked here, where the route's origin names the sink that asked.
+                        extra_plan(p, sim.grid().rate_hz)
+                            .map_err(|e| RunError::spec(&r.origin, e.to_string()))?;
                         l.protocols.push(p.clone());
                     }
                 }

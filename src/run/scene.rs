@@ -303,6 +303,23 @@ impl RunSpec {
         }
     }
 
+    /// The reason of a refusal, with the scene file's key named after each flag it mentions
+    /// whose value the file gave (a flag the user did not type: `--start-at` in "drop
+    /// --start-at" when `run.start_at` set it).
+    pub fn why_of(&self, why: &str) -> String {
+        let mut out = why.to_string();
+        for k in &self.file_keys {
+            let whole = why.match_indices(k.flag).any(|(i, _)| {
+                let next = why[i + k.flag.len()..].chars().next();
+                !next.is_some_and(|c| c.is_ascii_alphanumeric() || c == '-')
+            });
+            if whole && k.value == self.setting(k.flag) && !out.contains(&k.origin) {
+                out += &format!(" ({} gives {})", k.origin, k.flag);
+            }
+        }
+        out
+    }
+
     /// Where a refused setting came from: `FILE: `run.KEY` (FLAG …)` when the scene file's
     /// value of the flag that `what` starts with is still in place, else `what`.
     pub fn origin_of(&self, what: &str) -> String {

@@ -66,6 +66,7 @@ fn open_link(
 ) -> Result<Box<dyn Sink>, RunError> {
     use crate::realtime::pty::PtySink;
     use crate::realtime::serial::{Framing, SerialSink, check_link};
+    use crate::realtime::tcp::{TcpListenSink, TcpSink};
     use crate::realtime::udp::{UdpSink, max_wire_len};
     let io = |e| RunError::io("", e);
     Ok(match addr {
@@ -101,6 +102,26 @@ fn open_link(
                 s.check_datagram(max_wire_len(p))
                     .map_err(|e| RunError::spec("", e))?;
             }
+            Box::new(s)
+        }
+        SinkAddr::Tcp(dest) => {
+            let s = TcpSink::open(dest).map_err(io)?;
+            if !s.connected() {
+                note(&format!(
+                    "`{}` to tcp {dest}: nobody listening yet, retrying every {} s",
+                    stream.id,
+                    crate::realtime::tcp::RETRY.as_secs_f64()
+                ));
+            }
+            Box::new(s)
+        }
+        SinkAddr::TcpListen(addr) => {
+            let s = TcpListenSink::open(addr).map_err(io)?;
+            let at = s.local_addr().map_err(io)?;
+            note(&format!(
+                "`{}` on tcp {at} (listening), {} Hz",
+                stream.id, stream.rate_hz
+            ));
             Box::new(s)
         }
         SinkAddr::File(_) => unreachable!("files are opened above"),
