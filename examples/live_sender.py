@@ -12,11 +12,19 @@ lines with the trajectory columns), `bin` (the 152-byte datagram of docs/live-in
 
 By default states are paced at their own time stamps (real time); --fast sends them as fast as
 the destination takes them (for lockstep runs).
+
+A hostile link or sender, for tests and scripts/soak.sh (all off by default; --seed fixes the
+draws): --loss P drops each state with probability P, --reorder P sends a state after the
+next one, --stall AT:S holds the states from time tag AT for S seconds then sends those owed
+at once (a burst; the tags stay on the wall clock's schedule), --pause AT:S stops for S
+seconds at time tag AT and resumes with continuous tags (the whole schedule moves S later).
+A summary of what was done goes to stderr.
 """
 
 import argparse
 import math
 import os
+import random
 import socket
 import struct
 import sys
@@ -126,8 +134,18 @@ def main():
     p.add_argument("--rate", type=float, default=100.0, help="state rate of the sine (Hz)")
     p.add_argument("--format", choices=["csv", "bin", "mavlink"], default="csv")
     p.add_argument("--fast", action="store_true", help="do not pace the states")
+    p.add_argument("--loss", type=float, default=0.0, help="probability a state is not sent")
+    p.add_argument("--reorder", type=float, default=0.0, help="probability a state is sent after the next")
+    p.add_argument("--stall", action="append", default=[], metavar="AT:S",
+                   help="hold states from tag AT for S s, then send them at once (repeatable)")
+    p.add_argument("--pause", action="append", default=[], metavar="AT:S",
+                   help="stop S s at tag AT, resume with continuous tags (repeatable)")
+    p.add_argument("--seed", type=int, default=1, help="seed of the loss and reorder draws")
     p.add_argument("dest", help="udp://HOST:PORT, tcp://HOST:PORT or -")
     a = p.parse_args()
+    spans = lambda xs: sorted(tuple(float(v) for v in x.split(":")) for x in xs)
+    stalls, pauses = spans(a.stall), spans(a.pause)
+    rng = random.Random(a.seed)
 
     if a.dest == "-":
         out = sys.stdout.buffer
@@ -144,15 +162,7 @@ def main():
         else:
             sys.exit(f"{a.dest}: expected udp://HOST:PORT, tcp://HOST:PORT or -")
 
-    states = sine(a.seconds, a.rate) if a.sine else from_file(a.trajectory)
-    start = None
-    for seq, s in enumerate(states):
-        if not a.fast:
-            if start is None:
-                start = time.monotonic() - s[0]
-            delay = start + s[0] - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
+    def emit(seq, s):
         if a.format == "csv":
             if seq == 0:
                 extra = ",an,ae,ad" if s[10] else ""
@@ -162,6 +172,49 @@ def main():
             send(datagram(seq, s))
         else:
             send(mavlink(seq, s))
+
+    states = sine(a.seconds, a.rate) if a.sine else from_file(a.trajectory)
+    start = None
+    shift = 0.0  # the pauses so far (s)
+    held = None  # a state kept back to be sent after the next one
+    done = {"sent": 0, "lost": 0, "reordered": 0, "stalls": 0, "pauses": 0}
+    for seq, s in enumerate(states):
+        if not a.fast:
+            if start is None:
+                start = time.monotonic() - s[0]
+            while pauses and s[0] >= pauses[0][0]:
+                shift += pauses.pop(0)[1]
+                done["pauses"] += 1
+            due = s[0] + shift
+            for at, length in stalls:
+                if at <= s[0] < at + length:
+                    due = at + length + shift
+            delay = start + due - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            while stalls and s[0] >= stalls[0][0] + stalls[0][1]:
+                stalls.pop(0)
+                done["stalls"] += 1
+        # Never the first states: the receiver needs a stencil of them to start.
+        if seq > 20 and a.loss > 0 and rng.random() < a.loss:
+            done["lost"] += 1
+            continue
+        if held is not None:
+            emit(seq, s)
+            emit(*held)
+            done["sent"] += 2
+            held = None
+            continue
+        if seq > 20 and a.reorder > 0 and rng.random() < a.reorder:
+            held = (seq, s)
+            done["reordered"] += 1
+            continue
+        emit(seq, s)
+        done["sent"] += 1
+    if held is not None:
+        emit(*held)
+        done["sent"] += 1
+    print("live_sender: " + ", ".join(f"{v} {k}" for k, v in done.items()), file=sys.stderr)
 
 
 if __name__ == "__main__":

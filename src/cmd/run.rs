@@ -162,9 +162,11 @@ pub struct LiveArgs {
     #[arg(long, value_name = "SECONDS")]
     pub correction_horizon: Option<f64>,
     /// Realtime: once the input is silent for --input-timeout (or its stream ended): stop
-    /// (send the frames up to the newest state, then end the run), hold (constant
-    /// acceleration and angular rate, frames marked stale) or extrapolate (keep going,
-    /// bounded by --max-extrapolation, then hold) [default: stop].
+    /// (end the run; the frames due while waiting out the silence were already sent,
+    /// extrapolated up to --max-extrapolation past the newest state, then held; a stream
+    /// that ends stops after the frames up to its newest state), hold (keep going at
+    /// constant acceleration and angular rate, frames marked stale) or extrapolate (keep
+    /// going, bounded by --max-extrapolation, then hold) [default: stop].
     #[arg(long, value_name = "POLICY")]
     pub on_timeout: Option<String>,
     /// Write every message received on --motion to FILE, to replay the run bit for bit

@@ -14,6 +14,14 @@
 //!   state along that slope, taken as it is over the first window, then approached at a
 //!   bounded slew rate, so one early or late datagram moves nothing.
 //!
+//! **Re-lock.** A sender that pauses and resumes with continuous time tags (a simulation
+//! stopped in a debugger, a suspended process) steps the delay up by the pause, and the slew
+//! would take hours to follow it. When every state for [`RELOCK_AFTER_S`] of host time arrives
+//! more than [`RELOCK_STEP_S`] later than the map says, the map is estimated afresh from those
+//! states (the offset taken as it is, the rate fit restarted, the rate fitted before the step
+//! kept meanwhile). A stall that the sender catches up with a burst (tags on schedule) does not
+//! re-lock: the burst's states come in at once and the next ones on time.
+//!
 //! The spread above the envelope over the window is the jitter; with the time-tag spacing it
 //! sets the default output delay. When sender and host share a time scale (both GPS time),
 //! the map is given instead ([`ClockMap::given`]) and only the input's figures are measured.
@@ -43,6 +51,17 @@ pub const RATE_MIN_BINS: usize = 8;
 /// what the fit sees is the path changing, which the offset's slew follows instead.
 pub const MAX_RATE: f64 = 1e-3;
 
+/// A state later than the map by more than this (s) starts or continues a streak of late
+/// states: far above any jitter the default output delay absorbs.
+pub const RELOCK_STEP_S: f64 = 0.1;
+
+/// Host time (s) a streak of late states must last before the map is estimated afresh: long
+/// enough that a burst after a stall (its states arriving at once) is never one.
+pub const RELOCK_AFTER_S: f64 = 0.2;
+
+/// States of a streak kept for the new estimate (the last ones).
+const STREAK_KEEP: usize = 4096;
+
 /// A map fixed by the caller: host_ns = host0 + (t − t0)·10⁹·(1 + rate).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GivenMap {
@@ -71,6 +90,15 @@ pub struct ClockMap {
     window: VecDeque<(f64, f64)>,
     /// (bin index, τ s, delay ns) of each bin's least-delayed state; the last is filling.
     bins: VecDeque<(i64, f64, f64)>,
+    /// The current streak of late states: (τ s, delay ns) of each, the first one's arrival
+    /// (ns) and the rate fitted before it.
+    streak: VecDeque<(f64, f64)>,
+    streak_since: i128,
+    streak_drift: f64,
+    /// τ (s) at which the map was last estimated afresh (the first window runs from it).
+    since_tau: f64,
+    /// How many times the map was estimated afresh after a step.
+    relocks: u64,
 }
 
 impl ClockMap {
@@ -93,6 +121,9 @@ impl ClockMap {
         let first = self.window.is_empty() && self.bins.is_empty();
         let tau = t - t0;
         let d = (arrival_ns - a0) as f64 - tau * 1e9;
+        if self.given.is_none() && !first && self.late(tau, d, arrival_ns) {
+            return;
+        }
         self.window.push_back((tau, d));
         while self.window.front().is_some_and(|w| w.0 < tau - WINDOW_S) {
             self.window.pop_front();
@@ -103,7 +134,7 @@ impl ClockMap {
             .iter()
             .map(|w| w.1 + self.drift * (tau - w.0) * 1e9)
             .fold(f64::INFINITY, f64::min);
-        if first || tau < WINDOW_S {
+        if first || tau < self.since_tau + WINDOW_S {
             // Over the first window the envelope is still forming: take it as it is.
             self.offset = floor;
         } else if tau > self.last_tau {
@@ -112,6 +143,49 @@ impl ClockMap {
             self.offset = predicted + (floor - predicted).clamp(-SLEW * step, SLEW * step);
         }
         self.last_tau = self.last_tau.max(tau);
+    }
+
+    /// Follows the streak of states later than the map by more than [`RELOCK_STEP_S`]; once it
+    /// has lasted [`RELOCK_AFTER_S`] of host time, estimates the map afresh from its states and
+    /// returns true (the state is taken).
+    fn late(&mut self, tau: f64, d: f64, arrival_ns: i128) -> bool {
+        let map_d = self.offset + self.drift * (tau - self.last_tau) * 1e9;
+        if d - map_d <= RELOCK_STEP_S * 1e9 {
+            self.streak.clear();
+            return false;
+        }
+        if self.streak.is_empty() {
+            self.streak_since = arrival_ns;
+            self.streak_drift = self.drift;
+        }
+        self.streak.push_back((tau, d));
+        if self.streak.len() > STREAK_KEEP {
+            self.streak.pop_front();
+        }
+        if ((arrival_ns - self.streak_since) as f64) < RELOCK_AFTER_S * 1e9 {
+            return false;
+        }
+        // A step, not a stall: start over from the streak, keeping the rate fitted before it.
+        self.drift = self.streak_drift;
+        self.window = std::mem::take(&mut self.streak);
+        self.bins.clear();
+        for &(tau, d) in self.window.clone().iter() {
+            self.bin(tau, d);
+        }
+        self.offset = self
+            .window
+            .iter()
+            .map(|w| w.1 + self.drift * (tau - w.0) * 1e9)
+            .fold(f64::INFINITY, f64::min);
+        self.last_tau = self.last_tau.max(tau);
+        self.since_tau = self.window.front().map_or(tau, |w| w.0);
+        self.relocks += 1;
+        true
+    }
+
+    /// How many times a step in the delay made the map be estimated afresh.
+    pub fn relocks(&self) -> u64 {
+        self.relocks
     }
 
     /// Files (τ, d) in its bin; when a bin completes, refits the rate.
@@ -424,5 +498,60 @@ mod tests {
             assert!((back - t).abs() <= 6e-10 + t * 1e-15, "{t}: {back}");
         }
         assert_eq!(ClockMap::new().sim_at(123), 0.0);
+    }
+
+    /// A sender at 100 Hz pauses 3 s at 5 s and resumes with continuous tags (its state of
+    /// 5.01 s arrives 3 s late, and every one after it): within [`RELOCK_AFTER_S`] of host time
+    /// plus one period the map puts the tags 3 s later, exactly (no jitter here), and keeps its
+    /// rate. Without the re-lock the offset would have moved 500 ppm × 0.3 s = 150 µs.
+    #[test]
+    fn a_pause_with_continuous_tags_relocks() {
+        let mut m = ClockMap::new();
+        let delay = 2_000_000i128;
+        let arrival = |t: f64, pause: i128| (t * 1e9).round() as i128 + delay + pause;
+        for i in 0..=500 {
+            let t = i as f64 * 0.01;
+            m.observe(t, arrival(t, 0));
+        }
+        let pause = 3_000_000_000i128;
+        let mut relocked_at = None;
+        for i in 501..=1000 {
+            let t = i as f64 * 0.01;
+            m.observe(t, arrival(t, pause));
+            if m.relocks() == 1 && relocked_at.is_none() {
+                relocked_at = Some(t);
+            }
+        }
+        assert_eq!(m.relocks(), 1);
+        let at = relocked_at.unwrap();
+        assert!(
+            at <= 5.01 + RELOCK_AFTER_S + 0.01 + 1e-9,
+            "re-locked at {at}"
+        );
+        assert_eq!(m.host_ns(10.5), arrival(10.5, pause));
+        // The rate kept from before the step: zero but for the fit's round-off.
+        assert!(m.clock_rate().abs() < 1e-12, "{}", m.clock_rate());
+    }
+
+    /// A sender that stalls 3 s and then sends the states it owes at once (tags on schedule,
+    /// then on time again) does not re-lock: the map stays within [`RELOCK_STEP_S`] of where
+    /// it was (the stall's late bins tilt the rate fit for a while: 4.5 ms at 10 s here), where
+    /// a re-lock on the burst would have moved it by seconds.
+    #[test]
+    fn a_stall_caught_up_by_a_burst_does_not_relock() {
+        let mut m = ClockMap::new();
+        let delay = 2_000_000i128;
+        for i in 0..=1000 {
+            let t = i as f64 * 0.01;
+            let mut a = (t * 1e9).round() as i128 + delay;
+            if (5.0..8.0).contains(&t) {
+                // Sent together at 8 s, 10 µs apart.
+                a = 8_000_000_000 + delay + (i - 500) as i128 * 10_000;
+            }
+            m.observe(t, a);
+        }
+        assert_eq!(m.relocks(), 0);
+        let off = m.host_ns(10.0) - (10_000_000_000 + delay);
+        assert!((off.abs() as f64) < RELOCK_STEP_S * 1e9, "{off} ns");
     }
 }

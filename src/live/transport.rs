@@ -2,11 +2,19 @@
 //! its group), `tcp://HOST:PORT` (listens there and takes the first connection), `-` (stdin)
 //! or a path (a file or a FIFO). Streams are cut into messages by the format: lines for CSV,
 //! the magic and fixed length for binary datagrams, the header's length for MAVLink.
+//!
+//! Nothing waits without looking at the run's stop flag ([`Receiver::open_until`]): a socket is
+//! polled every [`POLL`], and a stream (stdin, a FIFO, a file, a TCP connection) is read — and a
+//! FIFO opened — on a thread of its own whose chunks the receiver waits for [`POLL`] at a time,
+//! so a signal before the first state (or during a silence) ends the run at once.
 
 use std::collections::VecDeque;
 use std::io::{ErrorKind, Read};
 use std::net::{Ipv4Addr, SocketAddr, TcpListener, ToSocketAddrs, UdpSocket};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver as ChunkRx, RecvTimeoutError, sync_channel};
 use std::time::{Duration, Instant};
 
 use super::csv::MAX_LINE_BYTES;
@@ -69,6 +77,17 @@ impl std::fmt::Display for Place {
     }
 }
 
+impl Place {
+    /// Where byte `offset` of the message is: inside a datagram or line, or the stream's own
+    /// byte offset (a frame's place is already a byte: it is not named twice).
+    pub fn at(&self, offset: usize) -> String {
+        match self {
+            Place::Byte(o) => format!("byte {}", o + offset as u64),
+            _ => format!("{self}, byte {offset}"),
+        }
+    }
+}
+
 /// One message: its bytes, where it was and when it arrived.
 #[derive(Clone, Debug)]
 pub struct Message {
@@ -80,9 +99,53 @@ pub struct Message {
     pub arrival: Instant,
 }
 
+/// How long a receiver waits at a time before it looks at the stop flag again.
+pub const POLL: Duration = Duration::from_millis(50);
+
+/// Bytes a stream's reading thread hands over at a time.
+const CHUNK: usize = 4096;
+
 enum Kind {
     Udp(UdpSocket),
-    Stream(Box<dyn Read + Send>),
+    /// A stream read on its own thread: chunks, an empty one at its end (or its idle timeout).
+    Stream(ChunkRx<std::io::Result<Vec<u8>>>),
+}
+
+/// Reads `r` on a thread of its own, chunk by chunk, into a bounded channel; an empty chunk
+/// is the end of the stream (or a read timeout the stream was given).
+fn pump(mut r: Box<dyn Read + Send>) -> ChunkRx<std::io::Result<Vec<u8>>> {
+    let (tx, rx) = sync_channel(16);
+    std::thread::spawn(move || {
+        loop {
+            let mut chunk = vec![0u8; CHUNK];
+            let got = match r.read(&mut chunk) {
+                Ok(n) => {
+                    chunk.truncate(n);
+                    Ok(chunk)
+                }
+                Err(e) if e.kind() == ErrorKind::Interrupted => continue,
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
+                    Ok(Vec::new())
+                }
+                Err(e) => Err(e),
+            };
+            let end = !matches!(&got, Ok(c) if !c.is_empty());
+            if tx.send(got).is_err() || end {
+                break;
+            }
+        }
+    });
+    rx
+}
+
+/// True once `stop` is set.
+fn stopped(stop: &Option<Arc<AtomicBool>>) -> bool {
+    stop.as_ref().is_some_and(|s| s.load(Ordering::Relaxed))
+}
+
+/// The error of an input opened too late: the run was stopped while it waited.
+fn stopped_while(what: &str) -> std::io::Error {
+    std::io::Error::new(ErrorKind::Interrupted, format!("stopped {what}"))
 }
 
 /// Receives messages from an [`Endpoint`].
@@ -103,8 +166,14 @@ pub struct Receiver {
     scanned: usize,
     /// CSV: the rest of an over-long line is being skipped, up to its end.
     discarding: bool,
-    /// The UDP timeout to set once the first datagram is in.
+    /// The UDP idle timeout, counted once the first datagram is in.
     idle: Option<Duration>,
+    /// When the newest datagram came (UDP).
+    last_data: Option<Instant>,
+    /// The run's stop flag: a wait for data ends when it is set.
+    stop: Option<Arc<AtomicBool>>,
+    /// The UDP socket is polled (opened here); a caller's socket ends at its own timeout.
+    polled: bool,
     rbuf: Vec<u8>,
 }
 
@@ -120,6 +189,18 @@ impl Receiver {
         format: InputFormat,
         idle: Option<Duration>,
     ) -> std::io::Result<Receiver> {
+        Receiver::open_until(endpoint, format, idle, None)
+    }
+
+    /// [`Receiver::open`], giving up every wait once `stop` is set: opening (a TCP listener
+    /// before a sender connects, a FIFO before a writer opens it) then fails with
+    /// `ErrorKind::Interrupted`, and [`Receiver::next_message`] ends the input.
+    pub fn open_until(
+        endpoint: &Endpoint,
+        format: InputFormat,
+        idle: Option<Duration>,
+        stop: Option<Arc<AtomicBool>>,
+    ) -> std::io::Result<Receiver> {
         let (kind, name) = match endpoint {
             Endpoint::Udp(addr) => {
                 let socket = match addr.ip() {
@@ -130,30 +211,65 @@ impl Receiver {
                     }
                     _ => UdpSocket::bind(addr)?,
                 };
+                socket.set_read_timeout(Some(POLL))?;
                 (Kind::Udp(socket), format!("udp://{addr}"))
             }
             Endpoint::Tcp(addr) => {
                 let listener = TcpListener::bind(addr)?;
-                let (stream, _) = listener.accept()?;
+                listener.set_nonblocking(true)?;
+                let stream = loop {
+                    match listener.accept() {
+                        Ok((s, _)) => break s,
+                        Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                            if stopped(&stop) {
+                                return Err(stopped_while("before a sender connected"));
+                            }
+                            std::thread::sleep(POLL);
+                        }
+                        Err(e) => return Err(e),
+                    }
+                };
+                stream.set_nonblocking(false)?;
                 stream.set_read_timeout(idle)?;
-                (Kind::Stream(Box::new(stream)), format!("tcp://{addr}"))
+                (
+                    Kind::Stream(pump(Box::new(stream))),
+                    format!("tcp://{addr}"),
+                )
             }
-            Endpoint::Stream(path) if path == Path::new("-") => {
-                (Kind::Stream(Box::new(std::io::stdin())), "stdin".into())
-            }
+            Endpoint::Stream(path) if path == Path::new("-") => (
+                Kind::Stream(pump(Box::new(std::io::stdin()))),
+                "stdin".into(),
+            ),
             Endpoint::Stream(path) => {
-                let f = std::fs::File::open(path)?;
-                (Kind::Stream(Box::new(f)), path.display().to_string())
+                // Opening a FIFO waits for a writer: on a thread, so that a stop is heard.
+                let (tx, rx) = sync_channel(1);
+                let p = path.clone();
+                std::thread::spawn(move || drop(tx.send(std::fs::File::open(p))));
+                let f = loop {
+                    match rx.recv_timeout(POLL) {
+                        Ok(f) => break f?,
+                        Err(RecvTimeoutError::Timeout) if stopped(&stop) => {
+                            return Err(stopped_while("before a writer opened it"));
+                        }
+                        Err(RecvTimeoutError::Timeout) => {}
+                        Err(RecvTimeoutError::Disconnected) => {
+                            return Err(std::io::Error::other("opening failed"));
+                        }
+                    }
+                };
+                (Kind::Stream(pump(Box::new(f))), path.display().to_string())
             }
         };
         let mut r = Receiver::new(kind, format, name);
         r.idle = idle;
+        r.stop = stop;
+        r.polled = matches!(endpoint, Endpoint::Udp(_));
         Ok(r)
     }
 
     /// A receiver of the messages in a byte stream (e.g. a TCP stream a caller accepted).
     pub fn from_stream(r: Box<dyn Read + Send>, format: InputFormat, name: &str) -> Receiver {
-        Receiver::new(Kind::Stream(r), format, name.into())
+        Receiver::new(Kind::Stream(pump(r)), format, name.into())
     }
 
     /// A receiver of datagrams on a bound socket.
@@ -176,6 +292,9 @@ impl Receiver {
             scanned: 0,
             discarding: false,
             idle: None,
+            last_data: None,
+            stop: None,
+            polled: false,
             rbuf: Vec::new(),
         }
     }
@@ -210,9 +329,7 @@ impl Receiver {
                     self.rbuf.resize(MAX_DATAGRAM, 0);
                     match s.recv(&mut self.rbuf) {
                         Ok(n) => {
-                            if let Some(idle) = self.idle.take() {
-                                s.set_read_timeout(Some(idle))?;
-                            }
+                            self.last_data = Some(Instant::now());
                             let b = self.rbuf[..n].to_vec();
                             self.datagram(b);
                             true
@@ -220,8 +337,18 @@ impl Receiver {
                         Err(e)
                             if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) =>
                         {
-                            false
+                            // Silent for a poll: over once stopped, or idle since the newest.
+                            let idle = match (self.idle, self.last_data) {
+                                (Some(i), Some(l)) => l.elapsed() >= i,
+                                _ => false,
+                            };
+                            if !self.polled || stopped(&self.stop) || idle {
+                                false
+                            } else {
+                                continue;
+                            }
                         }
+                        Err(e) if e.kind() == ErrorKind::Interrupted => continue,
                         Err(e) => return Err(e),
                     }
                 }
@@ -267,21 +394,19 @@ impl Receiver {
         let Kind::Stream(r) = &mut self.kind else {
             unreachable!("a stream")
         };
-        let mut chunk = [0u8; 4096];
-        let n = loop {
-            match r.read(&mut chunk) {
-                Ok(n) => break n,
-                Err(e) if e.kind() == ErrorKind::Interrupted => continue,
-                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
-                    break 0;
-                }
-                Err(e) => return Err(e),
+        let chunk = loop {
+            match r.recv_timeout(POLL) {
+                Ok(c) => break c?,
+                Err(RecvTimeoutError::Timeout) if stopped(&self.stop) => break Vec::new(),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break Vec::new(),
             }
         };
+        let n = chunk.len();
         if n == 0 {
             self.eof = true;
         }
-        self.buf.extend_from_slice(&chunk[..n]);
+        self.buf.extend_from_slice(&chunk);
         match self.format {
             InputFormat::Csv => self.cut_lines(),
             InputFormat::Binary | InputFormat::Mavlink => self.cut_frames(),

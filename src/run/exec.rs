@@ -126,7 +126,14 @@ impl Run {
             unreachable!("lockstep follows a live input")
         };
         let mut out = Outlets::open(&layout.streams, &links, 1.0, false, ctl)?;
-        let mut feed = Feed::open(&input, &builder, time_base, ctl)?;
+        let mut feed = match Feed::open(&input, &builder, time_base, ctl) {
+            Ok(f) => f,
+            Err(e) => {
+                // Stopped (or failed) before a sender connected: no output file is left.
+                out.close(false)?;
+                return Err(e);
+            }
+        };
         let mut counts = vec![StreamCounts::default(); layout.streams.len()];
         let mut built: Option<Built> = None;
         let ended = loop {
@@ -135,6 +142,8 @@ impl Run {
             }
             match feed.next() {
                 Err(e) => break Err(e),
+                // A stop ends the input's wait: the run was stopped, not ended by its input.
+                Ok(None) if ctl.stopped() => break Ok("stopped"),
                 Ok(None) => break Ok("input ended"),
                 Ok(Some(false)) => continue,
                 Ok(Some(true)) => {}
@@ -252,7 +261,7 @@ impl Feed {
     ) -> Result<Feed, RunError> {
         let settings = builder.model_settings()?;
         let idle = Some(std::time::Duration::from_secs_f64(input.idle_s));
-        let rx = Receiver::open(&input.endpoint, input.format, idle)
+        let rx = Receiver::open_until(&input.endpoint, input.format, idle, Some(ctl.flag()))
             .map_err(|e| RunError::io(format!("--motion {}: opening", input.source), e))?;
         let record = match &input.record {
             Some(p) => Some((
@@ -301,11 +310,13 @@ impl Feed {
             }
             Ok(None) => Ok(Some(false)),
             Err(e) if e.fatal => Err(RunError::TimeBase(format!(
-                "{}: {}, byte {}: {}",
-                self.name, m.place, e.offset, e.message
+                "{}: {}: {}",
+                self.name,
+                m.place.at(e.offset),
+                e.message
             ))),
             Err(e) => {
-                let at = format!("{}: {}, byte {}", self.name, m.place, e.offset);
+                let at = format!("{}: {}", self.name, m.place.at(e.offset));
                 self.stats.malformed(&at, &e.message);
                 Ok(Some(false))
             }

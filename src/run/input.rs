@@ -142,6 +142,7 @@ pub(super) fn observe(st: &mut LiveStatus, shared: &Shared) -> (ClockMap, bool) 
     st.rate = g.map.rate();
     st.jitter = g.map.jitter();
     st.clock_rate = g.map.clock_rate();
+    st.relocks = g.map.relocks();
     (g.map.clone(), g.ended)
 }
 
@@ -208,11 +209,11 @@ fn receive<W: Write>(
             }
             Ok(None) => {}
             Err(e) if e.fatal => {
-                let what = format!("{}, byte {}: {}", m.place, e.offset, e.message);
+                let what = format!("{}: {}", m.place.at(e.offset), e.message);
                 break Some(std::io::Error::new(std::io::ErrorKind::InvalidData, what));
             }
             Err(e) => {
-                let at = format!("{name}: {}, byte {}", m.place, e.offset);
+                let at = format!("{name}: {}", m.place.at(e.offset));
                 g.stats.malformed(&at, &e.message);
             }
         }

@@ -157,11 +157,12 @@ impl Lockstep {
             Ok(Some(d)) => self.state_to(&d, &format!("{input}: {}", m.place), outs),
             Ok(None) => Ok(()),
             Err(e) if e.fatal => Err(RunError::TimeBase(format!(
-                "{input}: {}, byte {}: {}",
-                m.place, e.offset, e.message
+                "{input}: {}: {}",
+                m.place.at(e.offset),
+                e.message
             ))),
             Err(e) => {
-                let at = format!("{input}: {}, byte {}", m.place, e.offset);
+                let at = format!("{input}: {}", m.place.at(e.offset));
                 self.stats.malformed(&at, &e.message);
                 Ok(())
             }

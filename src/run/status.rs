@@ -22,6 +22,8 @@ pub struct LiveStatus {
     pub jitter: f64,
     /// The sender's clock against the host's (fitted or given; s per s).
     pub clock_rate: f64,
+    /// Times the clock map was estimated afresh after a step in the input's delay (a pause).
+    pub relocks: u64,
     /// Output delay in use (s).
     pub delay: f64,
     /// What happened to the input.
@@ -46,10 +48,11 @@ impl LiveStatus {
         };
         let c = &self.corrections;
         format!(
-            "{state}; input {:.1} Hz, jitter {:.2} ms, clock {:+.1} ppm, {} missing, {} late; delay {:.2} ms; {} frames ({} extrapolated); {} corrections, max {:.3e} m, {:.3e} m/s, {:.3e} rad",
+            "{state}; input {:.1} Hz, jitter {:.2} ms, clock {:+.1} ppm, {} re-locks, {} missing, {} late; delay {:.2} ms; {} frames ({} extrapolated); {} corrections, max {:.3e} m, {:.3e} m/s, {:.3e} rad",
             self.rate,
             self.jitter * 1e3,
             self.clock_rate * 1e6,
+            self.relocks,
             self.stats.missing,
             self.stats.reordered,
             self.delay * 1e3,

@@ -671,12 +671,22 @@ fn realtime(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport, RunError> 
         ));
         GpsBase::at(gps_ns, mono_ns)
     });
-    let rx = Receiver::open(
+    let rx = match Receiver::open_until(
         &live.endpoint,
         live.format,
         Some(std::time::Duration::from_secs_f64(live.idle_s)),
-    )
-    .map_err(|e| RunError::io(format!("--motion {}: opening", live.source), e))?;
+        Some(stop.clone()),
+    ) {
+        Ok(rx) => rx,
+        Err(e) => {
+            // Stopped (or failed) before a sender connected: no output file is left behind.
+            out.close(false)?;
+            return Err(RunError::io(
+                format!("--motion {}: opening", live.source),
+                e,
+            ));
+        }
+    };
     let name = rx.name().to_string();
     ctl.note(&format!("following {name} in real time"));
     let record = Arc::new(Mutex::new(match &live.record {
