@@ -304,8 +304,8 @@ fn bad_sinks_are_refused() {
         (vec!["--unit-sink", "tail=file:x.bin"], "no unit `tail`"),
         (vec!["--unit-sink", "nav"], "expected NAME=SINK"),
         (
-            vec!["--unit-sink", "nav=tcp:x:1"],
-            "unknown sink kind `tcp`",
+            vec!["--unit-sink", "nav=carrier-pigeon:x:1"],
+            "unknown sink kind `carrier-pigeon`",
         ),
         (
             vec!["--udp", "127.0.0.1:9"],

@@ -340,3 +340,22 @@ fn templates_show_the_turn_on_bias() {
     assert_eq!(row[6], format!("{ug:.0}"), "{row:?}");
     assert_eq!((row[3], row[6]), ("72000.0", "80000"));
 }
+
+/// Issue 23 item 7: `generate --start 1e300` printed the span as a 301-digit number; numbers in
+/// the message are now the shortest text that reads back (`1e300`), and nothing is written.
+#[test]
+fn a_huge_start_is_named_in_short_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.csv");
+    let o = imu_emu()
+        .args(["generate", "--start", "1e300", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(err.contains("1e300"), "{err}");
+    assert!(!err.contains("0000000000"), "{err}");
+    assert!(err.len() < 400, "{err}");
+    assert!(!out.exists());
+}

@@ -73,7 +73,11 @@ pub enum EngineError {
         source: ModelError,
     },
     /// The requested time span is not inside the trajectory.
-    #[error("requested IMU span [{from}, {to}] s is outside the trajectory [{start}, {end}] s")]
+    #[error(
+        "requested IMU span [{}, {}] s is outside the trajectory [{}, {}] s",
+        crate::csvio::num(*.from), crate::csvio::num(*.to),
+        crate::csvio::num(*.start), crate::csvio::num(*.end)
+    )]
     Span {
         /// Requested start.
         from: f64,
