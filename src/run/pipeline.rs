@@ -68,8 +68,7 @@ impl Control {
             .clone()
     }
 
-    /// The shared stop flag (threads of the run watch it).
-    #[cfg(feature = "realtime")] // for the wall-clock drivers (run/wall.rs)
+    /// The shared stop flag (threads of the run and the lockstep input's reads watch it).
     pub(super) fn flag(&self) -> Arc<AtomicBool> {
         self.stop.clone()
     }
