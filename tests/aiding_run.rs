@@ -323,7 +323,7 @@ fn bad_aiding_flags_are_refused_clearly() {
     for (flags, want) in [
         (
             vec!["--odometer", "tcp:x"],
-            "--odometer tcp:x: `tcp:x`: unknown sink kind `tcp`",
+            "--odometer tcp:x: `tcp:x`: expected tcp:HOST:PORT",
         ),
         (
             vec!["--baro", "file:"],
