@@ -96,35 +96,7 @@ struct Table {
 /// `native` or an N-channel frame), then every message's other fields merged by name.
 fn decode_table(plan: Plan, data: &[u8], fixed_dt: Option<f64>, native: bool) -> Table {
     let contract = !native && plan.channels().is_none();
-    let mut columns: Vec<String> = if contract {
-        imu_emu::record::COLUMNS
-            .iter()
-            .map(|c| c.to_string())
-            .collect()
-    } else {
-        Vec::new()
-    };
-    let sources = plan.value_sources();
-    let slots: Vec<Vec<Option<usize>>> = (0..plan.messages())
-        .map(|m| {
-            plan.value_names_of(m)
-                .into_iter()
-                .zip(&sources[m])
-                .map(|(n, s)| {
-                    if contract && Decoded::in_contract(*s) {
-                        return None;
-                    }
-                    Some(match columns.iter().position(|c| c == n) {
-                        Some(i) => i,
-                        None => {
-                            columns.push(n.to_string());
-                            columns.len() - 1
-                        }
-                    })
-                })
-                .collect()
-        })
-        .collect();
+    let (columns, slots) = imu_emu::decode::columns(&plan, contract);
     let messages = (0..plan.messages())
         .map(|m| plan.message_name(m).to_string())
         .collect();

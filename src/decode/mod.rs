@@ -80,6 +80,42 @@ pub struct Session {
     line: String,
 }
 
+/// The columns of a decoded table and, per message and value field, its column (`None` for a
+/// field the record contract already holds): the contract's columns when `contract`, then
+/// every message's other value fields merged by name.
+pub fn columns(plan: &Plan, contract: bool) -> (Vec<String>, Vec<Vec<Option<usize>>>) {
+    let mut columns: Vec<String> = if contract {
+        crate::record::COLUMNS
+            .iter()
+            .map(|c| c.to_string())
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let sources = plan.value_sources();
+    let slots = (0..plan.messages())
+        .map(|m| {
+            plan.value_names_of(m)
+                .into_iter()
+                .zip(&sources[m])
+                .map(|(n, s)| {
+                    if contract && Decoded::in_contract(*s) {
+                        return None;
+                    }
+                    Some(match columns.iter().position(|c| c == n) {
+                        Some(i) => i,
+                        None => {
+                            columns.push(n.to_string());
+                            columns.len() - 1
+                        }
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    (columns, slots)
+}
+
 impl Session {
     /// A session decoding frames of `plan` (its rate already set, for counters that advance
     /// with it).
@@ -90,35 +126,7 @@ impl Session {
         let multi = plan.messages() > 1;
         // An N-channel frame (a skew-redundant unit's) has no three-axis record: its own fields.
         let contract = !opts.native && plan.channels().is_none();
-        let mut columns: Vec<String> = if contract {
-            crate::record::COLUMNS
-                .iter()
-                .map(|c| c.to_string())
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let sources = plan.value_sources();
-        let slots: Vec<Vec<Option<usize>>> = (0..plan.messages())
-            .map(|m| {
-                plan.value_names_of(m)
-                    .into_iter()
-                    .zip(&sources[m])
-                    .map(|(n, s)| {
-                        if contract && Decoded::in_contract(*s) {
-                            return None;
-                        }
-                        Some(match columns.iter().position(|c| c == n) {
-                            Some(i) => i,
-                            None => {
-                                columns.push(n.to_string());
-                                columns.len() - 1
-                            }
-                        })
-                    })
-                    .collect()
-            })
-            .collect();
+        let (columns, slots) = columns(&plan, contract);
         let names = (0..plan.messages())
             .map(|m| plan.message_name(m).to_string())
             .collect();
