@@ -89,12 +89,5 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
 
 /// Writes `bytes` to `p` whole or not at all.
 pub fn write_file(p: &Path, bytes: &[u8]) -> Result<()> {
-    use std::io::Write;
-    let mut f = imu_emu::output::AtomicFile::create(p)
-        .with_context(|| format!("{}: cannot create", p.display()))?;
-    f.write_all(bytes)
-        .with_context(|| format!("{}: write failed", p.display()))?;
-    f.commit()
-        .with_context(|| format!("{}: write failed", p.display()))?;
-    Ok(())
+    Ok(imu_emu::output::write_whole(p, bytes)?)
 }

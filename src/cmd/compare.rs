@@ -4,10 +4,9 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use imu_emu::nav::campaign::{Aiding, Campaign, CampaignSpec, MissionSpec, report};
-use imu_emu::output::AtomicFile;
 
 #[derive(clap::Args)]
 pub struct CompareArgs {
@@ -113,12 +112,7 @@ pub fn compare(a: CompareArgs) -> Result<()> {
         eprintln!("imu-emu compare: plot written to {}", path.display());
     }
     if let Some(path) = &a.csv {
-        let mut f =
-            AtomicFile::create(path).with_context(|| format!("creating {}", path.display()))?;
-        f.write_all(report::growth_csv(&rows).as_bytes())
-            .with_context(|| format!("writing {}", path.display()))?;
-        f.commit()
-            .with_context(|| format!("finishing {}", path.display()))?;
+        imu_emu::output::write_whole(path, report::growth_csv(&rows).as_bytes())?;
     }
     Ok(())
 }

@@ -3,10 +3,9 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use imu_emu::motion::Motion;
-use imu_emu::output::AtomicFile;
 
 #[derive(clap::Args)]
 pub struct TrajectoryArgs {
@@ -30,59 +29,13 @@ pub struct TrajectoryArgs {
     pub plot: Option<PathBuf>,
 }
 
-/// `imu-emu templates`: the built-in IMU templates and their headline figures, each typical
-/// profile on its own row under its template. Written, not printed: a full disk or a closed
-/// pipe is an error, never a panic.
+/// `imu-emu templates`: the built-in IMU templates' headline figures. Written, not printed:
+/// a full disk or a closed pipe is an error, never a panic.
 pub fn list_templates() -> Result<()> {
-    use imu_emu::errors::template;
     let mut out = std::io::stdout().lock();
-    writeln!(
-        out,
-        "{:<17} {:<11} {:>12} {:>10} {:>13} {:>12} {:>10} {:>13}  description",
-        "name", "grade", "gyro BI", "gyro TO", "ARW", "accel BI", "accel TO", "VRW"
-    )?;
-    writeln!(
-        out,
-        "{:<17} {:<11} {:>12} {:>10} {:>13} {:>12} {:>10} {:>13}",
-        "", "", "deg/h", "deg/h", "deg/sqrt(h)", "ug", "ug", "m/s/sqrt(h)"
-    )?;
-    let typical = template::typical_names();
-    for name in template::builtin_names() {
-        template_row(&mut out, &template::load(name)?)?;
-        if typical.contains(&name) {
-            let m = template::load(&format!("{name}:{}", template::TYPICAL))?;
-            template_row(&mut out, &m)?;
-        }
-    }
-    writeln!(
-        out,
-        "\nBI: bias instability; TO: turn-on bias, the 1σ of the constant bias drawn at each \
-         start (largest axis), which often dominates a low-cost unit's navigation error.\n\
-         `--imu NAME` uses the datasheet figures (the default); `--imu NAME:typical` the \
-         figures read from a public recording of a real unit (docs/fidelity.md)."
-    )?;
+    out.write_all(imu_emu::errors::headline::table()?.as_bytes())?;
     out.flush()?;
     Ok(())
-}
-
-fn template_row(out: &mut impl Write, m: &imu_emu::errors::ImuModel) -> std::io::Result<()> {
-    use std::f64::consts::PI;
-    let deg_h = 180.0 / PI * 3600.0;
-    let ug = 1e6 / imu_emu::units::G0;
-    let largest = |v: [f64; 3]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    writeln!(
-        out,
-        "{:<17} {:<11} {:>12.3} {:>10.1} {:>13.4} {:>12.1} {:>10.0} {:>13.4}  {}",
-        m.name,
-        m.grade,
-        m.gyro.bias_instability[0] * deg_h,
-        largest(m.gyro.bias_turn_on) * deg_h,
-        m.gyro.noise[0] * 180.0 / PI * 60.0,
-        m.accel.bias_instability[0] * ug,
-        largest(m.accel.bias_turn_on) * ug,
-        m.accel.noise[0] * 60.0,
-        m.description
-    )
 }
 
 pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
@@ -98,10 +51,7 @@ pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
     if a.output == Path::new("-") {
         std::io::stdout().write_all(text.as_bytes())?;
     } else {
-        let mut f = AtomicFile::create(&a.output)
-            .with_context(|| format!("creating {}", a.output.display()))?;
-        f.write_all(text.as_bytes())?;
-        f.commit()?;
+        imu_emu::output::write_whole(&a.output, text.as_bytes())?;
     }
     if let Some(p) = &a.plot {
         // At most ~4000 points per curve whatever the rate: enough for a page-wide plot.

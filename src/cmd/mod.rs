@@ -1,5 +1,5 @@
-//! The subcommands, one module each; `setup` holds the simulation flags they share, `routes`
-//! the sink flags, `flow` the running and printing of a run.
+//! The subcommands, one module each; `setup` holds the simulation flags they share, `flow` the
+//! running and printing of a run. What the flags mean is the library's (`imu_emu::run`).
 
 pub mod analyze;
 pub mod compare;
@@ -11,7 +11,6 @@ pub mod info;
 pub mod input;
 pub mod navigate;
 pub mod plot_errors;
-pub mod routes;
 pub mod run;
 pub mod setup;
 pub mod validate;

@@ -1,11 +1,9 @@
 //! `imu-emu run`: the flags of a run, turned into a [`RunSpec`] (over the scene file's), built,
 //! then run by the library with its status and summary printed.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 
-use imu_emu::live::InputFormat;
-use imu_emu::output::SinkAddr;
-use imu_emu::run::{LiveSpec, RunSpec, Speed, StreamId, TimeBase};
+use imu_emu::run::{LiveOverrides, Overrides, RunSpec};
 
 use super::setup::SimArgs;
 
@@ -182,63 +180,11 @@ pub struct LiveArgs {
 /// The run the flags describe, over the scene file's.
 pub fn spec(a: &RunArgs) -> Result<RunSpec> {
     let signal = a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?;
-    let mut spec = super::routes::from_scene(signal)?;
     let l = &a.live;
-    // A live input from the flags, or from the scene file's `[run.input]` (which they amend).
-    let source = (l.motion.clone()).or(spec.input.as_ref().map(|i| i.source.clone()));
-    match &source {
-        Some(source) => {
-            if l.motion.is_some()
-                && (a.sim.source.scene.is_some() || a.sim.source.trajectory.is_some())
-            {
-                bail!("--motion replaces --scene and --trajectory: give one source");
-            }
-            let lockstep = match l.time_mode.as_deref() {
-                None => None,
-                Some("realtime") => Some(false),
-                Some("lockstep") => Some(true),
-                Some(m) => bail!("--time-mode {m}: expected realtime or lockstep"),
-            };
-            let format = match &l.input_format {
-                None => None,
-                Some(f) => Some(InputFormat::from_name(f).with_context(|| {
-                    format!("--input-format {f}: expected csv, bin or mavlink")
-                })?),
-            };
-            // The flags replace the scene file's `[run.input]` keys they give, not the others.
-            let file = spec
-                .input
-                .take()
-                .unwrap_or_else(|| LiveSpec::new(source.clone()));
-            spec.input = Some(LiveSpec {
-                source: source.clone(),
-                format: format.or(file.format),
-                lockstep: lockstep.unwrap_or(file.lockstep),
-                output_delay_s: l.output_delay.or(file.output_delay_s),
-                max_extrapolation_s: l.max_extrapolation.or(file.max_extrapolation_s),
-                correction_horizon_s: l.correction_horizon.or(file.correction_horizon_s),
-                on_timeout: l.on_timeout.clone().or(file.on_timeout),
-                input_timeout_s: l.input_timeout.or(file.input_timeout_s),
-                record: l.record_input.clone().or(file.record),
-            });
-        }
-        None => {
-            let given = [
-                ("--input-format", l.input_format.is_some()),
-                ("--time-mode", l.time_mode.is_some()),
-                ("--output-delay", l.output_delay.is_some()),
-                ("--max-extrapolation", l.max_extrapolation.is_some()),
-                ("--correction-horizon", l.correction_horizon.is_some()),
-                ("--on-timeout", l.on_timeout.is_some()),
-                ("--record-input", l.record_input.is_some()),
-                ("--input-timeout", l.input_timeout.is_some()),
-            ];
-            if let Some((flag, _)) = given.iter().find(|g| g.1) {
-                bail!("{flag} applies to a live input: give --motion SOURCE");
-            }
-        }
+    if l.motion.is_some() && (a.sim.source.scene.is_some() || a.sim.source.trajectory.is_some()) {
+        bail!("--motion replaces --scene and --trajectory: give one source");
     }
-    let mut imu_routes = Vec::new();
+    let mut spec = RunSpec::from_signal(signal)?;
     let sinks = [
         ("pty", &a.pty),
         ("serial", &a.serial),
@@ -247,74 +193,41 @@ pub fn spec(a: &RunArgs) -> Result<RunSpec> {
         ("tcp-listen", &a.tcp_listen),
         ("file", &a.file),
     ];
-    for (kind, values) in sinks {
-        for v in values {
-            let (addr, protocol) = imu_emu::run::scene::sink_with_protocol(&format!("{kind}:{v}"))
-                .map_err(|e| anyhow::anyhow!("--{kind} {v}: {e}"))?;
-            let stream = StreamId::Unit {
-                unit: None,
-                protocol,
-            };
-            imu_routes.push((stream, addr, format!("--{kind} {v}")));
-        }
-    }
-    if !imu_routes.is_empty() {
-        spec.replace_routes(|s| matches!(s, StreamId::Unit { unit: None, .. }));
-        for (s, addr, origin) in imu_routes {
-            spec.add_route(s, addr, origin);
-        }
-    }
-    super::routes::unit_sinks(&mut spec, &a.unit_sink)?;
-    super::routes::aiding(
-        &mut spec,
-        &a.gnss,
-        [&a.odometer, &a.baro, &a.magnetometer],
-        SinkAddr::parse,
-    )?;
-    super::routes::default_ptys(&mut spec)?;
-    let c = &mut spec.clock;
-    if let Some(s) = &a.speed {
-        c.speed = Some(match s.as_str() {
-            "max" => Speed::Max,
-            s => Speed::Factor(s.parse().map_err(|_| {
-                anyhow::anyhow!("--speed {s}: expected a positive factor (1 = real time) or `max`")
-            })?),
-        });
-    }
-    if a.start_at.is_some() {
-        c.start_at.clone_from(&a.start_at);
-    }
-    if let Some(t) = &a.time_base {
-        c.time_base = TimeBase::from_name(t);
-    }
-    if a.max_behind_ms.is_some() {
-        c.max_behind_ms = a.max_behind_ms;
-    }
-    c.realtime_priority |= a.realtime;
-    let s = &mut spec.sync;
-    if !a.time_marks.is_empty() {
-        s.time_marks = a
-            .time_marks
-            .iter()
-            .map(|t| imu_emu::run::scene::split_unit(t))
-            .collect();
-    }
-    for (dst, src) in [
-        (&mut s.pulse, &a.pulse),
-        (&mut s.pulse_port, &a.pulse_port),
-        (&mut s.pulse_unit, &a.pulse_unit),
-        (&mut s.pps_in, &a.pps_in),
-        (&mut s.trigger, &a.trigger),
-    ] {
-        if src.is_some() {
-            dst.clone_from(src);
-        }
-    }
-    let k = &mut spec.link;
-    k.baud = a.baud.or(k.baud);
-    k.framing = a.framing.clone().or(k.framing.take());
-    k.udp_batch = a.udp_batch.or(k.udp_batch);
-    k.take_over |= a.take_over;
+    let imu_sinks = (sinks.iter())
+        .flat_map(|(kind, values)| values.iter().map(|v| (kind.to_string(), v.clone())))
+        .collect();
+    spec.apply_overrides(&Overrides {
+        live: LiveOverrides {
+            motion: l.motion.clone(),
+            input_format: l.input_format.clone(),
+            time_mode: l.time_mode.clone(),
+            output_delay: l.output_delay,
+            max_extrapolation: l.max_extrapolation,
+            correction_horizon: l.correction_horizon,
+            on_timeout: l.on_timeout.clone(),
+            record_input: l.record_input.clone(),
+            input_timeout: l.input_timeout,
+        },
+        imu_sinks,
+        unit_sinks: a.unit_sink.clone(),
+        gnss: a.gnss.clone(),
+        sensors: [&a.odometer, &a.baro, &a.magnetometer].map(Clone::clone),
+        speed: a.speed.clone(),
+        start_at: a.start_at.clone(),
+        time_base: a.time_base.clone(),
+        max_behind_ms: a.max_behind_ms,
+        realtime_priority: a.realtime,
+        time_marks: a.time_marks.clone(),
+        pulse: a.pulse.clone(),
+        pulse_port: a.pulse_port.clone(),
+        pulse_unit: a.pulse_unit.clone(),
+        pps_in: a.pps_in.clone(),
+        trigger: a.trigger.clone(),
+        baud: a.baud,
+        framing: a.framing.clone(),
+        udp_batch: a.udp_batch,
+        take_over: a.take_over,
+    })?;
     Ok(spec)
 }
 

@@ -138,7 +138,7 @@ pub struct SimArgs {
     pub protocol_file: Option<PathBuf>,
     /// GPS time of record time 0 for frames with GPS time fields, as WEEK,SECONDS_OF_WEEK
     /// [default: 0,0 — record times are GPS seconds since 1980-01-06].
-    #[arg(long, value_parser = parse_gps_time)]
+    #[arg(long, value_parser = imu_emu::timebase::parse_week_seconds)]
     pub gps_time: Option<(u32, f64)>,
     /// Inject a fault into protocol frames: KIND@T1,T2,… (record times, s) or KIND~RATE (mean
     /// events per second); KIND is corrupt-check, drop, duplicate, stale-counter or status.
@@ -210,23 +210,4 @@ pub fn announce_run(run: &imu_emu::run::Run) {
     for line in run.announcements() {
         eprintln!("imu-emu: {line}");
     }
-}
-
-/// Parses `WEEK,SECONDS` (seconds of week in [0, 604800)).
-pub fn parse_gps_time(s: &str) -> Result<(u32, f64), String> {
-    let (w, sow) = s
-        .split_once(',')
-        .ok_or("expected WEEK,SECONDS_OF_WEEK, e.g. 2209,491674.0")?;
-    let w: u32 = w
-        .trim()
-        .parse()
-        .map_err(|_| format!("week `{w}` is not a whole number"))?;
-    let sow: f64 = sow
-        .trim()
-        .parse()
-        .map_err(|_| format!("seconds `{sow}` is not a number"))?;
-    if !(0.0..604_800.0).contains(&sow) {
-        return Err(format!("seconds of week {sow} outside [0, 604800)"));
-    }
-    Ok((w, sow))
 }

@@ -8,6 +8,7 @@
 pub mod chain;
 pub mod filter_allan;
 pub mod filtered;
+pub mod headline;
 pub mod model;
 pub mod output_filter;
 pub mod process;

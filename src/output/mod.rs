@@ -170,6 +170,14 @@ pub fn encode(format: Format, records: &[Record], buf: &mut Vec<u8>) {
     }
 }
 
+/// Writes `bytes` to `dest` whole or not at all (an [`AtomicFile`]); an error names the file.
+pub fn write_whole(dest: &Path, bytes: &[u8]) -> io::Result<()> {
+    let named = |e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", dest.display()));
+    let mut f = AtomicFile::create(dest).map_err(named)?;
+    f.write_all(bytes).map_err(named)?;
+    f.commit().map_err(named)
+}
+
 /// A file written under a temporary name and renamed into place by [`AtomicFile::commit`];
 /// dropped without commit, the temporary is removed, so a failed run leaves nothing behind.
 ///

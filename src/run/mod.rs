@@ -12,6 +12,8 @@ mod exec;
 #[cfg(feature = "realtime")]
 mod input;
 pub mod lockstep;
+pub mod offline;
+pub mod overrides;
 mod pipeline;
 pub mod routing;
 pub mod scene;
@@ -26,6 +28,8 @@ mod wall;
 pub use build::Run;
 pub use clock::Clock;
 pub use error::RunError;
+pub use offline::{Offline, OfflineFiles};
+pub use overrides::{LiveOverrides, Overrides};
 pub use pipeline::Control;
 pub use spec::{LiveSpec, Route, RunSpec, Speed, StreamId, TimeBase};
 pub use status::{RunReport, RunStatus};

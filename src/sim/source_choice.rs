@@ -8,7 +8,7 @@ use super::{SimError, Simulation, SimulationBuilder};
 
 /// The motion source a user named; at most one of `scene` and `trajectory`, and of
 /// `trajectory` and `motion_def`, is expected (the command line refuses both).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SourceChoice {
     /// Scene file (TOML); the others override it.
     pub scene_file: Option<PathBuf>,

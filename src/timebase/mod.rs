@@ -215,9 +215,54 @@ fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
     era * 146_097 + doe - 719_468
 }
 
+/// Parses a GPS time written `WEEK,SECONDS` (seconds of week in [0, 604800)), as the command
+/// line's `--gps-time` takes it.
+pub fn parse_week_seconds(s: &str) -> Result<(u32, f64), String> {
+    let (w, sow) = s
+        .split_once(',')
+        .ok_or("expected WEEK,SECONDS_OF_WEEK, e.g. 2209,491674.0")?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("week `{w}` is not a whole number"))?;
+    let sow: f64 = sow
+        .trim()
+        .parse()
+        .map_err(|_| format!("seconds `{sow}` is not a number"))?;
+    if !(0.0..604_800.0).contains(&sow) {
+        return Err(format!("seconds of week {sow} outside [0, 604800)"));
+    }
+    Ok((w, sow))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn week_and_seconds_read_and_refuse_by_part() {
+        assert_eq!(parse_week_seconds("2209, 491674.5"), Ok((2209, 491_674.5)));
+        assert!(
+            parse_week_seconds("2209")
+                .unwrap_err()
+                .contains("WEEK,SECONDS_OF_WEEK")
+        );
+        assert!(
+            parse_week_seconds("-1,0")
+                .unwrap_err()
+                .contains("week `-1`")
+        );
+        assert!(
+            parse_week_seconds("1,x")
+                .unwrap_err()
+                .contains("seconds `x`")
+        );
+        assert!(
+            parse_week_seconds("1,604800")
+                .unwrap_err()
+                .contains("outside [0, 604800)")
+        );
+    }
 
     /// Known epoch offsets (`date -u -d … +%s`) and the fraction's digits.
     #[test]

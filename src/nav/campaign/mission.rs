@@ -3,65 +3,18 @@
 //! units to compare and the GNSS receiver. Every table of a scene file is used or refused
 //! here with the reason: nothing in it is silently ignored.
 
-use std::path::PathBuf;
-
-use serde::{Deserialize, Serialize};
-
 use super::CampaignError;
 use super::unit::Candidate;
 use crate::aiding::GnssConfig;
 use crate::config::SceneFile;
 use crate::errors::template;
 use crate::rig::UnitModel;
-use crate::sim::{Simulation, SimulationBuilder};
 use crate::source::AnyMotion;
 
 /// Where a mission's motion comes from (the `--scene-file`, `--scene`, `--trajectory` and
-/// `--motion-def` of `compare`); none given: the default scene.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct MissionSpec {
-    /// Scene file (TOML): its trajectory, span, `[imu]`/`[[imu]]` units and `[gnss]`.
-    pub scene_file: Option<PathBuf>,
-    /// Built-in scene (over the scene file's).
-    pub scene: Option<String>,
-    /// Trajectory CSV (over the scene file's).
-    pub trajectory: Option<PathBuf>,
-    /// Motion definition (over the scene file's).
-    pub motion_def: Option<PathBuf>,
-}
-
-impl MissionSpec {
-    /// How tables and messages name the mission.
-    pub fn name(&self) -> String {
-        if let Some(m) = &self.motion_def {
-            return format!("motion definition {}", m.display());
-        }
-        match (&self.trajectory, &self.scene, &self.scene_file) {
-            (Some(t), _, _) => format!("trajectory file {}", t.display()),
-            (None, Some(n), _) => format!("scene {n}"),
-            (None, None, Some(f)) => format!("scene file {}", f.display()),
-            (None, None, None) => format!("scene {}", crate::scenes::DEFAULT),
-        }
-    }
-
-    /// The builder of the mission's source.
-    fn builder(&self) -> Result<SimulationBuilder, CampaignError> {
-        let mut b = match &self.scene_file {
-            Some(p) => Simulation::from_scene_file(p)?,
-            None => Simulation::builder(),
-        };
-        if let Some(s) = &self.scene {
-            b = b.scene(s);
-        }
-        if let Some(t) = &self.trajectory {
-            b = b.trajectory(t);
-        }
-        if let Some(m) = &self.motion_def {
-            b = b.motion_def(m);
-        }
-        Ok(b)
-    }
-}
+/// `--motion-def` of `compare`), as any command names a source: the scene file gives its
+/// trajectory, span, `[imu]`/`[[imu]]` units and `[gnss]`; none given: the default scene.
+pub type MissionSpec = crate::sim::SourceChoice;
 
 /// What a mission's scene file gives the campaign.
 pub(super) struct Resolved {
