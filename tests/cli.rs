@@ -718,6 +718,17 @@ fn scene_file_scene_and_file_conflict() {
     assert_mentions(&e, &[&format!("{p}: `trajectory`: "), "not both"]);
 }
 
+// A live `--motion` is the run's motion source: a `--scene` or `--trajectory` beside it is
+// refused by the parser, naming both flags, before anything is opened.
+#[test]
+fn live_motion_and_another_source_conflict() {
+    for other in ["--scene circle", "--trajectory t.csv"] {
+        let e = failed(run!(&format!("run --motion udp://127.0.0.1:1 {other}")));
+        let flag = other.split(' ').next().unwrap();
+        assert_mentions(&e, &["--motion", flag, "cannot be used with"]);
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // IMU models and defaults.
 

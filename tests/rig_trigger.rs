@@ -148,6 +148,14 @@ fn every_unit_samples_once_per_edge() {
             .arg(format!("{n}=file:{}", d.join(format!("{n}.csv")).display()));
     }
     c.arg("--unit-sink").arg(format!("k=udp:{frames_to}"));
+    // Units a (sharing the edges' evaluation) and f (a producer of its own) also in LN-200
+    // frames: the same records in a further protocol.
+    for n in ["a", "f"] {
+        c.arg("--unit-sink").arg(format!(
+            "{n}=file:{},protocol=ln200",
+            d.join(format!("{n}.ln200")).display()
+        ));
+    }
     let mut child = c
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
@@ -195,6 +203,37 @@ fn every_unit_samples_once_per_edge() {
     assert_eq!(n, at_ms.len() - 1, "{rest}");
     assert_eq!(dec.stats().check_failures, 0);
     assert!(rest.contains("unit k: 5 of 5 records"), "{rest}");
+    // The further protocol's frames carry each record's increments: one frame per record,
+    // each within one LSB of the CSV's (the carry quantizer's per-frame error is below one
+    // step: 2^-19 rad, 2^-14 m/s).
+    let (_, plan) = protocol::load("ln200").unwrap();
+    for (n, r) in ["a", "f"].iter().zip(&units) {
+        let mut dec = StreamDecoder::new(plan.clone());
+        let mut got = Vec::new();
+        dec.feed(&std::fs::read(d.join(format!("{n}.ln200"))).unwrap(), |f| {
+            got.push(f.contract(None))
+        });
+        dec.finish();
+        assert_eq!(
+            (got.len(), dec.stats().check_failures),
+            (r.len(), 0),
+            "unit {n}"
+        );
+        for (k, (f, row)) in got.iter().zip(r).enumerate() {
+            for (col, lsb) in [
+                (7, 2f64.powi(-19)),
+                (9, 2f64.powi(-19)),
+                (12, 2f64.powi(-14)),
+            ] {
+                let x = f[col].unwrap();
+                assert!(
+                    (x - row[col]).abs() <= lsb,
+                    "unit {n} record {k} column {col}: {x} vs {}",
+                    row[col]
+                );
+            }
+        }
+    }
 }
 
 /// Writes `text` to `dir/name`.

@@ -1,7 +1,7 @@
 //! `imu-emu run`: the flags of a run, turned into a [`RunSpec`] (over the scene file's), built,
 //! then run by the library with its status and summary printed.
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 
 use imu_emu::run::{LiveOverrides, Overrides, RunSpec};
 
@@ -51,7 +51,8 @@ pub struct RunArgs {
     pub file: Vec<String>,
     /// A rig unit's sink, NAME=KIND:TARGET with KIND pty, serial, udp, tcp, tcp-listen or file (e.g.
     /// `nav=udp:127.0.0.1:9001`); repeatable; replaces the scene file's `sink` of that unit.
-    #[arg(long, value_name = "NAME=SINK")]
+    /// `,protocol=NAME` sends the unit's records in another protocol than its own.
+    #[arg(long, value_name = "NAME=SINK[,protocol=NAME]")]
     pub unit_sink: Vec<String>,
     /// A GNSS receiver's stream, FORMAT:SINK with FORMAT nmea, ubx or mavlink and SINK as
     /// `--unit-sink`'s (e.g. `nmea:udp:127.0.0.1:9010`); repeatable (docs/aiding.md).
@@ -135,7 +136,7 @@ pub struct LiveArgs {
     /// Follow states that arrive live instead of a scene or a trajectory file:
     /// udp://HOST:PORT (unicast or multicast), tcp://HOST:PORT (listens, takes the first
     /// connection), - (stdin), or a FIFO or file (docs/live-input.md).
-    #[arg(long, value_name = "SOURCE")]
+    #[arg(long, value_name = "SOURCE", conflicts_with_all = ["scene", "trajectory"])]
     pub motion: Option<String>,
     /// Wire format of the --motion states: csv, bin or mavlink (HIL_STATE_QUATERNION)
     /// [default: csv].
@@ -181,9 +182,6 @@ pub struct LiveArgs {
 pub fn spec(a: &RunArgs) -> Result<RunSpec> {
     let signal = a.sim.builder(DEFAULT_IMU, DEFAULT_PROTOCOL)?;
     let l = &a.live;
-    if l.motion.is_some() && (a.sim.source.scene.is_some() || a.sim.source.trajectory.is_some()) {
-        bail!("--motion replaces --scene and --trajectory: give one source");
-    }
     let mut spec = RunSpec::from_signal(signal)?;
     let sinks = [
         ("pty", &a.pty),

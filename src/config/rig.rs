@@ -171,7 +171,7 @@ impl UnitEntry {
                 _ => "sink".into(),
             };
             spec.sinks
-                .push(SinkAddr::parse(s).map_err(|m| bad(&key, m))?);
+                .push(SinkAddr::parse_with_protocol(s).map_err(|m| bad(&key, m))?);
         }
         let names = spec.channel_names();
         for (j, f) in self.failure.iter().enumerate() {

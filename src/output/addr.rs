@@ -23,6 +23,16 @@ pub enum SinkAddr {
 }
 
 impl SinkAddr {
+    /// Reads `KIND:TARGET[,protocol=NAME]`: the address, and the protocol (built-in name or
+    /// spec file) its frames are in when it is not the unit's own.
+    pub fn parse_with_protocol(s: &str) -> Result<(SinkAddr, Option<String>), String> {
+        let (target, protocol) = match s.rsplit_once(",protocol=") {
+            Some((t, p)) => (t, Some(p.to_string())),
+            None => (s, None),
+        };
+        Ok((SinkAddr::parse(target)?, protocol))
+    }
+
     /// Reads `KIND:TARGET`; the error says what was expected.
     pub fn parse(s: &str) -> Result<SinkAddr, String> {
         let expected = "expected pty:PATH, serial:DEV, udp:HOST:PORT, tcp:HOST:PORT, \

@@ -10,6 +10,7 @@
 pub mod failure;
 pub mod geometry;
 mod produced;
+mod protocols;
 pub mod skew;
 mod spec;
 pub mod stream;
@@ -80,7 +81,7 @@ pub struct Unit {
     pub(crate) failures: FailureSet,
     pub(crate) seed: u64,
     pub(crate) path: Option<std::path::PathBuf>,
-    pub(crate) sinks: Vec<SinkAddr>,
+    pub(crate) sinks: Vec<(SinkAddr, Option<String>)>,
     /// The sensor temperature over the run: the template's thermal terms follow it (in the
     /// chain) and frames with a temperature field carry it.
     pub(crate) temperature: Option<TemperatureProfile>,
@@ -90,6 +91,8 @@ pub struct Unit {
     pub(crate) flags: u8,
     /// The unit samples at external trigger edges ([`RigStream::triggered`]).
     pub(crate) triggered: bool,
+    /// Further protocols the same records are encoded in ([`Unit::add_protocol`]).
+    pub(crate) extra: Vec<Encoding>,
 }
 
 /// Reused per-unit buffers: nothing is allocated per block once they have grown.
@@ -118,6 +121,8 @@ struct Scratch {
     /// Each record's index (0-based) and time of validity (ns after the run's t₀), for the
     /// time marks and pulses that follow the unit's records.
     marks: Vec<(u64, i64)>,
+    /// The block's frames in each further protocol, with their ends.
+    extra: Vec<(Vec<u8>, Vec<usize>)>,
 }
 
 /// Where one unit's outputs go.
@@ -162,8 +167,9 @@ impl Unit {
         self.path.as_deref()
     }
 
-    /// Where `imu-emu run` streams the unit (the scene file's `sink`).
-    pub fn sinks(&self) -> &[SinkAddr] {
+    /// Where `imu-emu run` streams the unit (the scene file's `sink`), each with its protocol
+    /// when it is not the unit's own.
+    pub fn sinks(&self) -> &[(SinkAddr, Option<String>)] {
         &self.sinks
     }
 
@@ -358,6 +364,7 @@ impl Unit {
                 sample_mag(self.mag.as_deref_mut(), motion, s)?;
                 let profile = self.temperature.as_ref();
                 encoding.encode_with_mag(&s.recs, &[], profile, &s.mag, &mut s.buf, &mut s.ends);
+                protocols::encode_extra(&mut self.extra, false, profile, s);
                 if let Some(w) = truth.as_mut() {
                     s.side.clear();
                     for (r, m) in s.truth.iter().zip(&s.masks) {
@@ -599,7 +606,11 @@ impl Rig {
                 }
                 Body::Skew { frames, .. } => frames.as_deref_mut().map(|f| &mut f.1),
             };
-            if let Some(st) = state {
+            let extra = u.extra.iter_mut().filter_map(|e| match e {
+                Encoding::Frames { state, .. } => Some(state),
+                Encoding::Records(_) => None,
+            });
+            for st in state.into_iter().chain(extra) {
                 st.gps_week0 = week;
                 st.gps_sow0 = seconds_of_week;
             }

@@ -91,6 +91,7 @@ impl Unit {
         let profile = self.temperature.as_ref();
         let gaps = if s.gaps.is_empty() { &[][..] } else { &s.gaps };
         encoding.encode_with_mag(&s.recs, gaps, profile, &s.mag, &mut s.buf, &mut s.ends);
+        super::protocols::encode_extra(&mut self.extra, true, profile, s);
         if truth {
             for (i, (r, m)) in s.truth.iter().zip(&s.masks).enumerate() {
                 truth_row(&mut s.side, &r.values(), s.times.get(i).copied(), *m);

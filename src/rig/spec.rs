@@ -37,8 +37,9 @@ pub struct UnitSpec {
     pub path: Option<PathBuf>,
     /// Failures.
     pub failures: Vec<FailureSpec>,
-    /// Where `imu-emu run` streams the unit.
-    pub sinks: Vec<SinkAddr>,
+    /// Where `imu-emu run` streams the unit, each with the protocol its frames are in when it
+    /// is not the unit's own `format` (`,protocol=NAME`).
+    pub sinks: Vec<(SinkAddr, Option<String>)>,
 }
 
 impl UnitSpec {

@@ -74,6 +74,9 @@ pub struct RigStream {
     truth: Vec<Option<usize>>,
     /// Each unit's truth rows of the block being made.
     truth_buf: Vec<u8>,
+    /// Per unit: the stream of each further protocol it speaks ([`super::Unit::add_protocol`]),
+    /// after the truth streams, in unit order.
+    extra: Vec<Vec<usize>>,
 }
 
 impl Rig {
@@ -114,7 +117,9 @@ impl Rig {
             rot: Vec::new(),
             truth_buf: Vec::new(),
             motion: self.motion,
+            extra: Vec::new(),
         }
+        .with_extra_streams()
     }
 }
 
@@ -175,6 +180,15 @@ impl RigStream {
                 producer.set_keep_truth(*w);
             }
         }
+        self.with_extra_streams()
+    }
+
+    /// Numbers the further protocols' streams, after the units' and the truth streams.
+    fn with_extra_streams(mut self) -> RigStream {
+        let mut next = self.units.len() + self.truth.iter().flatten().count();
+        self.extra = (self.units.iter())
+            .map(|u| (0..u.protocols()).map(|_| post_inc(&mut next)).collect())
+            .collect();
         self
     }
 
@@ -228,6 +242,7 @@ impl RigStream {
                 out.push(u.headers().1.into_bytes());
             }
         }
+        out.extend(self.extra.iter().flatten().map(|_| Vec::new()));
         out
     }
 
@@ -239,7 +254,7 @@ impl RigStream {
 
 impl WindowSource for RigStream {
     fn streams(&self) -> usize {
-        self.units.len() + self.truth.iter().flatten().count()
+        self.units.len() + self.truth.iter().flatten().count() + self.extra.iter().flatten().count()
     }
 
     fn next_due_ns(&self) -> Option<i64> {
@@ -336,7 +351,8 @@ impl RigStream {
                     let (motion, reference) = (&self.motion, &self.reference[..]);
                     self.units[i].encode(motion, reference, terms, dt, s, &mut truth)?;
                     let at = |j: usize| emit_ns(&g.grid, self.origin, k + j as u64);
-                    push_frames(s, &self.truth_buf, self.truth[i], i, k - 1, at, parts);
+                    let streams = (i, self.truth[i], &self.extra[i][..]);
+                    push_frames(s, &self.truth_buf, streams, k - 1, at, parts);
                 }
                 g.next += n as u64;
             }
@@ -378,15 +394,8 @@ impl RigStream {
                 let mut truth = self.truth[i].map(|_| &mut self.truth_buf as &mut dyn Write);
                 let (motion, reference) = (&self.motion, &self.reference[..1]);
                 self.units[i].encode(motion, reference, terms, span, s, &mut truth)?;
-                push_frames(
-                    s,
-                    &self.truth_buf,
-                    self.truth[i],
-                    i,
-                    *made,
-                    |_| at_ns,
-                    parts,
-                );
+                let streams = (i, self.truth[i], &self.extra[i][..]);
+                push_frames(s, &self.truth_buf, streams, *made, |_| at_ns, parts);
                 *made += 1;
             }
         }
@@ -408,6 +417,10 @@ impl RigStream {
                 if let Some(t) = truth {
                     let from = if j == 0 { 0 } else { s.side_ends[j - 1] };
                     parts[t].push(&s.side[from..s.side_ends[j]], s.emit[j]);
+                }
+                for (&x, (buf, ends)) in self.extra[i].iter().zip(&s.extra) {
+                    let from = if j == 0 { 0 } else { ends[j - 1] };
+                    parts[x].push(&buf[from..ends[j]], s.emit[j]);
                 }
                 h.next += 1;
             }
@@ -456,14 +469,13 @@ impl RigStream {
     }
 }
 
-/// Appends unit `i`'s block (its frames in `s`, its truth rows in `truth_rows`, one per
-/// frame) to its stream and its truth stream `truth`, frame j — record `first + j` (0-based),
-/// valid when it is sent — emitted at `at(j)`.
+/// Appends a unit's block (its frames in `s`, its truth rows in `truth_rows`, one per frame)
+/// to its streams (`i`, its truth stream, its further protocols' streams), frame j — record
+/// `first + j` (0-based), valid when it is sent — emitted at `at(j)`.
 fn push_frames(
     s: &Scratch,
     truth_rows: &[u8],
-    truth: Option<usize>,
-    i: usize,
+    (i, truth, extra): (usize, Option<usize>, &[usize]),
     first: u64,
     at: impl Fn(usize) -> i64,
     parts: &mut [Part],
@@ -474,12 +486,25 @@ fn push_frames(
         (parts[i].records).push((first + j as u64, at(j)));
         from = end;
     }
+    for (&x, (buf, ends)) in extra.iter().zip(&s.extra) {
+        let mut from = 0;
+        for (j, &end) in ends.iter().enumerate() {
+            parts[x].push(&buf[from..end], at(j));
+            from = end;
+        }
+    }
     if let Some(t) = truth {
         let rows = truth_rows.split_inclusive(|&b| b == b'\n');
         for (j, row) in rows.enumerate() {
             parts[t].push(row, at(j));
         }
     }
+}
+
+/// `*n`, then one more.
+fn post_inc(n: &mut usize) -> usize {
+    *n += 1;
+    *n - 1
 }
 
 #[cfg(test)]

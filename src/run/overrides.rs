@@ -236,14 +236,16 @@ impl RunSpec {
                     "expected NAME=SINK (e.g. nav=udp:127.0.0.1:9001)",
                 ));
             };
-            let addr = SinkAddr::parse(sink).map_err(|e| refuse(&flag, e))?;
+            let (addr, protocol) =
+                SinkAddr::parse_with_protocol(sink).map_err(|e| refuse(&flag, e))?;
             if !replaced.contains(&name) {
                 self.replace_routes(
                     |s| matches!(s, StreamId::Unit { unit: Some(u), .. } if u == name),
                 );
                 replaced.push(name);
             }
-            self.add_route(StreamId::unit(name), addr, flag);
+            let unit = Some(name.to_string());
+            self.add_route(StreamId::Unit { unit, protocol }, addr, flag);
         }
         Ok(())
     }

@@ -55,6 +55,9 @@ pub struct Layout {
     pub sides: Sides,
     /// A rig: which units' truth is streamed.
     pub rig_truth: Vec<bool>,
+    /// A rig: the further protocols of its units' records (unit index, protocol), in unit
+    /// order.
+    pub rig_protocols: Vec<(usize, String)>,
     /// A rig: which units' failure schedules are written.
     pub rig_failures: Vec<bool>,
     /// GNSS wire formats, in stream order.
@@ -127,16 +130,24 @@ impl Layout {
                         unit: Some(u),
                         protocol,
                     },
-                    Units::Rig(_),
+                    Units::Rig(rig),
                 ) => {
-                    unit_index(u, r)?;
-                    if protocol.is_some() {
-                        return Err(RunError::spec(
-                            &r.origin,
-                            format!(
-                                "unit `{u}` speaks its own format (its `format`): a second protocol per rig unit is not built"
-                            ),
-                        ));
+                    let i = unit_index(u, r)?;
+                    if let Some(p) = protocol
+                        && !l.rig_protocols.contains(&(i, p.clone()))
+                    {
+                        let unit = &rig.units()[i];
+                        if unit.is_skew() {
+                            return Err(RunError::spec(
+                                &r.origin,
+                                format!(
+                                    "unit `{u}` is skew-redundant: its frames carry its own channels (its `format`); a further protocol per unit is built for three-axis units"
+                                ),
+                            ));
+                        }
+                        extra_plan(p, unit.grid().rate_hz)
+                            .map_err(|e| RunError::spec(&r.origin, e.to_string()))?;
+                        l.rig_protocols.push((i, p.clone()));
                     }
                 }
                 (StreamId::Truth { unit: None }, Units::Imu(_)) => l.sides.truth = true,
@@ -179,6 +190,8 @@ impl Layout {
                 }
             }
         }
+        // The rig's streams list each unit's further protocols in unit order.
+        l.rig_protocols.sort_by_key(|x| x.0);
         l.streams = l.stream_plans(units)?;
         for r in routes {
             let i = (l.streams.iter().position(|s| s.id == r.stream))
@@ -277,6 +290,16 @@ impl Layout {
                     };
                     out.push(plan(id, "records", g.rate_hz, g.count, None, None));
                 }
+                for (i, p) in &self.rig_protocols {
+                    let u = &rig.units()[*i];
+                    let g = u.grid();
+                    let id = StreamId::Unit {
+                        unit: Some(u.name().to_string()),
+                        protocol: Some(p.clone()),
+                    };
+                    let frames = extra_plan(p, g.rate_hz)?;
+                    out.push(plan(id, "frames", g.rate_hz, g.count, Some(frames), None));
+                }
                 for (u, _) in rig.units().iter().zip(&self.rig_failures).filter(|x| *x.1) {
                     let id = StreamId::Failures {
                         unit: u.name().to_string(),
@@ -355,8 +378,17 @@ impl Layout {
 
     /// The sources of a rig's run, emission times counted from its earliest unit's t₀; a
     /// triggered rig's units sample at the edges they are handed (every unit at every edge).
-    pub fn rig_sources(&self, rig: Rig, triggered: bool) -> Result<SourcesWithPreambles, RunError> {
+    pub fn rig_sources(
+        &self,
+        mut rig: Rig,
+        triggered: bool,
+    ) -> Result<SourcesWithPreambles, RunError> {
         let origin = rig.span().0;
+        for (i, p) in &self.rig_protocols {
+            let plan = extra_plan(p, rig.units()[*i].grid().rate_hz)?;
+            (rig.add_protocol(*i, plan))
+                .map_err(|e| RunError::spec(&format!("protocol `{p}`"), e))?;
+        }
         let mut aiding = self.aiding_sources(&rig.aiding(), origin)?;
         let failures: Vec<Vec<u8>> = (rig.units().iter())
             .zip(&self.rig_failures)
@@ -457,13 +489,13 @@ pub(super) fn unrouted_aiding(
     out
 }
 
-/// The compiled frame of a further protocol of one IMU's records, at its rate.
+/// The compiled frame of a further protocol of a three-axis unit's records, at its rate.
 fn extra_plan(name: &str, rate_hz: f64) -> Result<Plan, RunError> {
     let e = |m: String| RunError::Sim(SimError::Invalid(format!("sink protocol `{name}`: {m}")));
     let (_, mut plan) = crate::protocol::load(name).map_err(|x| e(x.to_string()))?;
     if plan.channels().is_some() {
         return Err(e(
-            "is a skew-redundant unit's frame; one IMU's records are three-axis".into(),
+            "is a skew-redundant unit's frame; the unit's records are three-axis".into(),
         ));
     }
     plan.set_rate(rate_hz).map_err(e)?;

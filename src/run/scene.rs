@@ -22,12 +22,16 @@ impl RunSpec {
             .scene_file_path()
             .map(|p| p.display().to_string());
         for (i, u) in spec.signal.unit_specs()? {
-            for (j, sink) in u.sinks.iter().enumerate() {
+            for (j, (sink, protocol)) in u.sinks.iter().enumerate() {
                 let origin = match (&file, i) {
                     (Some(f), Some(i)) => format!("{f}: `imu[{i}].sink[{j}]`"),
                     _ => format!("unit `{}`: sink {j}", u.name),
                 };
-                spec.add_route(StreamId::unit(&u.name), sink.clone(), origin);
+                let stream = StreamId::Unit {
+                    unit: Some(u.name.clone()),
+                    protocol: protocol.clone(),
+                };
+                spec.add_route(stream, sink.clone(), origin);
             }
         }
         apply(&mut spec, file.as_deref().unwrap_or("<scene>"))?;
@@ -35,13 +39,10 @@ impl RunSpec {
     }
 }
 
-/// Reads a sink with an optional `,protocol=NAME`: the address and the protocol.
+/// Reads a sink with an optional `,protocol=NAME`: the address and the protocol
+/// ([`SinkAddr::parse_with_protocol`]).
 pub fn sink_with_protocol(s: &str) -> Result<(SinkAddr, Option<String>), String> {
-    let (target, protocol) = match s.rsplit_once(",protocol=") {
-        Some((t, p)) => (t, Some(p.to_string())),
-        None => (s, None),
-    };
-    Ok((SinkAddr::parse(target)?, protocol))
+    SinkAddr::parse_with_protocol(s)
 }
 
 /// Applies the scene file `file`'s `[run]` table and `[imu] sink` to `spec`.

@@ -276,6 +276,7 @@ impl SimulationBuilder {
                 sinks: spec.sinks.clone(),
                 flags: 0,
                 triggered: false,
+                extra: Vec::new(),
             });
         }
         let gnss = self.resolve_aiding(&self.gnss, &self.file.gnss, GnssConfig::validate)?;
