@@ -349,7 +349,12 @@ fn a_live_rig_samples_on_a_trigger_in_real_time() {
         .spawn()
         .unwrap();
     let mut err = BufReader::new(child.stderr.take().unwrap());
-    wait_for(&mut err, "following udp://");
+    let said = wait_for(&mut err, "following udp://");
+    // Known before the first state: unit f's filter gives way to the averager, said.
+    assert!(
+        said.contains("output filter of unit `f` is a uniform average over each interval"),
+        "{said}"
+    );
     let states = survey_csv(3.0);
     let sender = std::thread::spawn(move || send_states(port, &states));
     let mut at_ms = vec![0.0];

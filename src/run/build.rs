@@ -507,7 +507,8 @@ fn triggered_filters(sig: &Signal) -> Option<String> {
             .filter(|u| u.has_output_filter())
             .map(|u| format!("unit `{}`", u.name()))
             .collect(),
-        Signal::Live { .. } => Vec::new(),
+        // Templates that do not load were refused already, when the signal was checked.
+        Signal::Live { builder, .. } => builder.filtered_units().unwrap_or_default(),
     };
     (!names.is_empty()).then(|| {
         format!(

@@ -38,6 +38,26 @@ impl SimulationBuilder {
         Ok(specs)
     }
 
+    /// The units whose template has an output filter, as messages name them (`unit `nav``,
+    /// or `template `NAME`` for a single IMU), found without the motion (a live run's signal
+    /// before its first state).
+    pub fn filtered_units(&self) -> Result<Vec<String>, SimError> {
+        if !self.is_rig() {
+            let t = self.resolve_imu()?;
+            let named = (t.output_filter.is_some()).then(|| format!("template `{}`", t.name));
+            return Ok(named.into_iter().collect());
+        }
+        let mut out = Vec::new();
+        for (_, u) in self.unit_specs()? {
+            if let UnitModel::Template(t) = &u.model
+                && super::super::load_template(t)?.output_filter.is_some()
+            {
+                out.push(format!("unit `{}`", u.name));
+            }
+        }
+        Ok(out)
+    }
+
     /// Whether the scene file lists `[[imu]]` units or units were added in code: then
     /// [`SimulationBuilder::build_rig`] is the way to build.
     pub fn is_rig(&self) -> bool {
