@@ -6,15 +6,13 @@
 
 use std::path::PathBuf;
 
-use crate::aiding::GnssFormat;
 use crate::aiding::sensors::SensorKind;
-use crate::live::InputFormat;
 use crate::output::SinkAddr;
 
 use super::RunError;
 use super::error::refuse;
 use super::scene::{sink_with_protocol, split_unit};
-use super::spec::{LiveSpec, RunSpec, Speed, StreamId, TimeBase};
+use super::spec::{LiveSpec, RunSpec, Speed, StreamId, TimeBase, read_gnss};
 
 /// A live input's settings over the scene file's `[run.input]` (`imu-emu run --help` says what
 /// each does; the names are the flags').
@@ -99,19 +97,13 @@ impl RunSpec {
         self.default_ptys()?;
         let c = &mut self.clock;
         if let Some(s) = &o.speed {
-            c.speed = Some(parse_speed(s).ok_or_else(|| {
-                refuse(
-                    &format!("--speed {s}"),
-                    "expected a positive factor (1 = real time) or `max`",
-                )
-            })?);
+            c.speed = Some(Speed::read(s).map_err(|e| refuse(&format!("--speed {s}"), e))?);
         }
         if o.start_at.is_some() {
             c.start_at.clone_from(&o.start_at);
         }
         if let Some(t) = &o.time_base {
-            let base = TimeBase::from_name(t)
-                .ok_or_else(|| refuse(&format!("--time-base {t}"), "expected gps, utc or sim"))?;
+            let base = TimeBase::read(t).map_err(|e| refuse(&format!("--time-base {t}"), e))?;
             c.time_base = Some(base);
         }
         if o.max_behind_ms.is_some() {
@@ -164,26 +156,14 @@ impl RunSpec {
                 None => Ok(()),
             };
         };
-        let lockstep = match l.time_mode.as_deref() {
-            None => None,
-            Some("realtime") => Some(false),
-            Some("lockstep") => Some(true),
-            Some(m) => {
-                return Err(refuse(
-                    &format!("--time-mode {m}"),
-                    "expected realtime or lockstep",
-                ));
-            }
-        };
-        let format = match &l.input_format {
-            None => None,
-            Some(f) => Some(InputFormat::from_name(f).ok_or_else(|| {
-                refuse(
-                    &format!("--input-format {f}"),
-                    "expected csv, bin or mavlink",
-                )
-            })?),
-        };
+        let lockstep = (l.time_mode.as_deref())
+            .map(|m| LiveSpec::read_mode(m).map_err(|e| refuse(&format!("--time-mode {m}"), e)))
+            .transpose()?;
+        let format = (l.input_format.as_deref())
+            .map(|f| {
+                LiveSpec::read_format(f).map_err(|e| refuse(&format!("--input-format {f}"), e))
+            })
+            .transpose()?;
         // The flags replace the scene file's `[run.input]` keys they give, not the others.
         let file = (self.input.take()).unwrap_or_else(|| LiveSpec::new(source.clone()));
         self.input = Some(LiveSpec {
@@ -269,14 +249,7 @@ impl RunSpec {
         }
         for v in gnss {
             let flag = format!("--gnss {v}");
-            let (name, target) = v.split_once(':').unwrap_or((v, ""));
-            let Some(f) = GnssFormat::from_name(name) else {
-                let why = format!(
-                    "unknown format `{name}` (expected FORMAT:SINK with FORMAT one of {})",
-                    GnssFormat::NAMES.join(", ")
-                );
-                return Err(refuse(&flag, why));
-            };
+            let (f, target) = read_gnss(v).map_err(|e| refuse(&flag, e))?;
             let addr = sink(target).map_err(|e| refuse(&flag, e))?;
             self.add_route(StreamId::Gnss(f), addr, flag);
         }
@@ -311,14 +284,6 @@ impl RunSpec {
             }
         }
         Ok(())
-    }
-}
-
-/// A speed's text: a positive factor of real time, or `max`.
-fn parse_speed(s: &str) -> Option<Speed> {
-    match s {
-        "max" => Some(Speed::Max),
-        s => s.parse().ok().map(Speed::Factor),
     }
 }
 
@@ -402,14 +367,14 @@ mod tests {
                     speed: Some("fast".into()),
                     ..Default::default()
                 },
-                "--speed fast: expected a positive factor",
+                "--speed fast: expected a factor of real time",
             ),
             (
                 Overrides {
                     time_base: Some("tai".into()),
                     ..Default::default()
                 },
-                "--time-base tai: expected gps, utc or sim",
+                "--time-base tai: expected sim, gps or utc",
             ),
             (
                 Overrides {

@@ -1,14 +1,12 @@
 //! A scene file's `[run]` table and `[imu] sink` turned into a [`RunSpec`]'s parts; every
 //! value that cannot be read is refused naming the file and the key.
 
-use crate::aiding::GnssFormat;
 use crate::aiding::sensors::SensorKind;
 use crate::config::run::{RunSection, SpeedValue};
-use crate::live::InputFormat;
 use crate::output::SinkAddr;
 use crate::sim::SimError;
 
-use super::spec::{FileKey, LiveSpec, RunSpec, Speed, StreamId, TimeBase};
+use super::spec::{FileKey, LiveSpec, RunSpec, Speed, StreamId, TimeBase, read_gnss};
 use crate::sim::SimulationBuilder;
 
 impl RunSpec {
@@ -120,21 +118,16 @@ pub fn apply(spec: &mut RunSpec, file: &str) -> Result<(), SimError> {
     c.speed = match speed {
         None => None,
         Some(SpeedValue::Factor(x)) => Some(Speed::Factor(x)),
-        Some(SpeedValue::Word(w)) if w == "max" => Some(Speed::Max),
         Some(SpeedValue::Word(w)) => {
-            return Err(bad(
-                "run.speed",
-                format!("`{w}`: expected a factor of real time or \"max\""),
-            ));
+            Some(Speed::read(&w).map_err(|e| bad("run.speed", format!("`{w}`: {e}")))?)
         }
     };
     c.start_at = start_at;
     c.time_base = match time_base {
         None => None,
-        Some(t) => Some(
-            TimeBase::from_name(&t)
-                .ok_or_else(|| bad("run.time_base", format!("`{t}`: expected sim, gps or utc")))?,
-        ),
+        Some(t) => {
+            Some(TimeBase::read(&t).map_err(|e| bad("run.time_base", format!("`{t}`: {e}")))?)
+        }
     };
     c.max_behind_ms = max_behind_ms;
     c.realtime_priority = realtime_priority.unwrap_or(false);
@@ -150,16 +143,7 @@ pub fn apply(spec: &mut RunSpec, file: &str) -> Result<(), SimError> {
         route("run.truth_errors", &t, StreamId::Errors)?;
     }
     for (key, v) in gnss.map(|g| g.keyed("run.gnss")).unwrap_or_default() {
-        let (name, target) = v.split_once(':').unwrap_or((&v, ""));
-        let f = GnssFormat::from_name(name).ok_or_else(|| {
-            bad(
-                &key,
-                format!(
-                    "`{v}`: expected FORMAT:SINK with FORMAT one of {}",
-                    GnssFormat::NAMES.join(", ")
-                ),
-            )
-        })?;
+        let (f, target) = read_gnss(&v).map_err(|e| bad(&key, format!("`{v}`: {e}")))?;
         route(&key, target, StreamId::Gnss(f))?;
     }
     if let Some(t) = gnss_truth {
@@ -193,25 +177,17 @@ pub fn apply(spec: &mut RunSpec, file: &str) -> Result<(), SimError> {
     l.udp_batch = udp_batch;
     l.take_over = take_over.unwrap_or(false);
     if let Some(i) = &input {
-        let lockstep = match i.mode.as_deref() {
-            None | Some("realtime") => false,
-            Some("lockstep") => true,
-            Some(m) => {
-                return Err(bad(
-                    "run.input.mode",
-                    format!("`{m}`: expected realtime or lockstep"),
-                ));
-            }
-        };
-        let format = match &i.format {
-            None => None,
-            Some(f) => Some(InputFormat::from_name(f).ok_or_else(|| {
-                bad(
-                    "run.input.format",
-                    format!("`{f}`: expected csv, bin or mavlink"),
-                )
-            })?),
-        };
+        let lockstep = (i.mode.as_deref())
+            .map(|m| {
+                LiveSpec::read_mode(m).map_err(|e| bad("run.input.mode", format!("`{m}`: {e}")))
+            })
+            .transpose()?
+            .unwrap_or(false);
+        let format = (i.format.as_deref())
+            .map(|f| {
+                LiveSpec::read_format(f).map_err(|e| bad("run.input.format", format!("`{f}`: {e}")))
+            })
+            .transpose()?;
         spec.input = Some(LiveSpec {
             format,
             lockstep,
@@ -339,5 +315,58 @@ pub fn split_unit(v: &str) -> (Option<String>, String) {
             (Some(u.to_string()), rest.to_string())
         }
         _ => (None, v.to_string()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The scene file's `[run]` values that do not read are refused naming the file, the key
+    /// and the value, with what was expected (the same readers as the flags').
+    #[test]
+    fn bad_run_values_name_the_file_key_and_value() {
+        use std::error::Error;
+        let dir = tempfile::tempdir().unwrap();
+        for (table, key, want) in [
+            (
+                "speed = \"fast\"",
+                "run.speed",
+                "`fast`: expected a factor of real time",
+            ),
+            (
+                "time_base = \"tai\"",
+                "run.time_base",
+                "`tai`: expected sim, gps or utc",
+            ),
+            (
+                "gnss = \"sirf:udp:127.0.0.1:9\"",
+                "run.gnss",
+                "unknown format `sirf`",
+            ),
+            (
+                "[run.input]\nsource = \"-\"\nmode = \"fast\"",
+                "run.input.mode",
+                "`fast`: expected realtime or lockstep",
+            ),
+            (
+                "[run.input]\nsource = \"-\"\nformat = \"xml\"",
+                "run.input.format",
+                "`xml`: expected csv, bin or mavlink",
+            ),
+        ] {
+            let p = dir.path().join("s.toml");
+            std::fs::write(&p, format!("[run]\n{table}\n")).unwrap();
+            let signal = crate::sim::Simulation::from_scene_file(&p).unwrap();
+            let e = RunSpec::from_signal(signal).unwrap_err();
+            // The place, then its cause, as the command line prints the chain.
+            let mut e: (String, Option<&dyn std::error::Error>) = (e.to_string(), e.source());
+            while let Some(c) = e.1 {
+                e = (format!("{}: {c}", e.0), c.source());
+            }
+            let e = e.0;
+            let at = format!("{}: `{key}`: ", p.display());
+            assert!(e.contains(&at) && e.contains(want), "{e}");
+        }
     }
 }

@@ -117,6 +117,20 @@ pub struct LiveSpec {
 }
 
 impl LiveSpec {
+    /// Whether the time mode `m` (`realtime` or `lockstep`) is lockstep, else what is expected.
+    pub fn read_mode(m: &str) -> Result<bool, &'static str> {
+        match m {
+            "realtime" => Ok(false),
+            "lockstep" => Ok(true),
+            _ => Err("expected realtime or lockstep"),
+        }
+    }
+
+    /// The live wire format named `f`, else what is expected.
+    pub fn read_format(f: &str) -> Result<InputFormat, &'static str> {
+        InputFormat::from_name(f).ok_or("expected csv, bin or mavlink")
+    }
+
     /// Live states from `source` (see [`LiveSpec::source`]), every other setting default.
     pub fn new(source: impl Into<String>) -> LiveSpec {
         LiveSpec {
@@ -140,6 +154,19 @@ pub enum Speed {
     Max,
     /// Paced at this factor of real time (1: real time).
     Factor(f64),
+}
+
+impl Speed {
+    /// A speed written as a word: `max`, or a factor of real time; else what is expected.
+    pub fn read(s: &str) -> Result<Speed, &'static str> {
+        match s {
+            "max" => Ok(Speed::Max),
+            s => s.parse().map(Speed::Factor).map_err(|_| Speed::EXPECTED),
+        }
+    }
+
+    /// What a speed is, for refusals.
+    pub const EXPECTED: &'static str = "expected a factor of real time (1 = real time) or `max`";
 }
 
 /// The run's time scale for the frames' GPS-time fields.
@@ -166,6 +193,11 @@ impl TimeBase {
         }
     }
 
+    /// The time base named `s`, else what is expected.
+    pub fn read(s: &str) -> Result<TimeBase, &'static str> {
+        TimeBase::from_name(s).ok_or("expected sim, gps or utc")
+    }
+
     /// Its name.
     pub fn name(self) -> &'static str {
         match self {
@@ -174,6 +206,18 @@ impl TimeBase {
             TimeBase::Utc => "utc",
         }
     }
+}
+
+/// A GNSS stream written `FORMAT:SINK`: its format and the sink's text, else why not.
+pub fn read_gnss(v: &str) -> Result<(GnssFormat, &str), String> {
+    let (name, target) = v.split_once(':').unwrap_or((v, ""));
+    let f = GnssFormat::from_name(name).ok_or_else(|| {
+        format!(
+            "unknown format `{name}` (expected FORMAT:SINK with FORMAT one of {})",
+            GnssFormat::NAMES.join(", ")
+        )
+    })?;
+    Ok((f, target))
 }
 
 /// The clock of a run.
