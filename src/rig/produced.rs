@@ -3,7 +3,8 @@
 //! failures, magnetometer and encoding, and its truth placed at the unit (docs/rig.md,
 //! "Timing errors and output filters").
 
-use super::{Body, Scratch, Unit, fail_triads, place_triad, sample_mag, truth_row};
+use super::shared::{fail_triads, place_triad, sample_mag, truth_row};
+use super::{Body, Scratch, Unit};
 use crate::engine::{self, EngineError};
 use crate::generator::RotationTerms;
 use crate::math::Vec3;

@@ -216,19 +216,19 @@ impl Sources {
     }
 
     /// The earliest emission time (ns after t₀) a frame not yet given can have.
-    #[cfg(feature = "realtime")] // for the wall-clock drivers (run/wall.rs)
+    #[cfg(feature = "realtime")] // for the wall-clock drivers (run/wall/)
     pub(super) fn next_due(&self) -> Option<i64> {
         self.list.iter().filter_map(|s| s.next_due_ns()).min()
     }
 
     /// Flags every record from now on carries (stale input).
-    #[cfg(feature = "realtime")] // for the wall-clock drivers (run/wall.rs)
+    #[cfg(feature = "realtime")] // for the wall-clock drivers (run/wall/)
     pub(super) fn set_flags(&mut self, flags: u8) {
         self.list.iter_mut().for_each(|s| s.set_flags(flags));
     }
 
     /// A trigger edge closed the interval (lo, hi] (s after t₀).
-    #[cfg(feature = "realtime")] // for the wall-clock drivers (run/wall.rs)
+    #[cfg(feature = "realtime")] // for the wall-clock drivers (run/wall/)
     pub(super) fn edge(&mut self, lo: f64, hi: f64) {
         self.list.iter_mut().for_each(|s| s.edge(lo, hi));
     }

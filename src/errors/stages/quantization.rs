@@ -47,7 +47,9 @@ impl Stage for Quantization {
             };
             for r in b.records.iter_mut() {
                 let mut hit = false;
-                for v in s.rate(r).iter_mut() {
+                // A plain slice: its loop of three is unrolled wherever codegen units put
+                // this function (nalgebra's strided iterator was not, in some builds).
+                for v in s.rate(r).as_mut_slice() {
                     if v.abs() > lim {
                         *v = v.clamp(-lim, lim);
                         hit = true;
