@@ -16,4 +16,5 @@ pub mod output;
 pub mod ramp;
 pub mod recording_fit;
 pub mod report;
+pub mod resonance;
 pub mod template;
