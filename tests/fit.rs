@@ -152,6 +152,7 @@ fn closure_at(seed: u64) {
         lsb,
         filter: None,
         carry: true,
+        resonances: Vec::new(),
     };
     let text = template_toml(&prov, &fits, &vec![Vec::new(); 6]);
     let fitted = template::parse(&text, Path::new("fitted.toml")).unwrap();
@@ -374,6 +375,7 @@ fn a_ramp_is_fitted_and_written_as_a_key() {
         lsb: [None; 2],
         filter: None,
         carry: false,
+        resonances: Vec::new(),
     };
     let text = template_toml(&prov, &fits, &vec![Vec::new(); 6]);
     let m = template::parse(&text, Path::new("fitted.toml")).unwrap();

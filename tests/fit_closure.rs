@@ -72,6 +72,7 @@ fn close(model: &ImuModel, samples: u64, seed: u64) -> Closed {
         lsb: triad_lsbs(&rec),
         filter: filter.clone(),
         carry: fitted.carry,
+        resonances: Vec::new(),
     };
     let toml = template_toml(&prov, &fits, &vec![Vec::new(); 6]);
     let fitted = template::parse(&toml, Path::new("fitted.toml")).unwrap();

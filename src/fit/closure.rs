@@ -11,6 +11,7 @@
 
 use super::gmwm::Model;
 use super::lines::Line;
+use super::resonance::Resonance;
 use crate::analysis::analyzer::{Analysis, Analyzer};
 use crate::analysis::confidence::{NoiseType, edf};
 use crate::analysis::octave_adev::AdevPoint;
@@ -19,7 +20,7 @@ use crate::analysis::psd_band::banded;
 use crate::errors::model::Sensor;
 use crate::errors::output_filter::FilterSpec;
 use crate::errors::template::ImuModel;
-use crate::errors::vibration::{Sine, VibrationSpec};
+use crate::errors::vibration::{Random, Sine, VibrationSpec};
 use crate::sim::{SimError, Simulation};
 
 /// Standard deviations of the difference of log deviations the band allows.
@@ -168,6 +169,25 @@ pub fn vibration(lines: &[Vec<Line>], dt: f64, filter: Option<&FilterSpec>) -> V
                 phase_rad: 0.0,
             });
         }
+    }
+    spec
+}
+
+/// [`vibration`] with the broad resonances `res` of each channel as random vibrations
+/// ([`super::resonance::source_table`]).
+pub fn vibration_with(
+    lines: &[Vec<Line>],
+    res: &[Vec<Resonance>],
+    dt: f64,
+    filter: Option<&FilterSpec>,
+) -> VibrationSpec {
+    let mut spec = vibration(lines, dt, filter);
+    for (ch, r) in res.iter().enumerate().filter(|(_, r)| !r.is_empty()) {
+        spec.randoms.push(Random {
+            sensor: if ch < 3 { Sensor::Gyro } else { Sensor::Accel },
+            axis: ch % 3,
+            psd: super::resonance::source_table(r, dt, filter),
+        });
     }
     spec
 }

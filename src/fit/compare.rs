@@ -6,6 +6,7 @@ use std::fmt::Write as _;
 
 use super::filter::FittedFilter;
 use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, OutputStage, fit_triad_with};
+use super::resonance::{KnownVibration, Resonance, source_table};
 use super::template::{sig4, unit};
 use crate::analysis::analyzer::{Analysis, CHANNELS};
 use crate::analysis::octave_adev::AdevPoint;
@@ -43,9 +44,20 @@ pub struct Fitted {
 /// residual (the generator's carry mode) an angle error uniform over qΔt, 3Q²/τ². Both are
 /// fitted and the cheaper kept (the same number of parameters: none).
 pub fn fit_all_with_filter(a: &Analysis) -> Fitted {
+    fit_all_with_resonances(a, &[])
+}
+
+/// [`fit_all_with_filter`] with the broad resonances `res` of each channel (gyro x y z, accel
+/// x y z; empty: none) as known random vibrations ([`super::resonance`]), each shaped by the
+/// output filter of the variant fitted.
+pub fn fit_all_with_resonances(a: &Analysis, res: &[Vec<Resonance>]) -> Fitted {
     let series = a.channels.iter().all(|c| c.trend.is_some());
     let lattice = triad_lsbs(a).iter().any(Option::is_some);
-    let filter = super::filter::fit(a);
+    let ranges: Vec<Vec<(f64, f64)>> = res
+        .iter()
+        .map(|r| r.iter().map(Resonance::range).collect())
+        .collect();
+    let filter = super::filter::fit_excluding(a, &ranges);
     let cost = |f: &[Option<AxisFit>]| f.iter().flatten().map(|f| f.cost).sum::<f64>();
     let mut best: Option<(f64, Fitted)> = None;
     for carry in if lattice {
@@ -58,7 +70,7 @@ pub fn fit_all_with_filter(a: &Analysis) -> Fitted {
             options.push((None, super::filter::FILTER_PENALTY));
         }
         for (f, bonus) in options {
-            let fits = fit_with(a, f.as_ref(), carry);
+            let fits = fit_with(a, f.as_ref(), carry, res);
             // Without the filter the cost is lowered by the penalty the filter must beat.
             let c = cost(&fits) - bonus;
             if best.as_ref().is_none_or(|b| c < b.0) {
@@ -76,7 +88,12 @@ pub fn fit_all_with_filter(a: &Analysis) -> Fitted {
     best.expect("one variant at least").1
 }
 
-fn fit_with(a: &Analysis, filter: Option<&FittedFilter>, carry: bool) -> Vec<Option<AxisFit>> {
+fn fit_with(
+    a: &Analysis,
+    filter: Option<&FittedFilter>,
+    carry: bool,
+    res: &[Vec<Resonance>],
+) -> Vec<Option<AxisFit>> {
     let samples = a.samples as usize;
     let series = a.channels.iter().all(|c| c.trend.is_some());
     let white = filter.map(FittedFilter::white);
@@ -91,6 +108,11 @@ fn fit_with(a: &Analysis, filter: Option<&FittedFilter>, carry: bool) -> Vec<Opt
                 .iter()
                 .map(|l| (l.amplitude, l.freq))
                 .collect(),
+            vibration: res.get(base + i).filter(|r| !r.is_empty()).map(|r| {
+                let ms: Vec<usize> = c[base + i].adev.iter().map(|p| p.m).collect();
+                let spec = filter.map(|f| &f.spec);
+                KnownVibration::new(source_table(r, a.dt, spec), a.dt, spec, &ms)
+            }),
             ..stages[base / 3].clone()
         });
         fit_triad_with(

@@ -91,12 +91,15 @@ pub fn candidates(dt: f64) -> Vec<(FilterSpec, usize)> {
     out
 }
 
-/// The top-of-band PSD of each channel: (f, ln P̂, weight ν/2) per band.
-fn bands(a: &Analysis) -> Vec<Vec<(f64, f64, f64)>> {
+/// The top-of-band PSD of each channel: (f, ln P̂, weight ν/2) per band, leaving out the
+/// bands inside the channel's ranges of `exclude` (Hz; its broad resonances).
+fn bands(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> Vec<Vec<(f64, f64, f64)>> {
     let nyquist = 0.5 / a.dt;
     a.channels
         .iter()
-        .map(|c| {
+        .enumerate()
+        .map(|(ch, c)| {
+            let skip = exclude.get(ch).map_or(&[][..], Vec::as_slice);
             let p = &c.psd;
             if p.segments == 0 || p.freq.len() < 3 {
                 return Vec::new();
@@ -109,6 +112,7 @@ fn bands(a: &Analysis) -> Vec<Vec<(f64, f64, f64)>> {
                 .zip(&b.density)
                 .zip(&b.bins)
                 .filter(|((f, d), _)| **f >= FROM_NYQUIST * nyquist && **d > 0.0)
+                .filter(|((f, _), _)| !skip.iter().any(|r| **f >= r.0 && **f <= r.1))
                 .map(|((&f, &d), &m)| (f, d.ln(), edf.edf(m) / 2.0))
                 .collect()
         })
@@ -134,7 +138,14 @@ fn chi2(bands: &[Vec<(f64, f64, f64)>], shape: impl Fn(f64) -> f64) -> f64 {
 /// The filter the recording's PSD shows (a published table, which has none: its short-τ
 /// Allan deviation, [`fit_adev`]), if one earns its place.
 pub fn fit(a: &Analysis) -> Option<FittedFilter> {
-    let b = bands(a);
+    fit_excluding(a, &[])
+}
+
+/// [`fit`] without the PSD bands inside each channel's ranges of `exclude` (Hz): a broad
+/// resonance ([`super::resonance`]) in the top decade would bend the roll-off the filter is
+/// read from.
+pub fn fit_excluding(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> Option<FittedFilter> {
+    let b = bands(a, exclude);
     let count: usize = b.iter().map(Vec::len).sum();
     if count < 4 {
         return fit_adev(a);

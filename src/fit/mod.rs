@@ -1,9 +1,9 @@
 //! Fitting an IMU template to a recording (`imu-emu fit`): the stochastic model of each axis
 //! fitted to its Allan variance ([`gmwm`]), narrow spectral lines found in its PSD
-//! ([`lines`]), the fitted template written as TOML ([`template`]), a record simulated from
-//! it checked against the recording ([`closure`]), the report ([`report`]) and the term-by-term
-//! comparison of two recordings ([`compare`]). No file I/O:
-//! the command reads the input and writes the outputs.
+//! ([`lines`]), broad resonances as random vibrations ([`resonance`]), the fitted template
+//! written as TOML ([`template`]), a record simulated from it checked against the recording
+//! ([`closure`]), the report ([`report`]) and the term-by-term comparison of two recordings
+//! ([`compare`]). No file I/O: the command reads the input and writes the outputs.
 
 pub mod analysis_report;
 pub mod checks;
@@ -16,4 +16,5 @@ pub mod output;
 pub mod ramp;
 pub mod recording_fit;
 pub mod report;
+pub mod resonance;
 pub mod template;

@@ -3,6 +3,7 @@
 //! in each axis's model — known parts of σ² that are added, not fitted, and the filtered
 //! white-noise basis. Pure math.
 
+use super::resonance::KnownVibration;
 use crate::errors::filter_allan::WhiteAllan;
 
 /// What the unit's output stage fixes for the fit of an axis. Its filter (when the PSD shows
@@ -29,6 +30,9 @@ pub struct OutputStage {
     /// Spectral lines of the axis, known from its PSD ([`super::lines`]): (amplitude B of
     /// the recorded samples, frequency f), each adding [`sine_avar`].
     pub sines: Vec<(f64, f64)>,
+    /// Broad resonances of the axis, known from its PSD ([`super::resonance`]): a random
+    /// vibration whose Allan variance is added.
+    pub vibration: Option<KnownVibration>,
 }
 
 /// The Allan variance at cluster size m of the samples y_k = B sin(2πf kΔt + φ), averaged
@@ -51,6 +55,7 @@ impl Default for OutputStage {
             carried: 0.0,
             white: None,
             sines: Vec::new(),
+            vibration: None,
         }
     }
 }
@@ -64,6 +69,7 @@ impl OutputStage {
             carried: 0.0,
             white: None,
             sines: Vec::new(),
+            vibration: None,
         }
     }
     /// A carry-mode quantizer whose outputs sit on the rate grid `q` at interval Δt: the
@@ -80,7 +86,8 @@ impl OutputStage {
     pub fn white_ratio(&self, m: usize) -> f64 {
         self.white.as_ref().map_or(1.0, |w| w.ratio(m))
     }
-    /// The known part of σ² at cluster size m (interval Δt): rounding noise and lines.
+    /// The known part of σ² at cluster size m (interval Δt): rounding noise, lines and
+    /// resonances.
     pub fn known(&self, m: usize, dt: f64) -> f64 {
         let tau = m as f64 * dt;
         self.rounding / tau
@@ -90,6 +97,7 @@ impl OutputStage {
                 .iter()
                 .map(|&(b, f)| sine_avar(b, f, m, dt))
                 .sum::<f64>()
+            + self.vibration.as_ref().map_or(0.0, |v| v.avar(m))
     }
     /// Its limit at long τ (the white density's aliasing gain, squared).
     pub fn white_long(&self) -> f64 {

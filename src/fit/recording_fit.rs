@@ -10,7 +10,7 @@ use super::closure;
 use super::compare;
 use super::report::Closure;
 use super::template::{Provenance, sines_scene, template_toml};
-use super::{checks, lines, report};
+use super::{checks, lines, report, resonance};
 use crate::analysis::analyzer::{Analysis, Analyzer};
 use crate::plot::Panel;
 
@@ -45,6 +45,8 @@ pub struct Fitted {
     pub plot: Option<(Vec<Panel>, usize)>,
     /// Octaves or PSD bands of the simulated record outside the recording's band.
     pub failures: usize,
+    /// The broad resonances found on each channel (gyro x y z, accel x y z).
+    pub resonances: Vec<Vec<resonance::Resonance>>,
 }
 
 /// Why a recording cannot be fitted.
@@ -61,14 +63,44 @@ pub enum FitError {
     Simulation(#[from] crate::sim::SimError),
 }
 
+/// The fits of `rec` with its broad resonances ([`resonance`]) as known random vibrations:
+/// found against the fit without them, whose white noise took their power (the floor's level
+/// is fitted around them), then once more against the fit with them, which has the floor
+/// right; each time the channels refitted with what was found. Empty where none is found.
+fn fit_resonances(
+    rec: &Analysis,
+    lines: &[Vec<lines::Line>],
+) -> (compare::Fitted, Vec<Vec<resonance::Resonance>>) {
+    let mut fitted = compare::fit_all_with_filter(rec);
+    let mut res: Vec<Vec<resonance::Resonance>> = vec![Vec::new(); rec.channels.len()];
+    for _ in 0..2 {
+        let next: Vec<Vec<resonance::Resonance>> = rec
+            .channels
+            .iter()
+            .zip(&fitted.fits)
+            .zip(lines)
+            .map(|((c, f), l)| match f {
+                Some(f) => resonance::find(&c.psd, &f.model, l, rec.dt),
+                None => Vec::new(),
+            })
+            .collect();
+        if next.iter().all(Vec::is_empty) && res.iter().all(Vec::is_empty) {
+            break;
+        }
+        res = next;
+        fitted = compare::fit_all_with_resonances(rec, &res);
+    }
+    (fitted, res)
+}
+
 /// Fits a template to `rec`.
 pub fn fit(rec: &Analysis, s: &Settings) -> Result<Fitted, FitError> {
     // Refused before anything is fitted or written: too short, not uniform, not static.
     checks::check(rec).map_err(|e| FitError::Refused(format!("{}: {e}", s.source)))?;
     let samples = rec.samples as usize;
-    let fitted = compare::fit_all_with_filter(rec);
-    let fits = fitted.fits;
     let found: Vec<Vec<lines::Line>> = rec.channels.iter().map(|c| lines::find(&c.psd)).collect();
+    let (fitted, resonances) = fit_resonances(rec, &found);
+    let fits = fitted.fits;
     let prov = Provenance {
         name: s.name.clone(),
         source: s.source.clone(),
@@ -77,6 +109,7 @@ pub fn fit(rec: &Analysis, s: &Settings) -> Result<Fitted, FitError> {
         lsb: compare::triad_lsbs(rec),
         filter: fitted.filter,
         carry: fitted.carry,
+        resonances,
     };
     let toml = template_toml(&prov, &fits, &found);
     // The template must load as written: what `--imu` will read is what was fitted.
@@ -106,7 +139,7 @@ pub fn fit(rec: &Analysis, s: &Settings) -> Result<Fitted, FitError> {
         let filter = prov.filter.as_ref().map(|f| &f.spec);
         Some(closure::simulate_with(
             model,
-            closure::vibration(&found, rec.dt, filter),
+            closure::vibration_with(&found, &prov.resonances, rec.dt, filter),
             rec.dt,
             rec.samples,
             s.seed,
@@ -175,5 +208,6 @@ pub fn fit(rec: &Analysis, s: &Settings) -> Result<Fitted, FitError> {
         report: text,
         plot,
         failures: check.failures(),
+        resonances: prov.resonances.clone(),
     })
 }

@@ -116,6 +116,23 @@ pub fn markdown(
             );
         }
     }
+    let _ = writeln!(s, "\n## Broad resonances\n");
+    if p.resonances.iter().all(Vec::is_empty) {
+        let _ = writeln!(
+            s,
+            "None above the false-alarm threshold (1 in 1000 records whose PSD is the fitted floor)."
+        );
+    }
+    for (ch, rs) in p.resonances.iter().enumerate() {
+        for r in rs {
+            let _ = writeln!(
+                s,
+                "- {}: {}",
+                CHANNELS[ch],
+                super::template::describe_resonance(r, ch < 3)
+            );
+        }
+    }
     closure_section(&mut s, closure);
     s
 }

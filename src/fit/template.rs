@@ -28,6 +28,8 @@ pub struct Provenance {
     pub filter: Option<super::filter::FittedFilter>,
     /// Whether the LSB quantizes by carrying the residual (else by rounding each sample).
     pub carry: bool,
+    /// The broad resonances of each channel (gyro x y z, accel x y z; empty: none).
+    pub resonances: Vec<Vec<super::resonance::Resonance>>,
 }
 
 /// A number with 4 significant digits, plain or in exponent form, that parses back.
@@ -148,6 +150,14 @@ pub fn template_toml(p: &Provenance, fits: &[Option<AxisFit>], lines: &[Vec<Line
                     sig4(l.freq),
                     sig4(l.amplitude * f),
                     sig4(l.ratio)
+                );
+            }
+            for r in p.resonances.get(base + a).into_iter().flatten() {
+                let _ = writeln!(
+                    s,
+                    "# {}: {}",
+                    ["x", "y", "z"][a],
+                    describe_resonance(r, gyro)
                 );
             }
         }
@@ -352,14 +362,16 @@ fn ramp_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
     let _ = writeln!(s, "ramp = [{}]", v.join(", "));
 }
 
-/// The lines as `[[vibration.sine]]` entries of a scene file on the static scene, so that
+/// The lines as `[[vibration.sine]]` entries of a scene file on the static scene, and the
+/// broad resonances as `[[vibration.random]]` entries, so that
 /// `imu-emu generate LINES.toml --imu UNIT.toml` adds them (vibration belongs to the scene,
 /// not to the template).
 pub fn sines_scene(p: &Provenance, lines: &[Vec<Line>]) -> String {
     let mut s = format!(
-        "# Spectral lines found by `imu-emu fit` in {} (docs/fit.md), as vibration sines on the\n\
-         # static scene; run with `imu-emu generate THIS.toml --imu UNIT.toml`. Phases are not\n\
-         # estimated (0).\n[trajectory]\nscene = \"static\"\n",
+        "# Spectral lines and broad resonances found by `imu-emu fit` in {} (docs/fit.md), as\n\
+         # vibration sines and random vibrations on the static scene; run with\n\
+         # `imu-emu generate THIS.toml --imu UNIT.toml`. Phases are not estimated (0).\n\
+         [trajectory]\nscene = \"static\"\n",
         p.source
     );
     for (ch, ls) in lines.iter().enumerate() {
@@ -387,7 +399,59 @@ pub fn sines_scene(p: &Provenance, lines: &[Vec<Line>]) -> String {
             );
         }
     }
+    let filter = p.filter.as_ref().map(|f| &f.spec);
+    for (ch, r) in p
+        .resonances
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| !r.is_empty())
+    {
+        let gyro = ch < 3;
+        let (u, f) = psd_unit(gyro);
+        let rows: Vec<String> = super::resonance::source_table(r, p.dt, filter)
+            .iter()
+            .map(|&(hz, v)| format!("[\"{} Hz\", \"{} {u}\"]", sig4(hz), sig4(v * f)))
+            .collect();
+        let _ = write!(
+            s,
+            "\n# broad resonance(s) of {} {} (docs/fit.md): the PSD's excess over the fitted floor\n\
+             [[vibration.random]]\nsensor = \"{}\"\naxis = \"{}\"\npsd = [\n    {},\n]\n",
+            if gyro { "gyro" } else { "accel" },
+            ["x", "y", "z"][ch % 3],
+            if gyro { "gyro" } else { "accel" },
+            ["x", "y", "z"][ch % 3],
+            rows.join(",\n    ")
+        );
+    }
     s
+}
+
+/// A PSD table's unit and factor (SI × factor).
+fn psd_unit(gyro: bool) -> (&'static str, f64) {
+    if gyro {
+        ("(deg/s)^2/Hz", (180.0 / std::f64::consts::PI).powi(2))
+    } else {
+        ("g^2/Hz", crate::units::G0.powi(-2))
+    }
+}
+
+/// One line on a broad resonance: where, how strong, how significant.
+pub fn describe_resonance(r: &super::resonance::Resonance, gyro: bool) -> String {
+    let (u, f) = if gyro {
+        ("deg/s", 180.0 / std::f64::consts::PI)
+    } else {
+        ("g", 1.0 / crate::units::G0)
+    };
+    format!(
+        "broad resonance {}–{} Hz (centre {} Hz), RMS {} {u}, peak {}× the floor, z = {} (> {} to be kept; not in the template: `fit --sines` writes it as a random vibration)",
+        sig4(r.rows[0].0),
+        sig4(r.rows[r.rows.len() - 1].0),
+        sig4(r.centre()),
+        sig4(r.variance().sqrt() * f),
+        sig4(1.0 + r.peak),
+        sig4(r.z),
+        sig4(r.z_gate)
+    )
 }
 
 #[cfg(test)]
