@@ -29,7 +29,8 @@ pub struct FitArgs {
     /// Write the ADEV plot here (.png or .svg): recording, fitted model, simulated record
     #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// Write the spectral lines found as [[vibration.sine]] entries of a scene file here
+    /// Write the spectral lines found as [[vibration.sine]] entries, and the broad resonances
+    /// as [[vibration.random]] entries, of a scene file here
     #[arg(long)]
     pub sines: Option<PathBuf>,
     /// Seed of the closure simulation
