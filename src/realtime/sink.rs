@@ -35,6 +35,13 @@ impl FdWriter {
         self.pending.clear();
     }
 
+    /// What is left of a cut frame, taken out to be finished another way (at the end of a
+    /// run, with a bounded wait); counted as written.
+    pub fn take_pending(&mut self) -> Vec<u8> {
+        self.stats.bytes += self.pending.len() as u64;
+        std::mem::take(&mut self.pending)
+    }
+
     /// Writes the frames to `fd` (opened `O_NONBLOCK`); `EIO` says nobody holds the other end.
     pub fn write(&mut self, fd: BorrowedFd, bytes: &[u8], ends: &[usize]) -> io::Result<FdState> {
         let eio = |e: &io::Error| e.raw_os_error() == Some(libc::EIO);

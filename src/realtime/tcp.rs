@@ -29,6 +29,9 @@ fn gone(_: &io::Error) -> bool {
     true
 }
 
+/// The longest a closing connection waits to finish a cut frame.
+const CLOSE_WAIT: Duration = Duration::from_secs(2);
+
 /// Adds the counts of `b` to `a`.
 fn add(a: &mut SinkStats, b: SinkStats) {
     a.sent += b.sent;
@@ -62,10 +65,29 @@ impl Conn {
         matches!(state, Ok(FdState::Ok))
     }
 
-    /// Sends what is left of a cut frame (best effort) and closes the sending side, so the
-    /// consumer reads to the end of what was sent.
+    /// Finishes a frame cut by a full buffer and closes the sending side, so the consumer
+    /// reads to the end of what was sent, whole frames only. The run is over, so waiting
+    /// (at most [`CLOSE_WAIT`]) delays nothing; a consumer that takes nothing in that time
+    /// gets a reset instead of a clean end after a torn frame.
     fn close(&mut self) {
         self.write(&[], &[]);
+        let rest = self.writer.take_pending();
+        if !rest.is_empty() {
+            let s = &self.stream;
+            let done = (s.set_nonblocking(false))
+                .and_then(|()| s.set_write_timeout(Some(CLOSE_WAIT)))
+                .and_then(|()| (&*s).write_all(&rest));
+            if done.is_err() {
+                // SO_LINGER 0: the close that follows (on drop) sends RST.
+                let off = nix::sys::socket::sockopt::Linger;
+                let zero = libc::linger {
+                    l_onoff: 1,
+                    l_linger: 0,
+                };
+                let _ = nix::sys::socket::setsockopt(s, off, &zero);
+                return;
+            }
+        }
         let _ = self.stream.shutdown(Shutdown::Write);
     }
 }
@@ -389,8 +411,8 @@ mod tests {
     }
 
     /// Two clients get every frame; one that reads nothing fills its buffers and then
-    /// loses frames (whole ones: what it reads later is frames back to back, each intact)
-    /// while the other still gets all; a client that leaves is dropped.
+    /// loses frames (whole ones: what it reads later is frames back to back, each intact,
+    /// to the end) while the other still gets all; a client that leaves is dropped.
     #[test]
     fn listener_serves_every_client() {
         let mut sink = TcpListenSink::open("127.0.0.1:0").unwrap();
@@ -415,9 +437,12 @@ mod tests {
             sent += 1;
         }
         assert_eq!(sink.clients(), 2, "the client that left is dropped");
+        // The slow client reads from now on: the frame its full buffer cut is finished when
+        // the sink closes, so it too ends on a frame boundary.
+        let slow_reader = std::thread::spawn(move || read_all(slow));
         sink.finish().unwrap();
         let fast_got = reader.join().unwrap();
-        let slow_got = read_all(slow);
+        let slow_got = slow_reader.join().unwrap();
         let s = sink.stats();
         assert!(s.dropped > 0, "the slow client lost frames: {s:?}");
         for got in [&fast_got, &slow_got] {
