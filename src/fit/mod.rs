@@ -3,7 +3,7 @@
 //! ([`lines`]), broad resonances as random vibrations ([`resonance`]), the fitted template
 //! written as TOML ([`template`]), a record simulated from it checked against the recording
 //! ([`closure`]), the report ([`report`]) and the term-by-term comparison of two recordings
-//! ([`compare`]). No file I/O: the command reads the input and writes the outputs.
+//! ([`compare`]); the Allan variance of a random vibration in [`vibration_avar`]. No file I/O: the command reads the input and writes the outputs.
 
 pub mod analysis_report;
 pub mod checks;
@@ -18,3 +18,4 @@ pub mod recording_fit;
 pub mod report;
 pub mod resonance;
 pub mod template;
+pub mod vibration_avar;

@@ -3,7 +3,7 @@
 //! in each axis's model — known parts of σ² that are added, not fitted, and the filtered
 //! white-noise basis. Pure math.
 
-use super::resonance::KnownVibration;
+use super::vibration_avar::KnownVibration;
 use crate::errors::filter_allan::WhiteAllan;
 
 /// What the unit's output stage fixes for the fit of an axis. Its filter (when the PSD shows

@@ -1,0 +1,113 @@
+//! The Allan variance of a random vibration as recorded samples carry it: the table's PSD
+//! through the interval mean at the generator's step and the output filter, integrated against
+//! the Allan kernel 2 sin⁴(πfτ)/(m sin πfΔt)² (one-sided PSD). Pure math, a known term of an
+//! axis's fit (`super::output::OutputStage`) that `super::resonance` fills.
+
+use std::f64::consts::PI;
+
+use crate::errors::output_filter::FilterSpec;
+
+/// The squared gain from a vibration table to the recorded samples: the interval mean at the
+/// generator's step (the filter's internal step when there is one), then the filter.
+pub fn gain2(f: f64, dt: f64, filter: Option<&FilterSpec>) -> f64 {
+    let sinc = |x: f64| if x == 0.0 { 1.0 } else { x.sin() / x };
+    match filter {
+        None => sinc(PI * f * dt).powi(2),
+        Some(s) => (sinc(PI * f / s.internal_rate_hz) * s.magnitude(f)).powi(2),
+    }
+}
+
+/// The Allan variance of a random vibration as the recorded samples carry it: a known term of
+/// an axis's fit ([`super::output::OutputStage`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct KnownVibration {
+    /// The table as written (f in Hz, unit²/Hz).
+    pub table: Vec<(f64, f64)>,
+    /// Output interval Δt (s).
+    pub dt: f64,
+    /// The squared gain at the pieces' nodes is interpolated from this grid over the table
+    /// (uniform; |H|² and sinc² vary over tens of Hz, the grid step is 1/1024 of the table).
+    gain: Vec<f64>,
+    /// σ² at the cluster sizes given when built.
+    cache: Vec<(usize, f64)>,
+}
+
+/// Nodes and weights of 8-point Gauss–Legendre quadrature on [−1, 1].
+const GAUSS8: [(f64, f64); 4] = [
+    (0.183_434_642_495_649_8, 0.362_683_783_378_362),
+    (0.525_532_409_916_329, 0.313_706_645_877_887_3),
+    (0.796_666_477_413_626_7, 0.222_381_034_453_374_5),
+    (0.960_289_856_497_536_2, 0.101_228_536_290_376_3),
+];
+
+/// Grid points of the tabulated gain.
+const GAIN_GRID: usize = 1024;
+
+impl KnownVibration {
+    /// The vibration of table `table` (at least two rows) on samples at interval Δt shaped by
+    /// `filter`, its σ² computed at the cluster sizes `ms`.
+    pub fn new(
+        table: Vec<(f64, f64)>,
+        dt: f64,
+        filter: Option<&FilterSpec>,
+        ms: &[usize],
+    ) -> KnownVibration {
+        let (a, b) = (table[0].0, table[table.len() - 1].0);
+        let gain = (0..=GAIN_GRID)
+            .map(|i| gain2(a + (b - a) * i as f64 / GAIN_GRID as f64, dt, filter))
+            .collect();
+        let mut v = KnownVibration {
+            table,
+            dt,
+            gain,
+            cache: Vec::new(),
+        };
+        v.cache = ms.iter().map(|&m| (m, v.integrate(m))).collect();
+        v
+    }
+
+    /// σ² at cluster size m.
+    pub fn avar(&self, m: usize) -> f64 {
+        match self.cache.iter().find(|c| c.0 == m) {
+            Some(c) => c.1,
+            None => self.integrate(m),
+        }
+    }
+
+    /// The recorded samples' PSD at f inside the table: S(f) (log-log on the row pair a, b)
+    /// times the squared gain.
+    fn psd(&self, f: f64, a: (f64, f64), b: (f64, f64)) -> f64 {
+        let s = a.1 * (b.1 / a.1).powf((f / a.0).ln() / (b.0 / a.0).ln());
+        let (lo, hi) = (self.table[0].0, self.table[self.table.len() - 1].0);
+        let x = ((f - lo) / (hi - lo) * GAIN_GRID as f64).clamp(0.0, GAIN_GRID as f64);
+        let i = (x.floor() as usize).min(GAIN_GRID - 1);
+        let t = x - i as f64;
+        s * (self.gain[i] * (1.0 - t) + self.gain[i + 1] * t)
+    }
+
+    fn integrate(&self, m: usize) -> f64 {
+        let dt = self.dt;
+        let tau = m as f64 * dt;
+        let mf = m as f64;
+        let kernel = |f: f64| {
+            let num = (PI * f * tau).sin().powi(2);
+            let den = mf * (PI * f * dt).sin();
+            2.0 * num * num / (den * den)
+        };
+        let mut total = 0.0;
+        for w in self.table.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let pieces = ((8.0 * (b.0 - a.0) * tau).ceil() as usize).max(1);
+            let h = (b.0 - a.0) / pieces as f64;
+            for p in 0..pieces {
+                let mid = a.0 + (p as f64 + 0.5) * h;
+                for &(x, wt) in &GAUSS8 {
+                    for f in [mid - 0.5 * h * x, mid + 0.5 * h * x] {
+                        total += 0.5 * h * wt * self.psd(f, a, b) * kernel(f);
+                    }
+                }
+            }
+        }
+        total
+    }
+}
