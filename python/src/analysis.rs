@@ -2,7 +2,7 @@
 //! the verdict against a template) and `fit` (a template fitted to a static recording), on
 //! records in memory or a recording file, as `imu-emu analyze` and `imu-emu fit` compute them.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use numpy::{IntoPyArray, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -204,32 +204,22 @@ pub fn fit(
     name: Option<String>,
     segment: usize,
 ) -> PyResult<String> {
-    use imu_emu::fit::{checks, compare, lines, template};
+    use imu_emu::fit::recording_fit::{self, Settings};
     let (inp, source) = input(records, path, format)?;
     py.detach(|| {
         let rec = analysis(&inp, rate, segment)?;
-        checks::check(&rec).map_err(|e| format!("{source}: {e}"))?;
-        let fitted = compare::fit_all_with_filter(&rec);
-        let found: Vec<Vec<lines::Line>> =
-            rec.channels.iter().map(|c| lines::find(&c.psd)).collect();
-        let prov = template::Provenance {
+        // `imu-emu fit`'s fit (lines, resonances, filter, LSB), without its closure check.
+        let settings = Settings {
             name: name.unwrap_or_else(|| "fitted".into()),
             source,
-            samples: rec.samples,
-            dt: rec.dt,
-            lsb: compare::triad_lsbs(&rec),
-            filter: fitted.filter,
-            carry: fitted.carry,
+            template_path: PathBuf::from("fitted.toml"),
+            closure: false,
+            seed: 1,
+            segment,
+            plot: None,
         };
-        let toml = template::template_toml(&prov, &fitted.fits, &found);
-        // As `imu-emu fit`: what is returned must load as a template.
-        imu_emu::errors::template::parse(&toml, Path::new("fitted.toml")).map_err(|e| {
-            format!(
-                "the fitted template does not load (a bug: please report it): {}",
-                crate::errors::message(&e)
-            )
-        })?;
-        Ok::<String, String>(toml)
+        let fitted = recording_fit::fit(&rec, &settings).map_err(|e| crate::errors::message(&e))?;
+        Ok::<String, String>(fitted.toml)
     })
     .map_err(invalid)
 }
