@@ -220,9 +220,11 @@ fn the_truth_and_the_frames_carry_the_filter_delay() {
     }
 }
 
-/// What a filtered run cannot do yet, or cannot do at all, is refused with a message naming
-/// it: sampling-clock timing errors with a filter, an output rate that does not divide the
-/// internal rate. (Its injected errors are written: `tests/filtered_truth_errors.rs`.)
+/// What a filtered run cannot do is refused with a message naming it: a jitter above 1/20 of
+/// the internal sample interval (its sampler ticks at the internal rate, though 50 µs is
+/// within 1/20 of the output's 5 ms; sampling-clock errors with a filter work:
+/// tests/filtered_timing.rs), an output rate that does not divide the internal rate. (Its
+/// injected errors are written: `tests/filtered_truth_errors.rs`.)
 #[test]
 fn filtered_runs_refuse_what_they_cannot_do() {
     let bw = FILTERS[3];
@@ -235,11 +237,15 @@ fn filtered_runs_refuse_what_they_cannot_do() {
             .build()
     };
     let body = format!("[output_filter]\ninternal_rate_hz = 1600\n{bw}");
-    let e = build(&format!("[timing]\njitter = \"2 us\"\n{body}"), RATE)
+    let e = build(&format!("[timing]\njitter = \"50 us\"\n{body}"), RATE)
         .err()
         .unwrap()
         .to_string();
-    assert!(e.contains("`f`") && e.contains("output_filter"), "{e}");
+    assert!(
+        e.contains("`f`") && e.contains("internal sample interval"),
+        "{e}"
+    );
+    assert!(build("[timing]\njitter = \"50 us\"", RATE).is_ok());
     let e = build(&body, 300.0).err().unwrap().to_string();
     assert!(e.contains("`f`") && e.contains("integer multiple"), "{e}");
 }

@@ -393,9 +393,9 @@ fn gps_time_applies_to_every_unit_and_the_gnss_stream() {
 
 /// Timing errors a rig unit cannot take are refused, naming where they come from, never
 /// left out silently: a scene file's `[timing]` (every unit's) on a skew-redundant unit, whose
-/// sensors have no sampling clock, and a template's sampling-clock errors with its output
-/// filter (refused for one IMU too). Timing errors on three-axis units work:
-/// tests/rig_units.rs.
+/// sensors have no sampling clock, and a template's jitter beyond 1/20 of its output filter's
+/// internal sample interval (refused for one IMU too). Timing errors on three-axis units work,
+/// with a filter too: tests/rig_units.rs, tests/filtered_timing.rs.
 #[test]
 fn timing_errors_a_unit_cannot_take_are_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -420,7 +420,7 @@ fn timing_errors_a_unit_cannot_take_are_refused() {
     let model = d.join("clocked.toml");
     std::fs::write(
         &model,
-        "name = \"clocked\"\n[timing]\njitter = \"2 us\"\n\
+        "name = \"clocked\"\n[timing]\njitter = \"100 us\"\n\
          [output_filter]\ninternal_rate_hz = 800\nkind = \"moving_average\"\ntaps = 4\n",
     )
     .unwrap();
@@ -430,7 +430,7 @@ fn timing_errors_a_unit_cannot_take_are_refused() {
     ));
     assert!(e.contains("`imu[1].model`"), "{e}");
     assert!(
-        e.contains("template `clocked` has an [output_filter] and sampling-clock timing errors"),
+        e.contains("template `clocked`: [timing]: `jitter` = 100 µs: at most 1/20 of the internal sample interval 1250 µs"),
         "{e}"
     );
 }

@@ -127,28 +127,44 @@ fn rows(text: &str) -> Vec<Vec<f64>> {
 /// ramp, vibration and magnetometer, writes byte for byte the single IMU's CSV records and
 /// KVH 1750 Format C frames (temperature and magnetic field inside), and the single IMU's
 /// truth rows (the exact increments over the output intervals, valid the filter's delay
-/// before the tag: `tov` < `t`) with the rig's `failed` column after them.
+/// before the tag: `tov` < `t`) with the rig's `failed` column after them — also under a
+/// scene `[timing]` table of sampling-clock errors (clock offset, jitter, skipped frames),
+/// which the filter's internal sampler runs on (tests/filtered_timing.rs).
 #[test]
 fn one_unit_rig_with_a_filtered_template_is_the_single_imu() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    for format in ["csv", "kvh1750-c"] {
+    let clock =
+        "[timing]\nclock_offset = \"200 ppm\"\njitter = \"2 us\"\nmissing_probability = 0.02\n";
+    for (timing, format) in [
+        ("", "csv"),
+        ("", "kvh1750-c"),
+        (clock, "csv"),
+        (clock, "kvh1750-c"),
+    ] {
         let one = write(
             d,
             "single.toml",
-            &format!("{HEAD}[imu]\nmodel = \"{FILTERED}\"\nrate_hz = 204.8\n{ENVIRONMENT}"),
+            &format!("{HEAD}{timing}[imu]\nmodel = \"{FILTERED}\"\nrate_hz = 204.8\n{ENVIRONMENT}"),
         );
         let unit = format!(
             "[[imu]]\nname = \"f\"\nmodel = \"{FILTERED}\"\nrate_hz = 204.8\nseed = 7\nformat = \"{format}\"\n"
         );
-        let many = write(d, "rig.toml", &format!("{HEAD}{unit}{ENVIRONMENT}"));
+        let many = write(d, "rig.toml", &format!("{HEAD}{timing}{unit}{ENVIRONMENT}"));
         let (out, truth) = single(&one, 7, format);
         let r = rig(&many, 7);
         assert!(out.len() > 1000, "{format}");
-        assert!(r[0].0 == out, "{format}: the rig unit's bytes differ");
-        assert_eq!(without_failed(&r[0].1), lines(&truth), "{format}");
+        assert!(
+            r[0].0 == out,
+            "{format} {timing}: the rig unit's bytes differ"
+        );
+        assert_eq!(without_failed(&r[0].1), lines(&truth), "{format} {timing}");
         let t = rows(&r[0].1);
-        assert_eq!(t.len(), 204);
+        if timing.is_empty() {
+            assert_eq!(t.len(), 204);
+        } else {
+            assert!((190..204).contains(&t.len()), "{} frames", t.len());
+        }
         assert!(
             t.iter().all(|x| x[13] < x[0] - 1e-3),
             "tov {} t {}",

@@ -61,6 +61,12 @@ impl FilteredImu {
         self.chain.components()
     }
 
+    /// The injected errors of the last fill, to fold skipped samples into (`None` unless
+    /// asked for).
+    pub fn components_mut(&mut self) -> Option<&mut Vec<crate::errors::chain::Components>> {
+        self.chain.components_mut()
+    }
+
     /// Whether the internal-rate chain needs the motion's rotation terms (a lever arm).
     pub fn needs_rotation_terms(&self) -> bool {
         self.chain.needs_rotation_terms()
@@ -82,14 +88,32 @@ impl FilteredImu {
     /// internal records up to the end of its output interval; its time tag is t₀ + k/rate
     /// (from the integer k, as every run's).
     pub fn fill(&mut self, k_first: u64, out: &mut [Record]) {
+        self.fill_with(k_first, None, out);
+    }
+
+    /// [`FilteredImu::fill`] under sampling-clock timing errors: the internal records
+    /// integrate over the sensor's true internal intervals, `internal` (gyro and accelerometer
+    /// bounds, [`crate::timing::TimedBlock::internal`], `out.len()` × decimation + 1 each).
+    pub fn fill_timed(&mut self, k_first: u64, internal: (&[f64], &[f64]), out: &mut [Record]) {
+        self.fill_with(k_first, Some(internal), out);
+    }
+
+    fn fill_with(&mut self, k_first: u64, timed: Option<(&[f64], &[f64])>, out: &mut [Record]) {
         let d = self.decimation as usize;
         let n_in = out.len() * d;
         let j_first = (k_first - 1) * self.decimation + 1;
         self.internal.resize(n_in, Record::default());
-        self.imu.fill(j_first, &mut self.internal);
+        match timed {
+            Some(bounds) => self.imu.fill_timed(j_first, bounds, &mut self.internal),
+            None => self.imu.fill(j_first, &mut self.internal),
+        }
         let rotation = if self.chain.needs_rotation_terms() {
             self.rot.resize(n_in, RotationTerms::default());
-            self.imu.rotation_terms(j_first, &mut self.rot);
+            // The accelerometers' lever-arm terms over their own true intervals.
+            match timed {
+                Some((_, accel)) => self.imu.rotation_terms_timed(accel, &mut self.rot),
+                None => self.imu.rotation_terms(j_first, &mut self.rot),
+            }
             Some(&self.rot[..])
         } else {
             None

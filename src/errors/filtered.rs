@@ -115,6 +115,12 @@ impl FilteredChain {
         self.split.as_ref().map_or(&[], |s| &s.out)
     }
 
+    /// The injected errors of the last apply, to fold skipped samples into (`None` unless
+    /// asked for).
+    pub fn components_mut(&mut self) -> Option<&mut Vec<Components>> {
+        self.split.as_mut().map(|s| &mut s.out)
+    }
+
     /// Whether the internal-rate chain needs the motion's rotation terms (a lever arm).
     pub fn needs_rotation_terms(&self) -> bool {
         self.inner.needs_rotation_terms()

@@ -25,6 +25,10 @@ pub struct TimedBlock {
     pub emit: Vec<f64>,
     /// Whether the sensor skipped each sample.
     pub missing: Vec<bool>,
+    /// A unit with an output filter: the bounds of its internal samples' intervals (gyro,
+    /// accelerometers), `decimation` per output sample, whose every `decimation`-th bound is
+    /// the output's (empty without a filter, or when the samples are nominal).
+    pub internal: (Vec<f64>, Vec<f64>),
 }
 
 impl TimedBlock {
@@ -53,7 +57,12 @@ impl TimedBlock {
 #[derive(Clone, Debug)]
 pub struct SensorTiming {
     model: TimingModel,
+    /// The interval of the sampler's ticks (the internal one under an output filter).
     dt: f64,
+    /// Ticks per output sample: the filter's decimation (1 without one).
+    decimation: u64,
+    /// The output interval (Δt × decimation).
+    dt_out: f64,
     /// Frequency and phase of the clock's random walk.
     rw_freq: f64,
     rw_phase: f64,
@@ -80,13 +89,35 @@ impl SensorTiming {
         seed: u64,
         span: (f64, f64),
     ) -> Result<SensorTiming, String> {
-        let dt = 1.0 / rate_hz;
+        SensorTiming::decimated(model, rate_hz, 1, duration, seed, span)
+    }
+
+    /// [`SensorTiming::new`] for a unit with an output filter that samples at `decimation`
+    /// times the output rate `rate_hz`: its clock ticks at the internal rate, and each tick's
+    /// instant moves by its own jitter (the internal sampler's, checked against the internal
+    /// interval); output sample k is taken at internal tick k·decimation, and its emission,
+    /// latency, late frame and skipping are drawn per output sample. With `decimation` 1
+    /// this is [`SensorTiming::new`], draw for draw.
+    pub fn decimated(
+        model: TimingModel,
+        rate_hz: f64,
+        decimation: u64,
+        duration: f64,
+        seed: u64,
+        span: (f64, f64),
+    ) -> Result<SensorTiming, String> {
+        let decimation = decimation.max(1);
+        let dt = 1.0 / (rate_hz * decimation as f64);
         // Sample intervals differ from Δt by the difference of two jitters (σ√2); at Δt/20,
         // an interval shrinks to zero only beyond 7σ.
         if model.jitter > dt / 20.0 {
+            let what = if decimation > 1 { "internal " } else { "" };
+            // In µs rounded to 1e-6 µs: "100 us" reads back as 9.999…e-5 s.
+            let us = |x: f64| (x * 1e12).round() / 1e6;
             return Err(format!(
-                "`jitter` = {} s: at most 1/20 of the sample interval {} s",
-                model.jitter, dt
+                "`jitter` = {} µs: at most 1/20 of the {what}sample interval {} µs",
+                us(model.jitter),
+                us(dt)
             ));
         }
         if model.clock_drift.abs() * duration > 0.1 {
@@ -109,6 +140,8 @@ impl SensorTiming {
         Ok(SensorTiming {
             model,
             dt,
+            decimation,
+            dt_out: 1.0 / rate_hz,
             rw_freq: 0.0,
             rw_phase: 0.0,
             rw: stream("timing/clock/random_walk"),
@@ -129,9 +162,10 @@ impl SensorTiming {
         &self.model
     }
 
-    /// The deviation of the clock's k-th tick from k·Δt from its offset and drift (s).
+    /// The deviation of the clock's k-th tick from k·Δt from its offset and drift (s); ticks
+    /// are the internal sampler's under an output filter.
     pub fn deterministic_phase(&self, k: u64) -> f64 {
-        let tau = k as f64 * self.dt;
+        let tau = self.nominal(k);
         let (y, d) = (self.model.clock_offset, self.model.clock_drift);
         let a = 1.0 + y;
         let s = (a * a + 2.0 * d * tau).sqrt();
@@ -139,33 +173,48 @@ impl SensorTiming {
         tau * (-y - (2.0 * y + y * y + 2.0 * d * tau) / (1.0 + s)) / (a + s)
     }
 
-    /// Fills `out` with samples `k_first .. k_first + n` (k_first must follow the last block).
+    /// The nominal instant of tick j, jΔt; every decimation-th the output's k·Δt_out to the
+    /// bit, as a run without a filter has it.
+    fn nominal(&self, j: u64) -> f64 {
+        let d = self.decimation;
+        (j / d) as f64 * self.dt_out + (j % d) as f64 * self.dt
+    }
+
+    /// Whether the samples fall on the nominal grid (only the emission is perturbed): the
+    /// internal bounds are then not filled, and a filtered run takes its nominal intervals.
+    pub fn is_nominal(&self) -> bool {
+        self.model.emission_only()
+    }
+
+    /// Fills `out` with samples `k_first .. k_first + n` (k_first must follow the last block);
+    /// under a filter, with the internal samples' bounds too unless they are nominal.
     pub fn fill(&mut self, k_first: u64, n: usize, out: &mut TimedBlock) {
         assert_eq!(k_first, self.next, "timing blocks must be consecutive");
         let m = self.model;
+        let d = self.decimation;
+        let internal = d > 1 && !self.is_nominal();
         out.gyro.clear();
         out.accel.clear();
         out.emit.clear();
         out.missing.clear();
+        out.internal.0.clear();
+        out.internal.1.clear();
         out.gyro.push(self.last.0);
         out.accel.push(self.last.1);
-        let rw_step = m.clock_random_walk * self.dt.sqrt();
+        if internal {
+            out.internal.0.push(self.last.0);
+            out.internal.1.push(self.last.1);
+        }
         for i in 0..n as u64 {
             let k = k_first + i;
-            if rw_step > 0.0 {
-                self.rw_freq += rw_step * self.rw.draw();
-                self.rw_phase -= self.dt * self.rw_freq;
+            let (mut g, mut a) = (self.last.0, self.last.1);
+            for j in (k - 1) * d + 1..=k * d {
+                (g, a) = self.tick(j, (g, a));
+                if internal {
+                    out.internal.0.push(g);
+                    out.internal.1.push(a);
+                }
             }
-            let tick = k as f64 * self.dt + self.deterministic_phase(k) + self.rw_phase;
-            let (mut g, mut a) = (tick, tick + m.skew);
-            if m.jitter > 0.0 {
-                g += m.jitter * self.jitter[0].draw();
-                a += m.jitter * self.jitter[1].draw();
-            }
-            // Bounds never run backwards (a 7σ jitter pair) nor leave the motion.
-            let (lo, hi) = self.span;
-            let g = g.clamp(lo, hi).max(self.last.0);
-            let a = a.clamp(lo, hi).max(self.last.1);
             let u = |s: usize| uniform(self.uniform[s], k);
             let missing = m.missing_probability > 0.0 && u(2) < m.missing_probability;
             let mut e = g + m.latency + m.latency_spread * (2.0 * u(0) - 1.0);
@@ -181,6 +230,25 @@ impl SensorTiming {
             self.last = (g, a, if missing { self.last.2 } else { e });
         }
         self.next = k_first + n as u64;
+    }
+
+    /// The gyro's and accelerometers' instants of tick j, after the previous tick's `last`.
+    fn tick(&mut self, j: u64, last: (f64, f64)) -> (f64, f64) {
+        let m = self.model;
+        let rw_step = m.clock_random_walk * self.dt.sqrt();
+        if rw_step > 0.0 {
+            self.rw_freq += rw_step * self.rw.draw();
+            self.rw_phase -= self.dt * self.rw_freq;
+        }
+        let tick = self.nominal(j) + self.deterministic_phase(j) + self.rw_phase;
+        let (mut g, mut a) = (tick, tick + m.skew);
+        if m.jitter > 0.0 {
+            g += m.jitter * self.jitter[0].draw();
+            a += m.jitter * self.jitter[1].draw();
+        }
+        // Bounds never run backwards (a 7σ jitter pair) nor leave the motion.
+        let (lo, hi) = self.span;
+        (g.clamp(lo, hi).max(last.0), a.clamp(lo, hi).max(last.1))
     }
 }
 

@@ -104,36 +104,63 @@ impl Producer {
     }
 
     /// [`Producer::step`] for a unit with an output filter: the records from the internal-rate
-    /// run, the truth from the output-rate generator, the times (if any) from the timing run.
+    /// run, the truth from the output-rate generator. Under timing errors the sensor's clock
+    /// sets both: the internal records integrate over its true internal intervals, the truth
+    /// over the true output intervals (every decimation-th internal bound), and the skipped
+    /// samples fold into the next one taken as without a filter.
     fn step_filtered(&mut self, first: u64, n: usize) -> Option<(u64, usize)> {
         let f = self.filtered.as_mut()?;
-        f.fill(self.k, &mut self.block[..n]);
+        // Emission-only timing leaves the samples on the nominal grid: the nominal path, bit
+        // for bit the run without timing errors.
+        let timed = match self.timing.as_mut() {
+            Some(t) => Some(t.instants(self.k, n)).filter(|b| !b.internal.0.is_empty()),
+            None => None,
+        };
+        let timed_truth = timed.is_some();
+        match timed {
+            Some(b) => f.fill_timed(self.k, (&b.internal.0, &b.internal.1), &mut self.block[..n]),
+            None => f.fill(self.k, &mut self.block[..n]),
+        }
         if let Err(e) = Producer::check_finite(&self.block[..n], "after the output filter") {
             return self.fail(e);
         }
         if self.keep_truth {
             self.truth.clear();
             self.truth.resize(n, Record::default());
-            self.imu.fill(self.k, &mut self.truth);
+            let bounds = (self.timing.as_ref())
+                .filter(|_| timed_truth)
+                .map(|t| (&t.block().gyro, &t.block().accel));
+            match bounds {
+                Some((g, a)) => self.imu.fill_timed(self.k, (g, a), &mut self.truth),
+                None => self.imu.fill(self.k, &mut self.truth),
+            }
             if let Err(e) = Producer::check_finite(&self.truth, "in the error-free signal") {
                 return self.fail(e);
             }
             let place_rot = self.places_with_rotation();
             if place_rot {
                 self.rot.resize(n.max(self.rot.len()), Default::default());
-                self.imu.rotation_terms(self.k, &mut self.rot[..n]);
+                match self.timing.as_ref().filter(|_| timed_truth) {
+                    Some(t) => self
+                        .imu
+                        .rotation_terms_timed(&t.block().accel, &mut self.rot[..n]),
+                    None => self.imu.rotation_terms(self.k, &mut self.rot[..n]),
+                }
             }
             let (rot, dt) = (std::mem::take(&mut self.rot), 1.0 / self.grid.rate_hz);
             self.place_truth(place_rot.then(|| &rot[..n]), dt);
             self.rot = rot;
         }
-        if let Some(t) = self.timing.as_mut() {
-            // Nominal instants (the builder allows no clock errors with a filter): only the
-            // times are taken, and no sample is skipped.
-            t.instants(self.k, n);
-            t.compact(&mut self.block[..n], &mut self.truth[..], None);
-        }
         self.k += n as u64;
+        let n = match self.timing.as_mut() {
+            Some(t) => {
+                let comps = (self.filtered.as_mut()).and_then(|f| f.components_mut());
+                let kept = t.compact(&mut self.block[..n], &mut self.truth[..], comps);
+                self.truth.truncate(kept);
+                kept
+            }
+            None => n,
+        };
         Some((first, n))
     }
 

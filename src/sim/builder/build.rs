@@ -552,12 +552,6 @@ impl SimulationBuilder {
         if model.is_zero() && filter.is_none() {
             return Ok(None);
         }
-        if filter.is_some() && !model.emission_only() {
-            return Err(SimError::Invalid(format!(
-                "template `{}` has an [output_filter] and sampling-clock timing errors (clock, jitter, skew or missing samples): with a filter only `latency`, `latency_spread` and late frames are modelled yet",
-                imu.name
-            )));
-        }
         let duration = grid.count as f64 / grid.rate_hz;
         let margin = model.margin(duration);
         let end = grid.t0 + duration + margin;
@@ -580,8 +574,22 @@ impl SimulationBuilder {
         }
         let span = (motion.start() - grid.t0, motion.end() - grid.t0);
         let duration = grid.count as f64 / grid.rate_hz;
-        let sensor = crate::timing::SensorTiming::new(model, grid.rate_hz, duration, seed, span)
-            .map_err(|e| SimError::Invalid(format!("{}: {e}", imu.name)))?;
+        // Under an output filter the clock ticks at the internal rate.
+        let decimation = match filter {
+            Some(f) => f.check(grid.rate_hz).map_err(|e| {
+                SimError::Invalid(format!("template `{}`: [output_filter]: {e}", imu.name))
+            })? as u64,
+            None => 1,
+        };
+        let sensor = crate::timing::SensorTiming::decimated(
+            model,
+            grid.rate_hz,
+            decimation,
+            duration,
+            seed,
+            span,
+        )
+        .map_err(|e| SimError::Invalid(format!("template `{}`: [timing]: {e}", imu.name)))?;
         let offset = filter.map_or(0.0, |f| f.validity_offset_s(grid.rate_hz));
         Ok(Some(
             crate::engine::timed::TimedRun::new(sensor, grid.rate_hz, grid.t0)
