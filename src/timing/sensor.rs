@@ -177,6 +177,10 @@ impl SensorTiming {
     /// bit, as a run without a filter has it.
     fn nominal(&self, j: u64) -> f64 {
         let d = self.decimation;
+        if d == 1 {
+            // No division per sample on the common path.
+            return j as f64 * self.dt_out;
+        }
         (j / d) as f64 * self.dt_out + (j % d) as f64 * self.dt
     }
 
