@@ -70,7 +70,7 @@ impl LiveRun {
         if let Some(sinks) = sinks {
             spec.replace_routes(|s| matches!(s, StreamId::Unit { unit: None, .. }));
             for v in sinks {
-                let (addr, protocol) = imu_emu::run::scene::sink_with_protocol(&v)
+                let (addr, protocol) = imu_emu::output::SinkAddr::parse_with_protocol(&v)
                     .map_err(|e| invalid(format!("sink `{v}`: {e}")))?;
                 let stream = StreamId::Unit {
                     unit: None,

@@ -11,7 +11,7 @@ use crate::output::SinkAddr;
 
 use super::RunError;
 use super::error::refuse;
-use super::scene::{sink_with_protocol, split_unit};
+use super::scene::split_unit;
 use super::spec::{LiveSpec, RunSpec, Speed, StreamId, TimeBase, read_gnss};
 
 /// A live input's settings over the scene file's `[run.input]` (`imu-emu run --help` says what
@@ -185,8 +185,8 @@ impl RunSpec {
         let mut routes = Vec::new();
         for (kind, v) in sinks {
             let flag = format!("--{kind} {v}");
-            let (addr, protocol) =
-                sink_with_protocol(&format!("{kind}:{v}")).map_err(|e| refuse(&flag, e))?;
+            let (addr, protocol) = SinkAddr::parse_with_protocol(&format!("{kind}:{v}"))
+                .map_err(|e| refuse(&flag, e))?;
             routes.push((
                 StreamId::Unit {
                     unit: None,

@@ -37,18 +37,12 @@ impl RunSpec {
     }
 }
 
-/// Reads a sink with an optional `,protocol=NAME`: the address and the protocol
-/// ([`SinkAddr::parse_with_protocol`]).
-pub fn sink_with_protocol(s: &str) -> Result<(SinkAddr, Option<String>), String> {
-    SinkAddr::parse_with_protocol(s)
-}
-
 /// Applies the scene file `file`'s `[run]` table and `[imu] sink` to `spec`.
 pub fn apply(spec: &mut RunSpec, file: &str) -> Result<(), SimError> {
     let bad = |key: &str, m: String| SimError::Invalid(m).at(Some(format!("{file}: `{key}`")));
     if let Some(sinks) = spec.signal.scene_contents().imu.sink.clone() {
         for (key, v) in sinks.keyed("imu.sink") {
-            let (addr, protocol) = sink_with_protocol(&v).map_err(|m| bad(&key, m))?;
+            let (addr, protocol) = SinkAddr::parse_with_protocol(&v).map_err(|m| bad(&key, m))?;
             let stream = StreamId::Unit {
                 unit: None,
                 protocol,
