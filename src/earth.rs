@@ -53,6 +53,46 @@ pub fn normal_gravity_from(sin2_lat: f64, inv_sqrt_w: f64, h: f64) -> f64 {
     g0 * (1.0 - (2.0 / A) * (1.0 + F + M_RATIO - 2.0 * F * sin2_lat) * h + (3.0 / (A * A)) * h * h)
 }
 
+/// The gradient of the gravitational acceleration (gravity without the Earth's centrifugal
+/// acceleration) at geodetic latitude φ and height h, in the local NED axes (s⁻²): the
+/// gravitation at a point displaced by δ (NED, m) is G + Γ δ to first order. Of the normal
+/// gravity field this engine uses (magnitude γ(φ, h) along the ellipsoid's normal,
+/// [`normal_gravity`]): a displacement north or east turns the normal by δ/(M + h) or
+/// δ/(N + h), moving down changes γ by −∂γ/∂h, moving north by ∂γ/∂φ/(M + h); the centrifugal
+/// part's gradient Ω² = [ω_ie×]², which the lever-arm kinematics carry through ω_ib, is added
+/// back. A specific force at a lever arm r from a point differs by −Γ r besides its kinematic
+/// terms (about 3·10⁻⁶ s⁻² vertically: 4.6·10⁻⁶ m/s² at 1.5 m).
+pub fn gravitation_gradient_ned(sin_lat: f64, cos_lat: f64, h: f64) -> Mat3 {
+    // γ = γ₀(s²)·H(s², h) of `normal_gravity_from`, differentiated in closed form
+    // (s² = sin²φ, w = 1 − e²s²): ∂γ₀/∂s² = γ_e[k/√w + (1 + k s²)e²/(2w^{3/2})],
+    // ∂H/∂s² = 4f h/a, ∂H/∂h = −(2/a)(1 + f + m − 2f s²) + 6h/a², ∂s²/∂φ = 2 sin φ cos φ.
+    let s2 = sin_lat * sin_lat;
+    let isw = 1.0 / (1.0 - E2 * s2).sqrt();
+    let g0 = GAMMA_E * (1.0 + SOMIGLIANA_K * s2) * isw;
+    let k_h = (2.0 / A) * (1.0 + F + M_RATIO - 2.0 * F * s2);
+    let big_h = 1.0 - k_h * h + (3.0 / (A * A)) * h * h;
+    let gamma = g0 * big_h;
+    let dg_dh = g0 * (-k_h + (6.0 / (A * A)) * h);
+    let dg0_ds2 =
+        GAMMA_E * (SOMIGLIANA_K * isw + (1.0 + SOMIGLIANA_K * s2) * 0.5 * E2 * isw * isw * isw);
+    let dg_dlat = (dg0_ds2 * big_h + g0 * (4.0 * F * h / A)) * 2.0 * sin_lat * cos_lat;
+    let m = A * (1.0 - E2) * isw * isw * isw + h;
+    let n = A * isw + h;
+    let gravity = Mat3::new(
+        -gamma / m,
+        0.0,
+        0.0,
+        0.0,
+        -gamma / n,
+        0.0,
+        dg_dlat / m,
+        0.0,
+        -dg_dh,
+    );
+    let w = omega_ie_n(sin_lat, cos_lat);
+    gravity + w * w.transpose() - Mat3::identity() * w.norm_squared()
+}
+
 /// Earth rate in the local-level frame ω_ie^n = [ω cos φ, 0, −ω sin φ].
 #[inline]
 pub fn omega_ie_n(sin_lat: f64, cos_lat: f64) -> Vec3 {
@@ -263,6 +303,48 @@ mod tests {
             for j in 0..3 {
                 assert!((m[(i, j)] - q[(i, j)]).abs() < 1e-15);
             }
+        }
+    }
+
+    /// The gradient against central differences of the gravitation built independently in
+    /// ECEF: the normal gravity γ(φ, h) along the ellipsoid's normal at the geodetic point of
+    /// r (as the navigator computes it), plus ω_ie × (ω_ie × r) (gravity is gravitation plus
+    /// the centrifugal −ω × (ω × r)), differenced over ±10 m along each ECEF axis and turned
+    /// into NED. Round-off: the ~10 m/s² values carry ≈ 2e-15 m/s² each, so the difference
+    /// quotient is good to ≈ 2e-16 s⁻²; the truncation (third derivatives ~ γ/R³·δ²) is
+    /// ≈ 4e-18 s⁻². 1e-14 s⁻² is 3e-9 of the 3e-6 s⁻² vertical gradient. A wrong sign of the
+    /// centrifugal part misses by 2ω² ≈ 1e-8, a missing ∂γ/∂φ term by up to 8e-9.
+    #[test]
+    fn gravitation_gradient_is_the_fields_derivative() {
+        let w = Vec3::new(0.0, 0.0, OMEGA_IE);
+        let field = |r: Vec3| {
+            let geo = ecef_to_geodetic(r);
+            geo.up_e() * -normal_gravity(geo.sin_lat, geo.h) + w.cross(&w.cross(&r))
+        };
+        for (lat, lon, h) in [
+            (0.0, 0.0, 0.0),
+            (41.0, -3.0, 650.0),
+            (-67.5, 120.0, 9000.0),
+            (89.0, 10.0, 30.0),
+        ] {
+            let geo = Geodetic::from_radians(f64::to_radians(lat), f64::to_radians(lon), h);
+            let r0 = geo.to_ecef();
+            let d = 10.0;
+            let columns: Vec<Vec3> = (0..3)
+                .map(|i| {
+                    let mut e = Vec3::zeros();
+                    e[i] = d;
+                    (field(r0 + e) - field(r0 - e)) / (2.0 * d)
+                })
+                .collect();
+            let gamma_e = Mat3::from_columns(&columns);
+            let c = geo.c_n_e();
+            let want = c.transpose() * gamma_e * c;
+            let (s, co) = f64::to_radians(lat).sin_cos();
+            let got = gravitation_gradient_ned(s, co, h);
+            let err = (got - want).amax();
+            assert!(err < 1e-14, "{lat} {h}: {err:e}\n{got}{want}");
+            assert!(got[(2, 2)] > 3.0e-6 && got[(2, 2)] < 3.2e-6, "{got}");
         }
     }
 }

@@ -61,9 +61,11 @@ fn scene(dir: &std::path::Path, extra: &str) -> std::path::PathBuf {
 }
 
 /// The closed form of a point at `r` (body frame): interval means of ω̇ × r + ω × (ω × r)
-/// over (t_{k−1}, t_k], with mean(ω̇) = (ω(t_k) − ω(t_{k−1}))/Δt and ω × (ω × r) averaged
-/// by a 16-point Gauss–Legendre rule (the engine uses 3 points, so this is an independent
-/// quadrature; both are exact to round-off for the smooth motion over 10 ms).
+/// − Γ r over (t_{k−1}, t_k], with mean(ω̇) = (ω(t_k) − ω(t_{k−1}))/Δt and ω × (ω × r)
+/// averaged by a 16-point Gauss–Legendre rule (the engine uses 3 points, so this is an
+/// independent quadrature; both are exact to round-off for the smooth motion over 10 ms).
+/// Γ^b = C_n^b Γ^n C_b^n is `generator::gravitation_gradient_b` at the interval's middle;
+/// Γ^n is checked against the field's central differences in src/earth.rs.
 fn lever_arm_term(m: &impl Motion, t0: f64, dt: f64, k: usize, r: Vec3) -> Vec3 {
     let omega = |t: f64| m.sense(m.piece_at(t, 0), t).omega_ib_b;
     let (lo, hi) = (t0 + (k - 1) as f64 * dt, t0 + k as f64 * dt);
@@ -71,9 +73,13 @@ fn lever_arm_term(m: &impl Motion, t0: f64, dt: f64, k: usize, r: Vec3) -> Vec3 
     let gl = GaussLegendre::new(16).unwrap();
     let mut c = Vec3::zeros();
     for (x, w) in gl.nodes.iter().zip(&gl.weights) {
-        let o = omega(lo + x * dt);
+        let t = lo + x * dt;
+        let o = omega(t);
         c += o.cross(&o.cross(&r)) * *w;
     }
+    // The gravitation's gradient at the interval's middle, the engine's rule (its mean
+    // differs by at most (ωΔt)²/6·|Γ|: src/generator.rs, with its test).
+    c -= imu_emu::generator::gravitation_gradient_b(&m.pose(lo + 0.5 * dt)) * r;
     alpha.cross(&r) + c
 }
 
@@ -155,7 +161,9 @@ fn lever_arms_and_mountings_are_exact() {
     );
     // The test has teeth: the tangential term (ω̇ up to 3.4 rad/s² about x, moving y and z
     // by up to 3.4 × 0.8 m/s²) and the centripetal one (about ω² r ≈ 0.01 × 1.5 m/s² on x)
-    // are far above the tolerance.
+    // are far above the tolerance, and so is the gravitation's gradient (γ/R·1.5 ≈ 2.3e-6
+    // m/s² on x, (2γ/R)·0.4 ≈ 1.2e-6 on z), checked at its own size by
+    // rig_units::a_unit_below_the_reference_reads_the_gravity_there.
     let most = |i: usize| {
         (0..300)
             .map(|k| (arm[k][i] - reference[k][i]).abs())

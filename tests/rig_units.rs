@@ -337,7 +337,8 @@ fn c_b_c(deg: [f64; 3]) -> Mat3 {
 
 /// The interval means of ω and of the specific force at `r` (body frame) over (lo, hi] on
 /// `m`, by a 16-point Gauss–Legendre rule (the engine uses 3 points: an independent
-/// quadrature) and mean(ω̇) = Δω/T.
+/// quadrature) and mean(ω̇) = Δω/T; the gravitation's gradient at the middle, as in
+/// tests/rig.rs.
 fn closed_form(m: &impl Motion, lo: f64, hi: f64, r: Vec3) -> (Vec3, Vec3) {
     let t = hi - lo;
     let sense = |x: f64| m.sense(m.piece_at(x, 0), x);
@@ -349,6 +350,7 @@ fn closed_form(m: &impl Motion, lo: f64, hi: f64, r: Vec3) -> (Vec3, Vec3) {
         f += s.f_b * *wt;
         c += s.omega_ib_b.cross(&s.omega_ib_b.cross(&r)) * *wt;
     }
+    c -= imu_emu::generator::gravitation_gradient_b(&m.pose(0.5 * (lo + hi))) * r;
     let alpha = (sense(hi).omega_ib_b - sense(lo).omega_ib_b) * (1.0 / t);
     (w, f + alpha.cross(&r) + c)
 }
@@ -713,4 +715,59 @@ fn a_filtered_units_noise_on_a_trigger_scales_with_the_interval() {
 #[allow(dead_code)]
 fn stream_type(r: Rig) -> RigStream {
     r.stream().triggered()
+}
+
+/// The gravitation across a lever arm, end to end: an error-free unit 1.5 m below the
+/// reference point of a body at rest (level, so body z is down) reads what an error-free IMU
+/// at rest 1.5 m lower reads, built independently from a second trajectory at that height —
+/// to 2.5e-12 m/s²: the gradient is linear, and γ's h² term (3γ/a²·h²) leaves
+/// 3·9.8·1.5²/a² = 1.6e-12 (measured 1.62e-12), the other second-order terms
+/// (r/R)²·g ≈ 5e-13 and the engine's round-off a few 1e-15. It reads (∂γ/∂h)·1.5 ≈ −4.6e-6 m/s² more along z than the reference unit, so
+/// leaving the gradient out would miss by 4.6e-6; the gyros are the same everywhere.
+#[test]
+fn a_unit_below_the_reference_reads_the_gravity_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let trajectory = |name: &str, h: f64| {
+        let mut text = String::from("t,lat,lon,h,vn,ve,vd,roll,pitch,yaw\n");
+        for i in 0..=40 {
+            text += &format!("{},41.0,-3.0,{h},0,0,0,0,0,0\n", i as f64 * 0.25);
+        }
+        write(d, name, &text)
+    };
+    let high = trajectory("high.csv", 650.0);
+    let low = trajectory("low.csv", 648.5);
+    let head = |t: &Path| {
+        format!(
+            "[trajectory]\nfile = \"{}\"\n[output]\nduration_s = 2.0\n",
+            t.display()
+        )
+    };
+    let units = "[[imu]]\nname = \"ref\"\nmodel = \"ideal\"\nrate_hz = 100.0\nformat = \"csv\"\n\
+                 [[imu]]\nname = \"low\"\nmodel = \"ideal\"\nrate_hz = 100.0\nformat = \"csv\"\n\
+                 lever_arm_m = [0.0, 0.0, 1.5]\n";
+    let r = rig(&write(d, "rig.toml", &format!("{}{units}", head(&high))), 1);
+    let one = format!("{}[imu]\nmodel = \"ideal\"\nrate_hz = 100.0\n", head(&low));
+    let (there, _) = single(&write(d, "one.toml", &one), 1, "csv");
+    let (reference, below, there) = (
+        rows(&String::from_utf8(r[0].0.clone()).unwrap()),
+        rows(&String::from_utf8(r[1].0.clone()).unwrap()),
+        rows(&String::from_utf8(there).unwrap()),
+    );
+    assert_eq!(below.len(), 200);
+    assert_eq!(there.len(), 200);
+    for ((a, b), c) in below.iter().zip(&there).zip(&reference) {
+        for i in 1..7 {
+            assert!(
+                (a[i] - b[i]).abs() < 2.5e-12,
+                "column {i}: {} vs {}",
+                a[i],
+                b[i]
+            );
+        }
+        assert!(
+            (a[6] - c[6]) < -4.5e-6 && (a[6] - c[6]) > -4.7e-6,
+            "{a:?} {c:?}"
+        );
+    }
 }

@@ -1,5 +1,6 @@
 //! Accelerometer size effect and lever arm: a sensor at r from the reference point senses
-//! f + ω̇ × r + ω × (ω × r) (ω = ω_ib^b). Checked against closed forms computed here.
+//! f + ω̇ × r + ω × (ω × r) − Γ r (ω = ω_ib^b, Γ the gravitation's gradient in body axes).
+//! Checked against closed forms computed here.
 
 use std::path::Path;
 
@@ -39,8 +40,10 @@ fn with_and_without(
 }
 
 /// At rest the body turns with the Earth only: ω̇ = 0 and the offset adds the centripetal
-/// ω(ω·r) − r|ω|² (~5e-9 m/s² per metre), exact up to the rounding of adding it to f (one
-/// ulp of |f| ≈ 9.8 m/s² is 1.8e-15).
+/// ω(ω·r) − r|ω|² (~5e-9 m/s² per metre) and −Γ r (~3e-6 m/s² per metre; Γ^b at rest is the
+/// gradient at the scene's place turned into its fixed attitude), exact up to the rounding of
+/// adding it to f (one ulp of |f| ≈ 9.8 m/s² is 1.8e-15). Without −Γ r it would miss by
+/// 1.5e-6 m/s² on axis x.
 #[test]
 fn static_centripetal_closed_form() {
     let m = AnyMotion::Scene(
@@ -51,10 +54,11 @@ fn static_centripetal_closed_form() {
     let pos = [[1.0, 2.0, -3.0], [0.5, 0.0, 0.0], [0.0, -1.0, 0.25]];
     let (plain, moved) = with_and_without(&m, 100.0, 1, 10, pos);
     let w = plain[0].gyro;
+    let gamma = imu_emu::generator::gravitation_gradient_b(&m.pose(0.0));
     for (a, b) in plain.iter().zip(&moved) {
         for (i, p) in pos.iter().enumerate() {
             let r = Vec3::from(*p);
-            let want = (w * w.dot(&r) - r * w.dot(&w))[i];
+            let want = (w * w.dot(&r) - r * w.dot(&w) - gamma * r)[i];
             let got = b.accel[i] - a.accel[i];
             let ulp = 2.0 * f64::EPSILON * a.accel[i].abs().max(1.0);
             assert!((got - want).abs() <= ulp, "axis {i}: {got:e} vs {want:e}");
@@ -62,7 +66,9 @@ fn static_centripetal_closed_form() {
     }
 }
 
-/// The 10 g turn with a 1000 °/s roll oscillation: the interval mean of ω̇ × r + ω × (ω × r),
+/// The 10 g turn with a 1000 °/s roll oscillation: the interval mean of ω̇ × r + ω × (ω × r)
+/// − Γ r (Γ^b of the pose at each node: the engine takes it at the interval's middle, within
+/// (ωΔt)²/6·|Γ| ≈ 5e-5 · 3e-7 m/s² here),
 /// integrated here by 16 Gauss–Legendre nodes on 8 sub-intervals with ω̇ from 4th-order
 /// central differences of ω (step 1e-5 s: truncation ~1e-10, round-off ~1e-10 rad/s² on
 /// ω̇ ~ 500 rad/s²), agrees within 1e-8 m/s² for offsets of 10 cm (added terms up to ~50 m/s²).
@@ -86,9 +92,10 @@ fn fast_rotation_matches_the_definition() {
                 let wdot = (omega(t - 2.0 * h) - omega(t + 2.0 * h)) * (1.0 / (12.0 * h))
                     + (omega(t + h) - omega(t - h)) * (8.0 / (12.0 * h));
                 let w = omega(t);
+                let gamma = imu_emu::generator::gravitation_gradient_b(&m.pose(t));
                 for (i, p) in pos.iter().enumerate() {
                     let r = Vec3::from(*p);
-                    let add = wdot.cross(&r) + w.cross(&w.cross(&r));
+                    let add = wdot.cross(&r) + w.cross(&w.cross(&r)) - gamma * r;
                     want[i] += add[i] * wt / 8.0;
                 }
             }

@@ -8,7 +8,10 @@
 //! generator gives exactly: mean(ω̇) = Δω/Δt, and ω × (ω × r) = (ω ωᵀ − |ω|² I) r is linear in
 //! ω ωᵀ, whose interval mean it integrates by the same quadrature as f. So the interval mean is
 //! f̄ + (Δω/Δt) × r + (W − tr W · I) r with W the mean of ω ωᵀ, with no differentiation of ω.
-//! The angular rate is the same at every point of a rigid body.
+//! The angular rate is the same at every point of a rigid body. The gravitation differs across
+//! the lever arm by Γ r (Γ its gradient, [`crate::earth::gravitation_gradient_ned`]), so the
+//! specific force there has −Γ r more: about 3·10⁻⁶ s⁻² vertically, which an error-free unit
+//! at 1.5 m would otherwise turn into ½·4.6·10⁻⁶·t² m of drift in a navigator.
 
 use crate::generator::RotationTerms;
 use crate::math::{Mat3, QuatExt, Vec3};
@@ -18,7 +21,7 @@ use crate::math::{Mat3, QuatExt, Vec3};
 #[inline]
 pub fn force_at(f_mean: Vec3, rot: &RotationTerms, inv_dt: f64, r: Vec3) -> Vec3 {
     let w = &rot.omega_outer;
-    f_mean + (rot.d_omega * inv_dt).cross(&r) + w * r - r * w.trace()
+    f_mean + (rot.d_omega * inv_dt).cross(&r) + w * r - r * w.trace() - rot.gravitation * r
 }
 
 /// The rotation terms seen in axes turned by `c` (C_b^c): Δω^c = C Δω^b, W^c = C W Cᵀ, for
@@ -27,6 +30,7 @@ pub fn rotate_terms(rot: &RotationTerms, c: &Mat3) -> RotationTerms {
     RotationTerms {
         d_omega: c * rot.d_omega,
         omega_outer: c * rot.omega_outer * c.transpose(),
+        gravitation: c * rot.gravitation * c.transpose(),
     }
 }
 
@@ -90,6 +94,7 @@ mod tests {
         let rot = RotationTerms {
             d_omega: Vec3::zeros(),
             omega_outer: Mat3::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, w * w),
+            gravitation: Mat3::zeros(),
         };
         let f = force_at(Vec3::new(0.0, 0.0, -9.8), &rot, 100.0, r);
         let expect = Vec3::new(-w * w * 0.3, w * w * 1.2, -9.8);
@@ -98,10 +103,21 @@ mod tests {
         let rot = RotationTerms {
             d_omega: Vec3::new(0.0, 0.0, 0.03),
             omega_outer: Mat3::zeros(),
+            gravitation: Mat3::zeros(),
         };
         let f = force_at(Vec3::zeros(), &rot, 100.0, r);
         let expect = Vec3::new(3.0 * 1.2, 3.0 * 0.3, 0.0);
         assert!((f - expect).amax() <= 8.0 * f64::EPSILON * 3.6, "{f:?}");
+        // The gravitation's gradient Γ: the point reads −Γ r more (level, at rest: a unit
+        // 0.7 m below the reference point reads (2g/R)·0.7 more downward force… less upward).
+        let g = crate::earth::gravitation_gradient_ned(0.0, 1.0, 0.0);
+        let rot = RotationTerms {
+            gravitation: g,
+            ..RotationTerms::default()
+        };
+        let f = force_at(Vec3::zeros(), &rot, 100.0, r);
+        assert!((f + g * r).amax() <= 1e-20, "{f:?}");
+        assert!(f[2] < -2.0e-6 && f[2] > -2.3e-6, "{f:?}");
     }
 
     /// A unit yawed 90°: body x is its −y… the body's x axis reads along the unit's −y,
@@ -119,10 +135,12 @@ mod tests {
         let rot = RotationTerms {
             d_omega: Vec3::new(1.0, 2.0, 3.0),
             omega_outer: Mat3::new(1.0, 2.0, 0.0, 2.0, 4.0, 0.0, 0.0, 0.0, 9.0),
+            gravitation: Mat3::new(1.0, 2.0, 0.0, 2.0, 4.0, 0.0, 0.0, 0.0, 9.0),
         };
         let t = rotate_terms(&rot, p.c_b_c.as_ref().unwrap());
         assert!((t.d_omega - Vec3::new(2.0, -1.0, 3.0)).amax() < 1e-15);
         let expect = Mat3::new(4.0, -2.0, 0.0, -2.0, 1.0, 0.0, 0.0, 0.0, 9.0);
         assert!((t.omega_outer - expect).amax() < 1e-14, "{}", t.omega_outer);
+        assert!((t.gravitation - expect).amax() < 1e-14, "{}", t.gravitation);
     }
 }

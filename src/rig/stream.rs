@@ -382,6 +382,7 @@ impl RigStream {
                 e.ideal.rotation_terms_timed(&bounds, &mut self.rot);
                 // Integrals (the generator's rate is 1 Hz): the means over the interval.
                 self.rot[0].omega_outer *= 1.0 / span;
+                self.rot[0].gravitation *= 1.0 / span;
             }
             let terms = e.rot_needed.then(|| &self.rot[..1]);
             let at_ns = (hi * 1e9).round() as i64;

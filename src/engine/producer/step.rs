@@ -190,7 +190,9 @@ impl Producer {
             self.imu.rotation_terms_timed(&bounds, &mut self.rot[..1]);
             // The generator averages ω ωᵀ over the nominal Δt; the record's rates are means
             // over its own interval, and so must the lever-arm terms be.
-            self.rot[0].omega_outer *= 1.0 / (self.grid.rate_hz * span);
+            let to_mean = 1.0 / (self.grid.rate_hz * span);
+            self.rot[0].omega_outer *= to_mean;
+            self.rot[0].gravitation *= to_mean;
         }
         if self.keep_truth {
             self.truth.clear();

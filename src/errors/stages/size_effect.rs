@@ -45,15 +45,17 @@ impl Stage for SizeEffect {
         let Some(rot) = b.rotation else { return };
         let inv_dt = 1.0 / b.dt;
         for (r, t) in b.records.iter_mut().zip(rot) {
-            let (mut dw, mut w) = (t.d_omega, t.omega_outer);
+            let (mut dw, mut w, mut g) = (t.d_omega, t.omega_outer, t.gravitation);
             if let Some(m) = b.mounting {
                 dw = m * dw;
                 w = m * w * m.transpose();
+                g = m * g * m.transpose();
             }
             let tr = w[(0, 0)] + w[(1, 1)] + w[(2, 2)];
             for (i, p) in self.positions.iter().enumerate() {
                 let p = Vec3::from(*p);
-                let add = (dw * inv_dt).cross(&p) + w * p - p * tr;
+                // The gravitation's gradient across the offset as in rig::geometry::force_at.
+                let add = (dw * inv_dt).cross(&p) + w * p - p * tr - g * p;
                 r.accel[i] += add[i];
             }
         }
