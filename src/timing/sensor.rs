@@ -63,6 +63,8 @@ pub struct SensorTiming {
     decimation: u64,
     /// The output interval (Δt × decimation).
     dt_out: f64,
+    /// The random walk's frequency step per tick, q·√Δt (from the model and Δt).
+    rw_step: f64,
     /// Frequency and phase of the clock's random walk.
     rw_freq: f64,
     rw_phase: f64,
@@ -142,6 +144,7 @@ impl SensorTiming {
             dt,
             decimation,
             dt_out: 1.0 / rate_hz,
+            rw_step: model.clock_random_walk * dt.sqrt(),
             rw_freq: 0.0,
             rw_phase: 0.0,
             rw: stream("timing/clock/random_walk"),
@@ -239,9 +242,8 @@ impl SensorTiming {
     /// The gyro's and accelerometers' instants of tick j, after the previous tick's `last`.
     fn tick(&mut self, j: u64, last: (f64, f64)) -> (f64, f64) {
         let m = self.model;
-        let rw_step = m.clock_random_walk * self.dt.sqrt();
-        if rw_step > 0.0 {
-            self.rw_freq += rw_step * self.rw.draw();
+        if self.rw_step > 0.0 {
+            self.rw_freq += self.rw_step * self.rw.draw();
             self.rw_phase -= self.dt * self.rw_freq;
         }
         let tick = self.nominal(j) + self.deterministic_phase(j) + self.rw_phase;
