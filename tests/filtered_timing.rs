@@ -1,6 +1,6 @@
 //! An output filter together with sampling-clock timing errors: the unit's clock ticks at
-//! the filter's internal rate, output k is taken at internal tick k·D, and the truth covers
-//! the true output intervals. Checked against runs whose own behaviour is tested elsewhere:
+//! the filter's internal rate, output k is taken at internal tick k·D (or, under a host's
+//! polled read, at the newest internal tick), and the truth covers the true output intervals. Checked against runs whose own behaviour is tested elsewhere:
 //! the unfiltered timed run at the internal rate (its instants against the clock equation in
 //! src/timing/sensor.rs, its increments in closed form in src/generator.rs) filtered by hand,
 //! and the unfiltered timed run at the output rate for the truth.
@@ -11,6 +11,7 @@ use imu_emu::errors::output_filter::Filter;
 use imu_emu::errors::template;
 use imu_emu::record::Record;
 use imu_emu::sim::{SideOutputs, Simulation};
+use imu_emu::timing::ReadRatio;
 
 const FS: f64 = 1600.0;
 const RATE: f64 = 200.0;
@@ -101,7 +102,7 @@ fn the_clock_ticks_at_the_internal_rate() {
             let spec = m.output_filter.clone().unwrap();
             let offset = spec.validity_offset_s(RATE);
             let out = run(builder(scene, m, RATE));
-            let mut filter = Filter::new(&spec, 8);
+            let mut filter = Filter::new(&spec, ReadRatio::integer(8));
             filter.prime(six(&internal.records[0]));
             let want: Vec<[f64; 6]> = (internal.records.iter())
                 .filter_map(|r| filter.push(six(r)))
@@ -133,6 +134,93 @@ fn the_clock_ticks_at_the_internal_rate() {
     }
 }
 
+/// A host's polled read under the unit's clock (500 ppm fast, drifting, accelerometers 40 µs
+/// late; a jitter of 2 µs per internal tick): the unit filters at 819.2 Hz on its own clock and
+/// output k (read at 100 Hz) is the filtered value of internal sample n_k = ⌊k·8.192⌋, to
+/// 1e-12 of the signal's scale against the filter run by hand over the unfiltered timed run at
+/// 819.2 Hz with the same clock; its time of validity is that sample's true instant less the
+/// filter's offset, its frame leaves the nominal wait k/100 − n_k/819.2 s after that instant,
+/// and its truth covers (tick n_{k−1}, tick n_k]: the internal run's truth summed over those
+/// samples (the increments, to 1e-12 of their scale). The internal bounds of a block run
+/// from the last read sample to the newest, 8 or 9 per output.
+#[test]
+fn a_polled_read_under_the_units_clock() {
+    use imu_emu::timing::{SensorTiming, TimedBlock, TimingModel};
+    let fs = 819.2;
+    let read = ReadRatio::from_rates(fs, 100.0).unwrap();
+    let clock = "clock_offset = \"500 ppm\"\nclock_drift = \"2 ppm/s\"\nskew = \"40 us\"\njitter = \"2 us\"";
+    let polled = |f: &str| {
+        model(&format!(
+            "[timing]\n{clock}\n[output_filter]\ninternal_rate_hz = 819.2\n{f}"
+        ))
+    };
+    for scene in ["coning", "circle"] {
+        let internal = run(builder(scene, model(&format!("[timing]\n{clock}")), fs));
+        for f in [MA, BW] {
+            let m = polled(f);
+            let spec = m.output_filter.clone().unwrap();
+            let offset = spec.validity_offset_s(100.0);
+            let out = run(builder(scene, m, 100.0));
+            assert_eq!(out.records.len(), 300);
+            let mut filter = Filter::new(&spec, ReadRatio::integer(1));
+            filter.prime(six(&internal.records[0]));
+            let every: Vec<[f64; 6]> = (internal.records.iter())
+                .filter_map(|r| filter.push(six(r)))
+                .collect();
+            let s = scale(&out.records);
+            let ts = out
+                .truth
+                .iter()
+                .flat_map(|r| [r.dtheta.norm(), r.dv.norm()]);
+            let truth_scale = ts.fold(0.0_f64, f64::max);
+            for (i, r) in out.records.iter().enumerate() {
+                let k = i as u64 + 1;
+                let n = read.index(k) as usize;
+                assert_eq!(r.t, k as f64 / 100.0, "the host's reading");
+                for (x, y) in six(r).iter().zip(every[n - 1]) {
+                    assert!((x - y).abs() <= 1e-12 * s, "{scene} k {k}: {x} vs {y}");
+                }
+                let tick = internal.times[n - 1];
+                let (tov, tov_accel, emit, gap) = out.times[i];
+                assert!((tov - (tick.0 - offset)).abs() < 1e-12, "k {k}");
+                assert!((tov_accel - (tick.1 - offset)).abs() < 1e-12, "k {k}");
+                let wait = k as f64 / 100.0 - n as f64 / fs;
+                assert!((emit - tick.0 - wait).abs() < 1e-12 && gap == 0, "k {k}");
+                let from = read.index(k - 1) as usize;
+                let (mut dtheta, mut dv) = (out.truth[i].dtheta * 0.0, out.truth[i].dv * 0.0);
+                for t in &internal.truth[from..n] {
+                    dtheta += t.dtheta;
+                    dv += t.dv;
+                }
+                assert!(
+                    (dtheta - out.truth[i].dtheta).norm() < 1e-12 * truth_scale,
+                    "k {k}"
+                );
+                assert!((dv - out.truth[i].dv).norm() < 1e-12 * truth_scale, "k {k}");
+            }
+        }
+    }
+    let model = TimingModel {
+        clock_offset: 100e-6,
+        ..Default::default()
+    };
+    let mut s = SensorTiming::decimated(model, 100.0, read, 10.0, 1, (-1.0, 20.0)).unwrap();
+    let mut b = TimedBlock::default();
+    s.fill(1, 7, &mut b);
+    assert_eq!(b.internal.0.len(), read.index(7) as usize + 1);
+    s.fill(8, 118, &mut b);
+    assert_eq!(
+        b.internal.0.len(),
+        (read.index(125) - read.index(7)) as usize + 1
+    );
+    for k in 8..=125u64 {
+        let j = (read.index(k) - read.index(7)) as usize;
+        assert_eq!(b.gyro[(k - 7) as usize], b.internal.0[j]);
+    }
+    let end = *b.gyro.last().unwrap();
+    assert!((end - 1024.0 / fs / 1.0001).abs() < 1e-15, "{end}");
+}
+
 /// A constant angular acceleration seen through a moving average of 8 taps under a clock
 /// offset y₀, in closed form: internal ticks t_j = jΔ/(1+y₀) (Δ = 1/1600 s); internal record
 /// j is ∫ω over (t_{j−1}, t_j] over the nominal Δ, α(t_j + t_{j−1})/(2(1+y₀)) + c/(1+y₀) for
@@ -148,14 +236,15 @@ fn a_ramp_through_the_clock_and_the_filter_in_closed_form() {
         clock_offset: y0,
         ..Default::default()
     };
-    let mut s = SensorTiming::decimated(model, RATE, 8, 10.0, 1, (-1.0, 20.0)).unwrap();
+    let mut s =
+        SensorTiming::decimated(model, RATE, ReadRatio::integer(8), 10.0, 1, (-1.0, 20.0)).unwrap();
     let mut b = TimedBlock::default();
     s.fill(1, 2000, &mut b);
     assert_eq!(b.internal.0.len(), 16_001);
     let (c, alpha) = (0.02, 0.3);
     let d = 1.0 / FS;
     let spec = filtered("", MA).output_filter.unwrap();
-    let mut filter = Filter::new(&spec, 8);
+    let mut filter = Filter::new(&spec, ReadRatio::integer(8));
     let g = &b.internal.0;
     let f = |t: f64| c * t + 0.5 * alpha * t * t;
     let rate = |j: usize| (f(g[j]) - f(g[j - 1])) / d;
@@ -197,7 +286,7 @@ fn jitter_is_per_internal_tick_and_emission_per_output() {
         ..Default::default()
     };
     let span = (-1.0, 100.0);
-    let mut s = SensorTiming::decimated(m, RATE, 8, 10.0, 9, span).unwrap();
+    let mut s = SensorTiming::decimated(m, RATE, ReadRatio::integer(8), 10.0, 9, span).unwrap();
     let mut b = TimedBlock::default();
     s.fill(1, 2000, &mut b);
     let d = 1.0 / FS;
@@ -229,7 +318,7 @@ fn jitter_is_per_internal_tick_and_emission_per_output() {
         jitter: 50e-6,
         ..Default::default()
     };
-    let e = SensorTiming::decimated(big, RATE, 8, 10.0, 9, span).unwrap_err();
+    let e = SensorTiming::decimated(big, RATE, ReadRatio::integer(8), 10.0, 9, span).unwrap_err();
     assert!(e.contains("internal sample interval"), "{e}");
     assert!(SensorTiming::new(big, RATE, 10.0, 9, span).is_ok());
 }

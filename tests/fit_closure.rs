@@ -188,6 +188,26 @@ fn sampled_gauss_markov_closes_across_dt_over_t() {
     }
 }
 
+/// Every channel's fitted white noise N holds the template's in its 99 % interval.
+fn white_noise_inside(c: &Closed, model: &ImuModel) {
+    for ch in 0..6 {
+        let e = c.fits[ch]
+            .as_ref()
+            .unwrap()
+            .estimate(imu_emu::fit::gmwm::Component::WhiteNoise)
+            .unwrap();
+        let truth = if ch < 3 {
+            model.gyro.noise[0]
+        } else {
+            model.accel.noise[0]
+        };
+        assert!(
+            e.lo <= truth && truth <= e.hi,
+            "channel {ch}: {e:?} vs {truth}"
+        );
+    }
+}
+
 /// A unit with the ADIS164xx family's output stage (samples at 4× the output rate, a Bartlett
 /// window — two cascaded 4-tap averages — and decimation; Analog Devices ADIS16448 data sheet,
 /// "Digital filtering"), rate samples rounded to 0.05 deg/s and 3.33 mg, white noise only:
@@ -216,20 +236,35 @@ fn output_filter_and_lsb_are_read_and_close() {
             "[output_filter]\ninternal_rate_hz = 400\nkind = \"cic\"\norder = 2\ntaps = 4"
         )
     );
-    for ch in 0..6 {
-        let e = c.fits[ch]
-            .as_ref()
-            .unwrap()
-            .estimate(imu_emu::fit::gmwm::Component::WhiteNoise)
-            .unwrap();
-        let truth = model.gyro.noise[0].max(0.0);
-        let truth = if ch < 3 { truth } else { model.accel.noise[0] };
-        assert!(
-            e.lo <= truth && truth <= e.hi,
-            "channel {ch}: {e:?} vs {truth}"
-        );
-    }
+    white_noise_inside(&c, &model);
     all_inside(&c, "filtered unit");
+}
+
+/// The same unit as a host sees it when it polls at 100 Hz a unit that filters at 819.2 Hz
+/// (the ADIS164xx family's internal rate, its Bartlett window of 2 × 16 taps): each output is
+/// the newest filtered sample, 8 or 9 internal samples apart. The fit reads that filter from
+/// the PSD roll-off among the polled candidates (819.2 Hz, CIC order 2, 16 taps), N inside its
+/// 99 % interval, and closes at every octave and PSD band. 2^17 samples at 100 Hz.
+#[test]
+fn a_polled_unit_is_read_and_closes() {
+    let (ng, na) = (2.5, 0.25); // deg/√h, m/s/√h
+    let text = format!(
+        "name = \"adis-polled\"\nrate_hz = 100\n\
+         [gyro]\nnoise = \"{ng} deg/sqrt(h)\"\n[accel]\nnoise = \"{na} m/s/sqrt(h)\"\n\
+         [output_filter]\ninternal_rate_hz = 819.2\nkind = \"cic\"\norder = 2\ntaps = 16\n"
+    );
+    let model = template::parse(&text, Path::new("adis-polled.toml")).unwrap();
+    let c = close(&model, 1 << 17, 11);
+    let f = c.filter.clone().expect("a filter");
+    assert_eq!(
+        (f.spec.internal_rate_hz, &f.spec.kind),
+        (
+            819.2,
+            &imu_emu::errors::output_filter::FilterKind::Cic { order: 2, taps: 16 }
+        )
+    );
+    white_noise_inside(&c, &model);
+    all_inside(&c, "polled unit");
 }
 
 /// A record too short for the terms `fit` reports is refused with the count it needs, and no

@@ -229,7 +229,10 @@ fn a_band_pass_resonance_is_found_and_closes() {
 
 /// The floor under the bumps of the ADIS-like unit: filtered white noise and the rounding.
 fn floor_psd(ch: usize, f: f64, filter: &imu_emu::errors::output_filter::FilterSpec) -> f64 {
-    let white = imu_emu::errors::filter_allan::WhiteAllan::new(filter, 4);
+    let white = imu_emu::errors::filter_allan::WhiteAllan::new(
+        filter,
+        imu_emu::timing::ReadRatio::integer(4),
+    );
     let (n, q) = if ch < 3 {
         (2.5 * PI / 180.0 / 60.0, 0.05 * PI / 180.0)
     } else {

@@ -16,6 +16,7 @@ use imu_emu::errors::output_filter::Filter;
 use imu_emu::errors::template;
 use imu_emu::record::Record;
 use imu_emu::sim::{SideOutputs, Simulation};
+use imu_emu::timing::ReadRatio;
 
 const FS: f64 = 1600.0;
 const RATE: f64 = 200.0;
@@ -97,7 +98,7 @@ fn the_output_is_the_filter_of_the_internal_run() {
             let m = filtered(f);
             let spec = m.output_filter.clone().unwrap();
             let out = records(scene, m, RATE, 4.0);
-            let mut filter = Filter::new(&spec, 8);
+            let mut filter = Filter::new(&spec, ReadRatio::integer(8));
             filter.prime(six(&internal[0]));
             let want: Vec<[f64; 6]> = internal
                 .iter()
@@ -119,6 +120,24 @@ fn the_output_is_the_filter_of_the_internal_run() {
     }
 }
 
+/// `n` internal records at `fs` of the ramp ω = a + b·t, each its exact interval mean
+/// a + b(t_j − Δt_in/2), on gyro x and (negated) accel z.
+fn ramp(a: f64, b: f64, fs: f64, n: u32) -> Vec<Record> {
+    (1..=n)
+        .map(|j| {
+            let t = j as f64 / fs;
+            let w = a + b * (t - 0.5 / fs);
+            let mut r = Record {
+                t,
+                ..Default::default()
+            };
+            r.gyro[0] = w;
+            r.accel[2] = -w;
+            r
+        })
+        .collect()
+}
+
 /// A ramp ω = a + b·t through the filtered chain, its internal records the exact interval
 /// means a + b(t_j − Δt_in/2): after the transient each output equals the ramp's mean over
 /// the output interval ending at t_k − L, L = `validity_offset_s` (g + Δt_in/2 − Δt_out/2),
@@ -132,19 +151,7 @@ fn a_ramp_is_valid_at_the_offset_time() {
         let spec = m.output_filter.clone().unwrap();
         let offset = spec.validity_offset_s(RATE);
         let mut chain = FilteredChain::new(&m, RATE, 1).unwrap();
-        let input: Vec<Record> = (1..=80_000)
-            .map(|j| {
-                let t = j as f64 / FS;
-                let w = a + b * (t - 0.5 / FS);
-                let mut r = Record {
-                    t,
-                    ..Default::default()
-                };
-                r.gyro[0] = w;
-                r.accel[2] = -w;
-                r
-            })
-            .collect();
+        let input = ramp(a, b, FS, 80_000);
         let mut out = Vec::new();
         chain.apply(&input, &mut out);
         for r in &out[5000..] {
@@ -220,11 +227,126 @@ fn the_truth_and_the_frames_carry_the_filter_delay() {
     }
 }
 
+/// The polled read tests' unit: a Bartlett window of 2 × 16 taps (the ADIS164xx data sheets'
+/// filter) or a 4th-order Butterworth at 819.2 Hz, read by a host at 100 Hz.
+const POLLED_FILTERS: [&str; 2] = [
+    "kind = \"cic\"\norder = 2\ntaps = 16",
+    "kind = \"butterworth\"\norder = 4\ncutoff = \"50 Hz\"",
+];
+
+fn polled(filter: &str) -> imu_emu::errors::ImuModel {
+    model(&format!(
+        "[output_filter]\ninternal_rate_hz = 819.2\n{filter}"
+    ))
+}
+
+/// A host polling at 100 Hz a unit that filters at 819.2 Hz reads the newest complete internal
+/// sample: output k is the filter's value at internal sample n_k = ⌊k·8.192⌋ (8 or 9 apart),
+/// to 1e-12 of the signal's scale, against the filter run by hand over every sample of an
+/// unfiltered run at 819.2 Hz; time tags k/100 s. Reading ⌈k·8.192⌉ or the sample before
+/// (off by one internal sample) moves the coning scene's records by far more.
+#[test]
+fn a_polled_read_takes_the_newest_internal_sample() {
+    let read = ReadRatio::from_rates(819.2, 100.0).unwrap();
+    for scene in ["coning", "circle"] {
+        let internal = records(scene, model(""), 819.2, 4.0);
+        for f in POLLED_FILTERS {
+            let m = polled(f);
+            let spec = m.output_filter.clone().unwrap();
+            let out = records(scene, m, 100.0, 4.0);
+            assert_eq!(out.len(), 400);
+            let mut filter = Filter::new(&spec, ReadRatio::integer(1));
+            filter.prime(six(&internal[0]));
+            let every: Vec<[f64; 6]> = internal
+                .iter()
+                .filter_map(|r| filter.push(six(r)))
+                .collect();
+            let scale = every.iter().flatten().fold(0.0_f64, |a, x| a.max(x.abs()));
+            for (i, r) in out.iter().enumerate() {
+                let k = i as u64 + 1;
+                assert_eq!(r.t, k as f64 / 100.0);
+                let want = every[read.index(k) as usize - 1];
+                for (x, y) in six(r).iter().zip(want) {
+                    assert!(
+                        (x - y).abs() <= 1e-12 * scale,
+                        "{scene} {f} k {k}: {x} vs {y}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Under a polled read each record is valid at its own time: a ramp's output k equals the
+/// ramp's mean over the 10 ms ending L before internal sample n_k's end (L =
+/// `validity_offset_s`, the filter's delay less ½(Δt_out − Δt_in)), to 1e-9 relative; that
+/// time moves by up to one internal interval (1.22 ms) from record to record, so a constant
+/// offset from the time tag misses by up to b·1.22 ms. The truth file's `tov` column is
+/// n_k/819.2 − L to 1e-12 s.
+#[test]
+fn a_polled_record_is_valid_at_its_own_time() {
+    let (a, b) = (0.3, 0.05);
+    let fs = 819.2;
+    let read = ReadRatio::from_rates(fs, 100.0).unwrap();
+    for f in POLLED_FILTERS {
+        let m = polled(f);
+        let offset = m.output_filter.as_ref().unwrap().validity_offset_s(100.0);
+        let mut chain = FilteredChain::new(&m, 100.0, 1).unwrap();
+        let input = ramp(a, b, fs, 40_960);
+        let mut out = Vec::new();
+        chain.apply(&input, &mut out);
+        assert_eq!(out.len(), 5000);
+        let mut worst_constant: f64 = 0.0;
+        for (i, r) in out.iter().enumerate().skip(1000) {
+            let tov = read.index(i as u64 + 1) as f64 / fs - offset;
+            let want = a + b * (tov - 0.5 / 100.0);
+            assert!(
+                (r.gyro[0] - want).abs() < 1e-9 * want,
+                "{f}: {} vs {want}",
+                r.gyro[0]
+            );
+            assert!((r.accel[2] + want).abs() < 1e-9 * want);
+            let tag = (i + 1) as f64 / 100.0;
+            worst_constant =
+                worst_constant.max((r.gyro[0] - (a + b * (tag - offset - 0.005))).abs());
+        }
+        assert!(worst_constant > 0.9 * b / fs, "{worst_constant}");
+        let sim = Simulation::builder()
+            .scene("circle")
+            .imu_model(m)
+            .rate(100.0)
+            .duration(2.0)
+            .build()
+            .unwrap();
+        let mut truth = Vec::new();
+        let side = SideOutputs {
+            truth: Some(&mut truth),
+            injected: None,
+        };
+        sim.write_with(&mut Vec::new(), side, |_| ControlFlow::Continue(()))
+            .unwrap();
+        let text = String::from_utf8(truth).unwrap();
+        let rows: Vec<Vec<f64>> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+            .collect();
+        assert_eq!(rows.len(), 200);
+        for (i, v) in rows.iter().enumerate() {
+            let k = i as u64 + 1;
+            let tov = read.index(k) as f64 / fs - offset;
+            assert!((v[13] - tov).abs() < 1e-12, "{k}: {} vs {tov}", v[13]);
+            assert!((v[15] - k as f64 / 100.0).abs() < 1e-12);
+        }
+    }
+}
+
 /// What a filtered run cannot do is refused with a message naming it: a jitter above 1/20 of
 /// the internal sample interval (its sampler ticks at the internal rate, though 50 µs is
 /// within 1/20 of the output's 5 ms; sampling-clock errors with a filter work:
-/// tests/filtered_timing.rs), an output rate that does not divide the internal rate. (Its
-/// injected errors are written: `tests/filtered_truth_errors.rs`.)
+/// tests/filtered_timing.rs), an output rate above the internal rate. (Its injected errors are
+/// written: `tests/filtered_truth_errors.rs`.) An output rate the internal rate is no multiple
+/// of is a host's polled read (above).
 #[test]
 fn filtered_runs_refuse_what_they_cannot_do() {
     let bw = FILTERS[3];
@@ -246,8 +368,12 @@ fn filtered_runs_refuse_what_they_cannot_do() {
         "{e}"
     );
     assert!(build("[timing]\njitter = \"50 us\"", RATE).is_ok());
-    let e = build(&body, 300.0).err().unwrap().to_string();
-    assert!(e.contains("`f`") && e.contains("integer multiple"), "{e}");
+    let e = build(&body, 3200.0).err().unwrap().to_string();
+    assert!(
+        e.contains("`f`") && e.contains("below the output rate"),
+        "{e}"
+    );
+    assert!(build(&body, 300.0).is_ok());
 }
 
 /// Runs `imu-emu` with `args` in `dir`; panics with its stderr on failure.
@@ -408,8 +534,8 @@ fn generate_aliases_or_removes_a_tone_above_nyquist() {
 
 /// The records producer of `validate` and `compare` (`Producer::for_model`) gives a noisy
 /// filtered template the same records as `generate`'s `Simulation`, bit for bit (same motion,
-/// internal rate, chain seed and filter), and refuses an output rate that does not divide
-/// the internal rate.
+/// internal rate, chain seed and filter), and refuses an output rate above the internal
+/// rate.
 #[test]
 fn validate_and_compare_produce_what_generate_does() {
     let m = model(&format!(
@@ -437,14 +563,14 @@ fn validate_and_compare_produce_what_generate_does() {
     assert_eq!(got.len(), 1000);
     assert_eq!(got, want);
     let bad = imu_emu::engine::Grid {
-        rate_hz: 300.0,
+        rate_hz: 3200.0,
         ..grid
     };
     let e = imu_emu::engine::Producer::for_model(motion, bad, &m, 7)
         .err()
         .unwrap()
         .to_string();
-    assert!(e.contains("integer multiple"), "{e}");
+    assert!(e.contains("below the output rate"), "{e}");
 }
 
 /// A rig unit whose template has an output filter runs its filter (it was refused before

@@ -144,9 +144,9 @@ pub fn filtered_psd(t: &AxisTheory, filter: Option<&WhiteAllan>, f: f64, dt: f64
 /// The filtered white-noise Allan variance of a template with an output filter, at the
 /// output interval `dt`.
 pub fn white_allan(model: &ImuModel, dt: f64) -> Option<WhiteAllan> {
-    model.output_filter.as_ref().map(|f| {
-        let d = (f.internal_rate_hz * dt).round().max(1.0) as usize;
-        WhiteAllan::new(f, d)
+    model.output_filter.as_ref().and_then(|f| {
+        let read = f.check(1.0 / dt).ok()?;
+        Some(WhiteAllan::new(f, read))
     })
 }
 

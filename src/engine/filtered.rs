@@ -9,12 +9,13 @@ use crate::errors::filtered::FilteredChain;
 use crate::generator::{IdealImu, RotationTerms};
 use crate::record::Record;
 use crate::source::AnyMotion;
+use crate::timing::ReadRatio;
 
 /// The internal-rate generator and the filtered chain of one run.
 pub struct FilteredImu {
     imu: IdealImu<AnyMotion>,
     chain: FilteredChain,
-    decimation: u64,
+    read: ReadRatio,
     grid: Grid,
     internal: Vec<Record>,
     rot: Vec<RotationTerms>,
@@ -23,20 +24,20 @@ pub struct FilteredImu {
 
 impl FilteredImu {
     /// The run of `chain` over the output grid `grid`, the motion integrated with `nodes`
-    /// Gauss–Legendre nodes per internal interval. Refuses an output rate that does not
-    /// divide the internal rate.
+    /// Gauss–Legendre nodes per internal interval. Refuses an internal rate the output rate
+    /// cannot read ([`crate::errors::output_filter::FilterSpec::check`]).
     pub fn new(
         motion: AnyMotion,
         grid: Grid,
         nodes: usize,
         chain: FilteredChain,
     ) -> Result<FilteredImu, String> {
-        let decimation = chain.spec().check(grid.rate_hz)? as u64;
+        let read = chain.spec().check(grid.rate_hz)?;
         let rate = chain.spec().internal_rate_hz;
         Ok(FilteredImu {
-            imu: IdealImu::new(motion, rate, grid.t0, grid.count * decimation, nodes),
+            imu: IdealImu::new(motion, rate, grid.t0, read.index(grid.count), nodes),
             chain,
-            decimation,
+            read,
             grid,
             internal: Vec::new(),
             rot: Vec::new(),
@@ -84,24 +85,25 @@ impl FilteredImu {
         self.chain.apply_over(records, rotation, dt);
     }
 
-    /// Fills `out` with output records k_first, k_first + 1, … (k ≥ 1): record k filters the
-    /// internal records up to the end of its output interval; its time tag is t₀ + k/rate
-    /// (from the integer k, as every run's).
+    /// Fills `out` with output records k_first, k_first + 1, … (k ≥ 1): record k is the
+    /// filtered internal record it reads ([`ReadRatio`]: the one ending its output interval,
+    /// or under a polled read the newest complete one); its time tag is t₀ + k/rate (from the
+    /// integer k, as every run's).
     pub fn fill(&mut self, k_first: u64, out: &mut [Record]) {
         self.fill_with(k_first, None, out);
     }
 
     /// [`FilteredImu::fill`] under sampling-clock timing errors: the internal records
     /// integrate over the sensor's true internal intervals, `internal` (gyro and accelerometer
-    /// bounds, [`crate::timing::TimedBlock::internal`], `out.len()` × decimation + 1 each).
+    /// bounds, [`crate::timing::TimedBlock::internal`], one more than the internal records
+    /// the outputs read, n_{k_last} − n_{k_first − 1}).
     pub fn fill_timed(&mut self, k_first: u64, internal: (&[f64], &[f64]), out: &mut [Record]) {
         self.fill_with(k_first, Some(internal), out);
     }
 
     fn fill_with(&mut self, k_first: u64, timed: Option<(&[f64], &[f64])>, out: &mut [Record]) {
-        let d = self.decimation as usize;
-        let n_in = out.len() * d;
-        let j_first = (k_first - 1) * self.decimation + 1;
+        let j_first = self.read.index(k_first - 1) + 1;
+        let n_in = (self.read.index(k_first - 1 + out.len() as u64) + 1 - j_first) as usize;
         self.internal.resize(n_in, Record::default());
         match timed {
             Some(bounds) => self.imu.fill_timed(j_first, bounds, &mut self.internal),

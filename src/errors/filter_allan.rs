@@ -15,32 +15,70 @@
 //! The limit r_∞ = D Σ_l R_l equals Σ_{k=0}^{D−1} |H(k·f_out)|² (Poisson summation): the
 //! noise the filter lets through at the output rate's multiples aliases onto DC. It is 1 for
 //! a moving average or CIC of D taps (nulls there) and slightly above 1 for a Butterworth.
+//!
+//! A host's polled read (output k reads internal sample n_k = ⌊k·p/q⌋,
+//! [`crate::timing::ReadRatio`], p/q = f_in/f_out in lowest terms) makes the output
+//! cyclostationary: the covariance of outputs k and k + l is R^in at internal lag
+//! n_{k+l} − n_k (R^in_j = Σ_i h_i h_{i+j}), which is a = ⌊lp/q⌋ or a + 1. The overlapping
+//! Allan variance averages over every start k, so its expectation is that of a stationary
+//! sequence with the covariance averaged over the q phases of k. As k runs over a period,
+//! kp mod q runs over 0 … q − 1 (p and q coprime), and the lag is a + 1 exactly when
+//! kp mod q ≥ q − c, c = lp mod q: for c of the q phases. Hence
+//!
+//! R_l = ((q − c)·R^in_a + c·R^in_{a+1})/q,
+//!
+//! R^in linearly interpolated at the fractional lag l·f_in/f_out, and the formulas above hold
+//! with D = p/q. A decimation is the case q = 1.
 
 use super::output_filter::{FilterKind, FilterSpec};
+use crate::timing::ReadRatio;
 
 /// Longest impulse response kept for an IIR filter (internal samples).
 const MAX_TAPS: usize = 1 << 16;
 
-/// The filtered white-noise Allan variance of one filter at one decimation.
+/// The filtered white-noise Allan variance of one filter at one read ratio.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WhiteAllan {
-    /// R_0 … R_L at output lags (unit internal variance).
+    /// R_0 … R_L at output lags (unit internal variance; phase-averaged under a polled read).
     r: Vec<f64>,
+    /// f_in/f_out: D for a decimation.
     decimation: f64,
 }
 
 impl WhiteAllan {
-    /// The filter of `spec` decimated by `decimation` (≥ 1).
-    pub fn new(spec: &FilterSpec, decimation: usize) -> WhiteAllan {
+    /// The filter of `spec` with outputs reading the internal samples `read` names.
+    pub fn new(spec: &FilterSpec, read: ReadRatio) -> WhiteAllan {
         let h = spec.impulse_response(response_len(spec));
-        let d = decimation.max(1);
-        let r = (0..=(h.len() - 1) / d)
-            .map(|l| h.iter().zip(&h[l * d..]).map(|(a, b)| a * b).sum())
-            .collect();
+        let internal = |j: u64| -> f64 {
+            let j = j as usize;
+            if j >= h.len() {
+                return 0.0;
+            }
+            h.iter().zip(&h[j..]).map(|(a, b)| a * b).sum()
+        };
+        let (p, q) = (read.internal_per_period(), read.period());
+        let mut r = Vec::new();
+        for l in 0u64.. {
+            let (a, c) = (l * p / q, l * p % q);
+            if a as usize >= h.len() {
+                break;
+            }
+            let mut v = internal(a);
+            if c > 0 {
+                v = ((q - c) as f64 * v + c as f64 * internal(a + 1)) / q as f64;
+            }
+            r.push(v);
+        }
         WhiteAllan {
             r,
-            decimation: d as f64,
+            decimation: read.value(),
         }
+    }
+
+    /// R_0 … R_L: the output's covariance at output lags 0 … L for unit-variance internal
+    /// white noise (phase-averaged under a polled read; zero beyond).
+    pub fn covariance(&self) -> &[f64] {
+        &self.r
     }
 
     /// r(m): the filtered Allan variance at m output samples over the unfiltered N²/τ.
@@ -122,7 +160,10 @@ mod tests {
     /// A moving average of D taps decimated by D is exact block averaging: no mark at all.
     #[test]
     fn moving_average_of_d_is_unfiltered() {
-        let w = WhiteAllan::new(&spec(FilterKind::MovingAverage { taps: 4 }), 4);
+        let w = WhiteAllan::new(
+            &spec(FilterKind::MovingAverage { taps: 4 }),
+            ReadRatio::integer(4),
+        );
         for m in [1, 2, 3, 7, 64] {
             assert!((w.ratio(m) - 1.0).abs() < 1e-15, "{m}: {}", w.ratio(m));
         }
@@ -136,7 +177,10 @@ mod tests {
     /// rate) fail it.
     #[test]
     fn psd_ratio_closed_form() {
-        let w = WhiteAllan::new(&spec(FilterKind::Cic { order: 2, taps: 4 }), 4);
+        let w = WhiteAllan::new(
+            &spec(FilterKind::Cic { order: 2, taps: 4 }),
+            ReadRatio::integer(4),
+        );
         let dt = 4.0 / 800.0;
         for (f, want) in [
             (0.0, 1.0),
@@ -147,7 +191,10 @@ mod tests {
             let got = w.psd_ratio(f, dt);
             assert!((got - want).abs() < 1e-14, "{f} Hz: {got} vs {want}");
         }
-        let flat = WhiteAllan::new(&spec(FilterKind::MovingAverage { taps: 4 }), 4);
+        let flat = WhiteAllan::new(
+            &spec(FilterKind::MovingAverage { taps: 4 }),
+            ReadRatio::integer(4),
+        );
         for f in [0.0, 10.0, 50.0] {
             assert!((flat.psd_ratio(f, dt) - 1.0).abs() < 1e-15);
         }
@@ -157,7 +204,10 @@ mod tests {
     /// R_1 = 10/256, so r(1) = 4·34/256 = 17/32 and r(m) = 1 − 15/(32 m) beyond lag 1.
     #[test]
     fn bartlett_window_closed_form() {
-        let w = WhiteAllan::new(&spec(FilterKind::Cic { order: 2, taps: 4 }), 4);
+        let w = WhiteAllan::new(
+            &spec(FilterKind::Cic { order: 2, taps: 4 }),
+            ReadRatio::integer(4),
+        );
         assert!((w.ratio(1) - 17.0 / 32.0).abs() < 1e-15);
         for m in [2usize, 5, 64, 1 << 20] {
             let want = 1.0 - 15.0 / (32.0 * m as f64);
@@ -178,7 +228,7 @@ mod tests {
             cutoff_hz: 150.0,
         });
         let d = 4;
-        let w = WhiteAllan::new(&s, d);
+        let w = WhiteAllan::new(&s, ReadRatio::integer(d as u64));
         let f_out = s.internal_rate_hz / d as f64;
         let alias: f64 = (0..d).map(|k| s.magnitude(k as f64 * f_out).powi(2)).sum();
         assert!(alias > 1.0 + 1e-4, "{alias}");
@@ -189,5 +239,58 @@ mod tests {
         );
         // At long τ the ratio tends to r_∞.
         assert!((w.ratio(1 << 20) / alias - 1.0).abs() < 1e-5);
+    }
+
+    /// A polled read (a Bartlett window of 2 × 16 taps at 819.2 Hz read at 100 Hz, outputs 8
+    /// or 9 internal samples apart): the interpolated covariance gives the Allan variance
+    /// averaged over the 125 start phases, each computed directly as Σ c_i c_j R^in(n_i − n_j)
+    /// over the cluster pair's outputs (c = ∓1), to 1e-13. Taking the lag as ⌊l·R⌋ only, or
+    /// the decimation by 8 at 800 Hz the fit used to approximate it with, fails by more than
+    /// 1e-3.
+    #[test]
+    fn polled_read_is_the_phase_average() {
+        let s = FilterSpec {
+            internal_rate_hz: 819.2,
+            kind: FilterKind::Cic { order: 2, taps: 16 },
+        };
+        let read = ReadRatio::from_rates(819.2, 100.0).unwrap();
+        let w = WhiteAllan::new(&s, read);
+        let h = s.impulse_response(31);
+        let rin = |j: u64| -> f64 {
+            let j = j as usize;
+            h.iter()
+                .zip(h.get(j..).unwrap_or(&[]))
+                .map(|(a, b)| a * b)
+                .sum()
+        };
+        let q = read.period();
+        for m in [1u64, 2, 3, 5, 16, 64] {
+            let mut sum = 0.0;
+            for k in 0..q {
+                let n: Vec<u64> = (0..2 * m).map(|i| read.index(k + i)).collect();
+                let c = |i: usize| if (i as u64) < m { -1.0 } else { 1.0 };
+                let mut v = 0.0;
+                for i in 0..n.len() {
+                    for j in 0..n.len() {
+                        v += c(i) * c(j) * rin(n[i].abs_diff(n[j]));
+                    }
+                }
+                // σ² = E(Δ²)/2 of cluster means; the ratio to N²/τ, τ = m·R·Δt_in.
+                sum += v / (2.0 * (m * m) as f64) * m as f64 * read.value();
+            }
+            let want = sum / q as f64;
+            let got = w.ratio(m as usize);
+            assert!((got - want).abs() < 1e-13, "{m}: {got} vs {want}");
+            let decimated = WhiteAllan::new(
+                &FilterSpec {
+                    internal_rate_hz: 800.0,
+                    ..s.clone()
+                },
+                ReadRatio::integer(8),
+            );
+            if m <= 5 {
+                assert!((decimated.ratio(m as usize) - want).abs() > 1e-3, "{m}");
+            }
+        }
     }
 }

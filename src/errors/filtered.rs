@@ -56,7 +56,7 @@ impl FilteredChain {
             .output_filter
             .clone()
             .ok_or("the template has no [output_filter]")?;
-        let decimation = spec.check(output_rate_hz)?;
+        let read = spec.check(output_rate_hz)?;
         let inner_model = FilteredChain::inner_model(model);
         let mut outer_model = model.clone();
         let interface = |t: &TriadModel| TriadModel {
@@ -69,7 +69,7 @@ impl FilteredChain {
         outer_model.output_filter = None;
         Ok(FilteredChain {
             inner: ErrorChain::new(&inner_model, spec.internal_rate_hz, seed),
-            filter: Filter::new(&spec, decimation),
+            filter: Filter::new(&spec, read),
             outer: ErrorChain::new(&outer_model, output_rate_hz, seed),
             spec,
             dt_out: 1.0 / output_rate_hz,

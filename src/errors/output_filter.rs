@@ -17,6 +17,7 @@
 //! (e.g. R. Bristow-Johnson, "Cookbook formulae for audio EQ biquad filter coefficients",
 //! low-pass with Q_k = 1/(2 sin((2k + 1)π/(2n)))), plus one first-order section for odd n.
 
+use crate::timing::ReadRatio;
 use std::f64::consts::PI;
 
 /// The filter a template names (`[output_filter]`).
@@ -51,7 +52,8 @@ pub enum FilterKind {
 /// An output filter: the unit's internal rate and its filter.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FilterSpec {
-    /// Internal sampling rate (Hz), an integer multiple of the output rate.
+    /// Internal sampling rate (Hz): an integer multiple of the output rate (decimation), or
+    /// any rate above it in a ratio of whole numbers (a host's polled read, [`ReadRatio`]).
     pub internal_rate_hz: f64,
     /// The filter, run at the internal rate.
     pub kind: FilterKind,
@@ -135,17 +137,12 @@ fn dc_delay(p: &[f64]) -> f64 {
 }
 
 impl FilterSpec {
-    /// Checks the spec against the output rate: the internal rate an integer multiple of it,
-    /// lengths and orders in range, the cut-off below the internal Nyquist frequency.
-    pub fn check(&self, output_rate_hz: f64) -> Result<usize, String> {
-        let ratio = self.internal_rate_hz / output_rate_hz;
-        let d = ratio.round();
-        if !(d >= 1.0 && (ratio - d).abs() < 1e-9 * ratio) {
-            return Err(format!(
-                "internal rate {} Hz is not an integer multiple of the output rate {output_rate_hz} Hz",
-                self.internal_rate_hz
-            ));
-        }
+    /// Checks the spec against the output rate and gives the samples the outputs read: the
+    /// internal rate at least the output rate, in a ratio of whole numbers
+    /// ([`ReadRatio::from_rates`]); lengths and orders in range, the cut-off below the
+    /// internal Nyquist frequency.
+    pub fn check(&self, output_rate_hz: f64) -> Result<ReadRatio, String> {
+        let ratio = ReadRatio::from_rates(self.internal_rate_hz, output_rate_hz)?;
         match &self.kind {
             FilterKind::MovingAverage { taps } | FilterKind::Cic { taps, .. }
                 if *taps == 0 || *taps > 65536 =>
@@ -179,7 +176,7 @@ impl FilterSpec {
             }
             _ => {}
         }
-        Ok(d as usize)
+        Ok(ratio)
     }
 
     /// |H(f)| at frequency f (Hz), from the designed coefficients.
@@ -227,7 +224,7 @@ impl FilterSpec {
 
     /// Impulse response h_0 … h_{n−1} at the internal rate (exact for FIR, truncated IIR).
     pub fn impulse_response(&self, n: usize) -> Vec<f64> {
-        let mut f = Filter::new(self, 1);
+        let mut f = Filter::new(self, ReadRatio::integer(1));
         (0..n)
             .map(|k| {
                 let x = if k == 0 { 1.0 } else { 0.0 };
@@ -237,21 +234,24 @@ impl FilterSpec {
     }
 }
 
-/// The streaming filter-and-decimate of six channels: push internal samples, get every D-th
-/// filtered value.
+/// The streaming filter-and-read of six channels: push internal samples, get the filtered
+/// value of each one an output reads (every D-th, or the polled ⌊k·p/q⌋-th, [`ReadRatio`]).
 #[derive(Clone, Debug)]
 pub struct Filter {
     design: Design,
-    decimation: usize,
+    read: ReadRatio,
     /// FIR: the last N inputs per channel in a ring; IIR: two states per section and channel.
     state: Vec<[f64; 6]>,
     head: usize,
-    phase: usize,
+    /// Internal samples pushed, outputs given, and the internal sample the next output reads.
+    pushed: u64,
+    given: u64,
+    next: u64,
 }
 
 impl Filter {
-    /// The filter of `spec`, keeping one output in `decimation`.
-    pub fn new(spec: &FilterSpec, decimation: usize) -> Filter {
+    /// The filter of `spec`, giving the internal samples `read` names.
+    pub fn new(spec: &FilterSpec, read: ReadRatio) -> Filter {
         let design = spec.kind.design(spec.internal_rate_hz);
         let len = match &design {
             Design::Fir(h) => h.len(),
@@ -259,10 +259,12 @@ impl Filter {
         };
         Filter {
             design,
-            decimation,
+            read,
             state: vec![[0.0; 6]; len],
             head: 0,
-            phase: 0,
+            pushed: 0,
+            given: 0,
+            next: read.index(1),
         }
     }
 
@@ -289,13 +291,14 @@ impl Filter {
         }
     }
 
-    /// Feeds one internal sample; returns the filtered output when this sample ends an output
-    /// interval (every `decimation`-th sample). FIR outputs are only computed when emitted.
+    /// Feeds one internal sample; returns the filtered output when an output reads this sample.
+    /// FIR outputs are only computed when read.
     pub fn push(&mut self, x: [f64; 6]) -> Option<[f64; 6]> {
-        self.phase += 1;
-        let emit = self.phase == self.decimation;
+        self.pushed += 1;
+        let emit = self.pushed == self.next;
         if emit {
-            self.phase = 0;
+            self.given += 1;
+            self.next = self.read.index(self.given + 1);
         }
         match &self.design {
             Design::Fir(h) => {

@@ -14,13 +14,15 @@
 //! Candidates (one filter for all six channels, as a template holds it): internal rates
 //! D ∈ {2, 4, 8, 16} times the output rate with a moving average of L taps, or a CIC
 //! (cascaded moving averages, the Bartlett window of the ADIS164xx family at order 2) of
-//! order 2 or 3, L from 2 to 4D; and Butterworth low-passes of order 1–4 at D ∈ {1, 2, 4},
-//! cut-off 5–45 % of the output rate.
+//! order 2 or 3, L from 2 to 4D; the same kinds, L from 2 to 32, at [`POLLED_RATES_HZ`] read
+//! by a polling host when the output rate does not divide it ([`ReadRatio`]); and Butterworth
+//! low-passes of order 1–4 at D ∈ {1, 2, 4}, cut-off 5–45 % of the output rate.
 
 use crate::analysis::analyzer::Analysis;
 use crate::analysis::psd_band::{WelchEdf, banded};
 use crate::errors::filter_allan::WhiteAllan;
 use crate::errors::output_filter::{FilterKind, FilterSpec};
+use crate::timing::ReadRatio;
 
 /// χ² a filter must gain over a flat spectrum (χ²₃ at 99.9 %: kind, D and L chosen).
 pub const FILTER_PENALTY: f64 = 16.27;
@@ -36,8 +38,8 @@ const BANDS_PER_DECADE: f64 = 20.0;
 pub struct FittedFilter {
     /// The filter (internal rate and kind).
     pub spec: FilterSpec,
-    /// Internal samples per output sample.
-    pub decimation: usize,
+    /// The internal samples the outputs read (a decimation, or a host's polled read).
+    pub read: ReadRatio,
     /// The χ² of the fit and of a flat spectrum over the same bands.
     pub chi2: f64,
     /// χ² of the flat spectrum.
@@ -49,32 +51,60 @@ pub struct FittedFilter {
 impl FittedFilter {
     /// The filtered white-noise Allan variance at the output rate.
     pub fn white(&self) -> WhiteAllan {
-        WhiteAllan::new(&self.spec, self.decimation)
+        WhiteAllan::new(&self.spec, self.read)
     }
 }
 
-/// The candidate filters at output interval Δt, with their decimation.
-pub fn candidates(dt: f64) -> Vec<(FilterSpec, usize)> {
+/// Internal rates of units commonly read by a host at a rate they are no multiple of: the
+/// ADIS164xx family samples at 819.2 Hz (Analog Devices ADIS16405 and ADIS16448 data sheets)
+/// and is often read at 100 or 200 Hz.
+pub const POLLED_RATES_HZ: [f64; 1] = [819.2];
+
+/// The moving averages and CICs of order 2 and 3 of 2 to `max_taps` taps at `internal_hz`.
+fn averagers(
+    internal_hz: f64,
+    read: ReadRatio,
+    max_taps: usize,
+    out: &mut Vec<(FilterSpec, ReadRatio)>,
+) {
+    for taps in 2..=max_taps {
+        let kinds = [
+            FilterKind::MovingAverage { taps },
+            FilterKind::Cic { order: 2, taps },
+            FilterKind::Cic { order: 3, taps },
+        ];
+        for kind in kinds {
+            let spec = FilterSpec {
+                internal_rate_hz: internal_hz,
+                kind,
+            };
+            out.push((spec, read));
+        }
+    }
+}
+
+/// The candidate filters at output interval Δt, with the internal samples their outputs read.
+pub fn candidates(dt: f64) -> Vec<(FilterSpec, ReadRatio)> {
     let mut out = Vec::new();
-    for d in [2usize, 4, 8, 16] {
-        for taps in 2..=4 * d {
-            let kinds = [
-                FilterKind::MovingAverage { taps },
-                FilterKind::Cic { order: 2, taps },
-                FilterKind::Cic { order: 3, taps },
-            ];
-            for kind in kinds {
-                let spec = FilterSpec {
-                    internal_rate_hz: d as f64 / dt,
-                    kind,
-                };
-                out.push((spec, d));
-            }
+    for d in [2u64, 4, 8, 16] {
+        averagers(
+            d as f64 / dt,
+            ReadRatio::integer(d),
+            4 * d as usize,
+            &mut out,
+        );
+    }
+    // A host's polled read of a unit whose internal rate is no multiple of the output rate.
+    for rate in POLLED_RATES_HZ {
+        if let Ok(read) = ReadRatio::from_rates(rate, 1.0 / dt)
+            && read.as_integer().is_none()
+        {
+            averagers(rate, read, 32, &mut out);
         }
     }
     // IIR low-passes (a MEMS unit's digital low-pass is often one): Butterworth of order 1–4,
     // cut-off from 5 % to 45 % of the output rate, run at 1, 2 or 4 times the output rate.
-    for d in [1usize, 2, 4] {
+    for d in [1u64, 2, 4] {
         for order in 1..=4 {
             for k in 1..=9 {
                 let cutoff_hz = 0.05 * k as f64 / dt;
@@ -83,7 +113,7 @@ pub fn candidates(dt: f64) -> Vec<(FilterSpec, usize)> {
                         internal_rate_hz: d as f64 / dt,
                         kind: FilterKind::Butterworth { order, cutoff_hz },
                     };
-                    out.push((spec, d));
+                    out.push((spec, ReadRatio::integer(d)));
                 }
             }
         }
@@ -165,14 +195,14 @@ fn best(
 ) -> Option<FittedFilter> {
     let best = candidates(dt)
         .into_iter()
-        .map(|(spec, d)| {
-            let c = score(&WhiteAllan::new(&spec, d));
-            (spec, d, c)
+        .map(|(spec, read)| {
+            let c = score(&WhiteAllan::new(&spec, read));
+            (spec, read, c)
         })
         .min_by(|x, y| x.2.total_cmp(&y.2))?;
     (flat - best.2 > FILTER_PENALTY).then_some(FittedFilter {
         spec: best.0,
-        decimation: best.1,
+        read: best.1,
         chi2: best.2,
         flat_chi2: flat,
         bands,

@@ -5,9 +5,13 @@
 //!
 //! [`TimingModel`] holds the figures (template `[timing]` table, scene-file `[timing]` table);
 //! [`SensorTiming`] turns them into, for each sample, the true instants that bound its
-//! integration intervals, its time of validity and its emission time.
+//! integration intervals, its time of validity and its emission time; [`ReadRatio`] says which
+//! internal sample of a filtered unit each output sample is.
 
+pub mod read_ratio;
 mod sensor;
+
+pub use read_ratio::ReadRatio;
 
 pub use sensor::{SensorTiming, TimedBlock};
 

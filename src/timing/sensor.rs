@@ -13,6 +13,7 @@
 
 use super::TimingModel;
 use crate::rng::{NormalStream, fnv1a64, splitmix64};
+use crate::timing::ReadRatio;
 
 /// The sensor's instants of one block of samples, relative to the run's t₀ (s).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -26,8 +27,9 @@ pub struct TimedBlock {
     /// Whether the sensor skipped each sample.
     pub missing: Vec<bool>,
     /// A unit with an output filter: the bounds of its internal samples' intervals (gyro,
-    /// accelerometers), `decimation` per output sample, whose every `decimation`-th bound is
-    /// the output's (empty without a filter, or when the samples are nominal).
+    /// accelerometers), from the last sample the previous output read to the one the last
+    /// output reads ([`crate::timing::ReadRatio`]); the bound of the internal sample
+    /// output k reads is output k's (empty without a filter, or when the samples are nominal).
     pub internal: (Vec<f64>, Vec<f64>),
 }
 
@@ -59,9 +61,10 @@ pub struct SensorTiming {
     model: TimingModel,
     /// The interval of the sampler's ticks (the internal one under an output filter).
     dt: f64,
-    /// Ticks per output sample: the filter's decimation (1 without one).
-    decimation: u64,
-    /// The output interval (Δt × decimation).
+    /// The tick each output sample is taken at: every D-th under a decimating filter, the
+    /// newest under a polled read, every one without a filter.
+    read: ReadRatio,
+    /// The output interval.
     dt_out: f64,
     /// The random walk's frequency step per tick, q·√Δt (from the model and Δt).
     rw_step: f64,
@@ -91,29 +94,32 @@ impl SensorTiming {
         seed: u64,
         span: (f64, f64),
     ) -> Result<SensorTiming, String> {
-        SensorTiming::decimated(model, rate_hz, 1, duration, seed, span)
+        SensorTiming::decimated(model, rate_hz, ReadRatio::integer(1), duration, seed, span)
     }
 
-    /// [`SensorTiming::new`] for a unit with an output filter that samples at `decimation`
-    /// times the output rate `rate_hz`: its clock ticks at the internal rate, and each tick's
-    /// instant moves by its own jitter (the internal sampler's, checked against the internal
-    /// interval); output sample k is taken at internal tick k·decimation, and its emission,
-    /// latency, late frame and skipping are drawn per output sample. With `decimation` 1
-    /// this is [`SensorTiming::new`], draw for draw.
+    /// [`SensorTiming::new`] for a unit with an output filter whose outputs at `rate_hz` read
+    /// the internal samples `read` names: its clock ticks at the internal rate, and each
+    /// tick's instant moves by its own jitter (the internal sampler's, checked against the
+    /// internal interval); output sample k is taken at internal tick n_k (k·D for a
+    /// decimation), and its emission, latency, late frame and skipping are drawn per output
+    /// sample. With a decimation of 1 this is [`SensorTiming::new`], draw for draw.
     pub fn decimated(
         model: TimingModel,
         rate_hz: f64,
-        decimation: u64,
+        read: ReadRatio,
         duration: f64,
         seed: u64,
         span: (f64, f64),
     ) -> Result<SensorTiming, String> {
-        let decimation = decimation.max(1);
-        let dt = 1.0 / (rate_hz * decimation as f64);
+        let dt = 1.0 / (rate_hz * read.value());
         // Sample intervals differ from Δt by the difference of two jitters (σ√2); at Δt/20,
         // an interval shrinks to zero only beyond 7σ.
         if model.jitter > dt / 20.0 {
-            let what = if decimation > 1 { "internal " } else { "" };
+            let what = if read != ReadRatio::integer(1) {
+                "internal "
+            } else {
+                ""
+            };
             // In µs rounded to 1e-6 µs: "100 us" reads back as 9.999…e-5 s.
             let us = |x: f64| (x * 1e12).round() / 1e6;
             return Err(format!(
@@ -142,7 +148,7 @@ impl SensorTiming {
         Ok(SensorTiming {
             model,
             dt,
-            decimation,
+            read,
             dt_out: 1.0 / rate_hz,
             rw_step: model.clock_random_walk * dt.sqrt(),
             rw_freq: 0.0,
@@ -176,15 +182,24 @@ impl SensorTiming {
         tau * (-y - (2.0 * y + y * y + 2.0 * d * tau) / (1.0 + s)) / (a + s)
     }
 
-    /// The nominal instant of tick j, jΔt; every decimation-th the output's k·Δt_out to the
-    /// bit, as a run without a filter has it.
+    /// The nominal instant of tick j, jΔt; under a decimation every D-th the output's k·Δt_out
+    /// to the bit, as a run without a filter has it.
     fn nominal(&self, j: u64) -> f64 {
-        let d = self.decimation;
-        if d == 1 {
+        match self.read.as_integer() {
             // No division per sample on the common path.
-            return j as f64 * self.dt_out;
+            Some(1) => j as f64 * self.dt_out,
+            Some(d) => (j / d) as f64 * self.dt_out + (j % d) as f64 * self.dt,
+            None => j as f64 * self.dt,
         }
-        (j / d) as f64 * self.dt_out + (j % d) as f64 * self.dt
+    }
+
+    /// How long after the internal sample it reads output k is read: 0 for a decimation;
+    /// under a polled read, k·Δt_out − n_k·Δt_in (nominal; less than one internal interval).
+    fn wait(&self, k: u64) -> f64 {
+        match self.read.as_integer() {
+            Some(_) => 0.0,
+            None => k as f64 * self.dt_out - self.read.index(k) as f64 * self.dt,
+        }
     }
 
     /// Whether the samples fall on the nominal grid (only the emission is perturbed): the
@@ -198,8 +213,7 @@ impl SensorTiming {
     pub fn fill(&mut self, k_first: u64, n: usize, out: &mut TimedBlock) {
         assert_eq!(k_first, self.next, "timing blocks must be consecutive");
         let m = self.model;
-        let d = self.decimation;
-        let internal = d > 1 && !self.is_nominal();
+        let internal = self.read != ReadRatio::integer(1) && !self.is_nominal();
         out.gyro.clear();
         out.accel.clear();
         out.emit.clear();
@@ -215,7 +229,7 @@ impl SensorTiming {
         for i in 0..n as u64 {
             let k = k_first + i;
             let (mut g, mut a) = (self.last.0, self.last.1);
-            for j in (k - 1) * d + 1..=k * d {
+            for j in self.read.index(k - 1) + 1..=self.read.index(k) {
                 (g, a) = self.tick(j, (g, a));
                 if internal {
                     out.internal.0.push(g);
@@ -224,7 +238,7 @@ impl SensorTiming {
             }
             let u = |s: usize| uniform(self.uniform[s], k);
             let missing = m.missing_probability > 0.0 && u(2) < m.missing_probability;
-            let mut e = g + m.latency + m.latency_spread * (2.0 * u(0) - 1.0);
+            let mut e = g + m.latency + m.latency_spread * (2.0 * u(0) - 1.0) + self.wait(k);
             if m.late_probability > 0.0 && u(1) < m.late_probability {
                 e += m.late_delay;
             }

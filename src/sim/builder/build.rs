@@ -575,21 +575,17 @@ impl SimulationBuilder {
         let span = (motion.start() - grid.t0, motion.end() - grid.t0);
         let duration = grid.count as f64 / grid.rate_hz;
         // Under an output filter the clock ticks at the internal rate.
-        let decimation = match filter {
+        let read = match filter {
             Some(f) => f.check(grid.rate_hz).map_err(|e| {
                 SimError::Invalid(format!("template `{}`: [output_filter]: {e}", imu.name))
-            })? as u64,
-            None => 1,
+            })?,
+            None => crate::timing::ReadRatio::integer(1),
         };
-        let sensor = crate::timing::SensorTiming::decimated(
-            model,
-            grid.rate_hz,
-            decimation,
-            duration,
-            seed,
-            span,
-        )
-        .map_err(|e| SimError::Invalid(format!("template `{}`: [timing]: {e}", imu.name)))?;
+        let sensor =
+            crate::timing::SensorTiming::decimated(model, grid.rate_hz, read, duration, seed, span)
+                .map_err(|e| {
+                    SimError::Invalid(format!("template `{}`: [timing]: {e}", imu.name))
+                })?;
         let offset = filter.map_or(0.0, |f| f.validity_offset_s(grid.rate_hz));
         Ok(Some(
             crate::engine::timed::TimedRun::new(sensor, grid.rate_hz, grid.t0)
