@@ -60,6 +60,11 @@ impl FittedFilter {
 /// and is often read at 100 or 200 Hz.
 pub const POLLED_RATES_HZ: [f64; 1] = [819.2];
 
+/// How far a recording's rate may be from a polled unit's nominal one (relative): two crystal
+/// clocks differ by a few ppm (the ADIS16448 table's τ column gives 199.999861 Hz, 0.7 ppm from
+/// 200 Hz).
+pub const CLOCK_TOLERANCE: f64 = 2e-6;
+
 /// The moving averages and CICs of order 2 and 3 of 2 to `max_taps` taps at `internal_hz`.
 fn averagers(
     internal_hz: f64,
@@ -95,11 +100,13 @@ pub fn candidates(dt: f64) -> Vec<(FilterSpec, ReadRatio)> {
         );
     }
     // A host's polled read of a unit whose internal rate is no multiple of the output rate.
+    // The recording's rate is the host's clock (or a table's τ column): within
+    // [`CLOCK_TOLERANCE`] of the ratio, the internal rate is taken as that ratio times it.
     for rate in POLLED_RATES_HZ {
-        if let Ok(read) = ReadRatio::from_rates(rate, 1.0 / dt)
+        if let Some(read) = ReadRatio::approximating(rate * dt, CLOCK_TOLERANCE)
             && read.as_integer().is_none()
         {
-            averagers(rate, read, 32, &mut out);
+            averagers(read.value() / dt, read, 32, &mut out);
         }
     }
     // IIR low-passes (a MEMS unit's digital low-pass is often one): Butterworth of order 1–4,

@@ -23,9 +23,10 @@ impl ReadRatio {
         ReadRatio { p: d.max(1), q: 1 }
     }
 
-    /// The ratio of `internal_hz` to `output_hz`: the fraction p/q of least q within 1e-9
-    /// (relative) of it, by continued fractions. Refuses an internal rate below the output
-    /// rate and a ratio with no such fraction of q ≤ [`MAX_PERIOD`].
+    /// The ratio of `internal_hz` to `output_hz`: the first convergent p/q of its continued
+    /// fraction within 1e-9 (relative) of it ([`ReadRatio::approximating`]). Refuses an
+    /// internal rate below the output rate and a ratio with no such fraction of
+    /// q ≤ [`MAX_PERIOD`].
     pub fn from_rates(internal_hz: f64, output_hz: f64) -> Result<ReadRatio, String> {
         let x = internal_hz / output_hz;
         if !(x.is_finite() && x >= 1.0 - 1e-9) {
@@ -33,32 +34,42 @@ impl ReadRatio {
                 "internal rate {internal_hz} Hz is below the output rate {output_hz} Hz"
             ));
         }
-        // Convergents h/k of the continued fraction of x.
+        ReadRatio::approximating(x, 1e-9).ok_or_else(|| {
+            format!(
+                "internal rate {internal_hz} Hz over the output rate {output_hz} Hz is not a ratio of whole numbers with a denominator up to {MAX_PERIOD}"
+            )
+        })
+    }
+
+    /// The first convergent p/q (q ≤ [`MAX_PERIOD`]) of the continued fraction of `x` ≥ 1
+    /// within `tolerance` (relative) of it; None when there is none.
+    pub fn approximating(x: f64, tolerance: f64) -> Option<ReadRatio> {
+        if !(x.is_finite() && x >= 1.0 - tolerance) {
+            return None;
+        }
+        // Convergents h/k: h_n = a_n h_{n−1} + h_{n−2}, likewise k.
         let (mut h0, mut h1, mut k0, mut k1) = (0u64, 1u64, 1u64, 0u64);
         let mut rest = x;
         loop {
             let a = rest.floor();
             if a > 1e12 {
-                break;
+                return None;
             }
             let a = a as u64;
             let (h, k) = (a * h1 + h0, a * k1 + k0);
             if k > MAX_PERIOD {
-                break;
+                return None;
             }
             (h0, h1, k0, k1) = (h1, h, k1, k);
-            if (h as f64 / k as f64 - x).abs() <= 1e-9 * x {
-                return Ok(ReadRatio { p: h, q: k });
+            if (h as f64 / k as f64 - x).abs() <= tolerance * x {
+                return Some(ReadRatio { p: h.max(1), q: k });
             }
             let frac = rest - a as f64;
             if frac <= 0.0 {
-                break;
+                return None;
             }
             rest = 1.0 / frac;
         }
-        Err(format!(
-            "internal rate {internal_hz} Hz over the output rate {output_hz} Hz is not a ratio of whole numbers with a denominator up to {MAX_PERIOD}"
-        ))
     }
 
     /// n_k: the internal sample (1-based; 0 before the first) output k reads.
@@ -117,6 +128,19 @@ mod tests {
             ReadRatio::from_rates(785.6, 196.4).unwrap(),
             ReadRatio::integer(4)
         );
+    }
+
+    /// A table's rate read from its τ column (the ADIS16448 of imu_utils at 199.999861 Hz,
+    /// 0.7 ppm from 200) is 512/125 of 819.2 Hz within a clock's few ppm; 213/52, the
+    /// convergent before, is 37 ppm off and not taken at 2 ppm.
+    #[test]
+    fn a_clock_tolerant_ratio() {
+        let r = ReadRatio::approximating(819.2 / 199.999861, 2e-6).unwrap();
+        assert_eq!((r.internal_per_period(), r.period()), (512, 125));
+        assert!(ReadRatio::from_rates(819.2, 199.999861).is_err());
+        // At 5e-5 the earlier convergent 213/52 would pass for it.
+        let loose = ReadRatio::approximating(819.2 / 199.999861, 5e-5).unwrap();
+        assert_eq!((loose.internal_per_period(), loose.period()), (213, 52));
     }
 
     /// Below the output rate, and ratios with no small denominator, are refused.
