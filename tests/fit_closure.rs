@@ -263,6 +263,16 @@ fn a_polled_unit_is_read_and_closes() {
             &imu_emu::errors::output_filter::FilterKind::Cic { order: 2, taps: 16 }
         )
     );
+    assert!(
+        c.toml
+            .contains("# Output filter read from the PSD roll-off")
+    );
+    assert!(
+        c.toml
+            .contains("polling host: output k is internal sample ⌊k·1024/125⌋"),
+        "{}",
+        c.toml
+    );
     white_noise_inside(&c, &model);
     all_inside(&c, "polled unit");
 }
@@ -399,7 +409,9 @@ fn real_unit_tables_close_above_thirty_samples() {
                 toml.contains("kind = \"cic\"\norder = 2\ntaps = 4"),
                 "{toml}"
             );
+            assert!(toml.contains("polling host: output k is internal sample ⌊k·512/125⌋"));
         }
+        assert!(toml.contains("# Output filter read from the Allan deviation at m ≤ 64"));
         let md = std::fs::read_to_string(&report).unwrap();
         let mut rows = 0;
         let mut channel = None;

@@ -33,7 +33,7 @@ pub const FROM_NYQUIST: f64 = 0.1;
 /// Bands per decade of the roll-off fit.
 const BANDS_PER_DECADE: f64 = 20.0;
 
-/// A filter read from the PSD, with its decimation.
+/// A filter read from the PSD (or a table's Allan deviation), with the samples it reads.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FittedFilter {
     /// The filter (internal rate and kind).
@@ -44,8 +44,10 @@ pub struct FittedFilter {
     pub chi2: f64,
     /// χ² of the flat spectrum.
     pub flat_chi2: f64,
-    /// Bands fitted (all channels).
+    /// Bands fitted (all channels); Allan-deviation points when `from_adev`.
     pub bands: usize,
+    /// Read from a table's shortest τ ([`fit_adev`]) rather than the PSD's roll-off.
+    pub from_adev: bool,
 }
 
 impl FittedFilter {
@@ -188,7 +190,7 @@ pub fn fit_excluding(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> Option<Fitted
         return fit_adev(a);
     }
     let flat = chi2(&b, |_| 0.0);
-    best(a.dt, flat, count, |w| {
+    best(a.dt, flat, count, false, |w| {
         chi2(&b, |f| w.psd_ratio(f, a.dt).max(1e-300).ln())
     })
 }
@@ -198,6 +200,7 @@ fn best(
     dt: f64,
     flat: f64,
     bands: usize,
+    from_adev: bool,
     score: impl Fn(&WhiteAllan) -> f64,
 ) -> Option<FittedFilter> {
     let best = candidates(dt)
@@ -213,6 +216,7 @@ fn best(
         chi2: best.2,
         flat_chi2: flat,
         bands,
+        from_adev,
     })
 }
 
@@ -230,13 +234,31 @@ pub fn toml(f: &FittedFilter) -> String {
             format!("kind = \"butterworth\"\norder = {order}\ncutoff = \"{cutoff_hz} Hz\"")
         }
     };
+    let source = if f.from_adev {
+        format!(
+            "the Allan deviation at m ≤ {ADEV_MAX_M} (docs/fit.md): χ² {:.1} over {} points",
+            f.chi2, f.bands
+        )
+    } else {
+        format!(
+            "the PSD roll-off above {:.0} % of the Nyquist frequency (docs/fit.md): χ² {:.1} over {} bands",
+            100.0 * FROM_NYQUIST,
+            f.chi2,
+            f.bands
+        )
+    };
+    // A polled read: say which samples the host gets, as the template alone implies it.
+    let read = match f.read.as_integer() {
+        Some(_) => String::new(),
+        None => format!(
+            "# Read by a polling host: output k is internal sample ⌊k·{}/{}⌋, the newest (docs/fidelity.md#output-filters).\n",
+            f.read.internal_per_period(),
+            f.read.period()
+        ),
+    };
     format!(
-        "\n# Output filter read from the PSD roll-off above {:.0} % of the Nyquist frequency (docs/fit.md): χ² {:.1} over {} bands\n# against {:.1} for a flat spectrum (kept when it gains more than {FILTER_PENALTY}).\n[output_filter]\ninternal_rate_hz = {}\n{kind}\n",
-        100.0 * FROM_NYQUIST,
-        f.chi2,
-        f.bands,
-        f.flat_chi2,
-        f.spec.internal_rate_hz
+        "\n# Output filter read from {source}\n# against {:.1} for a flat spectrum (kept when it gains more than {FILTER_PENALTY}).\n{read}[output_filter]\ninternal_rate_hz = {}\n{kind}\n",
+        f.flat_chi2, f.spec.internal_rate_hz
     )
 }
 
@@ -301,5 +323,5 @@ pub fn fit_adev(a: &Analysis) -> Option<FittedFilter> {
             .sum()
     };
     let flat = chi2(&|_| 1.0);
-    best(a.dt, flat, count, |w| chi2(&|m| w.ratio(m)))
+    best(a.dt, flat, count, true, |w| chi2(&|m| w.ratio(m)))
 }
