@@ -472,9 +472,9 @@ impl SimulationBuilder {
             Output::Frames(p) => p.rate_hz,
             Output::Records(_) => None,
         };
-        // A unit with an output filter has its rate built in (the internal rate is a multiple
-        // of it): it outranks the nominal rate of a protocol nobody chose (a command's
-        // default), not that of one the user asked for.
+        // A unit with an output filter has its rate built in (its filter's output, decimated or
+        // read by its host): it outranks the nominal rate of a protocol nobody chose (a
+        // command's default), not that of one the user asked for.
         let chosen = self.format.is_some()
             || self.protocol_file.is_some()
             || self.file.output.format.is_some();
