@@ -189,9 +189,19 @@ pub fn fit_excluding(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> Option<Fitted
     if count < 4 {
         return fit_adev(a);
     }
-    let flat = chi2(&b, |_| 0.0);
+    // Once the resonances are known (`exclude` names each channel's, none or some), the
+    // short-τ Allan variance of the channels without one weighs in too: it holds the filter's
+    // mark at τ = Δt … 64Δt, where the closure's bands are tightest, which the top decade of
+    // the PSD alone leaves loose. Before (`exclude` empty) a bump would bend it.
+    let pts: Vec<_> = adev_points(a)
+        .into_iter()
+        .enumerate()
+        .filter(|(ch, p)| exclude.get(*ch).is_some_and(Vec::is_empty) && p.len() >= 4)
+        .map(|x| x.1)
+        .collect();
+    let flat = chi2(&b, |_| 0.0) + adev_chi2(&pts, a.dt, &|_| 1.0);
     best(a.dt, flat, count, false, |w| {
-        chi2(&b, |f| w.psd_ratio(f, a.dt).max(1e-300).ln())
+        chi2(&b, |f| w.psd_ratio(f, a.dt).max(1e-300).ln()) + adev_chi2(&pts, a.dt, &|m| w.ratio(m))
     })
 }
 
@@ -273,9 +283,21 @@ pub const ADEV_MAX_M: usize = 64;
 /// with the least χ² over the six channels is kept when it gains [`FILTER_PENALTY`] over
 /// r ≡ 1.
 pub fn fit_adev(a: &Analysis) -> Option<FittedFilter> {
+    let chans = adev_points(a);
+    let count: usize = chans.iter().map(Vec::len).sum();
+    if chans.iter().any(|c| c.len() < 4) {
+        return None;
+    }
+    let flat = adev_chi2(&chans, a.dt, &|_| 1.0);
+    best(a.dt, flat, count, true, |w| {
+        adev_chi2(&chans, a.dt, &|m| w.ratio(m))
+    })
+}
+
+/// Each channel's Allan variance at m ≤ [`ADEV_MAX_M`] (and ≤ n/8): (m, σ̂², weight edf/2).
+fn adev_points(a: &Analysis) -> Vec<Vec<(usize, f64, f64)>> {
     let n = a.samples as usize;
-    let chans: Vec<Vec<(usize, f64, f64)>> = a
-        .channels
+    a.channels
         .iter()
         .map(|c| {
             c.adev
@@ -291,37 +313,33 @@ pub fn fit_adev(a: &Analysis) -> Option<FittedFilter> {
                 })
                 .collect()
         })
-        .collect();
-    let count: usize = chans.iter().map(Vec::len).sum();
-    if chans.iter().any(|c| c.len() < 4) {
-        return None;
-    }
-    let chi2 = |ratio: &dyn Fn(usize) -> f64| -> f64 {
-        chans
-            .iter()
-            .map(|pts| {
-                // Minimise Σ w (1 − (x·u + C)/y)² over (x, C), u = r(m)/τ: 2×2 normal equations.
-                let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
-                for &(m, y, w) in pts {
-                    let u = ratio(m) / (m as f64 * a.dt) / y;
-                    let v = 1.0 / y;
-                    a11 += w * u * u;
-                    a12 += w * u * v;
-                    a22 += w * v * v;
-                    b1 += w * u;
-                    b2 += w * v;
-                }
-                let det = a11 * a22 - a12 * a12;
-                let (x, c) = ((b1 * a22 - b2 * a12) / det, (a11 * b2 - a12 * b1) / det);
-                pts.iter()
-                    .map(|&(m, y, w)| {
-                        let model = x * ratio(m) / (m as f64 * a.dt) + c;
-                        w * (1.0 - model / y).powi(2)
-                    })
-                    .sum::<f64>()
-            })
-            .sum()
-    };
-    let flat = chi2(&|_| 1.0);
-    best(a.dt, flat, count, true, |w| chi2(&|m| w.ratio(m)))
+        .collect()
+}
+
+/// χ² of the channels' points against N²·r(m)/τ + C, N² and C free per channel.
+fn adev_chi2(chans: &[Vec<(usize, f64, f64)>], dt: f64, ratio: &dyn Fn(usize) -> f64) -> f64 {
+    chans
+        .iter()
+        .map(|pts| {
+            // Minimise Σ w (1 − (x·u + C)/y)² over (x, C), u = r(m)/τ: 2×2 normal equations.
+            let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            for &(m, y, w) in pts {
+                let u = ratio(m) / (m as f64 * dt) / y;
+                let v = 1.0 / y;
+                a11 += w * u * u;
+                a12 += w * u * v;
+                a22 += w * v * v;
+                b1 += w * u;
+                b2 += w * v;
+            }
+            let det = a11 * a22 - a12 * a12;
+            let (x, c) = ((b1 * a22 - b2 * a12) / det, (a11 * b2 - a12 * b1) / det);
+            pts.iter()
+                .map(|&(m, y, w)| {
+                    let model = x * ratio(m) / (m as f64 * dt) + c;
+                    w * (1.0 - model / y).powi(2)
+                })
+                .sum::<f64>()
+        })
+        .sum()
 }
