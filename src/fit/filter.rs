@@ -44,7 +44,7 @@ pub struct FittedFilter {
     pub chi2: f64,
     /// χ² of the flat spectrum.
     pub flat_chi2: f64,
-    /// Bands fitted (all channels); Allan-deviation points when `from_adev`.
+    /// PSD bands and Allan-deviation points fitted (all channels).
     pub bands: usize,
     /// Read from a table's shortest τ ([`fit_adev`]) rather than the PSD's roll-off.
     pub from_adev: bool,
@@ -182,7 +182,8 @@ pub fn fit(a: &Analysis) -> Option<FittedFilter> {
 
 /// [`fit`] without the PSD bands inside each channel's ranges of `exclude` (Hz): a broad
 /// resonance ([`super::resonance`]) in the top decade would bend the roll-off the filter is
-/// read from.
+/// read from. With `exclude` given per channel, the Allan variance at m ≤ [`ADEV_MAX_M`] of
+/// the channels without a range adds its χ² ([`fit_adev`]'s) to the roll-off's.
 pub fn fit_excluding(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> Option<FittedFilter> {
     let b = bands(a, exclude);
     let count: usize = b.iter().map(Vec::len).sum();
@@ -200,6 +201,7 @@ pub fn fit_excluding(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> Option<Fitted
         .map(|x| x.1)
         .collect();
     let flat = chi2(&b, |_| 0.0) + adev_chi2(&pts, a.dt, &|_| 1.0);
+    let count = count + pts.iter().map(Vec::len).sum::<usize>();
     best(a.dt, flat, count, false, |w| {
         chi2(&b, |f| w.psd_ratio(f, a.dt).max(1e-300).ln()) + adev_chi2(&pts, a.dt, &|m| w.ratio(m))
     })
@@ -251,7 +253,7 @@ pub fn toml(f: &FittedFilter) -> String {
         )
     } else {
         format!(
-            "the PSD roll-off above {:.0} % of the Nyquist frequency (docs/fit.md): χ² {:.1} over {} bands",
+            "the PSD roll-off above {:.0} % of the Nyquist frequency and the short-τ Allan variance\n# of the channels without a resonance (docs/fit.md): χ² {:.1} over {} bands and points",
             100.0 * FROM_NYQUIST,
             f.chi2,
             f.bands
