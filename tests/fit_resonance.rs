@@ -172,6 +172,7 @@ fn a_band_pass_resonance_is_found_and_closes() {
     let filter = imu_emu::errors::output_filter::FilterSpec {
         internal_rate_hz: 400.0,
         kind: imu_emu::errors::output_filter::FilterKind::Cic { order: 2, taps: 4 },
+        accel: None,
     };
     for (ch, truth) in [(2usize, &bumps()[0]), (3, &bumps()[1])] {
         let r = &f.resonances[ch][0];

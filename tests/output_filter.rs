@@ -23,6 +23,7 @@ fn spec(kind: FilterKind) -> FilterSpec {
     FilterSpec {
         internal_rate_hz: FS,
         kind,
+        accel: None,
     }
 }
 
@@ -436,6 +437,22 @@ fn bad_filters_are_refused() {
         (
             "kind = \"fir\"\ncoefficients = [\"a\"]\ninternal_rate_hz = 1600",
             "`output_filter.coefficients`",
+        ),
+        (
+            "kind = \"cic\"\norder = 2\ntaps = 4\ninternal_rate_hz = 1600\naccel = 3",
+            "`output_filter.accel`",
+        ),
+        (
+            "kind = \"cic\"\norder = 2\ntaps = 4\ninternal_rate_hz = 1600\n[output_filter.accel]\nkind = \"cic\"\norder = 0\ntaps = 3",
+            "`output_filter.accel.order`",
+        ),
+        (
+            "kind = \"cic\"\norder = 2\ntaps = 4\ninternal_rate_hz = 1600\n[output_filter.accel]\nkind = \"moving_average\"\ntaps = 3\ninternal_rate_hz = 800",
+            "`output_filter.accel.internal_rate_hz`",
+        ),
+        (
+            "kind = \"cic\"\norder = 2\ntaps = 4\ninternal_rate_hz = 1600\n[output_filter.accel]\nkind = \"butterworth\"\norder = 2\ncutoff = \"900 Hz\"",
+            "half the internal rate",
         ),
     ] {
         let e = template::parse(&format!("[output_filter]\n{text}\n"), Path::new("f.toml"))

@@ -12,7 +12,7 @@ use std::process::Command;
 
 use imu_emu::analysis::psd::Welch;
 use imu_emu::errors::filtered::FilteredChain;
-use imu_emu::errors::output_filter::Filter;
+use imu_emu::errors::output_filter::{Filter, FilterSpec};
 use imu_emu::errors::template;
 use imu_emu::record::Record;
 use imu_emu::sim::{SideOutputs, Simulation};
@@ -84,6 +84,19 @@ fn a_constant_signal_passes_unchanged() {
     }
 }
 
+/// `spec` run by hand over the `internal` records from its steady state, decimated by 8, with
+/// the largest value it puts out.
+fn by_hand(spec: &FilterSpec, internal: &[Record]) -> (Vec<[f64; 6]>, f64) {
+    let mut filter = Filter::new(spec, ReadRatio::integer(8));
+    filter.prime(six(&internal[0]));
+    let want: Vec<[f64; 6]> = internal
+        .iter()
+        .filter_map(|r| filter.push(six(r)))
+        .collect();
+    let scale = want.iter().flatten().fold(0.0_f64, |a, x| a.max(x.abs()));
+    (want, scale)
+}
+
 /// The filtered error-free output of a moving scene (`coning`, `circle`) equals the filter,
 /// started at the first internal record, run over an unfiltered error-free run at the internal
 /// rate (the same generator) and decimated by 8 — to 1e-12 of the signal's scale: the product
@@ -98,14 +111,8 @@ fn the_output_is_the_filter_of_the_internal_run() {
             let m = filtered(f);
             let spec = m.output_filter.clone().unwrap();
             let out = records(scene, m, RATE, 4.0);
-            let mut filter = Filter::new(&spec, ReadRatio::integer(8));
-            filter.prime(six(&internal[0]));
-            let want: Vec<[f64; 6]> = internal
-                .iter()
-                .filter_map(|r| filter.push(six(r)))
-                .collect();
+            let (want, scale) = by_hand(&spec, &internal);
             assert_eq!(out.len(), want.len());
-            let scale = want.iter().flatten().fold(0.0_f64, |a, x| a.max(x.abs()));
             for (k, (r, w)) in out.iter().zip(&want).enumerate() {
                 assert_eq!(r.t, (k + 1) as f64 / RATE);
                 for (x, y) in six(r).iter().zip(w) {
@@ -115,6 +122,39 @@ fn the_output_is_the_filter_of_the_internal_run() {
                     );
                 }
                 assert!((r.dtheta[0] - r.gyro[0] / RATE).abs() <= 1e-15 * scale);
+            }
+        }
+    }
+}
+
+/// With `[output_filter.accel]` each sensor's channels are their own filter of the internal
+/// run: the gyros' through the top-level kind alone, the accelerometers' through theirs alone,
+/// each checked against a single-kind filter by hand to 1e-12 of the scale. Running the
+/// accelerometers through the gyros' filter (the table ignored) fails it on every pair of
+/// different kinds below.
+#[test]
+fn each_sensor_is_its_own_filter_of_the_internal_run() {
+    let internal = records("coning", model(""), FS, 4.0);
+    for (g, a) in [(FILTERS[3], FILTERS[0]), (FILTERS[0], FILTERS[1])] {
+        let m = filtered(&format!(
+            "{g}
+[output_filter.accel]
+{a}"
+        ));
+        let spec = m.output_filter.clone().unwrap();
+        assert!(spec.accel.is_some());
+        let out = records("coning", m, RATE, 4.0);
+        for (sensor, chans) in [(false, 0..3), (true, 3..6)] {
+            let (want, scale) = by_hand(&spec.sensor(sensor), &internal);
+            assert_eq!(out.len(), want.len());
+            for (k, (r, w)) in out.iter().zip(&want).enumerate() {
+                for i in chans.clone() {
+                    let (x, y) = (six(r)[i], w[i]);
+                    assert!(
+                        (x - y).abs() <= 1e-12 * scale,
+                        "{g} / {a}: channel {i}, k {k}: {x} vs {y}"
+                    );
+                }
             }
         }
     }
@@ -179,11 +219,21 @@ fn a_ramp_is_valid_at_the_offset_time() {
 #[test]
 fn the_truth_and_the_frames_carry_the_filter_delay() {
     let bw = FILTERS[3];
-    for (timing, latency) in [("", 0.0), ("[timing]\nlatency = \"400 us\"\n", 400e-6)] {
+    // The third case gives the accelerometers a moving average of 8 taps (no offset: it sums
+    // its output interval exactly), so `tov_accel` leads `tov` by the Butterworth's offset.
+    let own = format!("\n[output_filter.accel]\n{}", FILTERS[0]);
+    for (timing, latency, accel) in [
+        ("", 0.0, ""),
+        ("[timing]\nlatency = \"400 us\"\n", 400e-6, ""),
+        ("", 0.0, own.as_str()),
+    ] {
         let m = model(&format!(
-            "{timing}[output_filter]\ninternal_rate_hz = 1600\n{bw}"
+            "{timing}[output_filter]\ninternal_rate_hz = 1600\n{bw}{accel}"
         ));
-        let offset = m.output_filter.as_ref().unwrap().validity_offset_s(RATE);
+        let spec = m.output_filter.as_ref().unwrap();
+        let offset = spec.validity_offset_s(RATE);
+        let offset_accel = spec.sensor(true).validity_offset_s(RATE);
+        assert_eq!(accel.is_empty(), offset_accel == offset);
         let sim = || {
             Simulation::builder()
                 .scene("circle")
@@ -210,7 +260,7 @@ fn the_truth_and_the_frames_carry_the_filter_delay() {
             let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
             let t = v[0];
             assert!((v[13] - (t - offset)).abs() < 1e-12, "{l}");
-            assert!((v[14] - (t - offset)).abs() < 1e-12, "{l}");
+            assert!((v[14] - (t - offset_accel)).abs() < 1e-12, "{l}");
             assert!((v[15] - (t + latency)).abs() < 1e-12, "{l}");
             n += 1;
         }

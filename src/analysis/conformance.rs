@@ -55,7 +55,7 @@ use super::confidence::{chi2_quantile, edf};
 use super::fit::{TERMS, Term, fit_with_floor};
 use super::octave_adev::AdevPoint;
 use super::theory::{AxisTheory, triad};
-use crate::errors::filter_allan::WhiteAllan;
+use crate::errors::filter_allan::{SensorAllan, WhiteAllan};
 use crate::errors::template::ImuModel;
 
 /// Relative departure of the filtered white-noise Allan variance from its long-τ limit
@@ -114,8 +114,9 @@ pub fn channel_theory(model: &ImuModel, dt: f64) -> Vec<AxisTheory> {
     let mut v = triad(&model.gyro, model.quantization_mode, dt).to_vec();
     v.extend(triad(&model.accel, model.quantization_mode, dt));
     if let Some(w) = white_allan(model, dt) {
-        let gain = w.long_tau().sqrt();
-        v.iter_mut().for_each(|a| a.white *= gain);
+        for (ch, a) in v.iter_mut().enumerate() {
+            a.white *= w.channel(ch).long_tau().sqrt();
+        }
     }
     v
 }
@@ -141,12 +142,12 @@ pub fn filtered_psd(t: &AxisTheory, filter: Option<&WhiteAllan>, f: f64, dt: f64
     })
 }
 
-/// The filtered white-noise Allan variance of a template with an output filter, at the
-/// output interval `dt`.
-pub fn white_allan(model: &ImuModel, dt: f64) -> Option<WhiteAllan> {
+/// The filtered white-noise Allan variance of each sensor of a template with an output
+/// filter, at the output interval `dt`.
+pub fn white_allan(model: &ImuModel, dt: f64) -> Option<SensorAllan> {
     model.output_filter.as_ref().and_then(|f| {
         let read = f.check(1.0 / dt).ok()?;
-        Some(WhiteAllan::new(f, read))
+        Some(SensorAllan::new(f, read))
     })
 }
 
@@ -167,11 +168,12 @@ pub fn checked_points<'a>(points: &'a [AdevPoint], filter: Option<&WhiteAllan>) 
 /// The rows for every sensor, axis and term (30 rows), in channel then term order.
 pub fn term_rows(model: &ImuModel, analysis: &Analysis) -> Vec<TermRow> {
     let theory = channel_theory(model, analysis.dt);
-    let filter = white_allan(model, analysis.dt);
+    let filters = white_allan(model, analysis.dt);
     let phases = analysis.samples as usize + 1;
     let mut rows = Vec::with_capacity(30);
     for (ch, (c, th)) in analysis.channels.iter().zip(&theory).enumerate() {
-        let points = checked_points(&c.adev, filter.as_ref());
+        let filter = filters.as_ref().map(|f| f.channel(ch));
+        let points = checked_points(&c.adev, filter);
         let ms: Vec<usize> = points.iter().map(|p| p.m).collect();
         let mut nu = term_edf(th, analysis.dt, &ms, phases);
         if filter.is_some() && nu[1].is_some() {
@@ -396,13 +398,14 @@ mod tests {
         let dt = 1.0 / 204.8;
         let th = channel_theory(&m, dt);
         let w = white_allan(&m, dt).unwrap();
+        let w = w.channel(0);
         for t in &th {
             let n2 = t.white.powi(2);
             assert!(n2 > 0.0);
             for (k, r) in [(1usize, 17.0 / 32.0), (64, 1.0 - 15.0 / 2048.0)] {
                 let tau = k as f64 * dt;
                 let want = t.avar(k, dt) - n2 / tau + n2 * r / tau;
-                let got = filtered_avar(t, Some(&w), k, dt);
+                let got = filtered_avar(t, Some(w), k, dt);
                 assert!(
                     (got / want - 1.0).abs() < 1e-12,
                     "m = {k}: {got:e} vs {want:e}"
@@ -413,7 +416,7 @@ mod tests {
             for f in [0.1, 51.2, 102.4] {
                 let shape = (44.0 + 20.0 * (2.0 * std::f64::consts::PI * f * dt).cos()) / 64.0;
                 let want = t.psd(f, dt) + 2.0 * n2 * (shape - 1.0);
-                let got = filtered_psd(t, Some(&w), f, dt);
+                let got = filtered_psd(t, Some(w), f, dt);
                 assert!(
                     (got / want - 1.0).abs() < 1e-12,
                     "{f} Hz: {got:e} vs {want:e}"

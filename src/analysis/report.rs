@@ -11,7 +11,7 @@ use super::fit::{TERMS, Term};
 use super::octave_adev::CONFIDENCE;
 use super::psd_band::{BandedPsd, banded};
 use super::theory::AxisTheory;
-use crate::errors::filter_allan::WhiteAllan;
+use crate::errors::filter_allan::SensorAllan;
 use crate::plot::{Panel, Series};
 use crate::units::G0;
 
@@ -154,7 +154,7 @@ pub fn panels(a: &Analysis, theory: Option<&[AxisTheory]>, title: &str) -> Vec<P
 pub fn panels_filtered(
     a: &Analysis,
     theory: Option<&[AxisTheory]>,
-    filter: Option<&WhiteAllan>,
+    filter: Option<&SensorAllan>,
     title: &str,
 ) -> Vec<Panel> {
     let mut out = Vec::new();
@@ -182,7 +182,7 @@ pub fn panels_filtered(
             theory_series(&th[base..base + 3], &mut series, |t| {
                 ms.iter()
                     .map(|&m| {
-                        let avar = filtered_avar(t, filter, m, a.dt);
+                        let avar = filtered_avar(t, filter.map(|f| f.sensor(!gyro)), m, a.dt);
                         (m as f64 * a.dt, avar.sqrt() * k)
                     })
                     .unzip()
@@ -234,7 +234,7 @@ pub fn panels_filtered(
                 (
                     freq.clone(),
                     freq.iter()
-                        .map(|&f| filtered_psd(t, filter, f, a.dt) * k * k)
+                        .map(|&f| filtered_psd(t, filter.map(|w| w.sensor(!gyro)), f, a.dt) * k * k)
                         .collect(),
                 )
             });

@@ -24,7 +24,8 @@ pub struct TimedRun {
     tov_accel: Vec<f64>,
     emit: Vec<f64>,
     /// How long before its sample instant a record is valid (an output filter's delay, s).
-    validity_offset: f64,
+    /// The gyros' and the accelerometers' (they differ when each has its own filter).
+    validity_offset: [f64; 2],
 }
 
 impl TimedRun {
@@ -43,14 +44,15 @@ impl TimedRun {
             tov: Vec::new(),
             tov_accel: Vec::new(),
             emit: Vec::new(),
-            validity_offset: 0.0,
+            validity_offset: [0.0; 2],
         }
     }
 
-    /// Records valid `offset` s before their sample instants (the delay of the unit's output
-    /// filter, [`crate::errors::output_filter::FilterSpec::validity_offset_s`]): `tov` and
-    /// `tov_accel` move back by it; the emission times stay, so it adds to the latency.
-    pub fn with_validity_offset(mut self, offset: f64) -> TimedRun {
+    /// Records valid `offset` s (gyro, accel) before their sample instants (the delay of the
+    /// unit's output filter, [`crate::errors::output_filter::FilterSpec::validity_offset_s`]):
+    /// `tov` and `tov_accel` move back by them; the emission times stay, so it adds to the
+    /// latency.
+    pub fn with_validity_offset(mut self, offset: [f64; 2]) -> TimedRun {
         self.validity_offset = offset;
         self
     }
@@ -95,8 +97,9 @@ impl TimedRun {
                 continue;
             }
             self.gaps.push(std::mem::take(&mut self.gap));
-            self.tov.push(b.tov(i) - self.validity_offset);
-            self.tov_accel.push(b.tov_accel(i) - self.validity_offset);
+            self.tov.push(b.tov(i) - self.validity_offset[0]);
+            self.tov_accel
+                .push(b.tov_accel(i) - self.validity_offset[1]);
             self.emit.push(b.emit[i]);
         }
         kept

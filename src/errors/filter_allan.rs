@@ -33,6 +33,36 @@
 use super::output_filter::{FilterKind, FilterSpec};
 use crate::timing::ReadRatio;
 
+/// The filtered white-noise Allan variance of each sensor's filter (one for both unless the
+/// template gives the accelerometers their own, `[output_filter.accel]`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SensorAllan {
+    gyro: WhiteAllan,
+    accel: WhiteAllan,
+}
+
+impl SensorAllan {
+    /// Both sensors' filters of `spec`, with outputs reading the internal samples `read` names.
+    pub fn new(spec: &FilterSpec, read: ReadRatio) -> SensorAllan {
+        let gyro = WhiteAllan::new(&spec.sensor(false), read);
+        let accel = match spec.accel {
+            Some(_) => WhiteAllan::new(&spec.sensor(true), read),
+            None => gyro.clone(),
+        };
+        SensorAllan { gyro, accel }
+    }
+
+    /// One sensor's (`accel` false: the gyros').
+    pub fn sensor(&self, accel: bool) -> &WhiteAllan {
+        if accel { &self.accel } else { &self.gyro }
+    }
+
+    /// Channel `ch`'s (0–2 gyro, 3–5 accel).
+    pub fn channel(&self, ch: usize) -> &WhiteAllan {
+        self.sensor(ch >= 3)
+    }
+}
+
 /// Longest impulse response kept for an IIR filter (internal samples).
 const MAX_TAPS: usize = 1 << 16;
 
@@ -46,7 +76,8 @@ pub struct WhiteAllan {
 }
 
 impl WhiteAllan {
-    /// The filter of `spec` with outputs reading the internal samples `read` names.
+    /// The filter of `spec` (the gyros' when the accelerometers have their own,
+    /// [`SensorAllan`]) with outputs reading the internal samples `read` names.
     pub fn new(spec: &FilterSpec, read: ReadRatio) -> WhiteAllan {
         let h = spec.impulse_response(response_len(spec));
         let internal = |j: u64| -> f64 {
@@ -154,6 +185,7 @@ mod tests {
         FilterSpec {
             internal_rate_hz: 800.0,
             kind,
+            accel: None,
         }
     }
 
@@ -252,6 +284,7 @@ mod tests {
         let s = FilterSpec {
             internal_rate_hz: 819.2,
             kind: FilterKind::Cic { order: 2, taps: 16 },
+            accel: None,
         };
         let read = ReadRatio::from_rates(819.2, 100.0).unwrap();
         let w = WhiteAllan::new(&s, read);

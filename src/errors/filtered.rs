@@ -132,10 +132,11 @@ impl FilteredChain {
         self
     }
 
-    /// The filter's DC group delay (s): an output sample's value is the true signal of that
-    /// long before the end of its last internal interval (see `docs/fidelity.md`).
-    pub fn latency_s(&self) -> f64 {
-        self.spec.latency_s()
+    /// The filter's DC group delay (s) on the gyros (`accel` false) or the accelerometers: an
+    /// output sample's value is the true signal of that long before the end of its last
+    /// internal interval (see `docs/fidelity.md`).
+    pub fn latency_s(&self, accel: bool) -> f64 {
+        self.spec.sensor(accel).latency_s()
     }
 
     /// The filter spec.

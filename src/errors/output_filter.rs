@@ -55,8 +55,13 @@ pub struct FilterSpec {
     /// Internal sampling rate (Hz): an integer multiple of the output rate (decimation), or
     /// any rate above it in a ratio of whole numbers (a host's polled read, [`ReadRatio`]).
     pub internal_rate_hz: f64,
-    /// The filter, run at the internal rate.
+    /// The filter, run at the internal rate (the gyros', and the accelerometers' unless
+    /// `accel` names theirs).
     pub kind: FilterKind,
+    /// The accelerometers' own filter at the same internal rate and read, when it differs
+    /// from the gyros' (`[output_filter.accel]`): many units set each sensor's bandwidth
+    /// apart (the BMI160's `ACC_CONF` and `GYR_CONF`, the MPU-6050's per-sensor DLPF).
+    pub accel: Option<FilterKind>,
 }
 
 /// One second-order section y = (b0 + b1 z⁻¹ + b2 z⁻²)/(1 + a1 z⁻¹ + a2 z⁻²) x.
@@ -74,6 +79,45 @@ enum Design {
 }
 
 impl FilterKind {
+    /// Lengths and orders in range, the cut-off below the internal Nyquist frequency.
+    fn check(&self, internal_rate_hz: f64) -> Result<(), String> {
+        match self {
+            FilterKind::MovingAverage { taps } | FilterKind::Cic { taps, .. }
+                if *taps == 0 || *taps > 65536 =>
+            {
+                Err(format!("taps = {taps}: expected 1 to 65536"))
+            }
+            FilterKind::Cic { order, .. } if *order == 0 || *order > 8 => {
+                Err(format!("order = {order}: expected 1 to 8"))
+            }
+            FilterKind::Fir { coefficients } => {
+                let s: f64 = coefficients.iter().sum();
+                if coefficients.is_empty() || coefficients.len() > 65536 {
+                    return Err("coefficients: expected 1 to 65536 numbers".into());
+                }
+                if !(s.is_finite() && s.abs() > 1e-12) {
+                    return Err(
+                        "coefficients: their sum (the DC gain) must be finite and non-zero".into(),
+                    );
+                }
+                Ok(())
+            }
+            FilterKind::Butterworth { order, cutoff_hz } => {
+                if *order == 0 || *order > 8 {
+                    return Err(format!("order = {order}: expected 1 to 8"));
+                }
+                if !(*cutoff_hz > 0.0 && *cutoff_hz < 0.5 * internal_rate_hz) {
+                    return Err(format!(
+                        "cutoff {cutoff_hz} Hz: expected above 0 and below half the internal rate ({} Hz)",
+                        0.5 * internal_rate_hz
+                    ));
+                }
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    }
+
     fn design(&self, fs: f64) -> Design {
         match self {
             FilterKind::MovingAverage { taps } => Design::Fir(vec![1.0 / *taps as f64; *taps]),
@@ -143,40 +187,30 @@ impl FilterSpec {
     /// internal Nyquist frequency.
     pub fn check(&self, output_rate_hz: f64) -> Result<ReadRatio, String> {
         let ratio = ReadRatio::from_rates(self.internal_rate_hz, output_rate_hz)?;
-        match &self.kind {
-            FilterKind::MovingAverage { taps } | FilterKind::Cic { taps, .. }
-                if *taps == 0 || *taps > 65536 =>
-            {
-                return Err(format!("taps = {taps}: expected 1 to 65536"));
-            }
-            FilterKind::Cic { order, .. } if *order == 0 || *order > 8 => {
-                return Err(format!("order = {order}: expected 1 to 8"));
-            }
-            FilterKind::Fir { coefficients } => {
-                let s: f64 = coefficients.iter().sum();
-                if coefficients.is_empty() || coefficients.len() > 65536 {
-                    return Err("coefficients: expected 1 to 65536 numbers".into());
-                }
-                if !(s.is_finite() && s.abs() > 1e-12) {
-                    return Err(
-                        "coefficients: their sum (the DC gain) must be finite and non-zero".into(),
-                    );
-                }
-            }
-            FilterKind::Butterworth { order, cutoff_hz } => {
-                if *order == 0 || *order > 8 {
-                    return Err(format!("order = {order}: expected 1 to 8"));
-                }
-                if !(*cutoff_hz > 0.0 && *cutoff_hz < 0.5 * self.internal_rate_hz) {
-                    return Err(format!(
-                        "cutoff {cutoff_hz} Hz: expected above 0 and below half the internal rate ({} Hz)",
-                        0.5 * self.internal_rate_hz
-                    ));
-                }
-            }
-            _ => {}
+        self.kind.check(self.internal_rate_hz)?;
+        if let Some(a) = &self.accel {
+            a.check(self.internal_rate_hz)
+                .map_err(|e| format!("accel: {e}"))?;
         }
         Ok(ratio)
+    }
+
+    /// The filter one sensor's channels run (`accel` false: the gyros'), as a spec of its own.
+    pub fn sensor(&self, accel: bool) -> FilterSpec {
+        let kind = match (&self.accel, accel) {
+            (Some(a), true) => a.clone(),
+            _ => self.kind.clone(),
+        };
+        FilterSpec {
+            internal_rate_hz: self.internal_rate_hz,
+            kind,
+            accel: None,
+        }
+    }
+
+    /// The filter of channel `ch` (0–2 gyro, 3–5 accel), as a spec of its own.
+    pub fn channel(&self, ch: usize) -> FilterSpec {
+        self.sensor(ch >= 3)
     }
 
     /// |H(f)| at frequency f (Hz), from the designed coefficients.
@@ -198,7 +232,8 @@ impl FilterSpec {
         }
     }
 
-    /// DC group delay (s): how far the filtered signal lags the internal samples.
+    /// DC group delay (s): how far the filtered signal lags the internal samples (the gyros';
+    /// [`FilterSpec::sensor`] for the accelerometers' own).
     pub fn latency_s(&self) -> f64 {
         let samples = match self.kind.design(self.internal_rate_hz) {
             Design::Fir(h) => dc_delay(&h),
@@ -238,40 +273,41 @@ impl FilterSpec {
 /// value of each one an output reads (every D-th, or the polled ⌊k·p/q⌋-th, [`ReadRatio`]).
 #[derive(Clone, Debug)]
 pub struct Filter {
-    design: Design,
+    /// The six channels' filter, or the gyros' when the accelerometers have their own.
+    gyro: Bank,
+    /// The accelerometers' own filter (`FilterSpec::accel`).
+    accel: Option<Bank>,
     read: ReadRatio,
-    /// FIR: the last N inputs per channel in a ring; IIR: two states per section and channel.
-    state: Vec<[f64; 6]>,
-    head: usize,
     /// Internal samples pushed, outputs given, and the internal sample the next output reads.
     pushed: u64,
     given: u64,
     next: u64,
 }
 
-impl Filter {
-    /// The filter of `spec`, giving the internal samples `read` names.
-    pub fn new(spec: &FilterSpec, read: ReadRatio) -> Filter {
-        let design = spec.kind.design(spec.internal_rate_hz);
+/// One design's state over six channels.
+#[derive(Clone, Debug)]
+struct Bank {
+    design: Design,
+    /// FIR: the last N inputs per channel in a ring; IIR: two states per section and channel.
+    state: Vec<[f64; 6]>,
+    head: usize,
+}
+
+impl Bank {
+    fn new(kind: &FilterKind, fs: f64) -> Bank {
+        let design = kind.design(fs);
         let len = match &design {
             Design::Fir(h) => h.len(),
             Design::Iir(s) => 2 * s.len(),
         };
-        Filter {
+        Bank {
             design,
-            read,
             state: vec![[0.0; 6]; len],
             head: 0,
-            pushed: 0,
-            given: 0,
-            next: read.index(1),
         }
     }
 
-    /// Sets the state to the steady state of a constant input `x`, as if the filter had run on
-    /// it for ever: a unit's filter runs from power-on, so its first outputs carry no start-up
-    /// transient. Every kind has unit DC gain, so the next output of a constant `x` is `x`.
-    pub fn prime(&mut self, x: [f64; 6]) {
+    fn prime(&mut self, x: [f64; 6]) {
         match &self.design {
             Design::Fir(_) => self.state.iter_mut().for_each(|s| *s = x),
             Design::Iir(sections) => {
@@ -291,15 +327,8 @@ impl Filter {
         }
     }
 
-    /// Feeds one internal sample; returns the filtered output when an output reads this sample.
-    /// FIR outputs are only computed when read.
-    pub fn push(&mut self, x: [f64; 6]) -> Option<[f64; 6]> {
-        self.pushed += 1;
-        let emit = self.pushed == self.next;
-        if emit {
-            self.given += 1;
-            self.next = self.read.index(self.given + 1);
-        }
+    /// Feeds one sample; the output when `emit` (FIR outputs are only computed then).
+    fn push(&mut self, x: [f64; 6], emit: bool) -> Option<[f64; 6]> {
         match &self.design {
             Design::Fir(h) => {
                 let n = h.len();
@@ -335,8 +364,56 @@ impl Filter {
     }
 }
 
+impl Filter {
+    /// The filter of `spec`, giving the internal samples `read` names.
+    pub fn new(spec: &FilterSpec, read: ReadRatio) -> Filter {
+        let fs = spec.internal_rate_hz;
+        Filter {
+            gyro: Bank::new(&spec.kind, fs),
+            accel: spec.accel.as_ref().map(|k| Bank::new(k, fs)),
+            read,
+            pushed: 0,
+            given: 0,
+            next: read.index(1),
+        }
+    }
+
+    /// Sets the state to the steady state of a constant input `x`, as if the filter had run on
+    /// it for ever: a unit's filter runs from power-on, so its first outputs carry no start-up
+    /// transient. Every kind has unit DC gain, so the next output of a constant `x` is `x`.
+    pub fn prime(&mut self, x: [f64; 6]) {
+        self.gyro.prime(x);
+        if let Some(a) = &mut self.accel {
+            a.prime(x);
+        }
+    }
+
+    /// Feeds one internal sample; returns the filtered output when an output reads this sample.
+    /// FIR outputs are only computed when read.
+    pub fn push(&mut self, x: [f64; 6]) -> Option<[f64; 6]> {
+        self.pushed += 1;
+        let emit = self.pushed == self.next;
+        if emit {
+            self.given += 1;
+            self.next = self.read.index(self.given + 1);
+        }
+        let g = self.gyro.push(x, emit);
+        // Per-sensor filters run both designs over all six channels (the cost of the rare
+        // case, keeping the common one a single pass) and keep each sensor's half.
+        match (&mut self.accel, g) {
+            (Some(a), g) => {
+                let acc = a.push(x, emit);
+                g.zip(acc)
+                    .map(|(g, a)| [g[0], g[1], g[2], a[3], a[4], a[5]])
+            }
+            (None, g) => g,
+        }
+    }
+}
+
 /// Reads `[output_filter]`: `internal_rate_hz`, `kind` and the kind's keys (`taps`; `order`
-/// and `taps`; `coefficients`; `order` and `cutoff`). Errors name the key under the table.
+/// and `taps`; `coefficients`; `order` and `cutoff`), and an optional `accel` table with the
+/// accelerometers' own `kind` and keys. Errors name the key under the table.
 pub fn from_toml(t: &toml::Table) -> Result<FilterSpec, (String, String)> {
     let err = |k: &str, m: &str| (k.to_string(), m.to_string());
     let number = |k: &str| -> Result<Option<f64>, (String, String)> {
@@ -350,6 +427,47 @@ pub fn from_toml(t: &toml::Table) -> Result<FilterSpec, (String, String)> {
                 .ok_or_else(|| err(k, "expected a number")),
         }
     };
+    let internal_rate_hz = number("internal_rate_hz")?
+        .filter(|r| *r > 0.0 && *r <= crate::units::bounds::MAX_RATE_HZ)
+        .ok_or_else(|| {
+            err(
+                "internal_rate_hz",
+                &format!(
+                    "expected a number in (0, {}] (Hz)",
+                    crate::units::bounds::compact(crate::units::bounds::MAX_RATE_HZ)
+                ),
+            )
+        })?;
+    let kind = kind_from_toml(t, &["internal_rate_hz", "accel"])?;
+    let accel = match t.get("accel") {
+        None => None,
+        Some(toml::Value::Table(a)) => {
+            Some(kind_from_toml(a, &[]).map_err(|(k, m)| (format!("accel.{k}"), m))?)
+        }
+        Some(_) => {
+            return Err(err(
+                "accel",
+                "expected a table (the accelerometers' filter)",
+            ));
+        }
+    };
+    let spec = FilterSpec {
+        internal_rate_hz,
+        kind,
+        accel,
+    };
+    // The rate-independent checks (the output rate is checked when the chain is built).
+    spec.check(internal_rate_hz)
+        .map_err(|m| match m.strip_prefix("accel: ") {
+            Some(rest) => err("accel", rest),
+            None => err("", &m),
+        })?;
+    Ok(spec)
+}
+
+/// A filter's `kind` and that kind's keys, with `other` keys of the enclosing table allowed.
+fn kind_from_toml(t: &toml::Table, other: &[&str]) -> Result<FilterKind, (String, String)> {
+    let err = |k: &str, m: &str| (k.to_string(), m.to_string());
     let count = |k: &str| -> Result<usize, (String, String)> {
         match t.get(k).map(|v| v.as_integer()) {
             Some(Some(i)) if i > 0 => Ok(i as usize),
@@ -376,7 +494,7 @@ pub fn from_toml(t: &toml::Table) -> Result<FilterSpec, (String, String)> {
         }
     };
     for k in t.keys() {
-        if k != "kind" && k != "internal_rate_hz" && !allowed.contains(&k.as_str()) {
+        if k != "kind" && !other.contains(&k.as_str()) && !allowed.contains(&k.as_str()) {
             return Err(err(
                 k,
                 &format!(
@@ -386,18 +504,7 @@ pub fn from_toml(t: &toml::Table) -> Result<FilterSpec, (String, String)> {
             ));
         }
     }
-    let internal_rate_hz = number("internal_rate_hz")?
-        .filter(|r| *r > 0.0 && *r <= crate::units::bounds::MAX_RATE_HZ)
-        .ok_or_else(|| {
-            err(
-                "internal_rate_hz",
-                &format!(
-                    "expected a number in (0, {}] (Hz)",
-                    crate::units::bounds::compact(crate::units::bounds::MAX_RATE_HZ)
-                ),
-            )
-        })?;
-    let kind = match kind_name {
+    Ok(match kind_name {
         "moving_average" => FilterKind::MovingAverage {
             taps: count("taps")?,
         },
@@ -430,12 +537,5 @@ pub fn from_toml(t: &toml::Table) -> Result<FilterSpec, (String, String)> {
                 cutoff_hz,
             }
         }
-    };
-    let spec = FilterSpec {
-        internal_rate_hz,
-        kind,
-    };
-    // The rate-independent checks (the output rate is checked when the chain is built).
-    spec.check(internal_rate_hz).map_err(|m| err("", &m))?;
-    Ok(spec)
+    })
 }

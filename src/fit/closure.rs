@@ -156,15 +156,16 @@ pub fn source_amplitude(b: f64, f: f64, dt: f64, filter: Option<&FilterSpec>) ->
 }
 
 /// The spectral lines of the six channels (gyro x y z, accel x y z) as the vibration sines
-/// that reproduce them (phase 0) through `filter`.
+/// that reproduce them (phase 0) through `filter` (each sensor's own).
 pub fn vibration(lines: &[Vec<Line>], dt: f64, filter: Option<&FilterSpec>) -> VibrationSpec {
     let mut spec = VibrationSpec::default();
     for (ch, ls) in lines.iter().enumerate() {
+        let filter = filter.map(|f| f.channel(ch));
         for l in ls {
             spec.sines.push(Sine {
                 sensor: if ch < 3 { Sensor::Gyro } else { Sensor::Accel },
                 axis: ch % 3,
-                amplitude: source_amplitude(l.amplitude, l.freq, dt, filter),
+                amplitude: source_amplitude(l.amplitude, l.freq, dt, filter.as_ref()),
                 freq_hz: l.freq,
                 phase_rad: 0.0,
             });
@@ -186,7 +187,7 @@ pub fn vibration_with(
         spec.randoms.push(Random {
             sensor: if ch < 3 { Sensor::Gyro } else { Sensor::Accel },
             axis: ch % 3,
-            psd: super::resonance::source_table(r, dt, filter),
+            psd: super::resonance::source_table(r, dt, filter.map(|f| f.channel(ch)).as_ref()),
         });
     }
     spec

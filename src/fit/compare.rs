@@ -97,10 +97,10 @@ fn fit_with(
     let samples = a.samples as usize;
     let series = a.channels.iter().all(|c| c.trend.is_some());
     let white = filter.map(FittedFilter::white);
-    let stages = output_stages(a, carry).map(|s| OutputStage {
-        white: white.clone(),
-        ..s
-    });
+    let mut stages = output_stages(a, carry);
+    for (i, s) in stages.iter_mut().enumerate() {
+        s.white = white.as_ref().map(|w| w.sensor(i == 1).clone());
+    }
     let triad = |base: usize| {
         let c = &a.channels;
         let outputs = std::array::from_fn(|i| OutputStage {
@@ -110,7 +110,8 @@ fn fit_with(
                 .collect(),
             vibration: res.get(base + i).filter(|r| !r.is_empty()).map(|r| {
                 let ms: Vec<usize> = c[base + i].adev.iter().map(|p| p.m).collect();
-                let spec = filter.map(|f| &f.spec);
+                let spec = filter.map(|f| f.spec.channel(base + i));
+                let spec = spec.as_ref();
                 KnownVibration::new(source_table(r, a.dt, spec), a.dt, spec, &ms)
             }),
             ..stages[base / 3].clone()

@@ -20,7 +20,7 @@
 
 use crate::analysis::analyzer::Analysis;
 use crate::analysis::psd_band::{WelchEdf, banded};
-use crate::errors::filter_allan::WhiteAllan;
+use crate::errors::filter_allan::{SensorAllan, WhiteAllan};
 use crate::errors::output_filter::{FilterKind, FilterSpec};
 use crate::timing::ReadRatio;
 
@@ -51,9 +51,9 @@ pub struct FittedFilter {
 }
 
 impl FittedFilter {
-    /// The filtered white-noise Allan variance at the output rate.
-    pub fn white(&self) -> WhiteAllan {
-        WhiteAllan::new(&self.spec, self.read)
+    /// Each sensor's filtered white-noise Allan variance at the output rate.
+    pub fn white(&self) -> SensorAllan {
+        SensorAllan::new(&self.spec, self.read)
     }
 }
 
@@ -84,6 +84,7 @@ fn averagers(
             let spec = FilterSpec {
                 internal_rate_hz: internal_hz,
                 kind,
+                accel: None,
             };
             out.push((spec, read));
         }
@@ -121,6 +122,7 @@ pub fn candidates(dt: f64) -> Vec<(FilterSpec, ReadRatio)> {
                     let spec = FilterSpec {
                         internal_rate_hz: d as f64 / dt,
                         kind: FilterKind::Butterworth { order, cutoff_hz },
+                        accel: None,
                     };
                     out.push((spec, ReadRatio::integer(d)));
                 }
@@ -232,9 +234,9 @@ fn best(
     })
 }
 
-/// The `[output_filter]` table of a fitted filter.
-pub fn toml(f: &FittedFilter) -> String {
-    let kind = match &f.spec.kind {
+/// A filter kind's template keys.
+fn kind_toml(kind: &FilterKind) -> String {
+    match kind {
         FilterKind::MovingAverage { taps } => format!("kind = \"moving_average\"\ntaps = {taps}"),
         FilterKind::Cic { order, taps } => {
             format!("kind = \"cic\"\norder = {order}\ntaps = {taps}")
@@ -245,7 +247,18 @@ pub fn toml(f: &FittedFilter) -> String {
         FilterKind::Butterworth { order, cutoff_hz } => {
             format!("kind = \"butterworth\"\norder = {order}\ncutoff = \"{cutoff_hz} Hz\"")
         }
-    };
+    }
+}
+
+/// The `[output_filter]` table of a fitted filter.
+pub fn toml(f: &FittedFilter) -> String {
+    let kind = kind_toml(&f.spec.kind);
+    let accel = f.spec.accel.as_ref().map_or(String::new(), |k| {
+        format!(
+            "\n# The accelerometers' own filter.\n[output_filter.accel]\n{}\n",
+            kind_toml(k)
+        )
+    });
     let source = if f.from_adev {
         format!(
             "the Allan deviation at m ≤ {ADEV_MAX_M} (docs/fit.md): χ² {:.1} over {} points",
@@ -269,7 +282,7 @@ pub fn toml(f: &FittedFilter) -> String {
         ),
     };
     format!(
-        "\n# Output filter read from {source}\n# against {:.1} for a flat spectrum (kept when it gains more than {FILTER_PENALTY}).\n{read}[output_filter]\ninternal_rate_hz = {}\n{kind}\n",
+        "\n# Output filter read from {source}\n# against {:.1} for a flat spectrum (kept when it gains more than {FILTER_PENALTY}).\n{read}[output_filter]\ninternal_rate_hz = {}\n{kind}\n{accel}",
         f.flat_chi2, f.spec.internal_rate_hz
     )
 }

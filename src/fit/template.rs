@@ -392,14 +392,13 @@ pub fn sines_scene(p: &Provenance, lines: &[Vec<Line>]) -> String {
                         l.amplitude,
                         l.freq,
                         p.dt,
-                        p.filter.as_ref().map(|f| &f.spec)
+                        p.filter.as_ref().map(|f| f.spec.channel(ch)).as_ref()
                     ) * f
                 ),
                 sig4(l.freq)
             );
         }
     }
-    let filter = p.filter.as_ref().map(|f| &f.spec);
     for (ch, r) in p
         .resonances
         .iter()
@@ -408,7 +407,8 @@ pub fn sines_scene(p: &Provenance, lines: &[Vec<Line>]) -> String {
     {
         let gyro = ch < 3;
         let (u, f) = psd_unit(gyro);
-        let rows: Vec<String> = super::resonance::source_table(r, p.dt, filter)
+        let filter = p.filter.as_ref().map(|f| f.spec.channel(ch));
+        let rows: Vec<String> = super::resonance::source_table(r, p.dt, filter.as_ref())
             .iter()
             .map(|&(hz, v)| format!("[\"{} Hz\", \"{} {u}\"]", sig4(hz), sig4(v * f)))
             .collect();

@@ -274,14 +274,31 @@ fn perturbed(a: &Settings, model: &ImuModel, seed: u64) -> Result<Section, Valid
         crate::analysis::conformance::BAND_CONFIDENCE * 100.0
     );
     if let Some(w) = crate::analysis::conformance::white_allan(model, 1.0 / rates[0]) {
+        let (g, acc) = (w.sensor(false), w.sensor(true));
+        let each = if g == acc {
+            format!("its Allan variance at τ = Δt is {:.4} of N²/τ", g.ratio(1))
+        } else {
+            format!(
+                "its Allan variance at τ = Δt is {:.4} of N²/τ on the gyros and {:.4} on the accelerometers, which have their own filter",
+                g.ratio(1),
+                acc.ratio(1)
+            )
+        };
+        let gains = if g == acc {
+            format!("{:.6}", g.long_tau().sqrt())
+        } else {
+            format!(
+                "{:.6} (gyro), {:.6} (accel)",
+                g.long_tau().sqrt(),
+                acc.long_tau().sqrt()
+            )
+        };
         let _ = writeln!(
             s.markdown,
-            "The template's output filter marks white noise at short τ (its Allan variance at τ = Δt is {:.4} of N²/τ), \
+            "The template's output filter marks white noise at short τ ({each}), \
              so the terms are fitted and checked on the octaves from the first where it is within {:.0} % of its long-τ \
-             value on; N is expected as N·√r∞ = N·{:.6} (the filter's aliasing). See docs/fidelity.md, \"Output filters\".\n",
-            w.ratio(1),
+             value on; N is expected as N·√r∞ = N·{gains} (the filter's aliasing). See docs/fidelity.md, \"Output filters\".\n",
             crate::analysis::conformance::FILTER_TOLERANCE * 100.0,
-            w.long_tau().sqrt()
         );
     }
     if a.sabotage {

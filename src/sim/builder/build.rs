@@ -586,7 +586,10 @@ impl SimulationBuilder {
                 .map_err(|e| {
                     SimError::Invalid(format!("template `{}`: [timing]: {e}", imu.name))
                 })?;
-        let offset = filter.map_or(0.0, |f| f.validity_offset_s(grid.rate_hz));
+        // Each sensor's records are valid at its own filter's delay (`tov`, `tov_accel`).
+        let offset = filter.map_or([0.0; 2], |f| {
+            [false, true].map(|a| f.sensor(a).validity_offset_s(grid.rate_hz))
+        });
         Ok(Some(
             crate::engine::timed::TimedRun::new(sensor, grid.rate_hz, grid.t0)
                 .with_validity_offset(offset),
