@@ -358,3 +358,36 @@ fn adev_chi2(chans: &[Vec<(usize, f64, f64)>], dt: f64, ratio: &dyn Fn(usize) ->
         })
         .sum()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table `fit` writes reads back as the same filter, the accelerometers' own included.
+    #[test]
+    fn the_written_table_reads_back() {
+        for accel in [None, Some(FilterKind::MovingAverage { taps: 8 })] {
+            let spec = FilterSpec {
+                internal_rate_hz: 819.2,
+                kind: FilterKind::Butterworth {
+                    order: 2,
+                    cutoff_hz: 30.0,
+                },
+                accel,
+            };
+            let f = FittedFilter {
+                spec: spec.clone(),
+                read: ReadRatio::from_rates(819.2, 100.0).unwrap(),
+                chi2: 1.0,
+                flat_chi2: 100.0,
+                bands: 10,
+                from_adev: false,
+            };
+            let text = toml(&f);
+            let t: toml::Table = text.parse().unwrap();
+            let table = t["output_filter"].as_table().unwrap();
+            let back = crate::errors::output_filter::from_toml(table).unwrap();
+            assert_eq!(back, spec, "{text}");
+        }
+    }
+}
