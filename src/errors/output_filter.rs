@@ -400,13 +400,11 @@ impl Filter {
         let g = self.gyro.push(x, emit);
         // Per-sensor filters run both designs over all six channels (the cost of the rare
         // case, keeping the common one a single pass) and keep each sensor's half.
-        match (&mut self.accel, g) {
-            (Some(a), g) => {
-                let acc = a.push(x, emit);
-                g.zip(acc)
-                    .map(|(g, a)| [g[0], g[1], g[2], a[3], a[4], a[5]])
-            }
-            (None, g) => g,
+        match &mut self.accel {
+            Some(a) => g
+                .zip(a.push(x, emit))
+                .map(|(g, a)| [g[0], g[1], g[2], a[3], a[4], a[5]]),
+            None => g,
         }
     }
 }
@@ -457,11 +455,10 @@ pub fn from_toml(t: &toml::Table) -> Result<FilterSpec, (String, String)> {
         accel,
     };
     // The rate-independent checks (the output rate is checked when the chain is built).
-    spec.check(internal_rate_hz)
-        .map_err(|m| match m.strip_prefix("accel: ") {
-            Some(rest) => err("accel", rest),
-            None => err("", &m),
-        })?;
+    spec.kind.check(internal_rate_hz).map_err(|m| err("", &m))?;
+    if let Some(a) = &spec.accel {
+        a.check(internal_rate_hz).map_err(|m| err("accel", &m))?;
+    }
     Ok(spec)
 }
 
