@@ -99,8 +99,74 @@ impl OutputStage {
                 .sum::<f64>()
             + self.vibration.as_ref().map_or(0.0, |v| v.avar(m))
     }
+    /// The quantization's one-sided PSD at frequency `f` (interval Δt): rounding is white,
+    /// 2·q²Δt/12; a carried angle error e_k − e_{k−1} over Δt has |1 − e^{−i2πfΔt}|² of it,
+    /// 8Q²/Δt·sin²(πfΔt) (its Allan variance is the 3Q²/τ² of [`Self::known`]).
+    pub fn quantization_psd(&self, f: f64, dt: f64) -> f64 {
+        let s = (std::f64::consts::PI * f * dt).sin();
+        2.0 * self.rounding + 8.0 * self.carried / dt * s * s
+    }
     /// Its limit at long τ (the white density's aliasing gain, squared).
     pub fn white_long(&self) -> f64 {
         self.white.as_ref().map_or(1.0, WhiteAllan::long_tau)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    /// ∫₀^{1/(2Δt)} of a one-sided PSD times the discrete Allan-variance transfer
+    /// 2 sin⁴(πfmΔt)/(m² sin²(πfΔt)), by the midpoint rule: both integrands are cosine
+    /// polynomials of degree < 2m in 2πfΔt, which the rule with n > 2m points takes exactly.
+    fn integrate(psd: impl Fn(f64) -> f64, m: usize, dt: f64) -> f64 {
+        let n = 4096;
+        let df = 0.5 / dt / n as f64;
+        (0..n)
+            .map(|j| {
+                let f = (j as f64 + 0.5) * df;
+                let x = PI * f * dt;
+                let h = if m == 0 {
+                    1.0
+                } else {
+                    2.0 * (x * m as f64).sin().powi(4) / ((m * m) as f64 * x.sin().powi(2))
+                };
+                psd(f) * h * df
+            })
+            .sum()
+    }
+
+    /// The quantization PSD holds the sample variance (q²/12 rounded, 2Q²/Δt² carried), the
+    /// carried error's lag-one covariance −Q²/Δt², and at every m the Allan variance
+    /// [`OutputStage::known`] adds for it.
+    #[test]
+    fn quantization_psd_matches_its_variance_and_allan_variance() {
+        let (q, dt) = (0.05_f64.to_radians(), 0.01);
+        let (r, c) = (OutputStage::rounded(q, dt), OutputStage::carried(q, dt));
+        let close = |a: f64, b: f64| assert!((a / b - 1.0).abs() < 1e-12, "{a} vs {b}");
+        close(
+            integrate(|f| r.quantization_psd(f, dt), 0, dt),
+            q * q / 12.0,
+        );
+        let big_q = c.carried;
+        close(
+            integrate(|f| c.quantization_psd(f, dt), 0, dt),
+            2.0 * big_q / (dt * dt),
+        );
+        let lag1 = integrate(
+            |f| c.quantization_psd(f, dt) * (2.0 * PI * f * dt).cos(),
+            0,
+            dt,
+        );
+        close(lag1, -big_q / (dt * dt));
+        for m in [1, 2, 3, 16, 100] {
+            for s in [&r, &c] {
+                close(
+                    integrate(|f| s.quantization_psd(f, dt), m, dt),
+                    s.known(m, dt),
+                );
+            }
+        }
     }
 }

@@ -120,7 +120,9 @@ pub fn model_psd(model: &Model, f: f64) -> f64 {
             .as_ref()
             .map_or(1.0, |w| w.long_tau() * w.psd_ratio(f, dt));
     let s = (PI * f * dt).sin();
-    let quant = 8.0 * (model.c[Component::Quantization as usize] + o.carried) * s * s / dt;
+    // The LSB known from the lattice, and a fitted carry term Q² of the same form.
+    let quant =
+        o.quantization_psd(f, dt) + 8.0 * model.c[Component::Quantization as usize] * s * s / dt;
     let gm = |sigma2: f64, t: f64| {
         let phi = (-dt / t).exp();
         2.0 * dt * sigma2 * (1.0 - phi * phi)
@@ -138,7 +140,7 @@ pub fn model_psd(model: &Model, f: f64) -> f64 {
             .sum::<f64>();
     }
     let walk = model.c[Component::RandomWalk as usize] / (2.0 * PI * PI * f * f);
-    white + 2.0 * o.rounding + quant + slow + walk
+    white + quant + slow + walk
 }
 
 /// A band of the search.
