@@ -33,16 +33,19 @@ pub struct Fitted {
     pub carry: bool,
 }
 
-/// [`fit_all`] and the output filter it took: a recording's PSD names the best candidate
-/// ([`super::filter::fit`]), which is kept when the Allan-variance fit with it costs less than
-/// without it by more than [`super::filter::FILTER_PENALTY`] (the top decade of a PSD also
-/// falls for a Gauss–Markov term of T ≈ 10Δt, which the unfiltered fit models exactly). A
-/// table's filter is read from its shortest τ ([`super::filter::fit_adev`]) and kept as read.
-///
-/// Values on a lattice are quantized, but a rate grid does not say how: a unit that rounds
-/// each sample adds white noise q²/12 per sample, one that accumulates pulses and carries the
-/// residual (the generator's carry mode) an angle error uniform over qΔt, 3Q²/τ². Both are
-/// fitted and the cheaper kept (the same number of parameters: none).
+/// [`fit_all`] and the output filter it took. Values on a lattice are quantized, but a rate
+/// grid does not say how: a unit that rounds each sample adds white noise q²/12 per sample, one
+/// that accumulates pulses and carries the residual (the generator's carry mode) an angle error
+/// uniform over qΔt, 3Q²/τ². Under each quantizer the recording's PSD roll-off names the best
+/// filter ([`super::filter::fit_excluding`]: one for both sensors, or the accelerometers' own
+/// when it earns it; the quantizer's known density is part of the roll-off), and the
+/// Allan-variance fit is run with it and, for a series, without it. The cheapest of these is
+/// kept, its cost the fits' cost, plus the misfit of the PSD the fitted model draws in the top
+/// decade ([`super::filter::psd_misfit`]: the Allan variance alone takes a carried LSB under a
+/// steeper filter for a rounded one under the true filter), plus
+/// [`super::filter::FILTER_PENALTY`] per filter kept (the top decade of a PSD also falls for a
+/// Gauss–Markov term of T ≈ 10Δt, which the unfiltered fit models exactly). A table's filter is
+/// read from its shortest τ ([`super::filter::fit_adev`]) and kept as read.
 pub fn fit_all_with_filter(a: &Analysis) -> Fitted {
     fit_all_with_resonances(a, &[])
 }
@@ -57,7 +60,6 @@ pub fn fit_all_with_resonances(a: &Analysis, res: &[Vec<Resonance>]) -> Fitted {
         .iter()
         .map(|r| r.iter().map(Resonance::range).collect())
         .collect();
-    let filter = super::filter::fit_excluding(a, &ranges);
     let cost = |f: &[Option<AxisFit>]| f.iter().flatten().map(|f| f.cost).sum::<f64>();
     let mut best: Option<(f64, Fitted)> = None;
     for carry in if lattice {
@@ -65,14 +67,29 @@ pub fn fit_all_with_resonances(a: &Analysis, res: &[Vec<Resonance>]) -> Fitted {
     } else {
         vec![false]
     } {
-        let mut options = vec![(filter.clone(), 0.0)];
+        // The filter is read under each quantizer: the LSB's noise adds to the roll-off.
+        let filter = super::filter::fit_excluding(a, &ranges, &output_stages(a, carry));
+        let mut options = vec![filter.clone()];
         if filter.is_some() && series {
-            options.push((None, super::filter::FILTER_PENALTY));
+            options.push(None);
         }
-        for (f, bonus) in options {
+        for f in options {
             let fits = fit_with(a, f.as_ref(), carry, res);
-            // Without the filter the cost is lowered by the penalty the filter must beat.
-            let c = cost(&fits) - bonus;
+            // Each filter costs the penalty it must beat (the accelerometers' own a second
+            // one), against the fits of either quantizer: a carry quantizer's noise rises
+            // towards the Nyquist frequency, and a filter that takes it back must not come free.
+            let filters = f
+                .as_ref()
+                .map_or(0, |f| 1 + usize::from(f.spec.accel.is_some()));
+            let penalty = filters as f64 * super::filter::FILTER_PENALTY;
+            // The roll-off the fitted model draws weighs in: the Allan variance alone can take
+            // a carried LSB under a steeper filter for a rounded one under the true filter.
+            let psd = super::filter::psd_misfit(a, &ranges, |ch, f| {
+                fits[ch]
+                    .as_ref()
+                    .map(|x| super::resonance::model_psd(&x.model, f))
+            });
+            let c = cost(&fits) + psd + penalty;
             if best.as_ref().is_none_or(|b| c < b.0) {
                 best = Some((
                     c,

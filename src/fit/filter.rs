@@ -5,19 +5,26 @@
 //! S(f)/S(0) = [`WhiteAllan::psd_ratio`] (exact for the generator's `[output_filter]`,
 //! `docs/fidelity.md`). Over the top of the band (from a tenth of the Nyquist frequency, where
 //! white noise is what a unit's PSD shows) each candidate filter is fitted to the six
-//! channels' band-averaged PSDs with a free level per channel: ln P̂ = ln c + ln ratio(f), each
+//! channels' band-averaged PSDs with a free level per channel: ln P̂ = ln(c·ratio(f) + k(f)),
+//! k the quantization density the value lattice fixes ([`OutputStage::quantization_psd`]; on
+//! an ADIS16405's accelerometers a tenth of σ² at τ = Δt, which flattens their roll-off), each
 //! band weighted by ν/2 (Var ln P̂ = 2/ν for a Welch mean of ν degrees of freedom,
-//! [`crate::analysis::psd_band::WelchEdf`]). The best candidate is kept when it lowers that χ²
-//! below the flat spectrum's by more than [`FILTER_PENALTY`]; the white-noise basis of the
-//! Allan-variance fit is then the filtered one, N²·r(m)/τ ([`WhiteAllan::ratio`]).
+//! [`crate::analysis::psd_band::WelchEdf`]); the short-τ Allan variance adds its χ² where no
+//! resonance bends it. The best candidate is kept when it lowers that χ² below the flat
+//! spectrum's by more than [`FILTER_PENALTY`]; the white-noise basis of the Allan-variance fit
+//! is then the filtered one, N²·r(m)/τ ([`WhiteAllan::ratio`]). The gyros and the
+//! accelerometers are scored apart, and the accelerometers get a filter of their own (same
+//! internal rate and read, as `[output_filter.accel]` holds it) when that gains another
+//! [`FILTER_PENALTY`] over the best single filter.
 //!
-//! Candidates (one filter for all six channels, as a template holds it): internal rates
+//! Candidates: internal rates
 //! D ∈ {2, 4, 8, 16} times the output rate with a moving average of L taps, or a CIC
 //! (cascaded moving averages, the Bartlett window of the ADIS164xx family at order 2) of
 //! order 2 or 3, L from 2 to 4D; the same kinds, L from 2 to 32, at [`POLLED_RATES_HZ`] read
 //! by a polling host when the output rate does not divide it ([`ReadRatio`]); and Butterworth
 //! low-passes of order 1–4 at D ∈ {1, 2, 4}, cut-off 5–45 % of the output rate.
 
+use super::output::OutputStage;
 use crate::analysis::analyzer::Analysis;
 use crate::analysis::psd_band::{WelchEdf, banded};
 use crate::errors::filter_allan::{SensorAllan, WhiteAllan};
@@ -44,6 +51,8 @@ pub struct FittedFilter {
     pub chi2: f64,
     /// χ² of the flat spectrum.
     pub flat_chi2: f64,
+    /// χ² of the best single filter for both sensors (`chi2` when that is the one kept).
+    pub shared_chi2: f64,
     /// PSD bands and Allan-deviation points fitted (all channels).
     pub bands: usize,
     /// Read from a table's shortest τ ([`fit_adev`]) rather than the PSD's roll-off.
@@ -132,15 +141,21 @@ pub fn candidates(dt: f64) -> Vec<(FilterSpec, ReadRatio)> {
     out
 }
 
-/// The top-of-band PSD of each channel: (f, ln P̂, weight ν/2) per band, leaving out the
-/// bands inside the channel's ranges of `exclude` (Hz; its broad resonances).
-fn bands(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> Vec<Vec<(f64, f64, f64)>> {
+/// A band of the top-of-band PSD or a short-τ Allan-variance point: where (f in Hz, or the
+/// cluster size m), the estimate (ln P̂, or σ̂²), its weight (ν/2, or edf/2) and the known
+/// quantization part of the model there (one-sided density, or Allan variance).
+type Point = (f64, f64, f64, f64);
+
+/// The top-of-band PSD of each channel: (f, ln P̂, weight ν/2, quantization density) per band,
+/// leaving out the bands inside the channel's ranges of `exclude` (Hz; its broad resonances).
+fn bands(a: &Analysis, exclude: &[Vec<(f64, f64)>], stages: &[OutputStage; 2]) -> Vec<Vec<Point>> {
     let nyquist = 0.5 / a.dt;
     a.channels
         .iter()
         .enumerate()
         .map(|(ch, c)| {
             let skip = exclude.get(ch).map_or(&[][..], Vec::as_slice);
+            let stage = &stages[ch / 3];
             let p = &c.psd;
             if p.segments == 0 || p.freq.len() < 3 {
                 return Vec::new();
@@ -154,24 +169,71 @@ fn bands(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> Vec<Vec<(f64, f64, f64)>>
                 .zip(&b.bins)
                 .filter(|((f, d), _)| **f >= FROM_NYQUIST * nyquist && **d > 0.0)
                 .filter(|((f, _), _)| !skip.iter().any(|r| **f >= r.0 && **f <= r.1))
-                .map(|((&f, &d), &m)| (f, d.ln(), edf.edf(m) / 2.0))
+                .map(|((&f, &d), &m)| {
+                    (f, d.ln(), edf.edf(m) / 2.0, stage.quantization_psd(f, a.dt))
+                })
                 .collect()
         })
         .collect()
 }
 
-/// χ² of the bands against a shape ln ratio(f), each channel's level free (its weighted mean).
-fn chi2(bands: &[Vec<(f64, f64, f64)>], shape: impl Fn(f64) -> f64) -> f64 {
+/// χ² of the bands against ln(c·ratio(f) + k(f)), each channel's level c free and k its known
+/// quantization density: a flat floor under the filtered white noise, which flattens the
+/// roll-off where the filter has taken most of the noise (an ADIS16405's accelerometers: a
+/// tenth of σ² at τ = Δt is their LSB's). Without k, ln c is the weighted mean of the residuals;
+/// with it, Gauss–Newton on u = ln c from there (the model's slope in u is c·ratio/(c·ratio + k),
+/// in (0, 1]), each step halved until χ² does not grow.
+fn chi2(bands: &[Vec<Point>], ratio: impl Fn(usize, f64) -> f64) -> f64 {
     bands
         .iter()
-        .map(|ch| {
-            let r: Vec<(f64, f64)> = ch.iter().map(|&(f, y, w)| (y - shape(f), w)).collect();
-            let wsum: f64 = r.iter().map(|x| x.1).sum();
+        .enumerate()
+        .map(|(i, ch)| {
+            let s: Vec<f64> = ch.iter().map(|p| ratio(i, p.0).max(1e-300)).collect();
+            let wsum: f64 = ch.iter().map(|p| p.2).sum();
             if wsum == 0.0 {
                 return 0.0;
             }
-            let level = r.iter().map(|x| x.0 * x.1).sum::<f64>() / wsum;
-            r.iter().map(|(e, w)| w * (e - level).powi(2)).sum::<f64>()
+            let cost = |u: f64| -> f64 {
+                ch.iter()
+                    .zip(&s)
+                    .map(|(&(_, y, w, k), &s)| w * (y - (u.exp() * s + k).ln()).powi(2))
+                    .sum()
+            };
+            let mut u = ch
+                .iter()
+                .zip(&s)
+                .map(|(p, s)| p.2 * (p.1 - s.ln()))
+                .sum::<f64>()
+                / wsum;
+            let mut now = cost(u);
+            if ch.iter().all(|p| p.3 == 0.0) {
+                return now;
+            }
+            for _ in 0..50 {
+                let (mut num, mut den) = (0.0, 0.0);
+                for (&(_, y, w, k), &s) in ch.iter().zip(&s) {
+                    let signal = u.exp() * s;
+                    let slope = signal / (signal + k);
+                    num += w * (y - (signal + k).ln()) * slope;
+                    den += w * slope * slope;
+                }
+                let mut step = num / den;
+                let mut next = cost(u + step);
+                while next > now && step.abs() > 1e-15 {
+                    step *= 0.5;
+                    next = cost(u + step);
+                }
+                if next > now {
+                    break;
+                }
+                u += step;
+                let gain = now - next;
+                now = next;
+                if gain <= 1e-12 * now.max(1.0) {
+                    break;
+                }
+            }
+            now
         })
         .sum()
 }
@@ -179,15 +241,21 @@ fn chi2(bands: &[Vec<(f64, f64, f64)>], shape: impl Fn(f64) -> f64) -> f64 {
 /// The filter the recording's PSD shows (a published table, which has none: its short-τ
 /// Allan deviation, [`fit_adev`]), if one earns its place.
 pub fn fit(a: &Analysis) -> Option<FittedFilter> {
-    fit_excluding(a, &[])
+    fit_excluding(a, &[], &Default::default())
 }
 
 /// [`fit`] without the PSD bands inside each channel's ranges of `exclude` (Hz): a broad
 /// resonance ([`super::resonance`]) in the top decade would bend the roll-off the filter is
 /// read from. With `exclude` given per channel, the Allan variance at m ≤ [`ADEV_MAX_M`] of
-/// the channels without a range adds its χ² ([`fit_adev`]'s) to the roll-off's.
-pub fn fit_excluding(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> Option<FittedFilter> {
-    let b = bands(a, exclude);
+/// the channels without a range adds its χ² ([`fit_adev`]'s) to the roll-off's. `stages`
+/// (gyros, accelerometers) hold the quantization the recording's lattice shows, which adds to
+/// the filtered noise in both.
+pub fn fit_excluding(
+    a: &Analysis,
+    exclude: &[Vec<(f64, f64)>],
+    stages: &[OutputStage; 2],
+) -> Option<FittedFilter> {
+    let b = bands(a, exclude, stages);
     let count: usize = b.iter().map(Vec::len).sum();
     if count < 4 {
         return fit_adev(a);
@@ -196,42 +264,114 @@ pub fn fit_excluding(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> Option<Fitted
     // short-τ Allan variance of the channels without one weighs in too: it holds the filter's
     // mark at τ = Δt … 64Δt, where the closure's bands are tightest, which the top decade of
     // the PSD alone leaves loose. Before (`exclude` empty) a bump would bend it.
-    let pts: Vec<_> = adev_points(a)
+    let pts: Vec<_> = adev_points(a, stages)
         .into_iter()
         .enumerate()
-        .filter(|(ch, p)| exclude.get(*ch).is_some_and(Vec::is_empty) && p.len() >= 4)
-        .map(|x| x.1)
+        .map(|(ch, p)| {
+            let kept = exclude.get(ch).is_some_and(Vec::is_empty) && p.len() >= 4;
+            if kept { p } else { Vec::new() }
+        })
         .collect();
-    let flat = chi2(&b, |_| 0.0) + adev_chi2(&pts, a.dt, &|_| 1.0);
+    let flat = chi2(&b, |_, _| 1.0) + adev_chi2(&pts, a.dt, &|_| 1.0);
     let count = count + pts.iter().map(Vec::len).sum::<usize>();
-    best(a.dt, flat, count, false, |w| {
-        chi2(&b, |f| w.psd_ratio(f, a.dt).max(1e-300).ln()) + adev_chi2(&pts, a.dt, &|m| w.ratio(m))
+    let (bh, ph) = (halves(&b), halves(&pts));
+    best(a.dt, flat, count, false, |w, accel| {
+        let k = usize::from(accel);
+        chi2(bh[k], |_, f| w.psd_ratio(f, a.dt)) + adev_chi2(ph[k], a.dt, &|m| w.ratio(m))
     })
 }
 
-/// The candidate of least χ² (`score`), kept when it gains [`FILTER_PENALTY`] over `flat`.
+/// χ² of the top-of-band PSD ([`fit_excluding`]'s bands, each channel's ranges of `exclude`
+/// left out) against each channel's model density `psd(ch, f)` (none: the channel left out),
+/// its level free: what a fitted model says of the roll-off, which its Allan variance alone
+/// leaves loose (a carried LSB's noise rising to the Nyquist frequency under a steeper filter
+/// has nearly the Allan variance of a rounded one under the true filter).
+pub fn psd_misfit(
+    a: &Analysis,
+    exclude: &[Vec<(f64, f64)>],
+    psd: impl Fn(usize, f64) -> Option<f64>,
+) -> f64 {
+    let mut b = bands(a, exclude, &Default::default());
+    for (ch, band) in b.iter_mut().enumerate() {
+        if psd(ch, 1.0).is_none() {
+            band.clear();
+        }
+    }
+    chi2(&b, |ch, f| psd(ch, f).unwrap_or(1.0))
+}
+
+/// The candidate of least χ² (`score(w, accel)`: the gyros' or the accelerometers' channels),
+/// kept when it gains [`FILTER_PENALTY`] over `flat`. The accelerometers get a filter of their
+/// own at the same internal rate and read ([`FilterSpec::accel`]) when the best such pair
+/// gains [`FILTER_PENALTY`] more over the best single filter: a unit's sensors often have
+/// bandwidths set apart, and one filter for both then fits neither. Not from a table's Allan
+/// deviation (`from_adev`): there no candidate comes near the points' precision (χ² 60 per
+/// point on the ADIS16448 table), so a second filter gains by trading misfits, and the
+/// closure got worse (gyro x and y of that table: 77 of 83 τ inside, 82 with one filter).
 fn best(
     dt: f64,
     flat: f64,
     bands: usize,
     from_adev: bool,
-    score: impl Fn(&WhiteAllan) -> f64,
+    score: impl Fn(&WhiteAllan, bool) -> f64,
 ) -> Option<FittedFilter> {
-    let best = candidates(dt)
+    let scored: Vec<(FilterSpec, ReadRatio, [f64; 2])> = candidates(dt)
         .into_iter()
         .map(|(spec, read)| {
-            let c = score(&WhiteAllan::new(&spec, read));
+            let w = WhiteAllan::new(&spec, read);
+            let c = [score(&w, false), score(&w, true)];
             (spec, read, c)
         })
-        .min_by(|x, y| x.2.total_cmp(&y.2))?;
-    (flat - best.2 > FILTER_PENALTY).then_some(FittedFilter {
-        spec: best.0,
-        read: best.1,
-        chi2: best.2,
+        .collect();
+    let total = |c: &[f64; 2]| c[0] + c[1];
+    let shared = scored
+        .iter()
+        .min_by(|x, y| total(&x.2).total_cmp(&total(&y.2)))?;
+    // Per (internal rate, read): the gyros' best kind and the accelerometers' best kind.
+    let same = |a: &(FilterSpec, ReadRatio, [f64; 2]), b: &(FilterSpec, ReadRatio, [f64; 2])| {
+        a.0.internal_rate_hz == b.0.internal_rate_hz && a.1 == b.1
+    };
+    let mut pair: Option<(FilterSpec, ReadRatio, f64)> = None;
+    for (i, g) in scored.iter().enumerate() {
+        if scored[..i].iter().any(|x| same(x, g)) {
+            continue;
+        }
+        let by = |k: usize| {
+            scored
+                .iter()
+                .filter(|x| same(x, g))
+                .min_by(|x, y| x.2[k].total_cmp(&y.2[k]))
+                .expect("the group holds g")
+        };
+        let (gyro, accel) = (by(0), by(1));
+        let split = gyro.2[0] + accel.2[1];
+        if gyro.0.kind != accel.0.kind && pair.as_ref().is_none_or(|p| split < p.2) {
+            let spec = FilterSpec {
+                accel: Some(accel.0.kind.clone()),
+                ..gyro.0.clone()
+            };
+            pair = Some((spec, gyro.1, split));
+        }
+    }
+    let chosen = match pair {
+        Some(p) if !from_adev && total(&shared.2) - p.2 > FILTER_PENALTY => p,
+        _ => (shared.0.clone(), shared.1, total(&shared.2)),
+    };
+    (flat - chosen.2 > FILTER_PENALTY).then_some(FittedFilter {
+        shared_chi2: total(&shared.2),
+        spec: chosen.0,
+        read: chosen.1,
+        chi2: chosen.2,
         flat_chi2: flat,
         bands,
         from_adev,
     })
+}
+
+/// The two sensors' halves of per-channel data (gyro x y z, accel x y z).
+fn halves<T>(v: &[T]) -> [&[T]; 2] {
+    let k = v.len().min(3);
+    [&v[..k], &v[k..]]
 }
 
 /// A filter kind's template keys.
@@ -253,12 +393,15 @@ fn kind_toml(kind: &FilterKind) -> String {
 /// The `[output_filter]` table of a fitted filter.
 pub fn toml(f: &FittedFilter) -> String {
     let kind = kind_toml(&f.spec.kind);
-    let accel = f.spec.accel.as_ref().map_or(String::new(), |k| {
-        format!(
-            "\n# The accelerometers' own filter.\n[output_filter.accel]\n{}\n",
+    let accel = match &f.spec.accel {
+        None => String::new(),
+        Some(k) => format!(
+            "\n# The accelerometers' own filter: with it χ² {:.1}, with one filter for both {:.1} (kept when it gains more than {FILTER_PENALTY}).\n[output_filter.accel]\n{}\n",
+            f.chi2,
+            f.shared_chi2,
             kind_toml(k)
-        )
-    });
+        ),
+    };
     let source = if f.from_adev {
         format!(
             "the Allan deviation at m ≤ {ADEV_MAX_M} (docs/fit.md): χ² {:.1} over {} points",
@@ -298,23 +441,26 @@ pub const ADEV_MAX_M: usize = 64;
 /// with the least χ² over the six channels is kept when it gains [`FILTER_PENALTY`] over
 /// r ≡ 1.
 pub fn fit_adev(a: &Analysis) -> Option<FittedFilter> {
-    let chans = adev_points(a);
+    let chans = adev_points(a, &Default::default());
     let count: usize = chans.iter().map(Vec::len).sum();
     if chans.iter().any(|c| c.len() < 4) {
         return None;
     }
     let flat = adev_chi2(&chans, a.dt, &|_| 1.0);
-    best(a.dt, flat, count, true, |w| {
-        adev_chi2(&chans, a.dt, &|m| w.ratio(m))
+    let half = halves(&chans);
+    best(a.dt, flat, count, true, |w, accel| {
+        adev_chi2(half[usize::from(accel)], a.dt, &|m| w.ratio(m))
     })
 }
 
-/// Each channel's Allan variance at m ≤ [`ADEV_MAX_M`] (and ≤ n/8): (m, σ̂², weight edf/2).
-fn adev_points(a: &Analysis) -> Vec<Vec<(usize, f64, f64)>> {
+/// Each channel's Allan variance at m ≤ [`ADEV_MAX_M`] (and ≤ n/8): (m, σ̂², weight edf/2,
+/// the quantization's Allan variance in `stages`).
+fn adev_points(a: &Analysis, stages: &[OutputStage; 2]) -> Vec<Vec<Point>> {
     let n = a.samples as usize;
     a.channels
         .iter()
-        .map(|c| {
+        .enumerate()
+        .map(|(ch, c)| {
             c.adev
                 .iter()
                 .filter(|p| p.m <= ADEV_MAX_M && p.m <= n / 8 && p.adev > 0.0)
@@ -324,34 +470,38 @@ fn adev_points(a: &Analysis) -> Vec<Vec<(usize, f64, f64)>> {
                         n + 1,
                         p.m,
                     ) / 2.0;
-                    (p.m, p.adev * p.adev, w)
+                    let known = stages[ch / 3].known(p.m, a.dt);
+                    (p.m as f64, p.adev * p.adev, w, known)
                 })
                 .collect()
         })
         .collect()
 }
 
-/// χ² of the channels' points against N²·r(m)/τ + C, N² and C free per channel.
-fn adev_chi2(chans: &[Vec<(usize, f64, f64)>], dt: f64, ratio: &dyn Fn(usize) -> f64) -> f64 {
+/// χ² of the channels' points against N²·r(m)/τ + C + K(m), N² and C free per channel and K
+/// the known quantization.
+fn adev_chi2(chans: &[Vec<Point>], dt: f64, ratio: &dyn Fn(usize) -> f64) -> f64 {
     chans
         .iter()
         .map(|pts| {
-            // Minimise Σ w (1 − (x·u + C)/y)² over (x, C), u = r(m)/τ: 2×2 normal equations.
+            // Minimise Σ w (1 − K/y − (x·u + C·v))² over (x, C), u = r(m)/(τy), v = 1/y: 2×2
+            // normal equations.
             let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
-            for &(m, y, w) in pts {
-                let u = ratio(m) / (m as f64 * dt) / y;
+            for &(m, y, w, k) in pts {
+                let u = ratio(m as usize) / (m * dt) / y;
                 let v = 1.0 / y;
+                let t = 1.0 - k / y;
                 a11 += w * u * u;
                 a12 += w * u * v;
                 a22 += w * v * v;
-                b1 += w * u;
-                b2 += w * v;
+                b1 += w * u * t;
+                b2 += w * v * t;
             }
             let det = a11 * a22 - a12 * a12;
             let (x, c) = ((b1 * a22 - b2 * a12) / det, (a11 * b2 - a12 * b1) / det);
             pts.iter()
-                .map(|&(m, y, w)| {
-                    let model = x * ratio(m) / (m as f64 * dt) + c;
+                .map(|&(m, y, w, k)| {
+                    let model = x * ratio(m as usize) / (m * dt) + c + k;
                     w * (1.0 - model / y).powi(2)
                 })
                 .sum::<f64>()
@@ -362,6 +512,62 @@ fn adev_chi2(chans: &[Vec<(usize, f64, f64)>], dt: f64, ratio: &dyn Fn(usize) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The roll-off's χ² finds each channel's level under a known quantization floor: bands
+    /// drawn exactly from ln(c·ratio + k) give χ² at round-off, for a level c it starts far
+    /// from (the floor is half the density at the top band); the same bands read with no
+    /// floor leave a misfit; the shape's scale is the level's, so twice the ratio fits as well.
+    #[test]
+    fn chi2_fits_the_level_under_a_known_floor() {
+        let ratio = |ch: usize, f: f64| 1.0 / (1.0 + (f / (10.0 + ch as f64)).powi(4));
+        let bands = |floor: bool| -> Vec<Vec<Point>> {
+            (0..2)
+                .map(|ch| {
+                    let c = 3e-6 * (ch + 1) as f64;
+                    let k = c * ratio(ch, 50.0);
+                    (0..40)
+                        .map(|i| {
+                            let f = 5.0 + 45.0 * i as f64 / 39.0;
+                            let y = (c * ratio(ch, f) + k).ln();
+                            (f, y, 50.0, if floor { k } else { 0.0 })
+                        })
+                        .collect()
+                })
+                .collect()
+        };
+        let exact = chi2(&bands(true), ratio);
+        assert!(exact < 1e-20, "{exact}");
+        let without = chi2(&bands(false), ratio);
+        assert!(without > 1.0, "{without}");
+        let scaled = chi2(&bands(true), |ch, f| 2.0 * ratio(ch, f));
+        assert!(scaled < 1e-20, "{scaled}");
+    }
+
+    /// The short-τ Allan variance's χ² subtracts the known quantization: points drawn exactly
+    /// from x·r(m)/τ + C + K(m) give χ² at round-off, and without K a misfit.
+    #[test]
+    fn adev_chi2_takes_the_known_part() {
+        let (dt, x, c) = (0.01, 2e-6, 1e-9);
+        let r = |m: usize| 1.0 - 0.4 / m as f64;
+        let pts = |known: bool| -> Vec<Vec<Point>> {
+            // A carried LSB of 1 °/s: 3Q²/τ² is 6 % of σ² at m = 64 and 86 % at m = 1.
+            let stage = OutputStage::carried(1f64.to_radians(), dt);
+            vec![
+                [1usize, 2, 4, 8, 16, 32, 64]
+                    .iter()
+                    .map(|&m| {
+                        let k = stage.known(m, dt);
+                        let y = x * r(m) / (m as f64 * dt) + c + k;
+                        (m as f64, y, 10.0, if known { k } else { 0.0 })
+                    })
+                    .collect(),
+            ]
+        };
+        let exact = adev_chi2(&pts(true), dt, &r);
+        assert!(exact < 1e-20, "{exact}");
+        let without = adev_chi2(&pts(false), dt, &r);
+        assert!(without > 1e-3, "{without}");
+    }
 
     /// The table `fit` writes reads back as the same filter, the accelerometers' own included.
     #[test]
@@ -380,6 +586,7 @@ mod tests {
                 read: ReadRatio::from_rates(819.2, 100.0).unwrap(),
                 chi2: 1.0,
                 flat_chi2: 100.0,
+                shared_chi2: 1.0,
                 bands: 10,
                 from_adev: false,
             };
