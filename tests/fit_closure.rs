@@ -3,8 +3,9 @@
 //! T near or below Δt; every term's theory is what the generator produces at the record's
 //! rate, so a record simulated from known templates, fitted and simulated again closes at every
 //! octave and PSD band. What `fit` refuses: records too short for its terms, non-uniform time
-//! steps, records that are not static. And a public recording of a real ADIS16448 (its Allan
-//! deviation table, MIT, `tests/data/imu_utils/`).
+//! steps, records that are not static. And public recordings of real units: the ADIS16448's
+//! and the BMI160's Allan deviation tables (MIT, `tests/data/imu_utils/`) and an MPU-6050's
+//! static and moving records (EUPL-1.2, `tests/data/sensor-fusion/`).
 
 mod common;
 
@@ -502,4 +503,86 @@ fn real_unit_tables_close_above_thirty_samples() {
         // 6 channels × the table's τ from 0.15 s to T/8 (900 s, 1500 s).
         assert!(rows >= 6 * 50, "{unit}: {rows}");
     }
+}
+
+/// A recording of the sensor-fusion data set (tests/data/sensor-fusion/README.md), its register
+/// counts written as the CSV a user has: deg/s and g, no time column.
+fn mpu6050_csv(name: &str, dir: &Path) -> std::path::PathBuf {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!(
+        "tests/data/sensor-fusion/mpu6050-{name}-counts.csv"
+    ));
+    let text = std::fs::read_to_string(&src).unwrap();
+    let mut csv = String::from("gx,gy,gz,ax,ay,az\n");
+    for line in text.lines().skip(1) {
+        let row: Vec<String> = line
+            .split(',')
+            .enumerate()
+            .map(|(i, c)| {
+                let count: f64 = c.parse().unwrap();
+                format!("{}", count / if i < 3 { 131.0 } else { 4096.0 })
+            })
+            .collect();
+        csv.push_str(&row.join(","));
+        csv.push('\n');
+    }
+    let out = dir.join(format!("mpu6050-{name}.csv"));
+    std::fs::write(&out, csv).unwrap();
+    out
+}
+
+/// The real MPU-6050's 655 s static recording, whole (65 067 samples; sunsided/sensor-fusion,
+/// EUPL-1.2), fitted as a user fits it: without the host's time tags (bursts of reads, which
+/// `fit` refuses; the script `scripts/fit_real.sh` shows that) at its mean rate of 99.32 Hz. The
+/// LSBs of its ±250 deg/s and ±8 g ranges, 1/131 deg/s and 1/4096 g, are read from the lattice
+/// to the template's eight digits, and a record simulated from the template closes at every
+/// octave from Δt to T/8 (13) and every PSD band from 0.01 Hz to the Nyquist frequency (19) on
+/// every channel. Its record of a turn about z is refused as not static, and leaves no file.
+#[test]
+fn a_real_mpu6050_recording_closes_and_a_moving_one_is_refused() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let rate = 99.32;
+    let csv = mpu6050_csv("static", d);
+    let (out, report) = (d.join("mpu6050.toml"), d.join("mpu6050.md"));
+    let flags = [
+        "--rate",
+        "99.32",
+        "--gyro-unit",
+        "deg/s",
+        "--accel-unit",
+        "g",
+    ];
+    let mut args = vec!["fit", p(&csv), "-o", p(&out), "--report", p(&report)];
+    args.extend(flags);
+    ok(imu_emu(&args));
+    let m = template::load(out.to_str().unwrap()).unwrap();
+    for (sensor, lsb) in [
+        (&m.gyro, 1f64.to_radians() / 131.0),
+        (&m.accel, imu_emu::units::G0 / 4096.0),
+    ] {
+        let rate_lsb = match sensor.quantization {
+            Some(imu_emu::units::Lsb::Rate(q)) => q,
+            Some(imu_emu::units::Lsb::Increment(q)) => q * rate,
+            None => panic!("no LSB read: {m:?}"),
+        };
+        // Eight significant digits written: half a unit of the last is 5e-8 of the value.
+        assert!((rate_lsb / lsb - 1.0).abs() < 5e-8, "{rate_lsb} vs {lsb}");
+    }
+    let md = std::fs::read_to_string(&report).unwrap();
+    let names = [
+        "gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z",
+    ];
+    for name in names {
+        let want =
+            format!("- {name}: Allan deviation 13 of 13 octaves inside; PSD 19 of 19 bands inside");
+        assert!(md.contains(&want), "{want}\n{md}");
+    }
+
+    let moving = mpu6050_csv("moving", d);
+    let refused = d.join("moving.toml");
+    let mut args = vec!["fit", p(&moving), "-o", p(&refused), "--rate", "100"];
+    args.extend(&flags[2..]);
+    let e = err(imu_emu(&args));
+    assert!(e.contains("not a static recording"), "{e}");
+    assert!(!refused.exists());
 }
