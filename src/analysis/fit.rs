@@ -272,14 +272,15 @@ fn weighted_ls(
         .iter()
         .map(|&c| pts.iter().map(|p| basis(TERMS[c], p.tau, floor)).collect())
         .collect();
-    weighted_lstsq(a, y, w)
+    let a: Vec<&[f64]> = a.iter().map(Vec::as_slice).collect();
+    weighted_lstsq(&a, y, w)
 }
 
 /// Weighted least squares min Σ w_j (y_j − Σ_c x_c a_c[j])² over the columns `a`, by
 /// Householder QR of the row-weighted, column-normalised design (the basis values of the
 /// Allan-variance terms span many decades). None when a column vanishes or the design is
 /// singular.
-pub(crate) fn weighted_lstsq(cols: Vec<Vec<f64>>, y: &[f64], w: &[f64]) -> Option<Vec<f64>> {
+pub(crate) fn weighted_lstsq(cols: &[&[f64]], y: &[f64], w: &[f64]) -> Option<Vec<f64>> {
     let k = cols.len();
     let n = y.len();
     let mut a = DMatrix::from_fn(n, k, |i, c| w[i].sqrt() * cols[c][i]);
