@@ -118,8 +118,9 @@ mod tests {
     use std::f64::consts::PI;
 
     /// ∫₀^{1/(2Δt)} of a one-sided PSD times the discrete Allan-variance transfer
-    /// 2 sin⁴(πfmΔt)/(m² sin²(πfΔt)), by the midpoint rule: both integrands are cosine
-    /// polynomials of degree < 2m in 2πfΔt, which the rule with n > 2m points takes exactly.
+    /// 2 sin⁴(πfmΔt)/(m² sin²(πfΔt)) (m = 0: times 1, the covariance), by the midpoint rule:
+    /// the integrands are cosine polynomials in 2πfΔt of degree at most 2m + 2, which the
+    /// rule with n = 4096 points takes exactly for the m tested.
     fn integrate(psd: impl Fn(f64) -> f64, m: usize, dt: f64) -> f64 {
         let n = 4096;
         let df = 0.5 / dt / n as f64;
