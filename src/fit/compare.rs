@@ -60,6 +60,7 @@ pub fn fit_all_with_resonances(a: &Analysis, res: &[Vec<Resonance>]) -> Fitted {
         .iter()
         .map(|r| r.iter().map(Resonance::range).collect())
         .collect();
+    let roll = super::filter::roll_off(a, &ranges);
     let cost = |f: &[Option<AxisFit>]| f.iter().flatten().map(|f| f.cost).sum::<f64>();
     let mut best: Option<(f64, Fitted)> = None;
     for carry in if lattice {
@@ -68,7 +69,7 @@ pub fn fit_all_with_resonances(a: &Analysis, res: &[Vec<Resonance>]) -> Fitted {
         vec![false]
     } {
         // The filter is read under each quantizer: the LSB's noise adds to the roll-off.
-        let filter = super::filter::fit_excluding(a, &ranges, &output_stages(a, carry));
+        let filter = super::filter::fit_roll_off(a, &roll, &ranges, &output_stages(a, carry));
         let mut options = vec![filter.clone()];
         if filter.is_some() && series {
             options.push(None);
@@ -84,7 +85,7 @@ pub fn fit_all_with_resonances(a: &Analysis, res: &[Vec<Resonance>]) -> Fitted {
             let penalty = filters as f64 * super::filter::FILTER_PENALTY;
             // The roll-off the fitted model draws weighs in: the Allan variance alone can take
             // a carried LSB under a steeper filter for a rounded one under the true filter.
-            let psd = super::filter::psd_misfit(a, &ranges, |ch, f| {
+            let psd = super::filter::psd_misfit(&roll, |ch, f| {
                 fits[ch]
                     .as_ref()
                     .map(|x| super::resonance::model_psd(&x.model, f))

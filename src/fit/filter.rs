@@ -148,33 +148,53 @@ type Point = (f64, f64, f64, f64);
 
 /// The top-of-band PSD of each channel: (f, ln P̂, weight ν/2, quantization density) per band,
 /// leaving out the bands inside the channel's ranges of `exclude` (Hz; its broad resonances).
-fn bands(a: &Analysis, exclude: &[Vec<(f64, f64)>], stages: &[OutputStage; 2]) -> Vec<Vec<Point>> {
+/// Banded once per recording and ranges ([`roll_off`]), and read under each quantizer
+/// ([`fit_roll_off`]) and against each fitted model ([`psd_misfit`]).
+pub struct RollOff(Vec<Vec<Point>>);
+
+/// The recording's [`RollOff`], no quantization density set.
+pub fn roll_off(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> RollOff {
     let nyquist = 0.5 / a.dt;
-    a.channels
-        .iter()
-        .enumerate()
-        .map(|(ch, c)| {
-            let skip = exclude.get(ch).map_or(&[][..], Vec::as_slice);
-            let stage = &stages[ch / 3];
-            let p = &c.psd;
-            if p.segments == 0 || p.freq.len() < 3 {
-                return Vec::new();
-            }
-            let end = p.freq.len() - 1;
-            let edf = WelchEdf::new(2 * end, p.segments);
-            let b = banded(p, BANDS_PER_DECADE, 0.5);
-            b.freq
-                .iter()
-                .zip(&b.density)
-                .zip(&b.bins)
-                .filter(|((f, d), _)| **f >= FROM_NYQUIST * nyquist && **d > 0.0)
-                .filter(|((f, _), _)| !skip.iter().any(|r| **f >= r.0 && **f <= r.1))
-                .map(|((&f, &d), &m)| {
-                    (f, d.ln(), edf.edf(m) / 2.0, stage.quantization_psd(f, a.dt))
-                })
-                .collect()
-        })
-        .collect()
+    RollOff(
+        a.channels
+            .iter()
+            .enumerate()
+            .map(|(ch, c)| {
+                let skip = exclude.get(ch).map_or(&[][..], Vec::as_slice);
+                let p = &c.psd;
+                if p.segments == 0 || p.freq.len() < 3 {
+                    return Vec::new();
+                }
+                let end = p.freq.len() - 1;
+                let edf = WelchEdf::new(2 * end, p.segments);
+                let b = banded(p, BANDS_PER_DECADE, 0.5);
+                b.freq
+                    .iter()
+                    .zip(&b.density)
+                    .zip(&b.bins)
+                    .filter(|((f, d), _)| **f >= FROM_NYQUIST * nyquist && **d > 0.0)
+                    .filter(|((f, _), _)| !skip.iter().any(|r| **f >= r.0 && **f <= r.1))
+                    .map(|((&f, &d), &m)| (f, d.ln(), edf.edf(m) / 2.0, 0.0))
+                    .collect()
+            })
+            .collect(),
+    )
+}
+
+impl RollOff {
+    /// The bands with the quantization density of `stages` (gyros, accelerometers) set.
+    fn quantized(&self, stages: &[OutputStage; 2], dt: f64) -> Vec<Vec<Point>> {
+        self.0
+            .iter()
+            .enumerate()
+            .map(|(ch, b)| {
+                let stage = &stages[ch / 3];
+                b.iter()
+                    .map(|&(f, y, w, _)| (f, y, w, stage.quantization_psd(f, dt)))
+                    .collect()
+            })
+            .collect()
+    }
 }
 
 /// χ² of the bands against ln(c·ratio(f) + k(f)), each channel's level c free and k its known
@@ -255,7 +275,17 @@ pub fn fit_excluding(
     exclude: &[Vec<(f64, f64)>],
     stages: &[OutputStage; 2],
 ) -> Option<FittedFilter> {
-    let b = bands(a, exclude, stages);
+    fit_roll_off(a, &roll_off(a, exclude), exclude, stages)
+}
+
+/// [`fit_excluding`] on the recording's [`RollOff`] for the same `exclude`, banded beforehand.
+pub fn fit_roll_off(
+    a: &Analysis,
+    roll: &RollOff,
+    exclude: &[Vec<(f64, f64)>],
+    stages: &[OutputStage; 2],
+) -> Option<FittedFilter> {
+    let b = roll.quantized(stages, a.dt);
     let count: usize = b.iter().map(Vec::len).sum();
     if count < 4 {
         return fit_adev(a);
@@ -281,17 +311,13 @@ pub fn fit_excluding(
     })
 }
 
-/// χ² of the top-of-band PSD ([`fit_excluding`]'s bands, each channel's ranges of `exclude`
-/// left out) against each channel's model density `psd(ch, f)` (none: the channel left out),
-/// its level free: what a fitted model says of the roll-off, which its Allan variance alone
-/// leaves loose (a carried LSB's noise rising to the Nyquist frequency under a steeper filter
-/// has nearly the Allan variance of a rounded one under the true filter).
-pub fn psd_misfit(
-    a: &Analysis,
-    exclude: &[Vec<(f64, f64)>],
-    psd: impl Fn(usize, f64) -> Option<f64>,
-) -> f64 {
-    let mut b = bands(a, exclude, &Default::default());
+/// χ² of the top-of-band PSD `roll` against each channel's model density `psd(ch, f)` (none:
+/// the channel left out), its level free: what a fitted model says of the roll-off, which its
+/// Allan variance alone leaves loose (a carried LSB's noise rising to the Nyquist frequency
+/// under a steeper filter has nearly the Allan variance of a rounded one under the true
+/// filter). The model holds the quantization, so the bands' own density is left at zero.
+pub fn psd_misfit(roll: &RollOff, psd: impl Fn(usize, f64) -> Option<f64>) -> f64 {
+    let mut b = roll.0.clone();
     for (ch, band) in b.iter_mut().enumerate() {
         if psd(ch, 1.0).is_none() {
             band.clear();
