@@ -159,11 +159,25 @@ fn fresh_dir(root: &Path) -> tempfile::TempDir {
     }
     let bin = dir.path().join(".doc-bin");
     std::fs::create_dir(&bin).unwrap();
-    let exe = bin.join("imu-emu");
-    std::fs::write(&exe, wrapper(Path::new(env!("CARGO_BIN_EXE_imu-emu")))).unwrap();
-    use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(&exe, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let text = wrapper(Path::new(env!("CARGO_BIN_EXE_imu-emu")));
+    install_script(&text, &bin.join("imu-emu"));
     dir
+}
+
+/// Writes the executable script `to` with `text` through `install`, not from this process: a
+/// child that another test thread forks while this process holds a write descriptor on the
+/// file keeps it open until the child execs, and running the file meanwhile fails with
+/// ETXTBSY ("Text file busy", seen in CI). The source file written here is never executed.
+fn install_script(text: &str, to: &Path) {
+    let source = to.with_extension("source");
+    std::fs::write(&source, text).unwrap();
+    let status = Command::new("install")
+        .args(["-m", "755"])
+        .arg(&source)
+        .arg(to)
+        .status()
+        .expect("run install");
+    assert!(status.success(), "install {}: {status}", to.display());
 }
 
 fn copy_tree(from: &Path, to: &Path) {
@@ -322,13 +336,9 @@ fn console_blocks_run_only_prompted_lines_and_markers_need_a_reason() {
 fn the_wrapper_caps_durations_only() {
     let dir = tempfile::tempdir().unwrap();
     let echo = dir.path().join("echo-args");
-    std::fs::write(&echo, "#!/bin/sh\necho \"$@\"\n").unwrap();
+    install_script("#!/bin/sh\necho \"$@\"\n", &echo);
     let wrap = dir.path().join("imu-emu");
-    std::fs::write(&wrap, wrapper(&echo)).unwrap();
-    use std::os::unix::fs::PermissionsExt;
-    for f in [&echo, &wrap] {
-        std::fs::set_permissions(f, std::fs::Permissions::from_mode(0o755)).unwrap();
-    }
+    install_script(&wrapper(&echo), &wrap);
     let run = |args: &[&str], cap: &str| {
         let out = Command::new(&wrap)
             .args(args)
