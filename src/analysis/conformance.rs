@@ -109,36 +109,46 @@ impl TermRow {
 }
 
 /// The template's theory of the six channels at the analysis's rate; with an output filter
-/// the white noise is the density the output carries at long τ (N·√r_∞).
+/// the white noise is the density the output carries at long τ, √(N²·r_∞ + P²) (P the
+/// noise added after the filter).
 pub fn channel_theory(model: &ImuModel, dt: f64) -> Vec<AxisTheory> {
     let mut v = triad(&model.gyro, model.quantization_mode, dt).to_vec();
     v.extend(triad(&model.accel, model.quantization_mode, dt));
     if let Some(w) = white_allan(model, dt) {
         for (ch, a) in v.iter_mut().enumerate() {
-            a.white *= w.channel(ch).long_tau().sqrt();
+            let p2 = a.post_filter.powi(2);
+            a.white = ((a.white.powi(2) - p2) * w.channel(ch).long_tau() + p2).sqrt();
         }
     }
     v
 }
 
+/// N²·r_∞: the filtered part of a channel's white density squared (its post-filter noise
+/// taken out).
+fn filtered_white2(t: &AxisTheory) -> f64 {
+    (t.white.powi(2) - t.post_filter.powi(2)).max(0.0)
+}
+
 /// Allan variance at cluster size m of a channel whose theory is `t` (from
 /// [`channel_theory`]), through the output filter when there is one: the white term
-/// N²r_∞/τ becomes N²·r(m)/τ, the filtered white noise of [`WhiteAllan`]; the slower terms
-/// are left as they are (the filter's mark on them at τ ≈ Δt is below the white noise's).
+/// N²r_∞/τ becomes N²·r(m)/τ, the filtered white noise of [`WhiteAllan`]; the noise added
+/// after the filter stays P²/τ; the slower terms are left as they are (the filter's mark on
+/// them at τ ≈ Δt is below the white noise's).
 pub fn filtered_avar(t: &AxisTheory, filter: Option<&WhiteAllan>, m: usize, dt: f64) -> f64 {
     let avar = t.avar(m, dt);
     filter.map_or(avar, |w| {
-        avar + t.white.powi(2) / (m as f64 * dt) * (w.ratio(m) / w.long_tau() - 1.0)
+        avar + filtered_white2(t) / (m as f64 * dt) * (w.ratio(m) / w.long_tau() - 1.0)
     })
 }
 
 /// One-sided PSD at frequency f of a channel whose theory is `t`, through the output filter
 /// when there is one: the white term 2N²r_∞ takes the filter's folded shape
-/// ([`WhiteAllan::psd_ratio`]); the slower terms are left as they are, as in [`filtered_avar`].
+/// ([`WhiteAllan::psd_ratio`]); the post-filter noise stays flat, 2P²; the slower terms are
+/// left as they are, as in [`filtered_avar`].
 pub fn filtered_psd(t: &AxisTheory, filter: Option<&WhiteAllan>, f: f64, dt: f64) -> f64 {
     let psd = t.psd(f, dt);
     filter.map_or(psd, |w| {
-        psd + 2.0 * t.white.powi(2) * (w.psd_ratio(f, dt) - 1.0)
+        psd + 2.0 * filtered_white2(t) * (w.psd_ratio(f, dt) - 1.0)
     })
 }
 
@@ -386,6 +396,46 @@ mod tests {
         let nu = term_edf(&th, 0.01, &ms, 100_001);
         assert_eq!(nu[1], Some(edf(NoiseType::WhiteRate, 100_001, 1)));
         assert!(nu[0].is_none() && nu[2].is_none());
+    }
+
+    /// Post-filter noise P (`post_filter_noise`) on examples/filtered.toml stays white in the
+    /// theory: each channel's long-τ density squared gains P², its filtered Allan variance
+    /// exactly P²/τ at every m and its PSD a flat 2P²; the filtered part is unchanged.
+    #[test]
+    fn post_filter_noise_stays_white_in_the_theory() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/filtered.toml");
+        let m0 = crate::errors::template::load(path).unwrap();
+        let mut m1 = m0.clone();
+        let (pg, pa) = (m0.gyro.noise[0], m0.accel.noise[0]);
+        m1.gyro.post_filter_noise = [pg; 3];
+        m1.accel.post_filter_noise = [pa; 3];
+        let dt = 1.0 / 204.8;
+        let (t0, t1) = (channel_theory(&m0, dt), channel_theory(&m1, dt));
+        let w = white_allan(&m0, dt).unwrap();
+        let close = |a: f64, b: f64, what: &str| {
+            assert!((a / b - 1.0).abs() < 1e-9, "{what}: {a:e} vs {b:e}")
+        };
+        for ch in 0..6 {
+            let p2 = if ch < 3 { pg * pg } else { pa * pa };
+            let w = Some(w.channel(ch));
+            close(
+                t1[ch].white.powi(2) - t0[ch].white.powi(2),
+                p2,
+                "long-τ density",
+            );
+            for m in [1, 2, 3, 64, 1000] {
+                let d = filtered_avar(&t1[ch], w, m, dt) - filtered_avar(&t0[ch], w, m, dt);
+                close(
+                    d,
+                    p2 / (m as f64 * dt),
+                    &format!("Allan variance at m = {m}"),
+                );
+            }
+            for f in [0.1, 51.2, 102.4] {
+                let d = filtered_psd(&t1[ch], w, f, dt) - filtered_psd(&t0[ch], w, f, dt);
+                close(d, 2.0 * p2, &format!("PSD at {f} Hz"));
+            }
+        }
     }
 
     /// examples/filtered.toml (Bartlett window of 4 + 4 taps, 819.2 → 204.8 Hz, r_∞ = 1):

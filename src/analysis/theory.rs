@@ -36,8 +36,11 @@ use crate::units::Lsb;
 /// The stochastic terms of one axis, in SI.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct AxisTheory {
-    /// White-noise density N (rad/√s or m/s/√s).
+    /// White-noise density N (rad/√s or m/s/√s), with the post-filter noise's.
     pub white: f64,
+    /// The part of `white` added after the output filter (`post_filter_noise`): left
+    /// unfiltered by [`crate::analysis::conformance::filtered_avar`].
+    pub post_filter: f64,
     /// Extra white rate noise from per-sample rounding (same unit as `white`).
     pub rounding_white: f64,
     /// Angle (velocity) quantization Q = q/√12 in carry mode (rad or m/s).
@@ -243,7 +246,8 @@ pub fn triad(m: &TriadModel, mode: QuantMode, dt: f64) -> [AxisTheory; 3] {
             Vec::new()
         };
         AxisTheory {
-            white: m.noise[i],
+            white: m.noise[i].hypot(m.post_filter_noise[i]),
+            post_filter: m.post_filter_noise[i],
             rounding_white,
             quantization,
             random_walk: m.random_walk[i],

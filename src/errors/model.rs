@@ -22,6 +22,10 @@ pub struct TriadModel {
     pub random_walk: [f64; 3],
     /// White-noise density N (ARW / VRW).
     pub noise: [f64; 3],
+    /// White-noise density added after the output filter, at the output rate (same unit as
+    /// `noise`; only with `[output_filter]`): a flat floor under the filtered noise, which
+    /// makes the PSD roll off less towards the Nyquist frequency than the filter alone.
+    pub post_filter_noise: [f64; 3],
     /// Rate ramp R (IEEE Std 952): a bias growing by R per second from the run's start
     /// (rad/s² or m/s³).
     pub ramp: [f64; 3],

@@ -134,6 +134,15 @@ pub(super) fn from_table(t: &toml::Table, path: &Path) -> Result<ImuModel, Templ
     };
     let gyro = triad(t.get("gyro"), "gyro", path)?;
     let accel = triad(t.get("accel"), "accel", path)?;
+    for (name, m) in [("gyro", &gyro), ("accel", &accel)] {
+        if output_filter.is_none() && m.post_filter_noise.iter().any(|n| *n > 0.0) {
+            return Err(key_err(
+                path,
+                &format!("{name}.post_filter_noise"),
+                "needs an [output_filter] (without one, white noise at the output rate is `noise`)",
+            ));
+        }
+    }
     let mut timing = crate::timing::TimingModel::default();
     if let Some(v) = t.get("timing") {
         let table = v
@@ -233,6 +242,10 @@ fn triad(v: Option<&toml::Value>, sensor: &str, path: &Path) -> Result<TriadMode
             "noise" => {
                 m.noise = axes(val, rw).map_err(err)?;
                 nonneg(&m.noise)?
+            }
+            "post_filter_noise" => {
+                m.post_filter_noise = axes(val, rw).map_err(err)?;
+                nonneg(&m.post_filter_noise)?
             }
             "scale_factor" => m.scale_factor = axes(val, Kind::Ratio).map_err(err)?,
             "scale_factor_turn_on" => {

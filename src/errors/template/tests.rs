@@ -155,3 +155,29 @@ fn poor_consumer_mems_is_within_bounds() {
     );
     assert!(m.is_ok(), "{:?}", m.err());
 }
+
+/// `post_filter_noise` is noise added after the output filter: without a filter it would be
+/// `noise` under another name, so it is refused there, naming the key; with one it is read.
+#[test]
+fn post_filter_noise_needs_an_output_filter() {
+    let e = parse(
+        "[accel]\npost_filter_noise = \"0.1 m/s/sqrt(h)\"\n",
+        Path::new("p.toml"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("p.toml")
+            && e.contains("accel.post_filter_noise")
+            && e.contains("[output_filter]"),
+        "{e}"
+    );
+    let m = parse(
+        "[accel]\npost_filter_noise = [\"0 m/s/sqrt(h)\", \"0 m/s/sqrt(h)\", \"0.6 m/s/sqrt(h)\"]\n\
+         [output_filter]\ninternal_rate_hz = 800\nkind = \"moving_average\"\ntaps = 4\n",
+        Path::new("p.toml"),
+    )
+    .unwrap();
+    assert_eq!(m.accel.post_filter_noise, [0.0, 0.0, 0.01]);
+    assert_eq!(m.gyro.post_filter_noise, [0.0; 3]);
+}

@@ -117,6 +117,7 @@ impl Model {
         let b = self.value(Component::BiasInstability);
         AxisTheory {
             white: self.value(Component::WhiteNoise),
+            post_filter: 0.0,
             rounding_white: self.output.rounding.sqrt(),
             quantization: (self.c[Component::Quantization as usize] + self.output.carried).sqrt(),
             random_walk: self.value(Component::RandomWalk),
