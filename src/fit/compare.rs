@@ -82,7 +82,12 @@ pub fn fit_all_with_resonances(a: &Analysis, res: &[Vec<Resonance>]) -> Fitted {
             let filters = f
                 .as_ref()
                 .map_or(0, |f| 1 + usize::from(f.spec.accel.is_some()));
-            let penalty = filters as f64 * super::filter::FILTER_PENALTY;
+            // And each post-filter floor the one it had to beat.
+            let floors = f
+                .as_ref()
+                .map_or(0, |f| f.floors.iter().filter(|x| x.ratio > 0.0).count());
+            let penalty = filters as f64 * super::filter::FILTER_PENALTY
+                + floors as f64 * super::filter::FLOOR_PENALTY;
             // The roll-off the fitted model draws weighs in: the Allan variance alone can take
             // a carried LSB under a steeper filter for a rounded one under the true filter.
             let psd = super::filter::psd_misfit(&roll, |ch, f| {
@@ -122,6 +127,7 @@ fn fit_with(
     let triad = |base: usize| {
         let c = &a.channels;
         let outputs = std::array::from_fn(|i| OutputStage {
+            post_filter: filter.map_or(0.0, |f| f.floors[base + i].ratio),
             sines: super::lines::find(&c[base + i].psd)
                 .iter()
                 .map(|l| (l.amplitude, l.freq))

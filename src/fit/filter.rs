@@ -57,6 +57,8 @@ pub struct FittedFilter {
     pub bands: usize,
     /// Read from a table's shortest τ ([`fit_adev`]) rather than the PSD's roll-off.
     pub from_adev: bool,
+    /// Per channel the post-filter floor ([`floors`]).
+    pub floors: [Floor; 6],
 }
 
 impl FittedFilter {
@@ -208,54 +210,138 @@ fn chi2(bands: &[Vec<Point>], ratio: impl Fn(usize, f64) -> f64) -> f64 {
         .iter()
         .enumerate()
         .map(|(i, ch)| {
-            let s: Vec<f64> = ch.iter().map(|p| ratio(i, p.0).max(1e-300)).collect();
-            let wsum: f64 = ch.iter().map(|p| p.2).sum();
-            if wsum == 0.0 {
-                return 0.0;
-            }
-            let cost = |u: f64| -> f64 {
-                ch.iter()
-                    .zip(&s)
-                    .map(|(&(_, y, w, k), &s)| w * (y - (u.exp() * s + k).ln()).powi(2))
-                    .sum()
-            };
-            let mut u = ch
-                .iter()
-                .zip(&s)
-                .map(|(p, s)| p.2 * (p.1 - s.ln()))
-                .sum::<f64>()
-                / wsum;
-            let mut now = cost(u);
-            if ch.iter().all(|p| p.3 == 0.0) {
-                return now;
-            }
-            for _ in 0..50 {
-                let (mut num, mut den) = (0.0, 0.0);
-                for (&(_, y, w, k), &s) in ch.iter().zip(&s) {
-                    let signal = u.exp() * s;
-                    let slope = signal / (signal + k);
-                    num += w * (y - (signal + k).ln()) * slope;
-                    den += w * slope * slope;
-                }
-                let mut step = num / den;
-                let mut next = cost(u + step);
-                while next > now && step.abs() > 1e-15 {
-                    step *= 0.5;
-                    next = cost(u + step);
-                }
-                if next > now {
-                    break;
-                }
-                u += step;
-                let gain = now - next;
-                now = next;
-                if gain <= 1e-12 * now.max(1.0) {
-                    break;
-                }
-            }
-            now
+            let s: Vec<f64> = ch.iter().map(|p| ratio(i, p.0)).collect();
+            channel_chi2(ch, &s)
         })
         .sum()
+}
+
+/// [`chi2`] of one channel's bands against the shape `s` at them.
+fn channel_chi2(ch: &[Point], s: &[f64]) -> f64 {
+    let s: Vec<f64> = s.iter().map(|x| x.max(1e-300)).collect();
+    let wsum: f64 = ch.iter().map(|p| p.2).sum();
+    if wsum == 0.0 {
+        return 0.0;
+    }
+    let cost = |u: f64| -> f64 {
+        ch.iter()
+            .zip(&s)
+            .map(|(&(_, y, w, k), &s)| w * (y - (u.exp() * s + k).ln()).powi(2))
+            .sum()
+    };
+    let mut u = ch
+        .iter()
+        .zip(&s)
+        .map(|(p, s)| p.2 * (p.1 - s.ln()))
+        .sum::<f64>()
+        / wsum;
+    let mut now = cost(u);
+    if ch.iter().all(|p| p.3 == 0.0) {
+        return now;
+    }
+    for _ in 0..50 {
+        let (mut num, mut den) = (0.0, 0.0);
+        for (&(_, y, w, k), &s) in ch.iter().zip(&s) {
+            let signal = u.exp() * s;
+            let slope = signal / (signal + k);
+            num += w * (y - (signal + k).ln()) * slope;
+            den += w * slope * slope;
+        }
+        let mut step = num / den;
+        let mut next = cost(u + step);
+        while next > now && step.abs() > 1e-15 {
+            step *= 0.5;
+            next = cost(u + step);
+        }
+        if next > now {
+            break;
+        }
+        u += step;
+        let gain = now - next;
+        now = next;
+        if gain <= 1e-12 * now.max(1.0) {
+            break;
+        }
+    }
+    now
+}
+
+/// χ² a channel's post-filter floor must gain to be kept (χ²₁ at 99.9 %: one level).
+pub const FLOOR_PENALTY: f64 = 10.83;
+
+/// Largest floor sought, as a fraction of the filtered density's DC level: a floor that high
+/// is no longer a detail of the roll-off but a different filter.
+const MAX_FLOOR: f64 = 1.0;
+
+/// A channel's white floor after the output filter ([`floors`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Floor {
+    /// P²/N²: the post-filter noise over the filtered white noise's density (φ·r_∞); 0 when
+    /// not kept.
+    pub ratio: f64,
+    /// Its standard deviation from the χ²'s curvature at the minimum (√(2/∂²χ²/∂φ²)·r_∞).
+    pub sd: f64,
+    /// The χ² the floor gained over none.
+    pub gain: f64,
+}
+
+/// Each channel's white floor after the filter `f`: the top-of-band bands fitted to
+/// ln(c·(ratio(f) + φ) + k(f)), the level c and the floor φ ≥ 0 free. A unit's axes need not
+/// roll off alike under one filter (the ADIS16405's z accelerometer keeps more of its noise
+/// near the Nyquist frequency than x and y: 7 % more at 44–50 Hz over 12–16 Hz on run 1); what
+/// the filter leaves flat there is noise it did not shape. Kept when it lowers the channel's
+/// χ² by more than [`FLOOR_PENALTY`].
+pub fn floors(roll: &RollOff, stages: &[OutputStage; 2], dt: f64, f: &FittedFilter) -> [Floor; 6] {
+    let bands = roll.quantized(stages, dt);
+    let white = f.white();
+    std::array::from_fn(|ch| {
+        let Some(b) = bands.get(ch).filter(|b| b.len() >= 4) else {
+            return Floor::default();
+        };
+        let w = white.channel(ch);
+        let ratio: Vec<f64> = b.iter().map(|p| w.psd_ratio(p.0, dt)).collect();
+        let at = |phi: f64| {
+            let s: Vec<f64> = ratio.iter().map(|r| r + phi).collect();
+            channel_chi2(b, &s)
+        };
+        let none = at(0.0);
+        // χ² in φ is smooth with one minimum over the floors that matter; a scan on a
+        // square-root grid brackets it and golden sections close in.
+        let grid: Vec<f64> = (0..=40)
+            .map(|j| MAX_FLOOR * (j as f64 / 40.0).powi(2))
+            .collect();
+        let j = (0..grid.len())
+            .min_by(|&x, &y| at(grid[x]).total_cmp(&at(grid[y])))
+            .expect("grid");
+        let (mut lo, mut hi) = (grid[j.saturating_sub(1)], grid[(j + 1).min(40)]);
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        for _ in 0..60 {
+            let (a, c) = (hi - g * (hi - lo), lo + g * (hi - lo));
+            if at(a) < at(c) {
+                hi = c;
+            } else {
+                lo = a;
+            }
+        }
+        let phi = 0.5 * (lo + hi);
+        let gain = (none - at(phi)).max(0.0);
+        if gain <= FLOOR_PENALTY {
+            return Floor {
+                gain,
+                ..Floor::default()
+            };
+        }
+        // χ² is −2 ln L up to a constant, so Var φ̂ = 2/χ''; the second difference over a
+        // step well inside the minimum's width (a hundredth of φ̂).
+        let h = 0.01 * phi;
+        let curvature = (at(phi + h) - 2.0 * at(phi) + at(phi - h)) / (h * h);
+        let r = w.long_tau();
+        Floor {
+            ratio: phi * r,
+            sd: (2.0 / curvature).sqrt() * r,
+            gain,
+        }
+    })
 }
 
 /// The filter the recording's PSD shows (a published table, which has none: its short-τ
@@ -305,10 +391,12 @@ pub fn fit_roll_off(
     let flat = chi2(&b, |_, _| 1.0) + adev_chi2(&pts, a.dt, &|_| 1.0);
     let count = count + pts.iter().map(Vec::len).sum::<usize>();
     let (bh, ph) = (halves(&b), halves(&pts));
-    best(a.dt, flat, count, false, |w, accel| {
+    let mut f = best(a.dt, flat, count, false, |w, accel| {
         let k = usize::from(accel);
         chi2(bh[k], |_, f| w.psd_ratio(f, a.dt)) + adev_chi2(ph[k], a.dt, &|m| w.ratio(m))
-    })
+    })?;
+    f.floors = floors(roll, stages, a.dt, &f);
+    Some(f)
 }
 
 /// χ² of the top-of-band PSD `roll` against each channel's model density `psd(ch, f)` (none:
@@ -391,6 +479,7 @@ fn best(
         flat_chi2: flat,
         bands,
         from_adev,
+        floors: [Floor::default(); 6],
     })
 }
 
@@ -450,8 +539,34 @@ pub fn toml(f: &FittedFilter) -> String {
             f.read.period()
         ),
     };
+    let floors: Vec<String> = f
+        .floors
+        .iter()
+        .zip(crate::analysis::analyzer::CHANNELS)
+        .filter(|(x, _)| x.gain > 0.0)
+        .map(|(x, name)| {
+            if x.ratio > 0.0 {
+                format!(
+                    "{name} {} ± {} (Δχ² {:.1})",
+                    super::template::sig4(x.ratio),
+                    super::template::sig4(x.sd),
+                    x.gain
+                )
+            } else {
+                format!("{name} none (Δχ² {:.1})", x.gain)
+            }
+        })
+        .collect();
+    let floors = if floors.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "# Post-filter floor per channel, P²/N² ± 1σ (kept when it gains more than {FLOOR_PENALTY}): {}.\n",
+            floors.join(", ")
+        )
+    };
     format!(
-        "\n# Output filter read from {source}\n# against {:.1} for a flat spectrum (kept when it gains more than {FILTER_PENALTY}).\n{read}[output_filter]\ninternal_rate_hz = {}\n{kind}\n{accel}",
+        "\n# Output filter read from {source}\n# against {:.1} for a flat spectrum (kept when it gains more than {FILTER_PENALTY}).\n{read}{floors}[output_filter]\ninternal_rate_hz = {}\n{kind}\n{accel}",
         f.flat_chi2, f.spec.internal_rate_hz
     )
 }
@@ -539,6 +654,55 @@ fn adev_chi2(chans: &[Vec<Point>], dt: f64, ratio: &dyn Fn(usize) -> f64) -> f64
 mod tests {
     use super::*;
 
+    /// Bands drawn exactly from ln(c·(ratio + φ)) under a moving average of 10 taps at 4× the
+    /// output rate (r_∞ = 1.04: 100 and 300 Hz are no nulls of it) give back φ·r_∞ as P²/N²
+    /// to 1e-6 on the channels that have one (φ = 0.05 on gyro z and accel x, with different
+    /// levels c), and no floor on the others.
+    #[test]
+    fn floors_are_read_back_from_exact_bands() {
+        let dt = 0.01;
+        let spec = FilterSpec {
+            internal_rate_hz: 400.0,
+            kind: FilterKind::MovingAverage { taps: 10 },
+            accel: None,
+        };
+        let f = FittedFilter {
+            spec,
+            read: ReadRatio::integer(4),
+            chi2: 0.0,
+            flat_chi2: 0.0,
+            shared_chi2: 0.0,
+            bands: 0,
+            from_adev: false,
+            floors: [Floor::default(); 6],
+        };
+        let w = f.white();
+        let phi = [0.0, 0.0, 0.05, 0.05, 0.0, 0.0];
+        let roll = RollOff(
+            (0..6)
+                .map(|ch| {
+                    let c = 1e-3 * (ch + 1) as f64;
+                    (0..20)
+                        .map(|j| {
+                            let hz = 5.0 + 2.25 * j as f64;
+                            let r = w.channel(ch).psd_ratio(hz, dt);
+                            (hz, (c * (r + phi[ch])).ln(), 500.0, 0.0)
+                        })
+                        .collect()
+                })
+                .collect(),
+        );
+        let got = floors(&roll, &Default::default(), dt, &f);
+        for ch in 0..6 {
+            let want = phi[ch] * w.channel(ch).long_tau();
+            assert!(
+                (got[ch].ratio - want).abs() < 1e-6,
+                "channel {ch}: {:?} vs {want}",
+                got[ch]
+            );
+        }
+    }
+
     /// The roll-off's χ² finds each channel's level under a known quantization floor: bands
     /// drawn exactly from ln(c·ratio + k) give χ² at round-off, for a level c it starts far
     /// from (the floor is half the density at the top band); the same bands read with no
@@ -615,6 +779,7 @@ mod tests {
                 shared_chi2: 1.0,
                 bands: 10,
                 from_adev: false,
+                floors: [Floor::default(); 6],
             };
             let text = toml(&f);
             let t: toml::Table = text.parse().unwrap();

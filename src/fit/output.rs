@@ -27,6 +27,9 @@ pub struct OutputStage {
     pub carried: f64,
     /// The output filter's white-noise Allan variance, when there is one.
     pub white: Option<WhiteAllan>,
+    /// P²/N²: the white noise added after the filter (`post_filter_noise`) over the filtered
+    /// one's density, read from the PSD's floor ([`super::filter::floors`]); 0: none.
+    pub post_filter: f64,
     /// Spectral lines of the axis, known from its PSD ([`super::lines`]): (amplitude B of
     /// the recorded samples, frequency f), each adding [`sine_avar`].
     pub sines: Vec<(f64, f64)>,
@@ -54,6 +57,7 @@ impl Default for OutputStage {
             carry: true,
             carried: 0.0,
             white: None,
+            post_filter: 0.0,
             sines: Vec::new(),
             vibration: None,
         }
@@ -68,6 +72,7 @@ impl OutputStage {
             carry: false,
             carried: 0.0,
             white: None,
+            post_filter: 0.0,
             sines: Vec::new(),
             vibration: None,
         }
@@ -82,9 +87,10 @@ impl OutputStage {
             ..OutputStage::default()
         }
     }
-    /// The white-noise basis's factor r(m) at cluster size m (1 without a filter).
+    /// The white-noise basis's factor at cluster size m: r(m) through the filter plus the
+    /// post-filter noise's P²/N², which the filter leaves white (1 without a filter).
     pub fn white_ratio(&self, m: usize) -> f64 {
-        self.white.as_ref().map_or(1.0, |w| w.ratio(m))
+        self.white.as_ref().map_or(1.0, |w| w.ratio(m)) + self.post_filter
     }
     /// The known part of σ² at cluster size m (interval Δt): rounding noise, lines and
     /// resonances.
@@ -106,9 +112,18 @@ impl OutputStage {
         let s = (std::f64::consts::PI * f * dt).sin();
         2.0 * self.rounding + 8.0 * self.carried / dt * s * s
     }
-    /// Its limit at long τ (the white density's aliasing gain, squared).
+    /// Its limit at long τ (the white density's aliasing gain, squared, and the post-filter
+    /// noise's share).
     pub fn white_long(&self) -> f64 {
-        self.white.as_ref().map_or(1.0, WhiteAllan::long_tau)
+        self.white.as_ref().map_or(1.0, WhiteAllan::long_tau) + self.post_filter
+    }
+    /// The white-noise PSD's factor at f over 2N²: the filter's folded |H|² at its DC level
+    /// r_∞, plus the post-filter noise's flat P²/N².
+    pub fn white_psd(&self, f: f64, dt: f64) -> f64 {
+        self.white
+            .as_ref()
+            .map_or(1.0, |w| w.long_tau() * w.psd_ratio(f, dt))
+            + self.post_filter
     }
 }
 

@@ -107,18 +107,14 @@ impl Resonance {
 
 /// One-sided PSD at f (0 < f < 1/(2Δt)) of the samples the generator makes from `model`
 /// (spectral lines and vibration left out): white noise 2N²·r_∞·ratio(f) through the output
-/// filter (`WhiteAllan::psd_ratio`), rounding noise 2q²Δt/12, a carried quantizer's
+/// filter (`WhiteAllan::psd_ratio`) plus the post-filter noise's flat 2P², rounding noise 2q²Δt/12, a carried quantizer's
 /// differenced angle error 8Q² sin²(πfΔt)/Δt, each Gauss–Markov sequence (the bias-instability
 /// bank's components too) 2Δtσ²(1 − φ²)/(1 − 2φ cos 2πfΔt + φ²) with φ = e^{−Δt/T}, the
 /// random walk K²/(2π²f²). Their Allan variances are the fit's bases.
 pub fn model_psd(model: &Model, f: f64) -> f64 {
     let dt = model.dt;
     let o = &model.output;
-    let white = 2.0
-        * model.c[Component::WhiteNoise as usize]
-        * o.white
-            .as_ref()
-            .map_or(1.0, |w| w.long_tau() * w.psd_ratio(f, dt));
+    let white = 2.0 * model.c[Component::WhiteNoise as usize] * o.white_psd(f, dt);
     let s = (PI * f * dt).sin();
     // The LSB known from the lattice, and a fitted carry term Q² of the same form.
     let quant =

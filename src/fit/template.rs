@@ -168,6 +168,33 @@ pub fn template_toml(p: &Provenance, fits: &[Option<AxisFit>], lines: &[Vec<Line
     s
 }
 
+/// `post_filter_noise` when an axis's PSD showed a floor above its filter's roll-off:
+/// P = N·√(P²/N²), the ratio the fit took ([`super::filter::floors`]).
+fn post_filter_toml(s: &mut String, axes: &[Option<&AxisFit>], u: &str, f: f64) {
+    let p: Vec<f64> = axes
+        .iter()
+        .map(|a| {
+            a.and_then(|a| {
+                let n = a.estimate(Component::WhiteNoise)?.value;
+                Some(n * a.model.output.post_filter.sqrt())
+            })
+            .unwrap_or(0.0)
+        })
+        .collect();
+    if p.iter().all(|x| *x == 0.0) {
+        return;
+    }
+    let v: Vec<String> = p
+        .iter()
+        .map(|x| format!("\"{} {u}\"", sig4(x * f)))
+        .collect();
+    let _ = writeln!(
+        s,
+        "# The white floor each axis's PSD keeps near the Nyquist frequency above its filter's\n# roll-off (docs/fit.md, post-filter noise; the fit per axis is under [output_filter]).\npost_filter_noise = [{}]",
+        v.join(", ")
+    );
+}
+
 fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
     let est = |a: usize, k: Component| axes[a].and_then(|f| f.estimate(k));
     let kept = |k: Component| (0..3).any(|a| est(a, k).is_some());
@@ -197,6 +224,9 @@ fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
         }
         let (u, f) = unit(gyro, k);
         let _ = writeln!(s, "{key} = {}", values(k, f, u));
+        if k == Component::WhiteNoise {
+            post_filter_toml(s, axes, u, f);
+        }
         if k == Component::BiasInstability {
             // One band per triad in the template: the band of the axis where B gained most.
             let (a, band) = (0..3)
