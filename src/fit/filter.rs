@@ -546,12 +546,7 @@ pub fn toml(f: &FittedFilter) -> String {
         .filter(|(x, _)| x.gain > 0.0)
         .map(|(x, name)| {
             if x.ratio > 0.0 {
-                format!(
-                    "{name} {} ± {} (Δχ² {:.1})",
-                    super::template::sig4(x.ratio),
-                    super::template::sig4(x.sd),
-                    x.gain
-                )
+                format!("{name} {:.4} ± {:.4} (Δχ² {:.1})", x.ratio, x.sd, x.gain)
             } else {
                 format!("{name} none (Δχ² {:.1})", x.gain)
             }
