@@ -5,18 +5,21 @@
 # Allan deviation per octave and PSD per band against the recording's bands. Prints one line
 # per recording and channel: octaves and PSD bands inside.
 #
-#   scripts/fit_real.sh IMUDATA SENSOR_FUSION OUT
+#   scripts/fit_real.sh IMUDATA SENSOR_FUSION OUT [AVAR]
 #
 # IMUDATA: a clone of https://github.com/SMAC-Group/imudata (ADIS16405, six 10^6-sample runs
 # at 100 Hz; CC BY-NC-SA 4.0). SENSOR_FUSION: a clone of https://github.com/sunsided/sensor-fusion
 # (MPU-6050, set-2; EUPL-1.2). Either may be `-` to skip it. The ADIS16448 and BMI160 Allan
-# deviation tables of gaowenliang/imu_utils (MIT) are in tests/data/imu_utils/. OUT receives
-# the converted CSVs, templates, reports and pictures. Needs python3 with rdata, h5py, numpy
-# (installed into OUT/venv on first use) and imu-emu built (cargo build --release).
+# deviation tables of gaowenliang/imu_utils (MIT) are in tests/data/imu_utils/. AVAR, optional:
+# a clone of https://github.com/SMAC-Group/avar (AGPL-3), whose per-axis Allan deviation tables
+# of an LN-200, an iMAR FSAS-class unit, a KVH 1750, a NavChip and an ADIS16405 are fitted as
+# tables. OUT receives the converted CSVs, templates, reports and pictures. Needs python3 with
+# rdata, h5py, numpy (installed into OUT/venv on first use) and imu-emu built (cargo build
+# --release).
 set -euo pipefail
-[ $# -eq 3 ] || { sed -n '2,17p' "$0"; exit 2; }
+[ $# -eq 3 ] || [ $# -eq 4 ] || { sed -n '2,20p' "$0"; exit 2; }
 here=$(cd "$(dirname "$0")/.." && pwd)
-imudata=$1 fusion=$2 out=$3
+imudata=$1 fusion=$2 out=$3 avar=${4:--}
 mkdir -p "$out"
 bin="$here/target/release/imu-emu"
 [ -x "$bin" ] || (cd "$here" && cargo build --release --bin imu-emu)
@@ -62,3 +65,10 @@ fi
 for unit in adis16448 bmi160; do
     fit "$unit" "$here/tests/data/imu_utils/$unit-adev.csv"
 done
+if [ "$avar" != - ]; then
+    for set in ln200 imar kvh1750 navchip adis; do
+        table="$out/avar-$set.csv"
+        [ -s "$table" ] || "$py" "$conv" avar "$avar/data/${set}_av.rda" "$table"
+        fit "avar-$set" "$table"
+    done
+fi

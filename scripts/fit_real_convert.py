@@ -15,6 +15,12 @@ records are, as register counts (tests/data/sensor-fusion/, made with `mpu6050-c
                      the same record as the sensor's register counts, without the time tags
                      (gx,gy,gz in 1/131 deg/s, ax,ay,az in 1/4096 g: its ±250 deg/s and ±8 g
                      ranges); refused unless every value is a whole count. tests/data/sensor-fusion/ holds two such files.
+  avar RDA OUT       SMAC-Group/avar data/<name>_av.rda (AGPL-3): per-axis maximal-overlap
+                     Allan deviations at octave τ (2Δt … ) of a static recording, with its rate
+                     and sample count, written as the Allan deviation table `fit` reads
+                     (docs/fit.md). The package does not state units; each data set's are read
+                     from its white-noise level against the figures published for it (the
+                     LN-200's accelerometers are taken as m/s², which nothing confirms).
 
 Needs: pip install rdata h5py numpy
 """
@@ -68,8 +74,60 @@ def mpu6050_counts(folder, out):
             f.write(",".join(str(int(x)) for x in whole[:, k]) + "\n")
 
 
+# Units of the avar data sets (gyro, accel), in the table's column units, and the factor from
+# the data set's values to them: LN-200 gyro ARW 0.041 deg/√h at 1.28 s in rad/s; iMAR 0.090;
+# KVH 1750 gyro 0.0031 deg/√h in deg/s, accel minimum 33–43 µg in g; NavChip σ(1 s) 13 deg/h in
+# rad/s, VRW 0.03 m/s/√h in m/s²; ADIS16405 (SMAC-Group/imudata's runs) deg/s and g.
+AVAR_UNITS = {
+    "ln200_av": (("rad_s", 1.0), ("m_s2", 1.0)),
+    "imar_av": (("rad_s", 1.0), None),
+    "kvh1750_av": (("deg_s", 1.0), ("mg", 1e3)),
+    "navchip_av": (("rad_s", 1.0), ("m_s2", 1.0)),
+    "adis_av": (("deg_s", 1.0), ("mg", 1e3)),
+}
+
+
+def avar(rda, out):
+    import warnings
+
+    import rdata
+
+    # The R classes `avar` and `imu_avar` have no converter; they are plain lists underneath.
+    warnings.filterwarnings("ignore", message="Missing constructor")
+    converted = rdata.conversion.convert(rdata.parser.parse_file(rda))
+    name = list(converted.keys())[0]
+    if name not in AVAR_UNITS:
+        sys.exit(f"{rda}: data set `{name}` has no known units (known: {', '.join(AVAR_UNITS)})")
+    v = converted[name]
+    freq, n = float(np.asarray(v["freq"])[0]), int(np.asarray(v["n"])[0])
+    columns, taus = [], set()
+    for key, x in v["avar"].items():
+        sensor = {"Gyro.": 0, "Accel.": 1}[key.split()[0]]
+        unit = AVAR_UNITS[name][sensor]
+        if unit is None:
+            sys.exit(f"{rda}: `{key}` has no known unit")
+        levels = [float(t) for t in np.asarray(x["levels"])]
+        adev = [float(a) * unit[1] for a in np.asarray(x["adev"])]
+        col = "ga"[sensor] + key.split()[1].lower() + "_" + unit[0]
+        columns.append((col, dict(zip(levels, adev))))
+        taus.update(levels)
+    with open(out, "w") as f:
+        f.write(f"# {np.asarray(v['sensor'])[0]}: SMAC-Group/avar data set `{name}` (AGPL-3),\n")
+        f.write("# per-axis maximal-overlap Allan deviation; converted by scripts/fit_real_convert.py.\n")
+        f.write(f"# rate = {freq:g} Hz\n# record_length = {n / freq:.10g} s\n")
+        f.write("tau_s," + ",".join(c for c, _ in columns) + "\n")
+        for t in sorted(taus):
+            cells = [repr(d[t]) if t in d else "" for _, d in columns]
+            f.write(repr(t) + "," + ",".join(cells) + "\n")
+
+
 if __name__ == "__main__":
-    modes = {"adis16405": adis16405, "mpu6050": mpu6050, "mpu6050-counts": mpu6050_counts}
+    modes = {
+        "adis16405": adis16405,
+        "mpu6050": mpu6050,
+        "mpu6050-counts": mpu6050_counts,
+        "avar": avar,
+    }
     if len(sys.argv) != 4 or sys.argv[1] not in modes:
         sys.exit(__doc__)
     modes[sys.argv[1]](sys.argv[2], sys.argv[3])
