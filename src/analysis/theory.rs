@@ -8,6 +8,7 @@
 //! | random walk K (`random_walk`), b⁺ = b + K√Δt n | K²τ/3·(1 + 1/(2m²)) (exact, discrete) | K²Δt²/(2 sin²πfΔt) |
 //! | Gauss–Markov σ, T (`bias_gm`, and each bias-instability component) | σ²·s(Δt/T, m), the sampled sequence's exact curve ([`gm_avar_sampled`]; → σ²·g(τ/T) of the continuous process, g(u) = (2u − 3 + 4e^{−u} − e^{−2u})/u², as Δt/T → 0) | 4σ²T/(1 + (2πfT)²) |
 //! | quantization q, carry mode | 3Q²/τ², Q = q_angle/√12 | (8Q²/Δt)·sin²(πfΔt) |
+//! | white angle noise Q (`quantization_noise`), rate error (w_k − w_{k−1})/Δt | 3Q²/τ² (exact) | (8Q²/Δt)·sin²(πfΔt) |
 //! | quantization q, round / truncate | white rate noise of variance (q_rate)²/12 | 2·(q_rate²/12)·Δt |
 //!
 //! The generator adds the Gauss–Markov state once per sample (b⁺ = φb + σ√(1 − φ²)n,
@@ -231,6 +232,9 @@ pub fn triad(m: &TriadModel, mode: QuantMode, dt: f64) -> [AxisTheory; 3] {
             // Rate error of variance (q/Δt)²/12 per sample = white density q/√(12Δt).
             QuantMode::Round | QuantMode::Truncate => (0.0, q_angle / (12.0 * dt).sqrt()),
         };
+        // White angle noise of Q (`quantization_noise`) has the carry quantizer's 3Q²/τ² and
+        // PSD, independent of it.
+        let quantization = quantization.hypot(m.quantization_noise[i]);
         let mut gauss_markov = Vec::new();
         if let Some((s, t)) = m.bias_gm
             && s[i] > 0.0
@@ -261,6 +265,30 @@ pub fn triad(m: &TriadModel, mode: QuantMode, dt: f64) -> [AxisTheory; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `quantization_noise` Q is taken as the carry quantizer's 3Q²/τ², exactly, added in σ²
+    /// to an LSB's Q = q/√12 in carry mode.
+    #[test]
+    fn quantization_noise_is_three_q_squared_over_tau_squared() {
+        let m = crate::errors::template::parse(
+            "[gyro]\nquantization_noise = [\"1 urad\", \"2 urad\", \"3 urad\"]\n\
+             [accel]\nquantization_noise = \"0.5 mm/s\"\nquantization = \"1.2 mm/s\"\n",
+            std::path::Path::new("q.toml"),
+        )
+        .unwrap();
+        let dt = 0.01;
+        let g = triad(&m.gyro, m.quantization_mode, dt);
+        let a = triad(&m.accel, m.quantization_mode, dt);
+        for k in [1usize, 2, 7, 100] {
+            let tau = k as f64 * dt;
+            let close = |got: f64, want: f64| {
+                assert!((got / want - 1.0).abs() < 1e-12, "{got:e} vs {want:e}")
+            };
+            close(g[2].avar(k, dt), 3.0 * 9e-12 / (tau * tau));
+            let q2 = 0.5e-3f64.powi(2) + 1.2e-3f64.powi(2) / 12.0;
+            close(a[0].avar(k, dt), 3.0 * q2 / (tau * tau));
+        }
+    }
     use crate::analysis::octave_adev::OctaveAdev;
     use crate::errors::process::GaussMarkov;
     use crate::rng::NormalStream;

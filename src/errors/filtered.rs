@@ -65,9 +65,11 @@ impl FilteredChain {
         let read = spec.check(output_rate_hz)?;
         let inner_model = FilteredChain::inner_model(model);
         let mut outer_model = model.clone();
-        // The output stage: the noise added after the filter, then the LSB and the range.
+        // The output stage: the noise added after the filter (and an LSB's noise without the
+        // LSB, `quantization_noise`), then the LSB and the range.
         let interface = |t: &TriadModel| TriadModel {
             noise: t.post_filter_noise,
+            quantization_noise: t.quantization_noise,
             quantization: t.quantization,
             range: t.range,
             ..TriadModel::default()
@@ -90,13 +92,14 @@ impl FilteredChain {
         })
     }
 
-    /// The model of the internal-rate chain: `model` without its quantization, range and
-    /// filter (those act at the output). To configure that chain, build it from this model at
+    /// The model of the internal-rate chain: `model` without its quantization (and
+    /// quantization noise), range and filter (those act at the output). To configure that chain, build it from this model at
     /// the internal rate and hand it to [`FilteredChain::map_inner`].
     pub fn inner_model(model: &ImuModel) -> ImuModel {
         let mut inner = model.clone();
         for t in [&mut inner.gyro, &mut inner.accel] {
             t.quantization = None;
+            t.quantization_noise = [0.0; 3];
             t.range = None;
         }
         inner.output_filter = None;

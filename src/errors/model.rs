@@ -26,6 +26,10 @@ pub struct TriadModel {
     /// `noise`; only with `[output_filter]`): a flat floor under the filtered noise, which
     /// makes the PSD roll off less towards the Nyquist frequency than the filter alone.
     pub post_filter_noise: [f64; 3],
+    /// White angle (velocity) noise Q (rad or m/s): a rate error (w_k − w_{k−1})/Δt with w
+    /// white of σ Q, whose Allan variance is 3Q²/τ² — an LSB's quantization noise as the IEEE
+    /// model has it, without an LSB (what `fit` reads from a table, which shows no lattice).
+    pub quantization_noise: [f64; 3],
     /// Rate ramp R (IEEE Std 952): a bias growing by R per second from the run's start
     /// (rad/s² or m/s³).
     pub ramp: [f64; 3],
@@ -102,6 +106,8 @@ impl ImuModel {
                 || any(&t.random_walk)
                 || any(&t.ramp)
                 || any(&t.noise)
+                || any(&t.post_filter_noise)
+                || any(&t.quantization_noise)
                 || any(&t.scale_factor)
                 || any(&t.scale_factor_turn_on)
                 || t.scale_factor_gm.is_some()

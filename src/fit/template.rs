@@ -282,19 +282,25 @@ fn triad_toml(s: &mut String, gyro: bool, axes: &[Option<&AxisFit>]) {
                 s.push_str(&describe(a, Component::Quantization, &e, gyro, ""));
             }
         }
-        // The template has one LSB per triad; the LSB of carry-mode quantization is q = √12·Q.
-        let mut qs: Vec<f64> = (0..3)
+        // No lattice was seen (a table, or float samples), so Q is written as what its 3Q²/τ²
+        // is: white angle (velocity) noise, per axis. An LSB of q = √12·Q under a carry
+        // quantizer gives the same only when the noise dithers it: the LN-200 table's fitted
+        // white noise is far below an LSB per sample, and such an LSB left the simulated
+        // quantizer idle (its accelerometers 19× low at 5 ms).
+        let (u, f) = unit(gyro, Component::Quantization);
+        let qs: Vec<f64> = (0..3)
             .filter_map(|a| est(a, Component::Quantization).map(|e| e.value))
             .collect();
-        qs.sort_by(f64::total_cmp);
-        // The median: an axis whose shortest octaves carry something else (a spectral line
-        // fitted as noise) must not move the others' LSB.
-        let q = 12f64.sqrt() * qs[(qs.len() - 1) / 2];
-        let (u, f) = if gyro { ("rad", 1.0) } else { ("m/s", 1.0) };
+        let median = {
+            let mut q = qs.clone();
+            q.sort_by(f64::total_cmp);
+            q[(q.len() - 1) / 2]
+        };
         let _ = writeln!(
             s,
-            "quantization = \"{} {u}\"   # increment LSB q = √12·Q, median of the axes that show it",
-            sig4(q * f)
+            "# the unit's LSB, if Q is one (increments carried, its noise dithering it): about √12·Q = {} {u}\nquantization_noise = {}",
+            sig4(12f64.sqrt() * median * f),
+            values(Component::Quantization, f, u)
         );
     }
     // The Allan variance sees R², not its sign: the key is written positive.

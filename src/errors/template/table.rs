@@ -243,6 +243,10 @@ fn triad(v: Option<&toml::Value>, sensor: &str, path: &Path) -> Result<TriadMode
                 m.noise = axes(val, rw).map_err(err)?;
                 nonneg(&m.noise)?
             }
+            "quantization_noise" => {
+                m.quantization_noise = increments(val, lsb).map_err(err)?;
+                nonneg(&m.quantization_noise)?
+            }
             "post_filter_noise" => {
                 m.post_filter_noise = axes(val, rw).map_err(err)?;
                 nonneg(&m.post_filter_noise)?
@@ -326,6 +330,29 @@ fn axes(v: &toml::Value, kind: Kind) -> Result<[f64; 3], String> {
             let x = one(v, kind)?;
             Ok([x; 3])
         }
+    }
+}
+
+/// One increment (angle or velocity, `"value unit"`) for all axes or three, in SI, within the
+/// bounds of an LSB of `kind`: a rate unit is refused (Q is an angle or a velocity).
+fn increments(v: &toml::Value, kind: Kind) -> Result<[f64; 3], String> {
+    let one = |x: &toml::Value| -> Result<f64, String> {
+        let s = x.as_str().ok_or(
+            "expected a string \"value unit\" (an angle or a velocity, e.g. \"1e-6 rad\")",
+        )?;
+        let (q, inc) = units::parse(s, kind).map_err(|e| e.to_string())?;
+        if !inc {
+            return Err(format!(
+                "`{s}`: expected an angle or a velocity (Q of 3Q²/τ²), not a rate"
+            ));
+        }
+        bounds::check(s, kind, q, inc)?;
+        Ok(q)
+    };
+    match v {
+        toml::Value::Array(a) if a.len() == 3 => Ok([one(&a[0])?, one(&a[1])?, one(&a[2])?]),
+        toml::Value::Array(a) => Err(format!("expected 3 values, got {}", a.len())),
+        _ => Ok([one(v)?; 3]),
     }
 }
 

@@ -181,3 +181,27 @@ fn post_filter_noise_needs_an_output_filter() {
     assert_eq!(m.accel.post_filter_noise, [0.0, 0.0, 0.01]);
     assert_eq!(m.gyro.post_filter_noise, [0.0; 3]);
 }
+
+/// `quantization_noise` is an angle or a velocity (Q of 3Q²/τ²), one value or three: a rate
+/// unit is refused with the key.
+#[test]
+fn quantization_noise_is_read_as_q() {
+    let e = parse(
+        "[gyro]\nquantization_noise = \"0.01 deg/s\"\n",
+        Path::new("q.toml"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("q.toml") && e.contains("gyro.quantization_noise") && e.contains("not a rate"),
+        "{e}"
+    );
+    let m = parse(
+        "[gyro]\nquantization_noise = [\"1 urad\", \"2 urad\", \"3 urad\"]\n\
+         [accel]\nquantization_noise = \"0.5 mm/s\"\nquantization = \"1.2 mm/s\"\n",
+        Path::new("q.toml"),
+    )
+    .unwrap();
+    assert_eq!(m.gyro.quantization_noise, [1e-6, 2e-6, 3e-6]);
+    assert_eq!(m.accel.quantization_noise, [0.5e-3; 3]);
+}
