@@ -152,7 +152,7 @@ type Point = (f64, f64, f64, f64);
 /// leaving out the bands inside the channel's ranges of `exclude` (Hz; its broad resonances).
 /// Banded once per recording and ranges ([`roll_off`]), and read under each quantizer
 /// ([`fit_roll_off`]) and against each fitted model ([`psd_misfit`]).
-pub struct RollOff(Vec<Vec<Point>>);
+pub struct RollOff(Vec<Vec<Point>>, Vec<Vec<(f64, f64)>>);
 
 /// The recording's [`RollOff`], no quantization density set.
 pub fn roll_off(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> RollOff {
@@ -180,6 +180,7 @@ pub fn roll_off(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> RollOff {
                     .collect()
             })
             .collect(),
+        exclude.to_vec(),
     )
 }
 
@@ -269,6 +270,9 @@ fn channel_chi2(ch: &[Point], s: &[f64]) -> f64 {
 /// χ² a channel's post-filter floor must gain to be kept (χ²₁ at 99.9 %: one level).
 pub const FLOOR_PENALTY: f64 = 10.83;
 
+/// How far past a resonance's range (as a factor on its edges) the floor fit leaves bands out.
+const SKIRT: f64 = 1.25;
+
 /// Largest floor sought, as a fraction of the filtered density's DC level: a floor that high
 /// is no longer a detail of the roll-off but a different filter.
 const MAX_FLOOR: f64 = 1.0;
@@ -295,7 +299,19 @@ pub fn floors(roll: &RollOff, stages: &[OutputStage; 2], dt: f64, f: &FittedFilt
     let bands = roll.quantized(stages, dt);
     let white = f.white();
     std::array::from_fn(|ch| {
-        let Some(b) = bands.get(ch).filter(|b| b.len() >= 4) else {
+        // A resonance's skirt reaches past the range where its excess is significant; a floor
+        // is flat, so the bands next to a range (within a factor SKIRT) are left to it.
+        let near = |hz: f64| {
+            roll.1.get(ch).is_some_and(|r| {
+                r.iter()
+                    .any(|&(lo, hi)| hz >= lo / SKIRT && hz <= hi * SKIRT)
+            })
+        };
+        let b: Vec<Point> = bands
+            .get(ch)
+            .map(|b| b.iter().copied().filter(|p| !near(p.0)).collect())
+            .unwrap_or_default();
+        let Some(b) = Some(&b).filter(|b| b.len() >= 4) else {
             return Floor::default();
         };
         let w = white.channel(ch);
@@ -686,6 +702,7 @@ mod tests {
                         .collect()
                 })
                 .collect(),
+            Vec::new(),
         );
         let got = floors(&roll, &Default::default(), dt, &f);
         for ch in 0..6 {
@@ -696,6 +713,56 @@ mod tests {
                 got[ch]
             );
         }
+    }
+
+    /// A resonance's skirt is not read as a floor: bands drawn exactly from ln(c·ratio) with a
+    /// range of 25–38 Hz left out, and the bands above it up to 47.5 Hz lifted 15 % as a skirt
+    /// lifts them, give no floor, since the bands within a factor [`SKIRT`] of the range
+    /// are left to it. Read with them, the lift passes for a floor (kept).
+    #[test]
+    fn a_resonance_skirt_is_not_read_as_a_floor() {
+        let dt = 0.01;
+        let f = FittedFilter {
+            spec: FilterSpec {
+                internal_rate_hz: 400.0,
+                kind: FilterKind::MovingAverage { taps: 10 },
+                accel: None,
+            },
+            read: ReadRatio::integer(4),
+            chi2: 0.0,
+            flat_chi2: 0.0,
+            shared_chi2: 0.0,
+            bands: 0,
+            from_adev: false,
+            floors: [Floor::default(); 6],
+        };
+        let w = f.white();
+        let range = (25.0, 38.0);
+        let bands: Vec<Point> = (0..40)
+            .map(|j| 5.0 + 1.125 * j as f64)
+            .filter(|hz| !(*hz >= range.0 && *hz <= range.1))
+            .map(|hz| {
+                let lift = if hz > range.1 && hz < 47.5 { 1.15 } else { 1.0 };
+                (
+                    hz,
+                    (1e-3 * w.channel(0).psd_ratio(hz, dt) * lift).ln(),
+                    500.0,
+                    0.0,
+                )
+            })
+            .collect();
+        let with = |ranges: Vec<Vec<(f64, f64)>>| {
+            floors(
+                &RollOff(vec![bands.clone()], ranges),
+                &Default::default(),
+                dt,
+                &f,
+            )[0]
+        };
+        let skirt = with(vec![vec![range]]);
+        assert_eq!(skirt.ratio, 0.0, "{skirt:?}");
+        let blind = with(vec![Vec::new()]);
+        assert!(blind.ratio > 0.0 && blind.gain > FLOOR_PENALTY, "{blind:?}");
     }
 
     /// The roll-off's χ² finds each channel's level under a known quantization floor: bands
