@@ -311,9 +311,11 @@ pub fn floors(roll: &RollOff, stages: &[OutputStage; 2], dt: f64, f: &FittedFilt
             .get(ch)
             .map(|b| b.iter().copied().filter(|p| !near(p.0)).collect())
             .unwrap_or_default();
-        let Some(b) = Some(&b).filter(|b| b.len() >= 4) else {
+        // Two parameters (c, φ): with fewer than four bands the floor has too little to rest on.
+        if b.len() < 4 {
             return Floor::default();
-        };
+        }
+        let b = &b;
         let w = white.channel(ch);
         let ratio: Vec<f64> = b.iter().map(|p| w.psd_ratio(p.0, dt)).collect();
         let at = |phi: f64| {
