@@ -153,6 +153,7 @@ fn closure_at(seed: u64) {
         filter: None,
         carry: true,
         resonances: Vec::new(),
+        table: false,
     };
     let text = template_toml(&prov, &fits, &vec![Vec::new(); 6]);
     let fitted = template::parse(&text, Path::new("fitted.toml")).unwrap();
@@ -376,6 +377,7 @@ fn a_ramp_is_fitted_and_written_as_a_key() {
         filter: None,
         carry: false,
         resonances: Vec::new(),
+        table: false,
     };
     let text = template_toml(&prov, &fits, &vec![Vec::new(); 6]);
     let m = template::parse(&text, Path::new("fitted.toml")).unwrap();

@@ -232,21 +232,25 @@ pub fn simulate_with(
 }
 
 /// The six rate channels (gyro x y z, accel x y z) of a static record simulated as in
-/// [`simulate_with`]: a published table's τ are not octaves, so its closure needs the Allan
+/// [`simulate_with`] (with `vibration`): a published table's τ are not octaves, so its closure needs the Allan
 /// deviation at its own cluster sizes ([`adev_at`]).
 pub fn simulate_series(
     model: ImuModel,
+    vibration: VibrationSpec,
     dt: f64,
     samples: u64,
     seed: u64,
 ) -> Result<[Vec<f64>; 6], SimError> {
-    let sim = Simulation::builder()
+    let mut b = Simulation::builder()
         .scene("static")
         .imu_model(model)
         .rate(1.0 / dt)
         .duration(samples as f64 * dt)
-        .seed(seed)
-        .build()?;
+        .seed(seed);
+    if !vibration.is_empty() {
+        b = b.vibration(vibration);
+    }
+    let sim = b.build()?;
     let mut out: [Vec<f64>; 6] = Default::default();
     for block in sim.records()? {
         for r in block?.iter() {

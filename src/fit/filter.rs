@@ -392,7 +392,7 @@ pub fn fit_roll_off(
     let b = roll.quantized(stages, a.dt);
     let count: usize = b.iter().map(Vec::len).sum();
     if count < 4 {
-        return fit_adev(a);
+        return fit_adev(a, exclude);
     }
     // Once the resonances are known (`exclude` names each channel's, none or some), the
     // short-τ Allan variance of the channels without one weighs in too: it holds the filter's
@@ -593,13 +593,22 @@ pub const ADEV_MAX_M: usize = 64;
 /// constant C (the slow terms, nearly flat over these τ) fitted by least squares on the
 /// relative residuals with weights edf/2 (Var σ̂²/σ² = 2/edf, white-noise edf); the candidate
 /// with the least χ² over the six channels is kept when it gains [`FILTER_PENALTY`] over
-/// r ≡ 1.
-pub fn fit_adev(a: &Analysis) -> Option<FittedFilter> {
-    let chans = adev_points(a, &Default::default());
-    let count: usize = chans.iter().map(Vec::len).sum();
+/// r ≡ 1. The channels with a broad resonance in `exclude` are left out (its Allan variance
+/// would bend the filter's mark), as long as one of each sensor stays.
+pub fn fit_adev(a: &Analysis, exclude: &[Vec<(f64, f64)>]) -> Option<FittedFilter> {
+    let mut chans = adev_points(a, &Default::default());
     if chans.iter().any(|c| c.len() < 4) {
         return None;
     }
+    let bump = |ch: usize| exclude.get(ch).is_some_and(|r| !r.is_empty());
+    for base in [0, 3] {
+        if (base..base + 3).any(|ch| !bump(ch)) {
+            (base..base + 3)
+                .filter(|&ch| bump(ch))
+                .for_each(|ch| chans[ch].clear());
+        }
+    }
+    let count: usize = chans.iter().map(Vec::len).sum();
     let flat = adev_chi2(&chans, a.dt, &|_| 1.0);
     let half = halves(&chans);
     best(a.dt, flat, count, true, |w, accel| {
@@ -637,6 +646,7 @@ fn adev_points(a: &Analysis, stages: &[OutputStage; 2]) -> Vec<Vec<Point>> {
 fn adev_chi2(chans: &[Vec<Point>], dt: f64, ratio: &dyn Fn(usize) -> f64) -> f64 {
     chans
         .iter()
+        .filter(|pts| !pts.is_empty())
         .map(|pts| {
             // Minimise Σ w (1 − K/y − (x·u + C·v))² over (x, C), u = r(m)/(τy), v = 1/y: 2×2
             // normal equations.

@@ -10,7 +10,7 @@ use super::closure;
 use super::compare;
 use super::report::Closure;
 use super::template::{Provenance, sines_scene, template_toml};
-use super::{checks, lines, report, resonance};
+use super::{checks, lines, report, resonance, resonance_adev};
 use crate::analysis::analyzer::{Analysis, Analyzer};
 use crate::plot::Panel;
 
@@ -71,6 +71,7 @@ fn fit_resonances(
     rec: &Analysis,
     lines: &[Vec<lines::Line>],
 ) -> (compare::Fitted, Vec<Vec<resonance::Resonance>>) {
+    let table = rec.channels.iter().all(|c| c.trend.is_none());
     let mut fitted = compare::fit_all_with_filter(rec);
     let mut res: Vec<Vec<resonance::Resonance>> = vec![Vec::new(); rec.channels.len()];
     for _ in 0..2 {
@@ -79,7 +80,13 @@ fn fit_resonances(
             .iter()
             .zip(&fitted.fits)
             .zip(lines)
-            .map(|((c, f), l)| match f {
+            .enumerate()
+            .map(|(ch, ((c, f), l))| match f {
+                // A table has no PSD: its bump is read from the Allan deviation.
+                Some(f) if table => {
+                    let spec = fitted.filter.as_ref().map(|x| x.spec.channel(ch));
+                    resonance_adev::find(&c.adev, &f.model, rec.samples as usize, spec.as_ref())
+                }
                 Some(f) => resonance::find(&c.psd, &f.model, l, rec.dt),
                 None => Vec::new(),
             })
@@ -112,6 +119,7 @@ pub fn fit(rec: &Analysis, s: &Settings) -> Result<Fitted, FitError> {
         filter: fitted.filter,
         carry: fitted.carry,
         resonances,
+        table: rec.channels.iter().all(|c| c.trend.is_none()),
     };
     let toml = template_toml(&prov, &fits, &found);
     // The template must load as written: what `--imu` will read is what was fitted.
@@ -119,12 +127,14 @@ pub fn fit(rec: &Analysis, s: &Settings) -> Result<Fitted, FitError> {
         crate::errors::template::parse(&toml, &s.template_path).map_err(FitError::Template)?;
     // The closure check is part of every report (stdout with -o, --report) and of the plot.
     let closing = s.closure;
-    let table = rec.channels.iter().all(|c| c.trend.is_none());
+    let table = prov.table;
     // A table's τ are its own: the simulated record is kept as series, to take its Allan
     // deviation at each of them (and analysed once more for the plot).
     let series = if closing && table {
+        let filter = prov.filter.as_ref().map(|f| &f.spec);
         Some(closure::simulate_series(
             model.clone(),
+            closure::vibration_with(&found, &prov.resonances, rec.dt, filter),
             rec.dt,
             rec.samples,
             s.seed,

@@ -120,7 +120,12 @@ pub fn markdown(
     if p.resonances.iter().all(Vec::is_empty) {
         let _ = writeln!(
             s,
-            "None above the false-alarm threshold (1 in 1000 records whose PSD is the fitted floor)."
+            "{}",
+            if p.table {
+                "None that gains χ²₃(99 %) in the Allan deviation (a table has no PSD)."
+            } else {
+                "None above the false-alarm threshold (1 in 1000 records whose PSD is the fitted floor)."
+            }
         );
     }
     for (ch, rs) in p.resonances.iter().enumerate() {

@@ -79,6 +79,9 @@ pub struct Resonance {
     pub peak: f64,
     /// The floor's level c (model PSD × c).
     pub level: f64,
+    /// Read from a table's Allan deviation ([`super::resonance_adev`]): `z` is then √Δχ² and
+    /// `z_gate` the penalty's root.
+    pub from_adev: bool,
 }
 
 impl Resonance {
@@ -267,6 +270,7 @@ pub fn find(psd: &Psd, model: &Model, lines: &[Line], dt: f64) -> Vec<Resonance>
                 z_gate,
                 peak,
                 level,
+                from_adev: false,
             }
         })
         .collect();

@@ -30,6 +30,8 @@ pub struct Provenance {
     pub carry: bool,
     /// The broad resonances of each channel (gyro x y z, accel x y z; empty: none).
     pub resonances: Vec<Vec<super::resonance::Resonance>>,
+    /// Whether the input is an Allan deviation table (no time series, no PSD).
+    pub table: bool,
 }
 
 /// A number with 4 significant digits, plain or in exponent form, that parses back.
@@ -478,15 +480,22 @@ pub fn describe_resonance(r: &super::resonance::Resonance, gyro: bool) -> String
     } else {
         ("g", 1.0 / crate::units::G0)
     };
+    let significance = if r.from_adev {
+        format!(
+            "read from the Allan deviation: Δχ² = {} (> {} to be kept",
+            sig4(r.z * r.z),
+            sig4(r.z_gate * r.z_gate)
+        )
+    } else {
+        format!("z = {} (> {} to be kept", sig4(r.z), sig4(r.z_gate))
+    };
     format!(
-        "broad resonance {}–{} Hz (centre {} Hz), RMS {} {u}, peak {}× the floor, z = {} (> {} to be kept; not in the template: `fit --sines` writes it as a random vibration)",
+        "broad resonance {}–{} Hz (centre {} Hz), RMS {} {u}, peak {}× the floor, {significance}; not in the template: `fit --sines` writes it as a random vibration)",
         sig4(r.rows[0].0),
         sig4(r.rows[r.rows.len() - 1].0),
         sig4(r.centre()),
         sig4(r.variance().sqrt() * f),
         sig4(1.0 + r.peak),
-        sig4(r.z),
-        sig4(r.z_gate)
     )
 }
 
