@@ -66,6 +66,21 @@ impl FittedFilter {
     pub fn white(&self) -> SensorAllan {
         SensorAllan::new(&self.spec, self.read)
     }
+
+    /// A filter known exactly (no χ², no floors), for the unit tests of what uses one.
+    #[cfg(test)]
+    pub(crate) fn known(spec: FilterSpec, read: ReadRatio) -> FittedFilter {
+        FittedFilter {
+            spec,
+            read,
+            chi2: 0.0,
+            flat_chi2: 0.0,
+            shared_chi2: 0.0,
+            bands: 0,
+            from_adev: false,
+            floors: [Floor::default(); 6],
+        }
+    }
 }
 
 /// Internal rates of units commonly read by a host at a rate they are no multiple of: the
@@ -689,16 +704,7 @@ mod tests {
             kind: FilterKind::MovingAverage { taps: 10 },
             accel: None,
         };
-        let f = FittedFilter {
-            spec,
-            read: ReadRatio::integer(4),
-            chi2: 0.0,
-            flat_chi2: 0.0,
-            shared_chi2: 0.0,
-            bands: 0,
-            from_adev: false,
-            floors: [Floor::default(); 6],
-        };
+        let f = FittedFilter::known(spec, ReadRatio::integer(4));
         let w = f.white();
         let phi = [0.0, 0.0, 0.05, 0.05, 0.0, 0.0];
         let roll = RollOff(
@@ -734,20 +740,14 @@ mod tests {
     #[test]
     fn a_resonance_skirt_is_not_read_as_a_floor() {
         let dt = 0.01;
-        let f = FittedFilter {
-            spec: FilterSpec {
+        let f = FittedFilter::known(
+            FilterSpec {
                 internal_rate_hz: 400.0,
                 kind: FilterKind::MovingAverage { taps: 10 },
                 accel: None,
             },
-            read: ReadRatio::integer(4),
-            chi2: 0.0,
-            flat_chi2: 0.0,
-            shared_chi2: 0.0,
-            bands: 0,
-            from_adev: false,
-            floors: [Floor::default(); 6],
-        };
+            ReadRatio::integer(4),
+        );
         let w = f.white();
         let range = (25.0, 38.0);
         let bands: Vec<Point> = (0..40)

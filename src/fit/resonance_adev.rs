@@ -294,16 +294,10 @@ mod tests {
             kind: crate::errors::output_filter::FilterKind::Cic { order: 2, taps: 4 },
             accel: None,
         };
-        let white = crate::fit::filter::FittedFilter {
-            spec: filter.clone(),
-            read: crate::timing::ReadRatio::integer(4),
-            chi2: 0.0,
-            flat_chi2: 0.0,
-            shared_chi2: 0.0,
-            bands: 0,
-            from_adev: true,
-            floors: Default::default(),
-        }
+        let white = crate::fit::filter::FittedFilter::known(
+            filter.clone(),
+            crate::timing::ReadRatio::integer(4),
+        )
         .white()
         .sensor(false)
         .clone();
