@@ -5,6 +5,7 @@
 use std::fmt::Write as _;
 
 use super::filter::FittedFilter;
+use crate::errors::output_filter::FilterSpec;
 use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, OutputStage, fit_triad_with};
 use super::resonance::{KnownVibration, Resonance, source_table};
 use super::template::{sig4, unit};
@@ -63,6 +64,9 @@ pub fn fit_all_with_resonances(a: &Analysis, res: &[Vec<Resonance>]) -> Fitted {
     let roll = super::filter::roll_off(a, &ranges);
     let cost = |f: &[Option<AxisFit>]| f.iter().flatten().map(|f| f.cost).sum::<f64>();
     let mut best: Option<(f64, Fitted)> = None;
+    // The variants share filters (the quantizers often read the same one, and the unfiltered
+    // option recurs): each resonance's Allan variance is built once per filter.
+    let built = Built::default();
     for carry in if lattice {
         vec![false, true]
     } else {
@@ -75,7 +79,7 @@ pub fn fit_all_with_resonances(a: &Analysis, res: &[Vec<Resonance>]) -> Fitted {
             options.push(None);
         }
         for f in options {
-            let fits = fit_with(a, f.as_ref(), carry, res);
+            let fits = fit_with(a, f.as_ref(), carry, res, &built);
             // Each filter costs the penalty it must beat (the accelerometers' own a second
             // one), against the fits of either quantizer: a carry quantizer's noise rises
             // towards the Nyquist frequency, and a filter that takes it back must not come free.
@@ -111,11 +115,15 @@ pub fn fit_all_with_resonances(a: &Analysis, res: &[Vec<Resonance>]) -> Fitted {
     best.expect("one variant at least").1
 }
 
+/// The resonances' Allan variances built so far: (channel, its filter, the term).
+type Built = std::sync::Mutex<Vec<(usize, Option<FilterSpec>, KnownVibration)>>;
+
 fn fit_with(
     a: &Analysis,
     filter: Option<&FittedFilter>,
     carry: bool,
     res: &[Vec<Resonance>],
+    built: &Built,
 ) -> Vec<Option<AxisFit>> {
     let samples = a.samples as usize;
     let series = a.channels.iter().all(|c| c.trend.is_some());
@@ -133,10 +141,21 @@ fn fit_with(
                 .map(|l| (l.amplitude, l.freq))
                 .collect(),
             vibration: res.get(base + i).filter(|r| !r.is_empty()).map(|r| {
-                let ms: Vec<usize> = c[base + i].adev.iter().map(|p| p.m).collect();
-                let spec = filter.map(|f| f.spec.channel(base + i));
-                let spec = spec.as_ref();
-                KnownVibration::new(source_table(r, a.dt, spec), a.dt, spec, &ms)
+                let ch = base + i;
+                let spec = filter.map(|f| f.spec.channel(ch));
+                let known = |b: &Vec<(usize, Option<FilterSpec>, KnownVibration)>| {
+                    b.iter()
+                        .find(|(c, s, _)| *c == ch && *s == spec)
+                        .map(|x| x.2.clone())
+                };
+                if let Some(v) = known(&built.lock().expect("cache")) {
+                    return v;
+                }
+                let ms: Vec<usize> = c[ch].adev.iter().map(|p| p.m).collect();
+                let s = spec.as_ref();
+                let v = KnownVibration::new(source_table(r, a.dt, s), a.dt, s, &ms);
+                built.lock().expect("cache").push((ch, spec, v.clone()));
+                v
             }),
             ..stages[base / 3].clone()
         });
