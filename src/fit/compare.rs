@@ -5,13 +5,13 @@
 use std::fmt::Write as _;
 
 use super::filter::FittedFilter;
-use crate::errors::output_filter::FilterSpec;
 use super::gmwm::{AxisFit, COMPONENTS, Component, Estimate, OutputStage, fit_triad_with};
 use super::resonance::{KnownVibration, Resonance, source_table};
 use super::template::{sig4, unit};
 use crate::analysis::analyzer::{Analysis, CHANNELS};
 use crate::analysis::octave_adev::AdevPoint;
 use crate::analysis::report::{adev_unit, banded_psd};
+use crate::errors::output_filter::FilterSpec;
 use crate::plot::{Panel, Series};
 
 /// The fits of the six channels (gyro x y z, accel x y z; None where a channel has no

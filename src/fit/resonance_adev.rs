@@ -288,15 +288,38 @@ mod tests {
     /// 11 % low.
     #[test]
     fn an_exact_resonance_is_read_back() {
-        let dt = 0.01;
         let filter = FilterSpec {
             internal_rate_hz: 400.0,
             kind: crate::errors::output_filter::FilterKind::Cic { order: 2, taps: 4 },
             accel: None,
         };
+        read_back(filter, 4, 10);
+    }
+
+    /// The same at the Nyquist frequency (f₀ the top centre) under a Butterworth of order 4
+    /// at the output rate, whose bilinear zero there has no gain: the table's top row sits a
+    /// hair below it and is written (at the Nyquist frequency itself the row was 0/0, and the
+    /// fitted template held NaN: the NavChip table).
+    #[test]
+    fn a_resonance_at_the_nyquist_frequency_is_written() {
+        let filter = FilterSpec {
+            internal_rate_hz: 100.0,
+            kind: crate::errors::output_filter::FilterKind::Butterworth {
+                order: 4,
+                cutoff_hz: 40.0,
+            },
+            accel: None,
+        };
+        read_back(filter, 1, 0);
+    }
+
+    /// White noise under `filter` read at 1/`ratio` of its rate, and the resonance of the
+    /// `centre`-th centre from the top, Q = 2: read back to 1e-9, none without it.
+    fn read_back(filter: FilterSpec, ratio: u64, centre: usize) {
+        let dt = 0.01;
         let white = crate::fit::filter::FittedFilter::known(
             filter.clone(),
-            crate::timing::ReadRatio::integer(4),
+            crate::timing::ReadRatio::integer(ratio),
         )
         .white()
         .sensor(false)
@@ -312,7 +335,7 @@ mod tests {
             },
         };
         let edges = edges(dt);
-        let (f0, q, s) = (centres(dt)[10], 2.0, 4e-6);
+        let (f0, q, s) = (centres(dt)[centre], 2.0, 4e-6);
         let a = profile(&edges, f0, q);
         let ms: Vec<usize> = (0..13).map(|j| 1 << j).collect();
         let bump: Vec<f64> = ms
