@@ -175,7 +175,12 @@ fn draw<DB: DrawingBackend>(
     let columns = columns.max(1);
     let rows = panels.len().div_ceil(columns).max(1);
     let areas = root.split_evenly((rows, columns));
-    for (area, p) in areas.iter().zip(panels) {
+    // A panel with neither title nor curves is a blank cell of the grid.
+    for (area, p) in areas
+        .iter()
+        .zip(panels)
+        .filter(|(_, p)| !(p.title.is_empty() && p.series.is_empty()))
+    {
         let (x0, x1) = extent(p, |s| &s.x, |_| None, p.log_x);
         let (y0, y1) = extent(p, |s| &s.y, |s| s.band.as_ref(), p.log_y);
         match (p.log_x, p.log_y) {

@@ -407,10 +407,12 @@ fn analyze_bad_input_is_named() {
     let f = dir.path().join("bad.csv");
     let path = p(&f).to_string();
 
-    std::fs::write(&f, "t,gx,gy,ax,ay,az\n0.01,1,2,3,4,5\n").unwrap();
+    std::fs::write(&f, "t,x,y\n0.01,1,2\n").unwrap();
     let e = err(imu_emu(["analyze", &path]));
     assert!(
-        e.contains(&path) && e.contains("no column for gyro z") && e.contains("--columns"),
+        e.contains(&path)
+            && e.contains("no gyro or accelerometer column")
+            && e.contains("--columns"),
         "{e}"
     );
 
@@ -459,4 +461,33 @@ fn analyze_bad_input_is_named() {
         "analyze", &path, "--plot", "x.jpg", "--rate", "10",
     ]));
     assert!(e.contains(".png or .svg"), "{e}");
+}
+
+/// A CSV of one axis is analysed on that axis: the others are named as not in the input and
+/// get neither a statistics row nor a term row, and the plot has the gyro's two panels only.
+#[test]
+fn analyze_reads_a_csv_of_one_axis() {
+    let dir = TempDir::new().unwrap();
+    let f = dir.path().join("one.csv");
+    let mut text = String::from("t,gx\n");
+    // A deterministic ±1 deg/s square wave of period 2 samples on a 0.5 deg/s offset.
+    for k in 0..4096 {
+        let v = 0.5 + if k % 2 == 0 { 1.0 } else { -1.0 };
+        text.push_str(&format!("{},{v}\n", k as f64 * 0.01));
+    }
+    std::fs::write(&f, text).unwrap();
+    let png = dir.path().join("one.png");
+    let out = ok(imu_emu([
+        "analyze",
+        p(&f),
+        "--gyro-unit",
+        "deg/s",
+        "--plot",
+        p(&png),
+    ]));
+    assert!(out.contains("accel z  (not in the input)"), "{out}");
+    assert!(!out.contains("gyro y   N") && !out.contains("inf"), "{out}");
+    // mean 0.5 deg/s printed in the stats row.
+    assert!(out.contains("gyro x      5.000000e-1"), "{out}");
+    assert!(png.exists());
 }

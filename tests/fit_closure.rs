@@ -77,6 +77,7 @@ fn close(model: &ImuModel, samples: u64, seed: u64) -> Closed {
         carry: fitted.carry,
         resonances: Vec::new(),
         table: false,
+        missing: [false; 6],
     };
     let toml = template_toml(&prov, &fits, &vec![Vec::new(); 6]);
     let fitted = template::parse(&toml, Path::new("fitted.toml")).unwrap();

@@ -54,6 +54,25 @@ pub struct ChannelAnalysis {
     pub lattice: Option<Lattice>,
 }
 
+impl ChannelAnalysis {
+    /// A channel the input does not have (a table of one sensor, a CSV of some axes): no
+    /// points, no PSD, no statistics, nothing fitted.
+    pub fn missing() -> ChannelAnalysis {
+        ChannelAnalysis {
+            stats: Stats::default(),
+            adev: Vec::new(),
+            psd: Psd {
+                freq: Vec::new(),
+                density: Vec::new(),
+                segments: 0,
+            },
+            fit: fit(&[], 0),
+            trend: None,
+            lattice: None,
+        }
+    }
+}
+
 /// The least-squares line of a channel and the Allan deviation of what is left around it.
 #[derive(Clone, Debug)]
 pub struct Trend {
@@ -80,6 +99,16 @@ pub struct Analysis {
     pub t_first: f64,
     /// The six channels in [`CHANNELS`] order.
     pub channels: Vec<ChannelAnalysis>,
+}
+
+impl Analysis {
+    /// This analysis with the channels flagged in `missing` (gyro x y z, accel x y z) emptied.
+    pub fn without(mut self, missing: [bool; 6]) -> Analysis {
+        for (c, _) in self.channels.iter_mut().zip(missing).filter(|(_, m)| *m) {
+            *c = ChannelAnalysis::missing();
+        }
+        self
+    }
 }
 
 impl Analyzer {

@@ -88,6 +88,9 @@ pub struct ReadSummary {
     pub samples: u64,
     /// Frame-stream tally (frames input only).
     pub frames: Option<StreamStats>,
+    /// Channels (gyro x y z, accel x y z) the input has no column for; their values are
+    /// delivered as 0 (a CSV of one gyro axis, say).
+    pub missing: [bool; 6],
 }
 
 /// Input that cannot be analysed, with the file, line and field at fault.
@@ -134,7 +137,7 @@ pub fn read(
             }
             Ok(ReadSummary {
                 samples: n,
-                frames: None,
+                ..Default::default()
             })
         }
         InputFormat::Frames(plan) => read_frames(path, file, plan.clone(), dt, sample),
@@ -170,6 +173,7 @@ fn read_csv(
     let mut lines = CsvLines::new(r, path);
     // (column index, role) of the columns used, and their display names.
     let mut map: Option<ColumnMap> = None;
+    let mut missing = [false; 6];
     let mut n = 0u64;
     while lines.advance()? {
         let fields: Vec<&str> = lines.fields().collect();
@@ -219,23 +223,28 @@ fn read_csv(
             ] {
                 match roles.iter().position(|r| *r == want) {
                     Some(i) => used.push((i, want)),
-                    None if want == Role::Time => {}
-                    None => {
-                        return Err(FileError::file(
-                            path,
-                            format!(
-                                "no column for {} (columns: {}; map them with --columns, e.g. t,gx,gy,gz,ax,ay,az)",
-                                role_name(want),
-                                names
-                                    .iter()
-                                    .take(20)
-                                    .map(|n| clip(n))
-                                    .collect::<Vec<_>>()
-                                    .join(",")
-                            ),
-                        ));
-                    }
+                    None => match want {
+                        Role::Gyro(a) => missing[a] = true,
+                        Role::Accel(a) => missing[3 + a] = true,
+                        _ => {}
+                    },
                 }
+            }
+            // A recording of some axes only (one gyro on a rate table) is analysed as such;
+            // one of none is a column mapping gone wrong.
+            if missing.iter().all(|&m| m) {
+                return Err(FileError::file(
+                    path,
+                    format!(
+                        "no gyro or accelerometer column (columns: {}; map them with --columns, e.g. t,gx,gy,gz,ax,ay,az)",
+                        names
+                            .iter()
+                            .take(20)
+                            .map(|n| clip(n))
+                            .collect::<Vec<_>>()
+                            .join(",")
+                    ),
+                ));
             }
             map = Some((used, names));
             if header {
@@ -268,6 +277,7 @@ fn read_csv(
     Ok(ReadSummary {
         samples: n,
         frames: None,
+        missing,
     })
 }
 
@@ -324,6 +334,7 @@ fn read_frames(
     Ok(ReadSummary {
         samples: n,
         frames: Some(dec.stats()),
+        ..Default::default()
     })
 }
 

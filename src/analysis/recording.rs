@@ -230,7 +230,7 @@ impl Recording {
                 ));
             }
         };
-        let analysis = an.finish(dt);
+        let analysis = an.finish(dt).without(summary.missing);
         let (smin, smax) = analysis.step_range;
         let warning = (smin.is_finite() && (smin < 0.99 * dt || smax > 1.01 * dt)).then(|| {
             format!(

@@ -57,6 +57,10 @@ pub fn stats_table(a: &Analysis) -> String {
             ("m/s^2", 1.0)
         };
         let st = &c.stats;
+        if st.n == 0 {
+            let _ = writeln!(s, "{:<8} (not in the input)", CHANNELS[i]);
+            continue;
+        }
         let _ = writeln!(
             s,
             "{:<8} {:>14.6e} {:>14.6e} {:>14.6e} {:>14.6e}  {unit}",
@@ -88,7 +92,13 @@ pub fn term_table(a: &Analysis, rows: Option<&[TermRow]>) -> String {
         );
     }
     s.push('\n');
-    for (ch, c) in a.channels.iter().enumerate() {
+    // A channel the input does not have has no row (not even a template's figure to miss).
+    for (ch, c) in a
+        .channels
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| !c.adev.is_empty())
+    {
         for t in TERMS {
             let row = rows.and_then(|r| {
                 r.iter()
@@ -158,12 +168,28 @@ pub fn panels_filtered(
     title: &str,
 ) -> Vec<Panel> {
     let mut out = Vec::new();
+    // The axes the input has (a CSV of some axes, a table of one sensor): the others get no
+    // curve, and a sensor with none gets no panel.
+    let adev_axes = |base: usize| -> Vec<usize> {
+        (0..3)
+            .filter(|i| !a.channels[base + i].adev.is_empty())
+            .collect()
+    };
+    let psd_axes = |base: usize| -> Vec<usize> {
+        (0..3)
+            .filter(|i| a.channels[base + i].psd.segments > 0)
+            .collect()
+    };
     for gyro in [true, false] {
         let (unit, k) = adev_unit(gyro);
         let base = if gyro { 0 } else { 3 };
         let sensor = if gyro { "gyro" } else { "accel" };
+        let axes = adev_axes(base);
+        if axes.is_empty() {
+            continue;
+        }
         let mut series = Vec::new();
-        for axis in 0..3 {
+        for axis in axes {
             let c = &a.channels[base + axis];
             series.push(Series {
                 label: ["x", "y", "z"][axis].into(),
@@ -178,7 +204,11 @@ pub fn panels_filtered(
             });
         }
         if let Some(th) = theory {
-            let ms: Vec<usize> = a.channels[base].adev.iter().map(|p| p.m).collect();
+            let ms: Vec<usize> = a.channels[base + adev_axes(base)[0]]
+                .adev
+                .iter()
+                .map(|p| p.m)
+                .collect();
             theory_series(&th[base..base + 3], &mut series, |t| {
                 ms.iter()
                     .map(|&m| {
@@ -215,8 +245,12 @@ pub fn panels_filtered(
         let (unit, k) = adev_unit(gyro);
         let base = if gyro { 0 } else { 3 };
         let sensor = if gyro { "gyro" } else { "accel" };
+        let axes = psd_axes(base);
+        if axes.is_empty() {
+            continue;
+        }
         let mut series = Vec::new();
-        for axis in 0..3 {
+        for &axis in &axes {
             let p = banded_psd(&a.channels[base + axis].psd, k);
             series.push(Series {
                 label: ["x", "y", "z"][axis].into(),
@@ -228,7 +262,7 @@ pub fn panels_filtered(
             });
         }
         if let Some(th) = theory {
-            let p = &a.channels[base].psd;
+            let p = &a.channels[base + axes[0]].psd;
             let (freq, _) = log_bins(plotted(&p.freq), &p.density, PSD_BINS_PER_DECADE);
             theory_series(&th[base..base + 3], &mut series, |t| {
                 (

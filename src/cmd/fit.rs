@@ -66,7 +66,8 @@ pub fn fit(a: FitArgs) -> Result<()> {
     };
     let fitted = recording_fit::fit(&rec, &settings)?;
     if let (Some(p), Some((panels, columns))) = (&a.plot, &fitted.plot) {
-        imu_emu::plot::render(p, panels, *columns, (600 * *columns as u32, 1000))?;
+        let rows = panels.len().div_ceil(*columns) as u32;
+        imu_emu::plot::render(p, panels, *columns, (600 * *columns as u32, 500 * rows))?;
         eprintln!("imu-emu fit: plot written to {}", p.display());
     }
     if let Some(p) = &a.report {

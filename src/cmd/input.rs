@@ -21,7 +21,7 @@ pub struct InputArgs {
     /// Sampling rate (Hz); needed when the data have no time column [default: from the time column]
     #[arg(long)]
     pub rate: Option<f64>,
-    /// CSV column roles in order, e.g. t,gx,gy,gz,ax,ay,az (- skips a column) [default: from the header]
+    /// CSV column roles in order, e.g. t,gx,gy,gz,ax,ay,az (- skips a column; axes without a column are left out) [default: from the header]
     #[arg(long)]
     pub columns: Option<String>,
     /// Unit of the CSV gyro columns (rad/s, deg/s, deg/h, mrad/s)

@@ -118,6 +118,9 @@ pub fn report_on(s: &Subject, plot: bool) -> AnalysisReport {
     } else if plot {
         let filter = model.and_then(|m| white_allan(m, dt));
         panels.0 = report::panels_filtered(res, theory.as_deref(), filter.as_ref(), &s.title);
+        // Two columns; a row per pair (one sensor, or a table's two ADEV panels).
+        let rows = panels.0.len().div_ceil(2).max(1) as u32;
+        panels.2 = (1600, 600 * rows);
     }
     AnalysisReport {
         text,

@@ -120,6 +120,7 @@ pub fn fit(rec: &Analysis, s: &Settings) -> Result<Fitted, FitError> {
         carry: fitted.carry,
         resonances,
         table: rec.channels.iter().all(|c| c.trend.is_none()),
+        missing: std::array::from_fn(|ch| rec.channels[ch].adev.is_empty()),
     };
     let toml = template_toml(&prov, &fits, &found);
     // The template must load as written: what `--imu` will read is what was fitted.
@@ -199,21 +200,10 @@ pub fn fit(rec: &Analysis, s: &Settings) -> Result<Fitted, FitError> {
         &check,
         s.plot.as_ref().map(|p| p.0.as_str()),
     );
-    let plot = s.plot.as_ref().map(|(_, title)| {
-        let adev = report::panels(rec, &fits, simulated.as_ref(), title);
-        let psd = report::psd_panels(rec, simulated.as_ref(), title);
-        // Rows: gyro x y z (and the gyro PSD), accel x y z (and the accel PSD).
-        let columns = if psd.len() == 2 { 4 } else { 3 };
-        let mut panels = Vec::new();
-        let mut psd = psd.into_iter();
-        for (i, p) in adev.into_iter().enumerate() {
-            panels.push(p);
-            if i % 3 == 2 && columns == 4 {
-                panels.extend(psd.next());
-            }
-        }
-        (panels, columns)
-    });
+    let plot = s
+        .plot
+        .as_ref()
+        .map(|(_, title)| report::grid(rec, &fits, simulated.as_ref(), title));
     Ok(Fitted {
         sines: sines_scene(&prov, &found),
         toml,

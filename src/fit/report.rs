@@ -42,11 +42,12 @@ pub fn markdown(
     );
     for (ch, fit) in fits.iter().enumerate() {
         let Some(fit) = fit else {
-            let _ = writeln!(
-                s,
-                "| {} | (no usable Allan deviation) | | | | | |",
-                CHANNELS[ch]
-            );
+            let why = if p.missing[ch] {
+                "(not in the input)"
+            } else {
+                "(no usable Allan deviation)"
+            };
+            let _ = writeln!(s, "| {} | {why} | | | | | |", CHANNELS[ch]);
             continue;
         };
         let gyro = ch < 3;
@@ -138,7 +139,7 @@ pub fn markdown(
             );
         }
     }
-    closure_section(&mut s, closure);
+    closure_section(&mut s, closure, &p.missing);
     s
 }
 
@@ -163,8 +164,9 @@ fn verdict(inside: bool) -> &'static str {
     if inside { "inside" } else { "**OUTSIDE**" }
 }
 
-/// `## Closure`: a summary line per channel, then every octave and band with its verdict.
-fn closure_section(s: &mut String, c: &Closure) {
+/// `## Closure`: a summary line per channel, then every octave and band with its verdict;
+/// the channels the input does not have are named once.
+fn closure_section(s: &mut String, c: &Closure, missing: &[bool; 6]) {
     let _ = writeln!(
         s,
         "\n## Closure\n\nA static record of the same length simulated from the fitted template (as written, loaded back):\nits Allan deviation at every octave from Δt to T/8, and its PSD over bands of 1/{} decade from {} Hz to\nthe Nyquist frequency, against the recording's bands (±4σ of the difference, docs/fit.md).\n",
@@ -174,7 +176,15 @@ fn closure_section(s: &mut String, c: &Closure) {
         let _ = writeln!(s, "No closure check was run.");
         return;
     }
-    for (ch, (a, name)) in c.adev.iter().zip(CHANNELS).enumerate() {
+    let absent: Vec<&str> = (0..6)
+        .filter(|&ch| missing[ch])
+        .map(|ch| CHANNELS[ch])
+        .collect();
+    if !absent.is_empty() {
+        let _ = writeln!(s, "Not in the input: {}.\n", absent.join(", "));
+    }
+    let present = |&(ch, _): &(usize, _)| !missing[ch];
+    for (ch, (a, name)) in c.adev.iter().zip(CHANNELS).enumerate().filter(present) {
         let p = c.psd.get(ch).map_or(&[][..], Vec::as_slice);
         let _ = writeln!(
             s,
@@ -186,7 +196,7 @@ fn closure_section(s: &mut String, c: &Closure) {
             p.len()
         );
     }
-    for (ch, (adev, name)) in c.adev.iter().zip(CHANNELS).enumerate() {
+    for (ch, (adev, name)) in c.adev.iter().zip(CHANNELS).enumerate().filter(present) {
         let (unit, k) = adev_unit(ch < 3);
         let _ = writeln!(
             s,
@@ -259,6 +269,52 @@ fn ramp_rows(s: &mut String, fits: &[Option<AxisFit>]) {
     }
 }
 
+/// How many of a sensor's axes (from channel `base`) have a PSD in `a`.
+fn present(a: &Analysis, base: usize) -> usize {
+    (0..3)
+        .filter(|i| a.channels[base + i].psd.segments > 0)
+        .count()
+}
+
+/// The fit's picture as a grid: a row per sensor the input has, its channels' ADEV panels
+/// then its PSD panel; returns the panels (blank ones pad a shorter row) and the columns.
+pub fn grid(
+    recorded: &Analysis,
+    fits: &[Option<AxisFit>],
+    simulated: Option<&Analysis>,
+    title: &str,
+) -> (Vec<Panel>, usize) {
+    let mut adev = panels(recorded, fits, simulated, title).into_iter();
+    let mut psd = psd_panels(recorded, simulated, title)
+        .into_iter()
+        .peekable();
+    let mut rows: Vec<Vec<Panel>> = Vec::new();
+    for base in [0, 3] {
+        let mut row: Vec<Panel> = (0..3)
+            .filter_map(|a| {
+                Some(adev.next()?).filter(|_| !recorded.channels[base + a].adev.is_empty())
+            })
+            .collect();
+        let sensor = if base == 0 { "gyro" } else { "accel" };
+        if psd
+            .peek()
+            .is_some_and(|p| p.title.ends_with(&format!("{sensor} PSD")))
+        {
+            row.extend(psd.next());
+        }
+        if !row.is_empty() {
+            rows.push(row);
+        }
+    }
+    let columns = rows.iter().map(Vec::len).max().unwrap_or(1);
+    let mut out = Vec::new();
+    for mut row in rows {
+        row.resize_with(columns, Panel::default);
+        out.extend(row);
+    }
+    (out, columns)
+}
+
 /// One PSD panel per sensor: the recording's three axes with their 68 % bands (solid) and
 /// the simulated record's (dashed).
 pub fn psd_panels(recorded: &Analysis, simulated: Option<&Analysis>, title: &str) -> Vec<Panel> {
@@ -266,17 +322,24 @@ pub fn psd_panels(recorded: &Analysis, simulated: Option<&Analysis>, title: &str
         .map(|base| {
             let (unit, k) = adev_unit(base == 0);
             let mut series = Vec::new();
+            let axes: Vec<&str> = (0..3)
+                .filter(|a| recorded.channels[base + a].psd.segments > 0)
+                .map(|a| ["x", "y", "z"][a])
+                .collect();
             for (i, a) in std::iter::once(recorded).chain(simulated).enumerate() {
-                for axis in 0..3 {
+                // The axes the recording has (the simulation has all six).
+                for axis in (0..3).filter(|a| recorded.channels[base + a].psd.segments > 0) {
                     let p = &a.channels[base + axis].psd;
                     if p.segments == 0 {
                         continue;
                     }
                     let b = crate::analysis::report::banded_psd(p, k);
                     series.push(Series {
-                        label: match (i, axis) {
-                            (0, 0) => "recording x y z (68 % band)".into(),
-                            (_, 0) => "simulated from the template".into(),
+                        label: match (i, series.len()) {
+                            (0, 0) => format!("recording {} (68 % band)", axes.join(" ")),
+                            (_, n) if n == present(recorded, base) => {
+                                "simulated from the template".into()
+                            }
                             _ => String::new(),
                         },
                         x: b.freq,

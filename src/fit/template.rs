@@ -32,6 +32,8 @@ pub struct Provenance {
     pub resonances: Vec<Vec<super::resonance::Resonance>>,
     /// Whether the input is an Allan deviation table (no time series, no PSD).
     pub table: bool,
+    /// Channels (gyro x y z, accel x y z) the input does not have: written error-free.
+    pub missing: [bool; 6],
 }
 
 /// A number with 4 significant digits, plain or in exponent form, that parses back.
@@ -116,7 +118,23 @@ pub fn template_toml(p: &Provenance, fits: &[Option<AxisFit>], lines: &[Vec<Line
     for (gyro, base) in [(true, 0), (false, 3)] {
         let _ = writeln!(s, "\n[{}]", if gyro { "gyro" } else { "accel" });
         let axes: Vec<Option<&AxisFit>> = (0..3).map(|a| fits[base + a].as_ref()).collect();
-        triad_toml(&mut s, gyro, &axes);
+        let missing: Vec<&str> = (0..3)
+            .filter(|a| p.missing[base + a])
+            .map(|a| ["x", "y", "z"][a])
+            .collect();
+        if !missing.is_empty() {
+            // Zero is what the template can say of an axis it knows nothing of; the comment
+            // keeps it from being read as a measured perfect axis.
+            let _ = writeln!(
+                s,
+                "# not in the input: {} (written error-free; copy a measured axis's values to simulate {})",
+                missing.join(", "),
+                if missing.len() == 1 { "it" } else { "them" }
+            );
+        }
+        if missing.len() < 3 {
+            triad_toml(&mut s, gyro, &axes);
+        }
         if let Some(q) = p.lsb[base / 3].filter(|_| p.carry) {
             let u = if gyro { "rad" } else { "m/s" };
             let _ = writeln!(
