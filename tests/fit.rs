@@ -13,7 +13,7 @@ use common::cli::{err, imu_emu, ok};
 use imu_emu::errors::template::{self, ImuModel};
 use imu_emu::fit::closure;
 use imu_emu::fit::compare::{fit_all, fit_all_with_filter, triad_lsbs};
-use imu_emu::fit::gmwm::Component;
+use imu_emu::fit::gmwm::{COMPONENTS, Component};
 use imu_emu::fit::template::{Provenance, template_toml};
 use tempfile::TempDir;
 
@@ -124,6 +124,13 @@ fn closure_at(seed: u64) {
                 Some(e) if e.lo <= want && want <= e.hi => {}
                 None if k == Component::RandomWalk => k_left_out.push(ch),
                 e => missed.push(format!("channel {ch} {k:?}: true {want:e}, fitted {e:?}")),
+            }
+        }
+        // The gain printed beside each kept figure clears the gate it printed: kept exactly
+        // when the penalised search kept it.
+        for k in COMPONENTS {
+            if let Some(e) = f.estimate(k) {
+                assert!(e.gain > k.penalty(), "channel {ch} {k:?}: {e:?}");
             }
         }
         let (lo, hi) = f.gm_tau_interval.unwrap();

@@ -619,6 +619,37 @@ fn a_real_mpu6050_recording_closes_and_a_moving_one_is_refused() {
             format!("- {name}: Allan deviation 13 of 13 octaves inside; PSD 19 of 19 bands inside");
         assert!(md.contains(&want), "{want}\n{md}");
     }
+    // Every kept figure's printed gain clears the gate printed beside it (it once did not:
+    // B on gyro x with "Δχ² = -4.205 (> 11.3 to be kept)", a plain χ² difference against a
+    // fit without it that took two other terms).
+    let toml = std::fs::read_to_string(&out).unwrap();
+    let mut gates = 0;
+    for line in toml
+        .lines()
+        .filter(|l| l.contains("to be kept)") && l.contains("Δχ² = "))
+    {
+        let gain: f64 = line
+            .split("Δχ² = ")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        let gate: f64 = line
+            .split("(> ")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(gain > gate, "{line}");
+        gates += 1;
+    }
+    assert!(gates >= 8, "{toml}");
 
     let moving = mpu6050_csv("moving", d);
     let refused = d.join("moving.toml");

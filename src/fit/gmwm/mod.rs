@@ -268,7 +268,13 @@ pub fn fit_axis_with(
         let mut exclude = base_exclude.to_vec();
         exclude.push(COMPONENTS[i]);
         let without = d.search(&w, dt, &exclude, &bands, &gms);
-        e.gain = without.map_or(f64::INFINITY, |f| f.chi2 - found.chi2);
+        // The gain against the best fit without it is counted as the search chose: in
+        // penalised cost, plus its own penalty. So it exceeds the penalty exactly when the
+        // component was kept; a plain χ² difference can even be negative, when the best fit
+        // without it takes two other components whose penalties it does not pay.
+        e.gain = without.map_or(f64::INFINITY, |f| {
+            f.cost - found.cost + COMPONENTS[i].penalty()
+        });
         Some(e)
     });
     Some(AxisFit {

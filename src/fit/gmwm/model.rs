@@ -175,7 +175,8 @@ pub struct Estimate {
     pub share: f64,
     /// Degrees of freedom of the reading (ν).
     pub dof: f64,
-    /// χ² the component gains over the best fit without it.
+    /// χ² the component gains over the best fit without it, the penalties of the other
+    /// components each fit keeps counted (kept exactly when this exceeds its own penalty).
     pub gain: f64,
 }
 
