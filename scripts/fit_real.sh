@@ -8,7 +8,8 @@
 #   scripts/fit_real.sh IMUDATA SENSOR_FUSION OUT [AVAR]
 #
 # IMUDATA: a clone of https://github.com/SMAC-Group/imudata (ADIS16405, six 10^6-sample runs
-# at 100 Hz; CC BY-NC-SA 4.0). SENSOR_FUSION: a clone of https://github.com/sunsided/sensor-fusion
+# at 100 Hz, and from its history (commit d054287) an Xsens MTi-G's gyro x, 500 000 samples at
+# 100 Hz with outliers; CC BY-NC-SA 4.0). SENSOR_FUSION: a clone of https://github.com/sunsided/sensor-fusion
 # (MPU-6050, set-2; EUPL-1.2). Either may be `-` to skip it. The ADIS16448 and BMI160 Allan
 # deviation tables of gaowenliang/imu_utils (MIT) are in tests/data/imu_utils/. AVAR, optional:
 # a clone of https://github.com/SMAC-Group/avar (AGPL-3), whose per-axis Allan deviation tables
@@ -41,6 +42,12 @@ if [ "$imudata" != - ]; then
         [ -s "$csv" ] || "$py" "$conv" adis16405 "$imudata/data/adis_16405_imu$i.rda" "$csv"
         fit "adis16405-run$i" "$csv" --gyro-unit deg/s --accel-unit g
     done
+    csv="$out/mtig-gyro-x.csv"
+    if [ ! -s "$csv" ]; then
+        git -C "$imudata" show d054287:data/cont.imu1.rda > "$out/cont.imu1.rda"
+        "$py" "$conv" mtig "$out/cont.imu1.rda" "$csv"
+    fi
+    fit mtig-gyro-x "$csv"
 fi
 if [ "$fusion" != - ]; then
     set2="$fusion/data/set-2"

@@ -15,6 +15,13 @@ records are, as register counts (tests/data/sensor-fusion/, made with `mpu6050-c
                      the same record as the sensor's register counts, without the time tags
                      (gx,gy,gz in 1/131 deg/s, ax,ay,az in 1/4096 g: its ±250 deg/s and ±8 g
                      ranges); refused unless every value is a whole count. tests/data/sensor-fusion/ holds two such files.
+  mtig RDA OUT       SMAC-Group/imudata data/cont.imu1.rda, in the repository's history (commit
+                     d054287; removed later; CC BY-NC-SA 4.0): one column, the gyro x of an
+                     Xsens MTi-G (EPFL TOPO), 500 000 samples, "possibly suffering from some
+                     contaminated measurements (outliers)" (the package's README), at 100 Hz
+                     (the README's rate for its MTi-G records); rad/s (its white noise, 1.9
+                     deg/sqrt(h), is the MTi-G's order; in deg/s it would be 0.03 deg/sqrt(h)).
+                     Written as t,gx with t = k/100 s.
   avar RDA OUT       SMAC-Group/avar data/<name>_av.rda (AGPL-3): per-axis maximal-overlap
                      Allan deviations at octave τ (2Δt … ) of a static recording, with its rate
                      and sample count, written as the Allan deviation table `fit` reads
@@ -87,6 +94,21 @@ AVAR_UNITS = {
 }
 
 
+def mtig(rda, out):
+    import warnings
+
+    import rdata
+
+    warnings.filterwarnings("ignore", message="Missing constructor")
+    value = np.asarray(list(rdata.conversion.convert(rdata.parser.parse_file(rda)).values())[0])
+    if value.ndim != 2 or value.shape[1] != 1:
+        sys.exit(f"{rda}: expected 1 column, got {value.shape}")
+    with open(out, "w") as f:
+        f.write("t,gx\n")
+        for k, x in enumerate(value[:, 0]):
+            f.write("%.2f,%r\n" % ((k + 1) / 100.0, float(x)))
+
+
 def avar(rda, out):
     import warnings
 
@@ -126,6 +148,7 @@ if __name__ == "__main__":
         "adis16405": adis16405,
         "mpu6050": mpu6050,
         "mpu6050-counts": mpu6050_counts,
+        "mtig": mtig,
         "avar": avar,
     }
     if len(sys.argv) != 4 or sys.argv[1] not in modes:

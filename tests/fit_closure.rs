@@ -619,6 +619,8 @@ fn a_real_mpu6050_recording_closes_and_a_moving_one_is_refused() {
             format!("- {name}: Allan deviation 13 of 13 octaves inside; PSD 19 of 19 bands inside");
         assert!(md.contains(&want), "{want}\n{md}");
     }
+    // No knock or spike in it: nothing is left out.
+    assert!(md.contains("## Transients\n\nNone"), "{md}");
     // Every kept figure's printed gain clears the gate printed beside it (it once did not:
     // B on gyro x with "Δχ² = -4.205 (> 11.3 to be kept)", a plain χ² difference against a
     // fit without it that took two other terms).

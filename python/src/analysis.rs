@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use imu_emu::analysis::analyzer::{Analysis, Analyzer, CHANNELS};
-use imu_emu::analysis::reader::{self, CsvOptions, InputFormat};
+use imu_emu::analysis::recording::Recording;
 
 use crate::errors::{err, invalid};
 
@@ -61,33 +61,23 @@ fn analysis(input: &Input, rate: Option<f64>, segment: usize) -> Result<Analysis
         return Err(format!("rate: expected a positive number of Hz, got {r}"));
     }
     let mut an = Analyzer::new(segment);
-    let (label, spec_rate) = match input {
+    let label = match input {
         Input::Rows(rows) => {
             for r in rows {
                 an.push(r[0], &std::array::from_fn(|i| r[i + 1]));
             }
-            ("records".to_string(), None)
+            "records"
         }
         Input::File(p, format) => {
-            let is_bin = p.extension().is_some_and(|e| e == "bin");
-            let (format, spec_rate) = match format.as_deref() {
-                Some("csv") => (InputFormat::Csv(CsvOptions::default()), None),
-                Some("bin") => (InputFormat::Bin, None),
-                Some(name) => {
-                    let (spec, plan) = imu_emu::protocol::load(name)
-                        .map_err(|e| format!("format `{name}`: {}", crate::errors::message(&e)))?;
-                    (InputFormat::Frames(plan), spec.rate_hz)
-                }
-                None if is_bin => (InputFormat::Bin, None),
-                None => (InputFormat::Csv(CsvOptions::default()), None),
-            };
-            let rate = rate.or(spec_rate);
-            reader::read(p, &format, rate.map(|r| 1.0 / r), |t, v| an.push(t, v))
-                .map_err(|e| crate::errors::message(&e))?;
-            (p.display().to_string(), spec_rate)
+            // The CLI's reader: a CSV of some axes, transients found and left out.
+            let mut r = Recording::new(p.clone(), format.clone());
+            r.rate = rate;
+            return r
+                .read(segment)
+                .map(|read| read.analysis)
+                .map_err(|e| crate::errors::message(&e));
         }
     };
-    let rate = rate.or(spec_rate);
     if an.samples() < 8 {
         return Err(format!(
             "{label}: {} samples; the analysis needs at least 8",

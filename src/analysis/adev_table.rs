@@ -420,6 +420,7 @@ impl AdevTable {
             blocks: None,
             t_first: f64::NAN,
             channels,
+            transients: None,
         }
     }
 }

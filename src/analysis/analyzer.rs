@@ -9,6 +9,7 @@ use super::lattice::{Lattice, LatticeScan};
 use super::octave_adev::{AdevPoint, OctaveAdev};
 use super::psd::{Psd, Welch};
 use super::stats::Stats;
+use super::transients::{GapCursor, Transients};
 use crate::record::Record;
 
 /// Channel names, in the order of the six values.
@@ -35,6 +36,8 @@ pub struct Analyzer {
     /// largest step.
     step_min_at: (u64, f64),
     step_max_at: (u64, f64),
+    /// Samples to leave out of the statistics, the Allan deviation and the PSD.
+    gaps: GapCursor,
 }
 
 /// What one channel showed.
@@ -99,6 +102,9 @@ pub struct Analysis {
     pub t_first: f64,
     /// The six channels in [`CHANNELS`] order.
     pub channels: Vec<ChannelAnalysis>,
+    /// The record's transients and what was done with them (None: not looked for — a table,
+    /// a simulated record).
+    pub transients: Option<Transients>,
 }
 
 impl Analysis {
@@ -127,6 +133,18 @@ impl Analyzer {
             step_max: f64::NEG_INFINITY,
             step_min_at: (0, f64::NAN),
             step_max_at: (0, f64::NAN),
+            gaps: GapCursor::default(),
+        }
+    }
+
+    /// [`Analyzer::new`] leaving the samples in `gaps` (sorted, disjoint, inclusive 0-based
+    /// ranges: a record's transients) out of every statistic: every Allan-variance difference
+    /// and Welch segment that holds one, and the mean and scatter. The lattice and the block
+    /// means (the static check) still see them.
+    pub fn with_gaps(segment: usize, gaps: Vec<(u64, u64)>) -> Analyzer {
+        Analyzer {
+            gaps: GapCursor::new(gaps),
+            ..Analyzer::new(segment)
         }
     }
 
@@ -147,11 +165,17 @@ impl Analyzer {
             }
         }
         self.t_prev = t;
+        let bad = self.gaps.contains(self.n);
         self.n += 1;
         for (i, &x) in v.iter().enumerate() {
-            self.stats[i].push(x);
-            self.adev[i].push(x);
-            self.psd[i].push(x);
+            if bad {
+                self.adev[i].push_flagged(x);
+                self.psd[i].push_flagged(x);
+            } else {
+                self.stats[i].push(x);
+                self.adev[i].push(x);
+                self.psd[i].push(x);
+            }
             self.lattice[i].push(x);
         }
         self.blocks.push(v);
@@ -206,6 +230,7 @@ impl Analyzer {
             },
             t_first: self.t_first,
             channels,
+            transients: None,
         }
     }
 }

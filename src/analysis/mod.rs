@@ -19,3 +19,4 @@ pub mod recording;
 pub mod report;
 pub mod stats;
 pub mod theory;
+pub mod transients;

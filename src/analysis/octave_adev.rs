@@ -61,6 +61,8 @@ struct Octave {
     /// linear trend removed ([`OctaveAdev::detrended_points`]).
     sum_d: f64,
     terms: u64,
+    /// Second differences left out because their span held a flagged sample.
+    skipped: u64,
 }
 
 /// Streaming accumulator of the octave Allan deviation of one rate channel.
@@ -76,6 +78,9 @@ pub struct OctaveAdev {
     /// least-squares slope (Welford's update, stable whatever the bias).
     mean_x: f64,
     co_kx: f64,
+    /// Phase index of the latest flagged sample (0: none): a second difference at phase k
+    /// spans samples k − 2m + 1 … k, and is left out when that holds it.
+    last_bad: u64,
 }
 
 impl Default for OctaveAdev {
@@ -100,6 +105,7 @@ impl OctaveAdev {
                     sum_sq: 0.0,
                     sum_d: 0.0,
                     terms: 0,
+                    skipped: 0,
                 }
             })
             .collect();
@@ -111,9 +117,19 @@ impl OctaveAdev {
             k: 0,
             mean_x: 0.0,
             co_kx: 0.0,
+            last_bad: 0,
         };
         a.visit(0.0); // θ_0 = 0
         a
+    }
+
+    /// Adds one rate sample that every second difference spanning it must leave out (a
+    /// transient's: [`super::transients`]). Its value still enters the phase, which the
+    /// differences that do not span it never see.
+    #[inline]
+    pub fn push_flagged(&mut self, y: f64) {
+        self.last_bad = self.k + 1;
+        self.push(y);
     }
 
     /// Adds one rate sample.
@@ -165,6 +181,10 @@ impl OctaveAdev {
                 let lag = o.m / o.stride;
                 let mid = o.ring[(o.head + len - lag) % len];
                 let old = o.ring[(o.head + 1) % len];
+                if self.last_bad > 0 && k < self.last_bad + 2 * o.m as u64 {
+                    o.skipped += 1;
+                    continue;
+                }
                 let d = theta - 2.0 * mid + old;
                 o.sum_sq += d * d;
                 o.sum_d += d;
@@ -198,11 +218,12 @@ impl OctaveAdev {
     }
 
     fn points_less(&self, slope: f64, dt: f64, noise: impl Fn(f64) -> NoiseType) -> Vec<AdevPoint> {
-        let phases = self.k as usize + 1;
         self.octaves
             .iter()
             .filter(|o| o.terms > 0)
             .map(|o| {
+                // Left-out differences shorten the record the edf formulas see.
+                let phases = (self.k as usize + 1).saturating_sub(o.skipped as usize * o.stride);
                 let m = o.m as f64;
                 let bm2 = slope * m * m;
                 let terms = o.terms as f64;
@@ -229,6 +250,65 @@ impl OctaveAdev {
 mod tests {
     use super::*;
     use crate::rng::NormalStream;
+
+    /// A flagged sample leaves out exactly the second differences whose span holds it: for
+    /// m ≤ 16 the curve equals the overlapping estimator summed over the differences that do
+    /// not span sample j, to round-off, whatever value the flagged sample has (a 10⁶σ spike
+    /// gives the same curve as a zero); the edf sees the shorter record.
+    #[test]
+    fn a_flagged_sample_leaves_out_the_differences_that_span_it() {
+        let mut s = NormalStream::new(5, "octave/gap");
+        let n = 20_000usize;
+        let j = 7_000usize; // 0-based index of the flagged sample
+        let y: Vec<f64> = (0..n).map(|_| s.draw()).collect();
+        let run = |spike: f64| {
+            let mut acc = OctaveAdev::new();
+            for (k, &v) in y.iter().enumerate() {
+                if k == j {
+                    acc.push_flagged(v + spike);
+                } else {
+                    acc.push(v);
+                }
+            }
+            acc.points(1.0, |_| NoiseType::WhiteRate)
+        };
+        let (spiked, zeroed) = (run(1e6), run(-y[j]));
+        // The batch sum: phase θ_k = Σ_{i<k} y_i, so the difference at phase k spans
+        // y[k − 2m … k − 1].
+        let mut theta = vec![0.0; n + 1];
+        for k in 0..n {
+            theta[k + 1] = theta[k] + y[k];
+        }
+        for (p, q) in spiked.iter().zip(&zeroed) {
+            // Round-off only: the spike enters the phase, which the kept differences cancel.
+            assert!((p.adev / q.adev - 1.0).abs() < 1e-9, "m {}", p.m);
+            if p.m > STRIDE_DIVISOR {
+                continue;
+            }
+            let m = p.m;
+            let (mut sum, mut terms) = (0.0, 0u64);
+            for k in 2 * m..=n {
+                if k - 2 * m <= j && j < k {
+                    continue;
+                }
+                let d = theta[k] - 2.0 * theta[k - m] + theta[k - 2 * m];
+                sum += d * d;
+                terms += 1;
+            }
+            let want = (sum / (2.0 * (m * m) as f64 * terms as f64)).sqrt();
+            assert_eq!(p.terms, terms, "m {m}");
+            assert!(
+                (p.adev / want - 1.0).abs() < 1e-9,
+                "m {m}: {} vs {want}",
+                p.adev
+            );
+            // 2m differences left out: the edf is that of a record 2m samples shorter.
+            let full = edf(NoiseType::WhiteRate, n + 1, m);
+            let short = edf(NoiseType::WhiteRate, n + 1 - 2 * m, m);
+            assert_eq!(p.edf, short);
+            assert!(p.edf < full);
+        }
+    }
 
     /// For m ≤ 16 the stream is the fully overlapping estimator: it equals `allan` to
     /// round-off; beyond, the strided estimate stays within the 1σ interval of the full one.

@@ -35,6 +35,10 @@ pub struct Welch {
     acc: Vec<f64>,
     segments: u64,
     scratch: Vec<Complex<f64>>,
+    /// Samples pushed, and 1 + the index of the latest flagged one (0: none): a segment
+    /// holding a flagged sample is left out.
+    pushed: u64,
+    bad_end: u64,
 }
 
 impl Welch {
@@ -50,15 +54,29 @@ impl Welch {
             segments: 0,
             scratch: vec![Complex::default(); len],
             fft,
+            pushed: 0,
+            bad_end: 0,
         }
+    }
+
+    /// Adds one sample that every segment holding it must leave out (a transient's:
+    /// [`super::transients`]).
+    #[inline]
+    pub fn push_flagged(&mut self, y: f64) {
+        self.bad_end = self.pushed + 1;
+        self.push(y);
     }
 
     /// Adds one sample.
     #[inline]
     pub fn push(&mut self, y: f64) {
         self.buf.push(y);
+        self.pushed += 1;
         if self.buf.len() == self.len {
-            self.segment();
+            // The buffer holds samples pushed − len … pushed − 1.
+            if self.bad_end <= self.pushed - self.len as u64 {
+                self.segment();
+            }
             self.buf.drain(..self.len / 2);
         }
     }
@@ -78,6 +96,10 @@ impl Welch {
     pub fn finish(&self, dt: f64) -> Psd {
         if self.segments > 0 {
             return scale(&self.acc, self.segments, self.len, &self.window, dt);
+        }
+        if self.pushed >= self.len as u64 {
+            // Every segment held a flagged sample.
+            return Psd::default();
         }
         // Short record: everything is still in `buf`; redo it with a smaller segment.
         if self.buf.len() < 16 {
@@ -164,6 +186,44 @@ mod tests {
         let df = p.freq[1];
         let total: f64 = p.density.iter().sum::<f64>() * df;
         assert!((total / (a * a / 2.0) - 1.0).abs() < 1e-3, "{total}");
+    }
+
+    /// A flagged sample leaves out the segments that hold it (two, with half overlap) and
+    /// nothing else: the estimate equals the average over the others — the same whatever the
+    /// flagged value, and the same as a Welch over the record with those segments cut out.
+    #[test]
+    fn a_flagged_sample_leaves_out_its_segments() {
+        let len = 64;
+        // Segments start at 0, 32, 64, …; sample 100 is in those starting at 64 and 96.
+        let y: Vec<f64> = (0..640).map(|k| ((k * 37) % 11) as f64 - 5.0).collect();
+        let run = |v100: f64| {
+            let mut w = Welch::new(len);
+            for (k, &v) in y.iter().enumerate() {
+                if k == 100 {
+                    w.push_flagged(v100);
+                } else {
+                    w.push(v);
+                }
+            }
+            w.finish(0.01)
+        };
+        let (a, b) = (run(1e9), run(0.0));
+        assert_eq!(a, b);
+        assert_eq!(a.segments, 19 - 2);
+        // The same segments, from two records: 0…95 (segments at 0 and 32) and 128…639.
+        let mut w = Welch::new(len);
+        y[..96].iter().for_each(|&v| w.push(v));
+        let mut w2 = Welch::new(len);
+        y[128..].iter().for_each(|&v| w2.push(v));
+        for (acc, more) in w.acc.iter_mut().zip(&w2.acc) {
+            *acc += more;
+        }
+        w.segments += w2.segments;
+        let want = w.finish(0.01);
+        assert_eq!(want.segments, a.segments);
+        for (p, q) in a.density.iter().zip(&want.density) {
+            assert!((p / q - 1.0).abs() < 1e-12, "{p} vs {q}");
+        }
     }
 
     #[test]

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use super::adev_table::{self, TableOptions};
 use super::analyzer::{Analysis, Analyzer};
 use super::reader::{self, CsvOptions, InputFormat, ReadSummary};
+use super::transients::{self, Handling, Scanner, StepScale, Transients};
 use crate::units::{self, Kind};
 
 /// A recording and how to read it; messages name the flags of `imu-emu analyze`.
@@ -32,6 +33,9 @@ pub struct Recording {
     pub record_length: Option<String>,
     /// ADEV table input: further tables whose channels are added.
     pub tables: Vec<PathBuf>,
+    /// Keep the record's transients in the statistics (else they are left out:
+    /// [`super::transients`]).
+    pub keep_transients: bool,
 }
 
 /// A recording read.
@@ -91,6 +95,7 @@ impl Recording {
             accel_unit: "m/s^2".into(),
             record_length: None,
             tables: Vec::new(),
+            keep_transients: false,
         }
     }
 
@@ -210,8 +215,10 @@ impl Recording {
         };
         let rate = self.rate.or(spec_rate);
         let mut an = Analyzer::new(segment);
+        let mut steps = StepScale::default();
         let summary = reader::read(&self.input, &format, rate.map(|r| 1.0 / r), |t, v| {
-            an.push(t, v)
+            an.push(t, v);
+            steps.push(v);
         })
         .map_err(read_error)?;
         let name = self.input.display();
@@ -230,7 +237,19 @@ impl Recording {
                 ));
             }
         };
-        let analysis = an.finish(dt).without(summary.missing);
+        let mut analysis = an.finish(dt).without(summary.missing);
+        let transients = self.transients(&format, rate, &analysis, &steps, &summary)?;
+        if let Some(t) = &transients
+            && t.handling == Handling::LeftOut
+        {
+            let mut an = Analyzer::with_gaps(segment, t.gaps.clone());
+            reader::read(&self.input, &format, rate.map(|r| 1.0 / r), |t, v| {
+                an.push(t, v)
+            })
+            .map_err(read_error)?;
+            analysis = an.finish(dt).without(summary.missing);
+        }
+        analysis.transients = transients;
         let (smin, smax) = analysis.step_range;
         let warning = (smin.is_finite() && (smin < 0.99 * dt || smax > 1.01 * dt)).then(|| {
             format!(
@@ -242,6 +261,60 @@ impl Recording {
             summary,
             warning,
         })
+    }
+
+    /// The second pass ([`super::transients`]): the steps beyond each channel's bar, and
+    /// what to do with them. None when there are none.
+    fn transients(
+        &self,
+        format: &InputFormat,
+        rate: Option<f64>,
+        a: &Analysis,
+        steps: &StepScale,
+        summary: &ReadSummary,
+    ) -> Result<Option<Transients>, RecordingError> {
+        let present: Vec<usize> = (0..6).filter(|&ch| !summary.missing[ch]).collect();
+        let z = transients::threshold(steps.samples().saturating_sub(1) * present.len() as u64)
+            .max(transients::MIN_Z);
+        let mut bar = [f64::INFINITY; 6];
+        let mut scale = [0.0; 6];
+        for &ch in &present {
+            scale[ch] = steps.scale(ch, z);
+            let lsb = a.channels[ch].lattice.map_or(0.0, |l| l.lsb);
+            if scale[ch] > 0.0 {
+                bar[ch] = (z * scale[ch]).max(transients::MIN_LSBS * lsb);
+            }
+        }
+        let pad = (transients::PAD_S / a.dt).round() as u64;
+        let mut scan = Scanner::new(bar, scale, 2 * pad);
+        reader::read(&self.input, format, rate.map(|r| 1.0 / r), |_, v| {
+            scan.push(v)
+        })
+        .map_err(read_error)?;
+        let list = scan.finish();
+        if list.is_empty() {
+            return Ok(None);
+        }
+        let gaps = transients::gaps(&list, pad, a.samples);
+        let left_out: u64 = gaps.iter().map(|(x, y)| y - x + 1).sum();
+        let handling = if self.keep_transients {
+            Handling::Kept
+        } else if left_out as f64 > transients::MAX_LEFT_OUT * a.samples as f64 {
+            Handling::HeavyTailed
+        } else {
+            Handling::LeftOut
+        };
+        Ok(Some(Transients {
+            list,
+            z,
+            pad,
+            handling,
+            gaps: if handling == Handling::LeftOut {
+                gaps
+            } else {
+                Vec::new()
+            },
+        }))
     }
 
     /// The file's name, for titles (`input` when it has none).

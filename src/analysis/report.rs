@@ -11,6 +11,7 @@ use super::fit::{TERMS, Term};
 use super::octave_adev::CONFIDENCE;
 use super::psd_band::{BandedPsd, banded};
 use super::theory::AxisTheory;
+use super::transients::{Handling, Transients};
 use crate::errors::filter_allan::SensorAllan;
 use crate::plot::{Panel, Series};
 use crate::units::G0;
@@ -378,4 +379,44 @@ pub fn curves_csv(a: &Analysis, theory: Option<&[AxisTheory]>) -> String {
         }
     }
     s
+}
+
+/// One sentence on a record's transients: how many, where the largest is, what was done.
+pub fn transients_summary(t: &Transients, dt: f64) -> String {
+    let big = t
+        .list
+        .iter()
+        .max_by(|a, b| a.z.total_cmp(&b.z))
+        .expect("a record's transients are not empty");
+    let (unit, k) = if big.channel < 3 {
+        ("deg/s", DEG)
+    } else {
+        ("g", 1.0 / G0)
+    };
+    let n = t.list.len();
+    let what = if n == 1 {
+        "1 transient (a knock or a spike)".to_string()
+    } else {
+        format!("{n} transients (knocks or spikes)")
+    };
+    let largest = format!(
+        "the largest a step of {:.4} {unit} on {} at t = {:.2} s from the start ({:.0}× its channel's step RMS; the bar is {:.0}×)",
+        big.step * k,
+        CHANNELS[big.channel],
+        big.first as f64 * dt,
+        big.z,
+        t.z
+    );
+    match t.handling {
+        Handling::LeftOut => format!(
+            "{what}, {largest}: left out of the statistics with {:.3} s on each side ({} samples); --keep-transients keeps them",
+            t.pad as f64 * dt,
+            t.left_out()
+        ),
+        Handling::Kept => format!("{what}, {largest}: kept (--keep-transients)"),
+        Handling::HeavyTailed => format!(
+            "{what}, {largest}: too many to leave out (more than {:.0} % of the record would go): the noise is heavy-tailed; kept, and a Gaussian model reproduces their variance, not their tails",
+            100.0 * super::transients::MAX_LEFT_OUT
+        ),
+    }
 }

@@ -36,6 +36,9 @@ pub struct InputArgs {
     /// ADEV table input: a further table (per-sensor file) whose channels are added
     #[arg(long = "table")]
     pub tables: Vec<PathBuf>,
+    /// Keep the record's transients (knocks, spikes) in the statistics [default: left out, with 1 s on each side, and reported]
+    #[arg(long)]
+    pub keep_transients: bool,
 }
 
 impl InputArgs {
@@ -51,6 +54,7 @@ impl InputArgs {
             accel_unit: self.accel_unit.clone(),
             record_length: self.record_length.clone(),
             tables: self.tables.clone(),
+            keep_transients: self.keep_transients,
         }
     }
 }
@@ -60,6 +64,12 @@ pub fn analyze(r: &Recording, segment: usize, command: &str) -> Result<(Analysis
     let read = r.read(segment)?;
     if let Some(w) = read.warning {
         eprintln!("imu-emu {command}: warning: {w}");
+    }
+    if let Some(t) = &read.analysis.transients {
+        eprintln!(
+            "imu-emu {command}: warning: {}",
+            imu_emu::analysis::report::transients_summary(t, read.analysis.dt)
+        );
     }
     Ok((read.analysis, read.summary))
 }

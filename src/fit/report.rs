@@ -11,6 +11,8 @@ use super::ramp::{GATE_CONFIDENCE, RampTest, normal_point};
 use super::template::{Provenance, sig4};
 use crate::analysis::analyzer::{Analysis, CHANNELS};
 use crate::analysis::report::adev_unit;
+use crate::analysis::report::transients_summary;
+use crate::analysis::transients::{MIN_Z, Transients};
 use crate::plot::{Panel, Series};
 
 /// The Markdown report; `plot` is the picture's file name as the report links it.
@@ -20,6 +22,7 @@ pub fn markdown(
     lines: &[Vec<Line>],
     closure: &Closure,
     plot: Option<&str>,
+    transients: Option<&Transients>,
 ) -> String {
     let mut s = String::new();
     let _ = writeln!(
@@ -139,9 +142,54 @@ pub fn markdown(
             );
         }
     }
+    if !p.table {
+        transients_section(&mut s, transients, p.dt);
+    }
     closure_section(&mut s, closure, &p.missing);
     s
 }
+
+/// `## Transients`: what was found beyond the bar, where, and what was done with it.
+fn transients_section(s: &mut String, t: Option<&Transients>, dt: f64) {
+    let _ = writeln!(s, "\n## Transients\n");
+    let Some(t) = t else {
+        let _ = writeln!(
+            s,
+            "None: no step between samples beyond {} times its channel's step RMS (docs/fit.md).",
+            sig4(MIN_Z)
+        );
+        return;
+    };
+    let _ = writeln!(s, "{}.\n", transients_summary(t, dt));
+    let _ = writeln!(
+        s,
+        "| samples | t from the start (s) | largest step | on | × step RMS |\n| --- | --- | --- | --- | --- |"
+    );
+    for x in t.list.iter().take(MAX_ROWS) {
+        let (u, k) = if x.channel < 3 {
+            ("deg/s", 180.0 / std::f64::consts::PI)
+        } else {
+            ("g", 1.0 / crate::units::G0)
+        };
+        let _ = writeln!(
+            s,
+            "| {}–{} | {} … {} | {} {u} | {} | {:.0} |",
+            x.first + 1,
+            x.last + 1,
+            sig4(x.first as f64 * dt),
+            sig4(x.last as f64 * dt),
+            sig4(x.step * k),
+            CHANNELS[x.channel],
+            x.z
+        );
+    }
+    if t.list.len() > MAX_ROWS {
+        let _ = writeln!(s, "\n({} more not listed.)", t.list.len() - MAX_ROWS);
+    }
+}
+
+/// Transients listed in the report at most.
+const MAX_ROWS: usize = 50;
 
 /// The closure check of every channel: Allan deviation per octave and PSD per band.
 #[derive(Clone, Debug, Default, PartialEq)]
