@@ -570,3 +570,56 @@ fn a_knock_is_found_and_left_out() {
         "{report}"
     );
 }
+
+/// Spikes all through a record (40σ on gyro y at about 1 sample in 500, at pseudo-random
+/// places, in 2^15 samples): leaving each out with a second on each side would take about 40 %
+/// of the record, so they are the noise's own tails — kept, and `fit` says so. The template's
+/// Gaussian white noise then carries their variance (n·1600σ² over 32 768 samples: with
+/// n ≈ 65, N ≈ 2× on gyro y).
+#[test]
+fn spikes_all_through_a_record_are_kept_as_heavy_tails() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let clean = white_static(d, "0.3 deg/sqrt(h)", "0.1 m/s/sqrt(h)", "100", "327.68");
+    let sg = 0.3f64.to_radians() / 60.0 / 0.1;
+    let text = std::fs::read_to_string(&clean).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let gy = header.split(',').position(|c| c == "gyro_y").unwrap();
+    let mut spiked = format!("{header}\n");
+    let (mut state, mut spikes) = (12345u64, 0);
+    for l in lines {
+        let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
+        // A 64-bit LCG (Knuth's MMIX constants); its top bits pick 1 sample in 512.
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        if state >> 55 == 0 {
+            let v: f64 = f[gy].parse().unwrap();
+            f[gy] = format!("{}", v + 40.0 * sg);
+            spikes += 1;
+        }
+        spiked.push_str(&f.join(","));
+        spiked.push('\n');
+    }
+    assert!((40..100).contains(&spikes), "{spikes}");
+    let rec = d.join("spiked.csv");
+    std::fs::write(&rec, spiked).unwrap();
+    let out = imu_emu([OsStr::new("fit"), rec.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{stderr}");
+    // Two spikes closer than 2 s are one transient.
+    assert!(
+        stderr.contains("transients (knocks or spikes)")
+            && stderr.contains("on gyro y")
+            && stderr.contains("the noise is heavy-tailed; kept"),
+        "{stderr}"
+    );
+    let m = template::parse(
+        &String::from_utf8(out.stdout).unwrap(),
+        Path::new("fitted.toml"),
+    )
+    .unwrap();
+    let n = m.gyro.noise[1] / (0.3f64.to_radians() / 60.0);
+    assert!(n > 1.3, "{n}");
+}

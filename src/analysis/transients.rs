@@ -8,9 +8,10 @@
 //! Two passes over the record, both streaming in bounded memory:
 //! 1. [`StepScale`]: each channel's step d_k = x_k − x_{k−1} into a histogram of |d| by
 //!    binary exponent (1/4 octave), with the exact Σd² per bin. Its scale is the RMS of the
-//!    steps inside the threshold, iterated from the RMS of all: outliers do not set their
-//!    own bar, and a unit whose values sit on a coarse LSB (steps of a few values only) gets
-//!    its exact RMS, where a median of |d| would be off by up to a factor 1.4.
+//!    steps inside the threshold, iterated from the Gaussian scale of the median |d| (from
+//!    the RMS of all steps when half of them are zero): outliers do not set their own bar,
+//!    even when they are many, and a unit whose values sit on a coarse LSB (steps of a few
+//!    values only) gets its exact RMS, where the median alone would be off by up to 1.4×.
 //! 2. [`Scanner`]: a step beyond z·scale flags the two samples it joins; flags within
 //!    2·pad samples merge into one transient.
 //!
@@ -40,6 +41,9 @@ pub const MIN_Z: f64 = 20.0;
 
 /// A step of fewer LSBs than this is quantization, whatever the noise.
 pub const MIN_LSBS: f64 = 3.0;
+
+/// The median of |Z| for a standard normal Z (Φ⁻¹(0.75)).
+const MEDIAN_ABS_GAUSS: f64 = 0.674_489_750_196_081_7;
 
 /// Histogram bins of |d|: the top 14 bits of a non-negative f64 (11 of exponent, 2 of
 /// mantissa), so a bin spans a quarter octave.
@@ -88,7 +92,8 @@ impl StepScale {
     }
 
     /// The RMS step of channel `ch` over the steps below `z` times itself: iterated from the
-    /// RMS of all steps until the set of bins kept no longer changes. 0 for a constant channel.
+    /// median's Gaussian scale until the set of bins kept no longer changes. 0 for a constant
+    /// channel.
     pub fn scale(&self, ch: usize, z: f64) -> f64 {
         let count = &self.count[ch * BINS..(ch + 1) * BINS];
         let sum_sq = &self.sum_sq[ch * BINS..(ch + 1) * BINS];
@@ -98,8 +103,28 @@ impl StepScale {
             let (n, s) = (0..top).fold((0u64, 0.0), |(n, s), b| (n + count[b], s + sum_sq[b]));
             if n == 0 { 0.0 } else { (s / n as f64).sqrt() }
         };
-        let mut top = BINS;
-        let mut s = rms_below(top);
+        // The start: the median |d| of Gaussian steps is 0.6745 σ — robust where outliers are
+        // many enough to lift the RMS of all steps past a twentieth of their size (spikes of
+        // 40σ in 1 sample of 500 double it); the RMS of all where half the steps are zero (a
+        // coarse LSB).
+        let total: u64 = count.iter().sum();
+        let mut seen = 0;
+        let median_bin = count.iter().position(|&c| {
+            seen += c;
+            2 * seen >= total
+        });
+        // usize::MAX: the first pass always recomputes s as an RMS.
+        let mut top = usize::MAX;
+        let mut s = match median_bin {
+            Some(b) if b > 0 && total > 0 => {
+                let (lo, hi) = (
+                    f64::from_bits((b as u64) << SHIFT),
+                    f64::from_bits((b as u64 + 1) << SHIFT),
+                );
+                (lo * hi).sqrt() / MEDIAN_ABS_GAUSS
+            }
+            _ => rms_below(BINS),
+        };
         for _ in 0..64 {
             let bar = z * s;
             let next = (0..BINS)
@@ -305,12 +330,15 @@ mod tests {
             let spike = if k % 100 == 50 { 200.0 } else { 0.0 };
             dirty.push(&[x + spike, 0.0, 0.0, 0.0, 0.0, 0.0]);
         }
-        let z = threshold(n);
-        for (what, a) in [("clean", &clean), ("dirty", &dirty)] {
-            let sc = a.scale(0, z);
-            assert!((sc / 2.0 - 1.0).abs() < 0.009, "{what}: {sc}");
+        // At the Gaussian point and at the bar `fit` uses: 2 % of the steps at 100σ lift the
+        // RMS of all steps to 14σ, so from there a bar of 20 would not trim them.
+        for z in [threshold(n), MIN_Z] {
+            for (what, a) in [("clean", &clean), ("dirty", &dirty)] {
+                let sc = a.scale(0, z);
+                assert!((sc / 2.0 - 1.0).abs() < 0.009, "{what} at z = {z}: {sc}");
+            }
         }
-        assert_eq!(clean.scale(1, z), 0.0);
+        assert_eq!(clean.scale(1, MIN_Z), 0.0);
         // Steps of −1, 0, 1 LSB, one each in 8 samples: of the 79 999 steps (the first
         // sample has none) 19 999 are ±1 LSB.
         let mut q = StepScale::default();
