@@ -491,3 +491,35 @@ fn analyze_reads_a_csv_of_one_axis() {
     assert!(out.contains("gyro x      5.000000e-1"), "{out}");
     assert!(png.exists());
 }
+
+/// A named pipe is read once: the analysis comes from that read, and the transients, which
+/// need a second, are not looked for — with a warning, and without waiting for a writer that
+/// never comes.
+#[test]
+fn analyze_reads_a_pipe_once() {
+    let dir = TempDir::new().unwrap();
+    let fifo = dir.path().join("pipe.csv");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let mut text = String::from("t,gx\n");
+    for k in 0..2048 {
+        text.push_str(&format!("{},{}\n", k as f64 * 0.01, (k % 3) as f64));
+    }
+    let path = fifo.clone();
+    let writer = std::thread::spawn(move || std::fs::write(path, text).unwrap());
+    let out = imu_emu(["analyze", p(&fifo), "--gyro-unit", "deg/s"]);
+    writer.join().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("not a regular file") && stderr.contains("were not looked for"),
+        "{stderr}"
+    );
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("2048 samples"),
+        "{stderr}"
+    );
+}

@@ -110,16 +110,22 @@ impl Recording {
         let read = |p: &PathBuf| {
             std::fs::read_to_string(p).map_err(context(|| format!("{}: cannot read", p.display())))
         };
-        let text = match std::fs::read(&self.input) {
-            Ok(b) => String::from_utf8_lossy(&b).into_owned(),
+        // Only a regular file is sniffed: a pipe read here would be gone for the reader.
+        // Only its first line with content is read: a recording may be gigabytes.
+        // (A stat, not an open: opening a named pipe waits for its writer.)
+        if !std::fs::metadata(&self.input).is_ok_and(|m| m.is_file()) {
+            return Ok(None);
+        }
+        let file = match std::fs::File::open(&self.input) {
+            Ok(f) => f,
             // The recording reader reports what is wrong with the file.
             Err(_) => return Ok(None),
         };
-        let first = text
-            .lines()
-            .map(str::trim)
+        let first = std::io::BufRead::lines(std::io::BufReader::new(file))
+            .map_while(Result::ok)
+            .map(|l| l.trim().to_string())
             .find(|l| !l.is_empty() && !l.starts_with('#'));
-        if !first.is_some_and(adev_table::is_table_header) {
+        if !first.as_deref().is_some_and(adev_table::is_table_header) {
             if let Some(t) = self.tables.first() {
                 return Err(RecordingError::Refused(format!(
                     "--table {}: only with an ADEV table as input",
@@ -146,6 +152,7 @@ impl Recording {
             rate: self.rate,
             record_length,
         };
+        let text = read(&self.input)?;
         let mut table = adev_table::parse(&text, &self.input, opts).map_err(read_error)?;
         for p in &self.tables {
             let other = adev_table::parse(&read(p)?, p, opts).map_err(read_error)?;
@@ -238,7 +245,11 @@ impl Recording {
             }
         };
         let mut analysis = an.finish(dt).without(summary.missing);
-        let transients = self.transients(&format, rate, &analysis, &steps, &summary)?;
+        let (transients, unsearched) =
+            match self.transients(&format, rate, &analysis, &steps, &summary)? {
+                Ok(t) => (t, None),
+                Err(why) => (None, Some(why)),
+            };
         if let Some(t) = &transients
             && t.handling == Handling::LeftOut
         {
@@ -251,11 +262,15 @@ impl Recording {
         }
         analysis.transients = transients;
         let (smin, smax) = analysis.step_range;
-        let warning = (smin.is_finite() && (smin < 0.99 * dt || smax > 1.01 * dt)).then(|| {
+        let steps_warning = (smin.is_finite() && (smin < 0.99 * dt || smax > 1.01 * dt)).then(|| {
             format!(
                 "time steps range from {smin} s to {smax} s; the analysis assumes uniform sampling at Δt = {dt} s"
             )
         });
+        let warning = match (steps_warning, unsearched) {
+            (Some(a), Some(b)) => Some(format!("{a}; {b}")),
+            (a, b) => a.or(b),
+        };
         Ok(Read {
             analysis,
             summary,
@@ -264,7 +279,8 @@ impl Recording {
     }
 
     /// The second pass ([`super::transients`]): the steps beyond each channel's bar, and
-    /// what to do with them. None when there are none.
+    /// what to do with them; None when there are none, and why not searched when the input
+    /// does not read the same twice (a pipe).
     fn transients(
         &self,
         format: &InputFormat,
@@ -272,7 +288,15 @@ impl Recording {
         a: &Analysis,
         steps: &StepScale,
         summary: &ReadSummary,
-    ) -> Result<Option<Transients>, RecordingError> {
+    ) -> Result<Result<Option<Transients>, String>, RecordingError> {
+        // A pipe cannot be read twice, and opening a named one again would wait for a
+        // writer that never comes.
+        if !std::fs::metadata(&self.input).is_ok_and(|m| m.is_file()) {
+            return Ok(Err(format!(
+                "{}: not a regular file (a pipe cannot be read twice): transients (knocks, spikes) were not looked for",
+                self.input.display()
+            )));
+        }
         let present: Vec<usize> = (0..6).filter(|&ch| !summary.missing[ch]).collect();
         let z = transients::threshold(steps.samples().saturating_sub(1) * present.len() as u64)
             .max(transients::MIN_Z);
@@ -287,13 +311,21 @@ impl Recording {
         }
         let pad = (transients::PAD_S / a.dt).round() as u64;
         let mut scan = Scanner::new(bar, scale, 2 * pad);
-        reader::read(&self.input, format, rate.map(|r| 1.0 / r), |_, v| {
+        let again = reader::read(&self.input, format, rate.map(|r| 1.0 / r), |_, v| {
             scan.push(v)
         })
-        .map_err(read_error)?;
+        .map_err(read_error)?
+        .samples;
+        if again != a.samples {
+            return Ok(Err(format!(
+                "{}: a second read gave {again} samples where the first gave {} (a pipe cannot be read twice): transients (knocks, spikes) were not looked for",
+                self.input.display(),
+                a.samples
+            )));
+        }
         let list = scan.finish();
         if list.is_empty() {
-            return Ok(None);
+            return Ok(Ok(None));
         }
         let gaps = transients::gaps(&list, pad, a.samples);
         let left_out: u64 = gaps.iter().map(|(x, y)| y - x + 1).sum();
@@ -304,7 +336,7 @@ impl Recording {
         } else {
             Handling::LeftOut
         };
-        Ok(Some(Transients {
+        Ok(Ok(Some(Transients {
             list,
             z,
             pad,
@@ -314,7 +346,7 @@ impl Recording {
             } else {
                 Vec::new()
             },
-        }))
+        })))
     }
 
     /// The file's name, for titles (`input` when it has none).
