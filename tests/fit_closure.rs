@@ -630,24 +630,12 @@ fn a_real_mpu6050_recording_closes_and_a_moving_one_is_refused() {
         .lines()
         .filter(|l| l.contains("to be kept)") && l.contains("Δχ² = "))
     {
-        let gain: f64 = line
-            .split("Δχ² = ")
-            .nth(1)
-            .unwrap()
-            .split(' ')
-            .next()
-            .unwrap()
-            .parse()
-            .unwrap();
-        let gate: f64 = line
-            .split("(> ")
-            .nth(1)
-            .unwrap()
-            .split(' ')
-            .next()
-            .unwrap()
-            .parse()
-            .unwrap();
+        // The number written right after `marker`.
+        let after = |marker: &str| -> f64 {
+            let rest = line.split(marker).nth(1).unwrap();
+            rest.split(' ').next().unwrap().parse().unwrap()
+        };
+        let (gain, gate) = (after("Δχ² = "), after("(> "));
         assert!(gain > gate, "{line}");
         gates += 1;
     }
