@@ -294,6 +294,7 @@ def analyze(
     rate: Optional[float] = None,
     imu: Optional[str] = None,
     segment: int = 16384,
+    keep_transients: bool = False,
 ) -> dict:
     """Statistics, octave Allan deviation with its 68 % χ² band, Welch PSD and the fitted IEEE
     terms (Q, N, B, K, R) of each of the six channels, as ``imu-emu analyze`` computes them.
@@ -301,9 +302,15 @@ def analyze(
     ``records``: rows (t, gyro, accel first), :class:`Records`, a :class:`Result`, or a
     recording file (``format``: csv, bin or a protocol name; default by extension). ``imu``
     (a template name or file) adds ``"template"``: per sensor, axis and term the specified
-    and fitted values, the acceptance band and the verdict."""
+    and fitted values, the acceptance band and the verdict.
+
+    Transients (knocks, spikes: a step beyond 20 times its channel's step RMS) are left out of
+    every statistic with 1 s on each side, as the CLI does, unless ``keep_transients``;
+    ``"transients"`` is None or ``{"handling": "left out" | "kept" | "heavy-tailed",
+    "threshold", "left_out": samples, "list": [{"first", "last", "channel", "step", "z"}]}``."""
     rows, path = _input(records)
-    return _native.analyze(rows, path=path, format=format, rate=rate, imu=imu, segment=segment)
+    return _native.analyze(rows, path=path, format=format, rate=rate, imu=imu, segment=segment,
+                           keep_transients=keep_transients)
 
 
 def fit(
@@ -313,13 +320,16 @@ def fit(
     rate: Optional[float] = None,
     name: Optional[str] = None,
     segment: int = 16384,
+    keep_transients: bool = False,
 ) -> dict:
-    """Fits an IMU template to a static recording, as ``imu-emu fit`` does.
+    """Fits an IMU template to a static recording, as ``imu-emu fit`` does (transients left
+    out unless ``keep_transients``, as in :func:`analyze`).
 
     Returns ``{"toml": the template file's text (loadable by ``imu=``), "template": the same
     as a dict (pass it as ``simulate(imu=...)``)}``."""
     rows, path = _input(records)
-    text = _native.fit(rows, path=path, format=format, rate=rate, name=name, segment=segment)
+    text = _native.fit(rows, path=path, format=format, rate=rate, name=name, segment=segment,
+                       keep_transients=keep_transients)
     return {"toml": text, "template": tomllib.loads(text)}
 
 

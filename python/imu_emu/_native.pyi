@@ -51,6 +51,7 @@ def analyze(
     rate: Optional[float] = None,
     imu: Optional[str] = None,
     segment: int = 16384,
+    keep_transients: bool = False,
 ) -> dict[str, Any]: ...
 def fit(
     records: Optional[npt.NDArray[np.float64]] = None,
@@ -60,6 +61,7 @@ def fit(
     rate: Optional[float] = None,
     name: Optional[str] = None,
     segment: int = 16384,
+    keep_transients: bool = False,
 ) -> str: ...
 
 class LiveRun:

@@ -8,7 +8,8 @@ use numpy::{IntoPyArray, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use imu_emu::analysis::analyzer::{Analysis, Analyzer, CHANNELS};
+use imu_emu::analysis::analyzer::{Analysis, CHANNELS};
+use imu_emu::analysis::passes::{First, Passes, Sink};
 use imu_emu::analysis::recording::Recording;
 
 use crate::errors::{err, invalid};
@@ -53,52 +54,98 @@ fn input(
     }
 }
 
-/// Reads the input through an analyzer, as the CLI's `InputArgs::analyze` does.
-fn analysis(input: &Input, rate: Option<f64>, segment: usize) -> Result<Analysis, String> {
+/// Reads the input through an analyzer, as the CLI's `InputArgs::analyze` does: transients
+/// (knocks, spikes) found and left out of the statistics unless `keep_transients`.
+fn analysis(
+    input: &Input,
+    rate: Option<f64>,
+    segment: usize,
+    keep_transients: bool,
+) -> Result<Analysis, String> {
     if let Some(r) = rate
         && !(r > 0.0 && r.is_finite())
     {
         return Err(format!("rate: expected a positive number of Hz, got {r}"));
     }
-    let mut an = Analyzer::new(segment);
-    let label = match input {
-        Input::Rows(rows) => {
-            for r in rows {
-                an.push(r[0], &std::array::from_fn(|i| r[i + 1]));
-            }
-            "records"
-        }
+    let rows = match input {
+        Input::Rows(rows) => rows,
         Input::File(p, format) => {
             // The CLI's reader: a CSV of some axes, transients found and left out.
             let mut r = Recording::new(p.clone(), format.clone());
             r.rate = rate;
+            r.keep_transients = keep_transients;
             return r
                 .read(segment)
                 .map(|read| read.analysis)
                 .map_err(|e| crate::errors::message(&e));
         }
     };
-    if an.samples() < 8 {
+    let replay = |sink: &mut Sink<'_>| {
+        for r in rows {
+            sink(r[0], &std::array::from_fn(|i| r[i + 1]));
+        }
+        Ok::<u64, String>(rows.len() as u64)
+    };
+    let mut first = First::new(segment);
+    replay(&mut |t, v| first.push(t, v))?;
+    if first.analyzer.samples() < 8 {
         return Err(format!(
-            "{label}: {} samples; the analysis needs at least 8",
-            an.samples()
+            "records: {} samples; the analysis needs at least 8",
+            first.analyzer.samples()
         ));
     }
-    let dt = match (rate, an.measured_dt()) {
+    let dt = match (rate, first.analyzer.measured_dt()) {
         (Some(r), _) => 1.0 / r,
         (None, Some(dt)) => dt,
         (None, None) => {
-            return Err(format!(
-                "{label}: no usable time column; give the sampling rate with rate="
-            ));
+            return Err(
+                "records: no usable time column; give the sampling rate with rate=".to_string(),
+            );
         }
     };
-    Ok(an.finish(dt))
+    let passes = Passes {
+        segment,
+        keep: keep_transients,
+        missing: [false; 6],
+    };
+    Ok(passes.finish(first, dt, "records", Ok(replay))?.0)
+}
+
+/// The record's transients as `analyze` returns them: None, or what was done with them and
+/// each one (its first and last samples, the channel of its largest step, that step in the
+/// channel's unit and in its step scales).
+fn transients<'py>(py: Python<'py>, a: &Analysis) -> PyResult<Option<Bound<'py, PyDict>>> {
+    use imu_emu::analysis::transients::Handling;
+    let Some(t) = &a.transients else {
+        return Ok(None);
+    };
+    let d = PyDict::new(py);
+    let handling = match t.handling {
+        Handling::LeftOut => "left out",
+        Handling::Kept => "kept",
+        Handling::HeavyTailed => "heavy-tailed",
+    };
+    d.set_item("handling", handling)?;
+    d.set_item("threshold", t.z)?;
+    d.set_item("left_out", t.left_out())?;
+    let list = PyList::empty(py);
+    for x in &t.list {
+        let e = PyDict::new(py);
+        e.set_item("first", x.first)?;
+        e.set_item("last", x.last)?;
+        e.set_item("channel", CHANNELS[x.channel])?;
+        e.set_item("step", x.step)?;
+        e.set_item("z", x.z)?;
+        list.append(e)?;
+    }
+    d.set_item("list", list)?;
+    Ok(Some(d))
 }
 
 /// Analyses records or a recording; see `imu_emu.analyze`.
 #[pyfunction]
-#[pyo3(signature = (records=None, *, path=None, format=None, rate=None, imu=None, segment=imu_emu::analysis::analyzer::DEFAULT_SEGMENT))]
+#[pyo3(signature = (records=None, *, path=None, format=None, rate=None, imu=None, segment=imu_emu::analysis::analyzer::DEFAULT_SEGMENT, keep_transients=false))]
+#[allow(clippy::too_many_arguments)]
 pub fn analyze<'py>(
     py: Python<'py>,
     records: Option<PyReadonlyArray2<'py, f64>>,
@@ -107,6 +154,7 @@ pub fn analyze<'py>(
     rate: Option<f64>,
     imu: Option<String>,
     segment: usize,
+    keep_transients: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (inp, _) = input(records, path, format)?;
     let model = imu
@@ -116,7 +164,7 @@ pub fn analyze<'py>(
         .map_err(err)?;
     let (res, rows) = py
         .detach(|| {
-            let res = analysis(&inp, rate, segment)?;
+            let res = analysis(&inp, rate, segment, keep_transients)?;
             let rows = model
                 .as_ref()
                 .map(|m| imu_emu::analysis::conformance::term_rows(m, &res));
@@ -162,6 +210,7 @@ pub fn analyze<'py>(
         channels.append(ch)?;
     }
     d.set_item("channels", channels)?;
+    d.set_item("transients", transients(py, &res)?)?;
     if let Some(rows) = rows {
         let list = PyList::empty(py);
         for r in rows {
@@ -184,7 +233,8 @@ pub fn analyze<'py>(
 
 /// Fits a template to a static recording; see `imu_emu.fit`.
 #[pyfunction]
-#[pyo3(signature = (records=None, *, path=None, format=None, rate=None, name=None, segment=imu_emu::analysis::analyzer::DEFAULT_SEGMENT))]
+#[pyo3(signature = (records=None, *, path=None, format=None, rate=None, name=None, segment=imu_emu::analysis::analyzer::DEFAULT_SEGMENT, keep_transients=false))]
+#[allow(clippy::too_many_arguments)]
 pub fn fit(
     py: Python<'_>,
     records: Option<PyReadonlyArray2<'_, f64>>,
@@ -193,11 +243,12 @@ pub fn fit(
     rate: Option<f64>,
     name: Option<String>,
     segment: usize,
+    keep_transients: bool,
 ) -> PyResult<String> {
     use imu_emu::fit::recording_fit::{self, Settings};
     let (inp, source) = input(records, path, format)?;
     py.detach(|| {
-        let rec = analysis(&inp, rate, segment)?;
+        let rec = analysis(&inp, rate, segment, keep_transients)?;
         // `imu-emu fit`'s fit (lines, resonances, filter, LSB), without its closure check.
         let settings = Settings {
             name: name.unwrap_or_else(|| "fitted".into()),

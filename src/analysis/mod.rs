@@ -12,6 +12,7 @@ pub mod error_plot;
 pub mod fit;
 pub mod lattice;
 pub mod octave_adev;
+pub mod passes;
 pub mod psd;
 pub mod psd_band;
 pub mod reader;

@@ -7,9 +7,9 @@ use std::error::Error;
 use std::path::{Path, PathBuf};
 
 use super::adev_table::{self, TableOptions};
-use super::analyzer::{Analysis, Analyzer};
+use super::analyzer::Analysis;
+use super::passes::{First, Passes, Sink};
 use super::reader::{self, CsvOptions, InputFormat, ReadSummary};
-use super::transients::{self, Handling, Scanner, StepScale, Transients};
 use crate::units::{self, Kind};
 
 /// A recording and how to read it; messages name the flags of `imu-emu analyze`.
@@ -221,13 +221,11 @@ impl Recording {
             (None, None) => (InputFormat::Csv(csv), None),
         };
         let rate = self.rate.or(spec_rate);
-        let mut an = Analyzer::new(segment);
-        let mut steps = StepScale::default();
-        let summary = reader::read(&self.input, &format, rate.map(|r| 1.0 / r), |t, v| {
-            an.push(t, v);
-            steps.push(v);
-        })
-        .map_err(read_error)?;
+        let read = |sink: &mut Sink<'_>| {
+            reader::read(&self.input, &format, rate.map(|r| 1.0 / r), sink).map_err(read_error)
+        };
+        let mut first = First::new(segment);
+        let summary = read(&mut |t, v| first.push(t, v))?;
         let name = self.input.display();
         if summary.samples < 8 {
             return refuse(format!(
@@ -235,7 +233,7 @@ impl Recording {
                 summary.samples
             ));
         }
-        let dt = match (rate, an.measured_dt()) {
+        let dt = match (rate, first.analyzer.measured_dt()) {
             (Some(r), _) => 1.0 / r,
             (None, Some(dt)) => dt,
             (None, None) => {
@@ -244,23 +242,21 @@ impl Recording {
                 ));
             }
         };
-        let mut analysis = an.finish(dt).without(summary.missing);
-        let (transients, unsearched) =
-            match self.transients(&format, rate, &analysis, &steps, &summary)? {
-                Ok(t) => (t, None),
-                Err(why) => (None, Some(why)),
-            };
-        if let Some(t) = &transients
-            && t.handling == Handling::LeftOut
-        {
-            let mut an = Analyzer::with_gaps(segment, t.gaps.clone());
-            reader::read(&self.input, &format, rate.map(|r| 1.0 / r), |t, v| {
-                an.push(t, v)
-            })
-            .map_err(read_error)?;
-            analysis = an.finish(dt).without(summary.missing);
-        }
-        analysis.transients = transients;
+        // A pipe cannot be read twice, and opening a named one again would wait for a
+        // writer that never comes (a stat, not an open).
+        let again = if std::fs::metadata(&self.input).is_ok_and(|m| m.is_file()) {
+            Ok(|sink: &mut Sink<'_>| read(sink).map(|s| s.samples))
+        } else {
+            Err(format!(
+                "{name}: not a regular file (a pipe cannot be read twice): transients (knocks, spikes) were not looked for"
+            ))
+        };
+        let passes = Passes {
+            segment,
+            keep: self.keep_transients,
+            missing: summary.missing,
+        };
+        let (analysis, unsearched) = passes.finish(first, dt, &name.to_string(), again)?;
         let (smin, smax) = analysis.step_range;
         let steps_warning = (smin.is_finite() && (smin < 0.99 * dt || smax > 1.01 * dt)).then(|| {
             format!(
@@ -276,77 +272,6 @@ impl Recording {
             summary,
             warning,
         })
-    }
-
-    /// The second pass ([`super::transients`]): the steps beyond each channel's bar, and
-    /// what to do with them; None when there are none, and why not searched when the input
-    /// does not read the same twice (a pipe).
-    fn transients(
-        &self,
-        format: &InputFormat,
-        rate: Option<f64>,
-        a: &Analysis,
-        steps: &StepScale,
-        summary: &ReadSummary,
-    ) -> Result<Result<Option<Transients>, String>, RecordingError> {
-        // A pipe cannot be read twice, and opening a named one again would wait for a
-        // writer that never comes.
-        if !std::fs::metadata(&self.input).is_ok_and(|m| m.is_file()) {
-            return Ok(Err(format!(
-                "{}: not a regular file (a pipe cannot be read twice): transients (knocks, spikes) were not looked for",
-                self.input.display()
-            )));
-        }
-        let present: Vec<usize> = (0..6).filter(|&ch| !summary.missing[ch]).collect();
-        let z = transients::threshold(steps.samples().saturating_sub(1) * present.len() as u64)
-            .max(transients::MIN_Z);
-        let mut bar = [f64::INFINITY; 6];
-        let mut scale = [0.0; 6];
-        for &ch in &present {
-            scale[ch] = steps.scale(ch, z);
-            let lsb = a.channels[ch].lattice.map_or(0.0, |l| l.lsb);
-            if scale[ch] > 0.0 {
-                bar[ch] = (z * scale[ch]).max(transients::MIN_LSBS * lsb);
-            }
-        }
-        let pad = (transients::PAD_S / a.dt).round() as u64;
-        let mut scan = Scanner::new(bar, scale, 2 * pad);
-        let again = reader::read(&self.input, format, rate.map(|r| 1.0 / r), |_, v| {
-            scan.push(v)
-        })
-        .map_err(read_error)?
-        .samples;
-        if again != a.samples {
-            return Ok(Err(format!(
-                "{}: a second read gave {again} samples where the first gave {} (a pipe cannot be read twice): transients (knocks, spikes) were not looked for",
-                self.input.display(),
-                a.samples
-            )));
-        }
-        let list = scan.finish();
-        if list.is_empty() {
-            return Ok(Ok(None));
-        }
-        let gaps = transients::gaps(&list, pad, a.samples);
-        let left_out: u64 = gaps.iter().map(|(x, y)| y - x + 1).sum();
-        let handling = if self.keep_transients {
-            Handling::Kept
-        } else if left_out as f64 > transients::MAX_LEFT_OUT * a.samples as f64 {
-            Handling::HeavyTailed
-        } else {
-            Handling::LeftOut
-        };
-        Ok(Ok(Some(Transients {
-            list,
-            z,
-            pad,
-            handling,
-            gaps: if handling == Handling::LeftOut {
-                gaps
-            } else {
-                Vec::new()
-            },
-        })))
     }
 
     /// The file's name, for titles (`input` when it has none).

@@ -3,7 +3,7 @@
 //! noise, and one knock is enough to show as a white floor in the PSD and an excess at short
 //! τ (SMAC-Group/imudata `adis_16405_imu4`: a knock of 0.8 s at t = 4045 s, up to 0.5 g on
 //! accel z, read by `fit` as a post-filter floor of 3.5 % that the rest of the record does
-//! not have). Pure: the reader feeds samples, [`super::recording`] decides.
+//! not have). Pure: the reader feeds samples, [`super::passes`] runs the reads and decides.
 //!
 //! Two passes over the record, both streaming in bounded memory:
 //! 1. [`StepScale`]: each channel's step d_k = x_k − x_{k−1} into a histogram of |d| by
