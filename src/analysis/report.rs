@@ -388,11 +388,7 @@ pub fn transients_summary(t: &Transients, dt: f64) -> String {
         .iter()
         .max_by(|a, b| a.z.total_cmp(&b.z))
         .expect("a record's transients are not empty");
-    let (unit, k) = if big.channel < 3 {
-        ("deg/s", DEG)
-    } else {
-        ("g", 1.0 / G0)
-    };
+    let (unit, k) = crate::units::report_unit(big.channel < 3);
     let n = t.list.len();
     let what = if n == 1 {
         "1 transient (a knock or a spike)".to_string()

@@ -105,11 +105,7 @@ pub fn markdown(
     }
     for (ch, ls) in lines.iter().enumerate() {
         for l in ls {
-            let (u, f) = if ch < 3 {
-                ("deg/s", 180.0 / std::f64::consts::PI)
-            } else {
-                ("g", 1.0 / crate::units::G0)
-            };
+            let (u, f) = crate::units::report_unit(ch < 3);
             let _ = writeln!(
                 s,
                 "- {}: {} Hz, amplitude {} {u} ({}× the background)",
@@ -166,11 +162,7 @@ fn transients_section(s: &mut String, t: Option<&Transients>, dt: f64) {
         "| samples | t from the start (s) | largest step | on | × step RMS |\n| --- | --- | --- | --- | --- |"
     );
     for x in t.list.iter().take(MAX_ROWS) {
-        let (u, k) = if x.channel < 3 {
-            ("deg/s", 180.0 / std::f64::consts::PI)
-        } else {
-            ("g", 1.0 / crate::units::G0)
-        };
+        let (u, k) = crate::units::report_unit(x.channel < 3);
         let _ = writeln!(
             s,
             "| {}–{} | {} … {} | {} {u} | {} | {:.0} |",

@@ -158,11 +158,7 @@ pub fn template_toml(p: &Provenance, fits: &[Option<AxisFit>], lines: &[Vec<Line
         }
         for a in 0..3 {
             for l in &lines[base + a] {
-                let (u, f) = if gyro {
-                    ("deg/s", 180.0 / std::f64::consts::PI)
-                } else {
-                    ("g", 1.0 / crate::units::G0)
-                };
+                let (u, f) = crate::units::report_unit(gyro);
                 let _ = writeln!(
                     s,
                     "# {}: spectral line at {} Hz, amplitude {} {u} ({}× the background; not in the template: `fit --sines` writes it as a vibration sine)",
@@ -432,11 +428,7 @@ pub fn sines_scene(p: &Provenance, lines: &[Vec<Line>]) -> String {
     );
     for (ch, ls) in lines.iter().enumerate() {
         let gyro = ch < 3;
-        let (u, f) = if gyro {
-            ("deg/s", 180.0 / std::f64::consts::PI)
-        } else {
-            ("g", 1.0 / crate::units::G0)
-        };
+        let (u, f) = crate::units::report_unit(gyro);
         for l in ls {
             let _ = write!(
                 s,
@@ -493,11 +485,7 @@ fn psd_unit(gyro: bool) -> (&'static str, f64) {
 
 /// One line on a broad resonance: where, how strong, how significant.
 pub fn describe_resonance(r: &super::resonance::Resonance, gyro: bool) -> String {
-    let (u, f) = if gyro {
-        ("deg/s", 180.0 / std::f64::consts::PI)
-    } else {
-        ("g", 1.0 / crate::units::G0)
-    };
+    let (u, f) = crate::units::report_unit(gyro);
     let significance = if r.from_adev {
         format!(
             "read from the Allan deviation: Δχ² = {} (> {} to be kept",

@@ -8,6 +8,16 @@ use std::f64::consts::PI;
 pub const G0: f64 = 9.806_65;
 const DEG: f64 = PI / 180.0;
 
+/// The unit reports show a channel's rates and amplitudes in — deg/s for a gyro, g for an
+/// accelerometer, as data sheets give them — and the factor from SI to it.
+pub fn report_unit(gyro: bool) -> (&'static str, f64) {
+    if gyro {
+        ("deg/s", 180.0 / PI)
+    } else {
+        ("g", 1.0 / G0)
+    }
+}
+
 /// The physical quantity a value must express; decides which units are accepted.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
@@ -249,6 +259,14 @@ pub fn quantity(v: &toml::Value, kind: Kind) -> Result<f64, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_report_shows_gyros_in_deg_per_s_and_accelerometers_in_g() {
+        let (u, f) = report_unit(true);
+        assert_eq!((u, f * PI), ("deg/s", 180.0));
+        let (u, f) = report_unit(false);
+        assert_eq!((u, f * G0), ("g", 1.0));
+    }
 
     #[test]
     fn conversions() {
