@@ -623,3 +623,61 @@ fn spikes_all_through_a_record_are_kept_as_heavy_tails() {
     let n = m.gyro.noise[1] / (0.3f64.to_radians() / 60.0);
     assert!(n > 1.3, "{n}");
 }
+
+/// Samples a logger dropped (time steps of 2Δt and 5Δt in a CSV) are put back on the time
+/// grid and left out of every statistic: `fit` accepts the record, says where they were, and
+/// fits and closes as on the whole record; a record that lost more than 1 % is refused as not
+/// uniformly sampled, as before.
+#[test]
+fn dropped_samples_are_put_back_and_left_out() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let whole = white_static(d, "0.3 deg/sqrt(h)", "0.1 m/s/sqrt(h)", "100", "655.36");
+    let text = std::fs::read_to_string(&whole).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().to_string();
+    let rows: Vec<&str> = lines.collect();
+    let write = |name: &str, keep: &dyn Fn(usize) -> bool| {
+        let mut s = format!("{header}\n");
+        for (k, l) in rows.iter().enumerate().filter(|(k, _)| keep(*k)) {
+            let _ = k;
+            s.push_str(l);
+            s.push('\n');
+        }
+        let p = d.join(name);
+        std::fs::write(&p, s).unwrap();
+        p
+    };
+    let gone = [10_000, 30_000, 30_001, 30_002, 30_003, 50_000];
+    let rec = write("dropped.csv", &|k| !gone.contains(&k));
+    let report = d.join("r.md");
+    let out = imu_emu([
+        OsStr::new("fit"),
+        rec.as_os_str(),
+        OsStr::new("--report"),
+        report.as_os_str(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("6 samples dropped in 3 gaps (the longest 4 at t = 300.04 s"),
+        "{stderr}"
+    );
+    let report = std::fs::read_to_string(&report).unwrap();
+    assert!(
+        report.contains("## Dropped samples") && report.contains("65536 samples at 100.0 Hz"),
+        "{report}"
+    );
+    assert!(!report.contains("OUTSIDE"), "{report}");
+    let m = template::parse(&String::from_utf8(out.stdout).unwrap(), Path::new("t.toml")).unwrap();
+    let n_gx = m.gyro.noise[0] / (0.3f64.to_radians() / 60.0);
+    assert!((n_gx - 1.0).abs() < 0.02, "{n_gx}");
+    // One sample in 80 lost (1.25 %): not a few drops; refused as before.
+    let sparse = write("sparse.csv", &|k| k % 80 != 40);
+    let out = imu_emu([OsStr::new("fit"), sparse.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("needs uniformly sampled data"),
+        "{stderr}"
+    );
+}

@@ -409,9 +409,11 @@ fn too_short_records_are_refused() {
     }
 }
 
-/// A gap in the time column (one sample missing: a step of 2Δt) is refused, naming the sample
-/// after it and its time; nothing is written. Without the time column and with --rate (the
-/// samples themselves uniform) it fits.
+/// A time step that is not a whole number of Δt (a jump of the time tags by half a step, as a
+/// host's buffered reads give) is refused, naming the sample after it and its time; nothing
+/// is written. Without the time column and with --rate (the samples themselves uniform) it
+/// fits. (A step of a whole number of Δt is a dropped sample: `tests/fit.rs`,
+/// `dropped_samples_are_put_back_and_left_out`.)
 #[test]
 fn non_uniform_time_steps_are_refused() {
     let dir = TempDir::new().unwrap();
@@ -419,25 +421,34 @@ fn non_uniform_time_steps_are_refused() {
     let rec = d.join("r.csv");
     generate("static", "10", &rec);
     let text = std::fs::read_to_string(&rec).unwrap();
-    let mut lines: Vec<&str> = text.lines().collect();
-    // Line 1 is the header, line 2 sample 1: dropping line 501 (sample 500) makes sample
-    // 501 of the file (t = 5.01 s) follow sample 499 (t = 4.99 s).
-    lines.remove(500);
-    let gap = d.join("gap.csv");
-    std::fs::write(&gap, lines.join("\n") + "\n").unwrap();
+    assert!(text.starts_with("t,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z"));
+    // Line 1 is the header, line k + 1 sample k (counted from 1, as messages count them; t =
+    // k·Δt): from sample 501 on, the time tags are late by Δt/2, so sample 501 (t = 5.015 s)
+    // comes 1.5Δt after sample 500.
+    let mut out = String::new();
+    for (i, l) in text.lines().enumerate() {
+        match l.split_once(',') {
+            Some((t, rest)) if i >= 501 => {
+                let t: f64 = t.parse().unwrap();
+                out.push_str(&format!("{},{rest}\n", t + 0.005));
+            }
+            _ => out.push_str(&format!("{l}\n")),
+        }
+    }
+    let jump = d.join("jump.csv");
+    std::fs::write(&jump, out).unwrap();
     let unit = d.join("u.toml");
-    let e = err(imu_emu(["fit", p(&gap), "-o", p(&unit)]));
+    let e = err(imu_emu(["fit", p(&jump), "-o", p(&unit)]));
     assert!(
-        e.contains(&format!("{}: sample 500 (t = 5.01", p(&gap)))
+        e.contains(&format!("{}: sample 501 (t = 5.015", p(&jump)))
             && e.contains("needs uniformly sampled data"),
         "{e}"
     );
     assert!(!unit.exists());
-    assert!(lines[0].starts_with("t,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z"));
     let columns = "--columns=-,gx,gy,gz,ax,ay,az";
     ok(imu_emu([
         "fit",
-        p(&gap),
+        p(&jump),
         columns,
         "--rate",
         "100",

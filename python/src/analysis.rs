@@ -107,6 +107,7 @@ fn analysis(
         segment,
         keep: keep_transients,
         missing: [false; 6],
+        dt_given: rate.is_some(),
     };
     Ok(passes.finish(first, dt, "records", Ok(replay))?.0)
 }

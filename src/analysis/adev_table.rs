@@ -421,6 +421,7 @@ impl AdevTable {
             t_first: f64::NAN,
             channels,
             transients: None,
+            dropped: None,
         }
     }
 }

@@ -38,7 +38,22 @@ pub struct Analyzer {
     step_max_at: (u64, f64),
     /// Samples to leave out of the statistics, the Allan deviation and the PSD.
     gaps: GapCursor,
+    /// The last sample given (a missing sample's stand-in in the Allan deviation and PSD).
+    last: [f64; 6],
+    /// The record's first step (s), which no earlier step can call long.
+    first_step: f64,
+    /// Steps over [`LONG_STEP`] times the smallest before them: (index of the step's later
+    /// sample, the step), at most [`MAX_LONG_STEPS`] — where samples may have been dropped.
+    long_steps: Vec<(u64, f64)>,
+    /// More long steps than are kept.
+    long_overflow: bool,
 }
+
+/// A step this many times the smallest so far is kept as a possible drop.
+const LONG_STEP: f64 = 1.5;
+
+/// Long steps kept; a record with more is not one with a few dropped samples.
+pub const MAX_LONG_STEPS: usize = 4096;
 
 /// What one channel showed.
 #[derive(Clone, Debug)]
@@ -85,6 +100,23 @@ pub struct Trend {
     pub detrended: Vec<AdevPoint>,
 }
 
+/// The samples a record dropped.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Dropped {
+    /// Where: (index of the sample after the drop among those read, 0-based; its time from
+    /// the record's start on the grid (s); samples missing before it).
+    pub at: Vec<(u64, f64, u64)>,
+    /// The record's sampling interval, counting the missing samples (s).
+    pub dt: f64,
+}
+
+impl Dropped {
+    /// Samples missing in all.
+    pub fn samples(&self) -> u64 {
+        self.at.iter().map(|a| a.2).sum()
+    }
+}
+
 /// The analysis of a record.
 #[derive(Clone, Debug)]
 pub struct Analysis {
@@ -105,6 +137,9 @@ pub struct Analysis {
     /// The record's transients and what was done with them (None: not looked for — a table,
     /// a simulated record).
     pub transients: Option<Transients>,
+    /// The samples the record dropped, put back on its time grid and left out of every
+    /// statistic ([`super::passes`]; None: none, or not looked for).
+    pub dropped: Option<Dropped>,
 }
 
 impl Analysis {
@@ -134,6 +169,10 @@ impl Analyzer {
             step_min_at: (0, f64::NAN),
             step_max_at: (0, f64::NAN),
             gaps: GapCursor::default(),
+            last: [0.0; 6],
+            first_step: f64::NAN,
+            long_steps: Vec::new(),
+            long_overflow: false,
         }
     }
 
@@ -148,13 +187,18 @@ impl Analyzer {
         }
     }
 
-    /// Adds one sample of the six channels at time t (NaN if the data have no time).
+    /// Adds one sample of the six channels at time t (NaN if the data have no time). A NaN
+    /// first value stands for a sample the record dropped ([`super::passes`] puts them back):
+    /// it keeps the time grid, and every statistic leaves it out as a transient's samples.
     #[inline]
     pub fn push(&mut self, t: f64, v: &[f64; 6]) {
         if self.n == 0 {
             self.t_first = t;
         } else {
             let step = t - self.t_prev;
+            if self.n == 1 {
+                self.first_step = step;
+            }
             if step < self.step_min {
                 self.step_min = step;
                 self.step_min_at = (self.n, t);
@@ -163,8 +207,25 @@ impl Analyzer {
                 self.step_max = step;
                 self.step_max_at = (self.n, t);
             }
+            if step > LONG_STEP * self.step_min {
+                if self.long_steps.len() < MAX_LONG_STEPS {
+                    self.long_steps.push((self.n, step));
+                } else {
+                    self.long_overflow = true;
+                }
+            }
         }
         self.t_prev = t;
+        if v[0].is_nan() {
+            let last = self.last;
+            self.n += 1;
+            for (i, &x) in last.iter().enumerate() {
+                self.adev[i].push_flagged(x);
+                self.psd[i].push_flagged(x);
+            }
+            return;
+        }
+        self.last = *v;
         let bad = self.gaps.contains(self.n);
         self.n += 1;
         for (i, &x) in v.iter().enumerate() {
@@ -190,6 +251,36 @@ impl Analyzer {
     /// Samples so far.
     pub fn samples(&self) -> u64 {
         self.n
+    }
+
+    /// The steps of the record that are long against the smallest (the first step whatever it
+    /// is, then each over 1.5 times the smallest before it: index of its later sample, step);
+    /// None when there are more than [`MAX_LONG_STEPS`].
+    pub fn long_steps(&self) -> Option<Vec<(u64, f64)>> {
+        if self.long_overflow {
+            return None;
+        }
+        let mut all = Vec::with_capacity(self.long_steps.len() + 1);
+        if self.first_step > LONG_STEP * self.step_min {
+            all.push((1, self.first_step));
+        }
+        all.extend(self.long_steps.iter().copied());
+        Some(all)
+    }
+
+    /// The smallest time step (s; +∞ before two samples).
+    pub fn step_min(&self) -> f64 {
+        self.step_min
+    }
+
+    /// The time of the first sample (s).
+    pub fn t_first(&self) -> f64 {
+        self.t_first
+    }
+
+    /// The time of the last sample (s).
+    pub fn t_last(&self) -> f64 {
+        self.t_prev
     }
 
     /// The sampling interval from the time column: (t_last − t_first)/(n − 1).
@@ -231,6 +322,7 @@ impl Analyzer {
             t_first: self.t_first,
             channels,
             transients: None,
+            dropped: None,
         }
     }
 }

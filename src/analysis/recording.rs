@@ -255,8 +255,10 @@ impl Recording {
             segment,
             keep: self.keep_transients,
             missing: summary.missing,
+            dt_given: rate.is_some(),
         };
         let (analysis, unsearched) = passes.finish(first, dt, &name.to_string(), again)?;
+        let dt = analysis.dt;
         let (smin, smax) = analysis.step_range;
         let steps_warning = (smin.is_finite() && (smin < 0.99 * dt || smax > 1.01 * dt)).then(|| {
             format!(

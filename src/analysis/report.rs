@@ -5,6 +5,7 @@
 use std::f64::consts::PI;
 use std::fmt::Write;
 
+use super::analyzer::Dropped;
 use super::analyzer::{Analysis, CHANNELS};
 use super::conformance::{TermRow, filtered_avar, filtered_psd};
 use super::fit::{TERMS, Term};
@@ -379,6 +380,25 @@ pub fn curves_csv(a: &Analysis, theory: Option<&[AxisTheory]>) -> String {
         }
     }
     s
+}
+
+/// One sentence on the samples a record dropped: how many, where the longest gap is, and what
+/// was done with them.
+pub fn dropped_summary(d: &Dropped) -> String {
+    let (_, t, most) =
+        d.at.iter()
+            .copied()
+            .max_by_key(|a| (a.2, std::cmp::Reverse(a.0)))
+            .expect("a record's drops are not empty");
+    let gaps = d.at.len();
+    format!(
+        "{} sample{} dropped in {gaps} gap{} (the longest {most} at t = {:.2} s from the start): put back on the time grid at Δt = {} s and left out of every statistic as transients are",
+        d.samples(),
+        if d.samples() == 1 { "" } else { "s" },
+        if gaps == 1 { "" } else { "s" },
+        t,
+        d.dt
+    )
 }
 
 /// One sentence on a record's transients: how many, where the largest is, what was done.

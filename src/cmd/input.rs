@@ -65,6 +65,12 @@ pub fn analyze(r: &Recording, segment: usize, command: &str) -> Result<(Analysis
     if let Some(w) = read.warning {
         eprintln!("imu-emu {command}: warning: {w}");
     }
+    if let Some(d) = &read.analysis.dropped {
+        eprintln!(
+            "imu-emu {command}: warning: {}",
+            imu_emu::analysis::report::dropped_summary(d)
+        );
+    }
     if let Some(t) = &read.analysis.transients {
         eprintln!(
             "imu-emu {command}: warning: {}",

@@ -70,6 +70,9 @@ pub fn report_on(s: &Subject, plot: bool) -> AnalysisReport {
         digits12(1.0 / dt),
         res.samples as f64 * dt
     );
+    if let Some(d) = &res.dropped {
+        let _ = writeln!(text, "dropped samples: {}\n", report::dropped_summary(d));
+    }
     if let Some(t) = &res.transients {
         let _ = writeln!(text, "transients: {}\n", report::transients_summary(t, dt));
     }

@@ -14,7 +14,7 @@ pub const MIN_OCTAVES: u32 = 5;
 pub const MIN_SAMPLES: u64 = 8 << (MIN_OCTAVES - 1);
 
 /// Largest relative deviation of a time step from the mean step (as `analyze` warns).
-pub const STEP_TOLERANCE: f64 = 0.01;
+pub const STEP_TOLERANCE: f64 = crate::analysis::passes::STEP_TOLERANCE;
 
 /// A gyro block mean farther than this from the channel's median is motion (rad/s: 1 deg/s),
 /// unless the noise of a block mean allows more ([`NOISE_MARGIN`]).

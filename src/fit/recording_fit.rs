@@ -200,6 +200,7 @@ pub fn fit(rec: &Analysis, s: &Settings) -> Result<Fitted, FitError> {
         &check,
         s.plot.as_ref().map(|p| p.0.as_str()),
         rec.transients.as_ref(),
+        rec.dropped.as_ref(),
     );
     let plot = s
         .plot

@@ -9,9 +9,10 @@ use super::gmwm::{AxisFit, COMPONENTS, Component};
 use super::lines::Line;
 use super::ramp::{GATE_CONFIDENCE, RampTest, normal_point};
 use super::template::{Provenance, sig4};
+use crate::analysis::analyzer::Dropped;
 use crate::analysis::analyzer::{Analysis, CHANNELS};
 use crate::analysis::report::adev_unit;
-use crate::analysis::report::transients_summary;
+use crate::analysis::report::{dropped_summary, transients_summary};
 use crate::analysis::transients::{MIN_Z, Transients};
 use crate::plot::{Panel, Series};
 
@@ -23,6 +24,7 @@ pub fn markdown(
     closure: &Closure,
     plot: Option<&str>,
     transients: Option<&Transients>,
+    dropped: Option<&Dropped>,
 ) -> String {
     let mut s = String::new();
     let _ = writeln!(
@@ -137,6 +139,9 @@ pub fn markdown(
                 super::template::describe_resonance(r, ch < 3)
             );
         }
+    }
+    if let Some(d) = dropped {
+        let _ = writeln!(s, "\n## Dropped samples\n\n{}.", dropped_summary(d));
     }
     if !p.table {
         transients_section(&mut s, transients, p.dt);
