@@ -28,7 +28,7 @@ pub const MAX_DROPPED: f64 = 0.01;
 /// Stands in for a dropped sample ([`super::analyzer::Analyzer::push`]).
 const DROPPED: [f64; 6] = [f64::NAN; 6];
 
-/// How a record's transients are handled.
+/// How a record is read after its first read: its dropped samples and its transients.
 #[derive(Clone, Copy, Debug)]
 pub struct Passes {
     /// Welch segment length (samples).
