@@ -38,7 +38,7 @@ pub struct Analyzer {
     step_max_at: (u64, f64),
     /// Samples to leave out of the statistics, the Allan deviation and the PSD.
     gaps: GapCursor,
-    /// The last sample given (a missing sample's stand-in in the Allan deviation and PSD).
+    /// The last sample given (a dropped sample's stand-in in the Allan deviation and PSD).
     last: [f64; 6],
     /// The record's first step (s), which no earlier step can call long.
     first_step: f64,
@@ -187,11 +187,43 @@ impl Analyzer {
         }
     }
 
-    /// Adds one sample of the six channels at time t (NaN if the data have no time). A NaN
-    /// first value stands for a sample the record dropped ([`super::passes`] puts them back):
-    /// it keeps the time grid, and every statistic leaves it out as a transient's samples.
+    /// Adds one sample of the six channels at time t (NaN if the data have no time).
     #[inline]
     pub fn push(&mut self, t: f64, v: &[f64; 6]) {
+        self.step_to(t);
+        self.last = *v;
+        let bad = self.gaps.contains(self.n);
+        self.n += 1;
+        for (i, &x) in v.iter().enumerate() {
+            if bad {
+                self.adev[i].push_flagged(x);
+                self.psd[i].push_flagged(x);
+            } else {
+                self.stats[i].push(x);
+                self.adev[i].push(x);
+                self.psd[i].push(x);
+            }
+            self.lattice[i].push(x);
+        }
+        self.blocks.push(v);
+    }
+
+    /// Stands in at time t for a sample the record dropped ([`super::passes`] puts them back):
+    /// it keeps the time grid, and every statistic leaves it out as a transient's samples
+    /// (the Allan deviation and the PSD take the last sample's value, which no difference or
+    /// segment they keep holds).
+    pub fn push_dropped(&mut self, t: f64) {
+        self.step_to(t);
+        self.n += 1;
+        for (i, &x) in self.last.iter().enumerate() {
+            self.adev[i].push_flagged(x);
+            self.psd[i].push_flagged(x);
+        }
+    }
+
+    /// The time bookkeeping of a sample at t: first time, smallest, largest and long steps.
+    #[inline]
+    fn step_to(&mut self, t: f64) {
         if self.n == 0 {
             self.t_first = t;
         } else {
@@ -216,30 +248,6 @@ impl Analyzer {
             }
         }
         self.t_prev = t;
-        if v[0].is_nan() {
-            let last = self.last;
-            self.n += 1;
-            for (i, &x) in last.iter().enumerate() {
-                self.adev[i].push_flagged(x);
-                self.psd[i].push_flagged(x);
-            }
-            return;
-        }
-        self.last = *v;
-        let bad = self.gaps.contains(self.n);
-        self.n += 1;
-        for (i, &x) in v.iter().enumerate() {
-            if bad {
-                self.adev[i].push_flagged(x);
-                self.psd[i].push_flagged(x);
-            } else {
-                self.stats[i].push(x);
-                self.adev[i].push(x);
-                self.psd[i].push(x);
-            }
-            self.lattice[i].push(x);
-        }
-        self.blocks.push(v);
     }
 
     /// Adds one output record (its interval-mean rates).

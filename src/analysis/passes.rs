@@ -9,7 +9,7 @@
 //! a USB hiccup) leaves a time step of a whole number m ≥ 2 of Δt. When every step of the
 //! record is Δt or such a multiple (each within [`STEP_TOLERANCE`] of Δt) and the samples
 //! missing are at most [`MAX_DROPPED`] of the record, the later reads put m − 1 stand-ins on
-//! the time grid ([`super::analyzer::Analyzer::push`] takes a NaN first value for one), and
+//! the time grid ([`Analyzer::push_dropped`], [`Scanner::skip`]), and
 //! every statistic leaves them out as it leaves out a transient: each Allan-variance
 //! difference and Welch segment that spans one. The record keeps its time grid, so no τ
 //! window is shifted by the samples lost. Without a time column a drop cannot be seen.
@@ -24,9 +24,6 @@ pub const STEP_TOLERANCE: f64 = 0.01;
 /// past that its sampling is not uniform (a logger that loses that much loses it for a
 /// reason that may bias what is kept).
 pub const MAX_DROPPED: f64 = 0.01;
-
-/// Stands in for a dropped sample ([`super::analyzer::Analyzer::push`]).
-const DROPPED: [f64; 6] = [f64::NAN; 6];
 
 /// How a record is read after its first read: its dropped samples and its transients.
 #[derive(Clone, Copy, Debug)]
@@ -68,6 +65,9 @@ impl First {
 /// A sample sink: a read again feeds every sample of the record, in order, to it.
 pub type Sink<'a> = dyn FnMut(f64, &[f64; 6]) + 'a;
 
+/// A sink on the time grid: each sample (None: a dropped sample's stand-in) at its time.
+type GridSink<'a> = dyn FnMut(f64, Option<&[f64; 6]>) + 'a;
+
 impl Passes {
     /// The record's analysis at interval `dt` from its first read, the samples it dropped put
     /// back, its transients found in a second read and, unless kept, left out in a third.
@@ -96,9 +96,9 @@ impl Passes {
             None => (dt, analysis.samples),
         };
         // Every later read is on the time grid, the dropped samples' stand-ins in place.
-        let mut read = |sink: &mut Sink<'_>| -> Result<u64, E> {
+        let mut read = |sink: &mut GridSink<'_>| -> Result<u64, E> {
             let Some(d) = &dropped else {
-                return again(sink);
+                return again(&mut |t, v| sink(t, Some(v)));
             };
             let (mut next, mut k, mut t_prev) = (d.at.iter().peekable(), 0u64, f64::NAN);
             let n = again(&mut |t, v| {
@@ -106,11 +106,11 @@ impl Passes {
                     && at == k
                 {
                     for i in 1..=missing {
-                        sink(t_prev + i as f64 * d.dt, &DROPPED);
+                        sink(t_prev + i as f64 * d.dt, None);
                     }
                     next.next();
                 }
-                sink(t, v);
+                sink(t, Some(v));
                 (t_prev, k) = (t, k + 1);
             })?;
             Ok(n + d.samples())
@@ -123,7 +123,10 @@ impl Passes {
         let found = match self.scanner(&analysis, &first.steps, dt) {
             None => None,
             Some((mut scan, z)) => {
-                let got = read(&mut |_, v| scan.push(v))?;
+                let got = read(&mut |_, v| match v {
+                    Some(v) => scan.push(v),
+                    None => scan.skip(),
+                })?;
                 if got != samples {
                     return Ok((analysis, Some(not_again(got))));
                 }
@@ -136,7 +139,10 @@ impl Passes {
         if left_out || dropped.is_some() {
             let gaps = found.as_ref().map_or(Vec::new(), |t| t.gaps.clone());
             let mut an = Analyzer::with_gaps(self.segment, gaps);
-            let got = read(&mut |t, v| an.push(t, v))?;
+            let got = read(&mut |t, v| match v {
+                Some(v) => an.push(t, v),
+                None => an.push_dropped(t),
+            })?;
             if got != samples {
                 return Ok((analysis, Some(not_again(got))));
             }

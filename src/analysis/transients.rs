@@ -187,14 +187,15 @@ impl Scanner {
         }
     }
 
-    /// Adds one sample of the six channels (a NaN first value: a dropped sample's stand-in,
-    /// counted but not a step: the next step spans it).
+    /// Counts a dropped sample's stand-in ([`super::passes`]): not a step; the next step
+    /// spans it.
+    pub fn skip(&mut self) {
+        self.k += 1;
+    }
+
+    /// Adds one sample of the six channels.
     #[inline]
     pub fn push(&mut self, v: &[f64; 6]) {
-        if v[0].is_nan() {
-            self.k += 1;
-            return;
-        }
         if self.k > 0 {
             for (ch, (x, p)) in v.iter().zip(self.prev).enumerate() {
                 let d = x - p;
