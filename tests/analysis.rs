@@ -455,6 +455,28 @@ fn analyze_bad_input_is_named() {
         e.contains("362 bytes is not a whole number of 104-byte records (record 3 is cut short)"),
         "{e}"
     );
+    // A corrupt record (a NaN rate) is named, not averaged into every statistic.
+    let nan = dir.path().join("nan.bin");
+    let mut bytes = Vec::new();
+    for k in 0..20u32 {
+        for i in 0..13 {
+            let v = match i {
+                0 => f64::from(k + 1) * 0.01,
+                2 if k == 12 => f64::NAN,
+                _ => 0.0,
+            };
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(&nan, bytes).unwrap();
+    let e = err(imu_emu(["analyze", p(&nan)]));
+    assert!(
+        e.contains(&format!(
+            "{}: record 12: gyro_y is NaN, not a finite number",
+            p(&nan)
+        )),
+        "{e}"
+    );
     let e = err(imu_emu(["analyze", p(&dir.path().join("missing.csv"))]));
     assert!(e.contains("missing.csv"), "{e}");
     let e = err(imu_emu([

@@ -132,6 +132,17 @@ pub fn read(
                     }
                 }
                 let v = crate::output::decode_bin(&rec);
+                // A corrupt file: a NaN or ∞ would make every statistic of its channel one.
+                if let Some(i) = (0..7).find(|&i| !v[i].is_finite()) {
+                    return Err(FileError::file(
+                        path,
+                        format!(
+                            "record {n}: {} is {}, not a finite number",
+                            crate::record::COLUMNS[i],
+                            v[i]
+                        ),
+                    ));
+                }
                 sample(v[0], &std::array::from_fn(|i| v[i + 1]));
                 n += 1;
             }
@@ -302,11 +313,23 @@ fn read_frames(
     let mut n = 0u64;
     // Chosen from the first frame: each axis from its rate, else its increment over Δt.
     let mut layout: Option<Result<FrameLayout, ReadError>> = None;
+    // A frame whose rate decodes to a NaN or ∞ (a float field's bits): the first one, by frame.
+    let mut not_finite: Option<ReadError> = None;
     let mut each = |d: &crate::protocol::Decoded| {
         let l = layout.get_or_insert_with(|| frame_layout(path, d, dt));
         if let Ok((sources, time)) = l {
             let v: [f64; 6] =
                 std::array::from_fn(|i| d.get(sources[i].0).unwrap_or(f64::NAN) * sources[i].1);
+            if let Some(i) = (0..6).find(|&i| d.get(sources[i].0).is_some_and(|x| !x.is_finite())) {
+                not_finite = Some(FileError::file(
+                    path,
+                    format!(
+                        "frame {n}: {} is {}, not a finite number",
+                        CHANNEL_NAMES[i], v[i]
+                    ),
+                ));
+                return false;
+            }
             let t = time.and_then(|s| d.get(s)).unwrap_or(f64::NAN);
             sample(t, &v);
             n += 1;
@@ -329,6 +352,9 @@ fn read_frames(
         }
     }
     if let Some(Err(e)) = layout {
+        return Err(e);
+    }
+    if let Some(e) = not_finite {
         return Err(e);
     }
     Ok(ReadSummary {
