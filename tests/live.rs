@@ -677,3 +677,34 @@ fn gps_tagged_lockstep_counts_from_the_week_start() {
         assert!((sow - r.t).abs() <= 1e-9, "frame {sow} s, record {} s", r.t);
     }
 }
+
+/// The record on the newest state's own time is released, as the real-time run releases it,
+/// even when its time t₀ + k/rate, computed in f64, rounds an ulp past the tag read for that
+/// state. GPS seconds of the week from 569 867.33 s to 569 869.33 s at 100 Hz (the states
+/// of a real-time test whose replay lost that record one run in two): t₀ is the ninth state's
+/// 569 867.41 s (the model's stencil), and t₀ + 768/400 comes out 1.2e-10 s after 569 869.33.
+#[test]
+fn the_record_on_the_newest_state_is_released() {
+    let (first, last) = (56_986_733u64, 56_986_933u64); // hundredths of a second
+    let tag = |c: u64| format!("{}.{:02}", c / 100, c % 100);
+    let t0: f64 = tag(first + 8).parse().unwrap();
+    let t_last: f64 = tag(last).parse().unwrap();
+    assert!(t0 + 768.0 / 400.0 > t_last, "the case this test is for");
+    let mut text = String::from("t,lat,lon,h,vn,ve,vd,roll,pitch,yaw\n");
+    for c in first..=last {
+        text.push_str(&format!("{},41.27,1.98,300,0,0,0,0,0,0\n", tag(c)));
+    }
+    let mut rx = Receiver::from_stream(
+        Box::new(std::io::Cursor::new(text.into_bytes())),
+        InputFormat::Csv,
+        "x",
+    );
+    let b = Simulation::builder().defaults("ideal", "bin").rate(400.0);
+    let s = Lockstep::new(b, InputFormat::Csv)
+        .unwrap()
+        .run(&mut rx, &mut std::io::sink(), None, |_| ())
+        .unwrap();
+    assert_eq!(s.grid.t0, t0);
+    assert_eq!(s.newest, t_last);
+    assert_eq!(s.records, 768, "every record up to the newest state's time");
+}

@@ -76,6 +76,13 @@ impl Until {
         }
     }
 
+    /// The window ending at a state's time tag `t` (the newest the motion is known to): the
+    /// records on `t` are released even when their computed time comes out a rounding after
+    /// it ([`super::grid::tag_slack`]).
+    pub fn state(origin: f64, t: f64) -> Until {
+        Until::time(origin, t + super::grid::tag_slack(t, origin))
+    }
+
     /// A window that releases everything.
     pub const ALL: Until = Until {
         ns: i64::MAX,

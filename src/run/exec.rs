@@ -162,7 +162,7 @@ impl Run {
                 // aiding epoch falling on t₀ would read NaN).
                 continue;
             }
-            let until = Until::time(b.origin, feed.model.newest());
+            let until = Until::state(b.origin, feed.model.newest());
             let step = (b.sources.fill(until))
                 .map_err(RunError::from)
                 .and_then(|()| out.write(&b.sources.parts, &mut counts));

@@ -211,7 +211,8 @@ impl Lockstep {
             self.built = Some(b);
         }
         let b = self.built.as_mut().expect("built above");
-        b.sources.fill(Until::time(b.origin, self.model.newest()))?;
+        b.sources
+            .fill(Until::state(b.origin, self.model.newest()))?;
         for ((p, out), n) in (b.sources.parts.iter())
             .zip(outs.iter_mut())
             .zip(self.written.iter_mut())

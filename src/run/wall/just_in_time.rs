@@ -234,11 +234,14 @@ impl JustInTime for Follow<'_> {
         if input_ended {
             match self.on_timeout {
                 OnTimeout::Stop => {
-                    let next = (sources.next_due()).map(|d| self.origin + d as f64 * 1e-9);
-                    if next.is_none_or(|t| t > newest) {
+                    // The records on the newest state's time are still the input's, as in
+                    // lockstep (`Until::state`).
+                    let last = Until::state(self.origin, newest);
+                    let next = sources.next_due();
+                    if next.is_none_or(|d| d > last.ns) {
                         return ControlFlow::Break("input ended");
                     }
-                    horizon = horizon.min(newest);
+                    horizon = horizon.min(last.t);
                 }
                 OnTimeout::Hold if !self.held => {
                     self.model.hold_from(self.emitted);
@@ -262,7 +265,7 @@ impl JustInTime for Follow<'_> {
         self.emitted = self.horizon;
         // The units' records, and those of them past the newest state (made from the
         // extrapolated or held motion).
-        let newest_ns = ((self.newest - self.origin) * 1e9).round() as i64;
+        let newest_ns = Until::state(self.origin, self.newest).ns;
         for p in parts.iter().filter(|p| p.marks_records) {
             self.st.frames += p.records.len() as u64;
             self.st.extrapolated += p.records.iter().filter(|r| r.1 > newest_ns).count() as u64;
