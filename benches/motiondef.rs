@@ -2,7 +2,9 @@
 //! records (3-node Gauss–Legendre increments, the default) at 1 kHz, no error chain, best of
 //! three passes.
 //!
-//! `cargo bench --bench motiondef` prints the table docs/motion-definitions.md shows.
+//! `cargo bench --bench motiondef` prints the table docs/motion-definitions.md shows; the rows
+//! of gnss-ins-sim's demo files need the public data sets (docs/testing.md), and are left out
+//! with a line saying so when they are not found.
 
 use std::path::Path;
 use std::time::Instant;
@@ -11,6 +13,9 @@ use imu_emu::engine::{self, BLOCK, Producer, SourceSpec};
 use imu_emu::motion::Motion;
 use imu_emu::scenes::SceneParams;
 use imu_emu::source::AnyMotion;
+
+#[path = "../tests/common/public_data.rs"]
+mod public_data;
 
 const RATE: f64 = 1000.0;
 const SECONDS: f64 = 60.0;
@@ -43,13 +48,12 @@ fn main() {
         let m = engine::build_motion(&spec, Default::default()).expect("scene");
         println!("| scene {name} | {:.0} |", ns_per_record(&m));
     }
-    for file in [
-        "tests/data/gnss-ins-sim/motion_def-long_drive.csv",
-        "tests/data/gnss-ins-sim/motion_def-90deg_turn.csv",
-        "examples/mission.toml",
-        "examples/waypoints.toml",
-    ] {
-        let m = AnyMotion::Defined(imu_emu::motiondef::open(&root.join(file)).expect(file));
-        println!("| motion definition {file} | {:.0} |", ns_per_record(&m));
+    let demos = public_data::set("gnss-ins-sim", "bench motiondef")
+        .map(|d| ["motion_def-long_drive.csv", "motion_def-90deg_turn.csv"].map(|f| d.join(f)));
+    let own = ["examples/mission.toml", "examples/waypoints.toml"].map(|f| root.join(f));
+    for file in demos.into_iter().flatten().chain(own) {
+        let m = AnyMotion::Defined(imu_emu::motiondef::open(&file).expect("a motion definition"));
+        let name = file.file_name().unwrap_or_default().to_string_lossy();
+        println!("| motion definition {name} | {:.0} |", ns_per_record(&m));
     }
 }

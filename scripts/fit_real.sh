@@ -11,7 +11,8 @@
 # at 100 Hz, and from its history (commit d054287) an Xsens MTi-G's gyro x, 500 000 samples at
 # 100 Hz with outliers; CC BY-NC-SA 4.0). SENSOR_FUSION: a clone of https://github.com/sunsided/sensor-fusion
 # (MPU-6050, set-2; EUPL-1.2). Either may be `-` to skip it. The ADIS16448 and BMI160 Allan
-# deviation tables of gaowenliang/imu_utils (MIT) are in tests/data/imu_utils/. AVAR, optional:
+# deviation tables of gaowenliang/imu_utils (MIT) are read from the public data set imu_utils in
+# $IMU_EMU_TEST_DATA (default ../shared/data beside the clone; docs/testing.md). AVAR, optional:
 # a clone of https://github.com/SMAC-Group/avar (AGPL-3), whose per-axis Allan deviation tables
 # of an LN-200, an iMAR FSAS-class unit, a KVH 1750, a NavChip and an ADIS16405 are fitted as
 # tables. OUT receives the converted CSVs, templates, reports and pictures. Needs python3 with
@@ -69,9 +70,14 @@ if [ "$fusion" != - ]; then
     fi
     sed 's/^/refused: /' "$out/moving.log" | tail -1
 fi
-for unit in adis16448 bmi160; do
-    fit "$unit" "$here/tests/data/imu_utils/$unit-adev.csv"
-done
+tables="${IMU_EMU_TEST_DATA:-$here/../shared/data}/imu_utils"
+if [ -d "$tables" ]; then
+    for unit in adis16448 bmi160; do
+        fit "$unit" "$tables/$unit-adev.csv"
+    done
+else
+    echo "skipped: the imu_utils tables, not found at $tables (set IMU_EMU_TEST_DATA)" >&2
+fi
 if [ "$avar" != - ]; then
     for set in ln200 imar kvh1750 navchip adis; do
         table="$out/avar-$set.csv"

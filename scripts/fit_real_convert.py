@@ -1,8 +1,8 @@
 """Public static IMU recordings to the CSV `imu-emu fit` reads (t,gx,gy,gz,ax,ay,az).
 
-Used by scripts/fit_real.sh. The ADIS16405 data are not in this repository (their licence
-does not allow it): clone the repositories named below and give their paths. Two MPU-6050
-records are, as register counts (tests/data/sensor-fusion/, made with `mpu6050-counts`).
+Used by scripts/fit_real.sh. None of these recordings is in this repository: clone the
+repositories named below and give their paths. The tests read two MPU-6050 records as register
+counts, made with `mpu6050-counts`, from the public data set sensor-fusion (docs/testing.md).
 
   adis16405 RDA OUT  SMAC-Group/imudata data/adis_16405_imuN.rda (CC BY-NC-SA 4.0): an R
                      matrix of 10^6 rows, gyro deg/s, accel g, 100 Hz (the package's own
@@ -14,7 +14,7 @@ records are, as register counts (tests/data/sensor-fusion/, made with `mpu6050-c
   mpu6050-counts DIR OUT
                      the same record as the sensor's register counts, without the time tags
                      (gx,gy,gz in 1/131 deg/s, ax,ay,az in 1/4096 g: its ±250 deg/s and ±8 g
-                     ranges); refused unless every value is a whole count. tests/data/sensor-fusion/ holds two such files.
+                     ranges); refused unless every value is a whole count.
   mtig RDA OUT       SMAC-Group/imudata data/cont.imu1.rda, in the repository's history (commit
                      d054287; removed later; CC BY-NC-SA 4.0): one column, the gyro x of an
                      Xsens MTi-G (EPFL TOPO), 500 000 samples, "possibly suffering from some

@@ -4,10 +4,13 @@
 //! rate, so a record simulated from known templates, fitted and simulated again closes at every
 //! octave and PSD band. What `fit` refuses: records too short for its terms, non-uniform time
 //! steps, records that are not static. And public recordings of real units: the ADIS16448's
-//! and the BMI160's Allan deviation tables (MIT, `tests/data/imu_utils/`) and an MPU-6050's
-//! static and moving records (EUPL-1.2, `tests/data/sensor-fusion/`).
+//! and the BMI160's Allan deviation tables (gaowenliang/imu_utils, MIT) and an MPU-6050's
+//! static and moving records (sunsided/sensor-fusion, EUPL-1.2), read from the public data
+//! sets outside the repository (tests/common/public_data.rs, docs/testing.md).
 
 mod common;
+#[path = "common/public_data.rs"]
+mod public_data;
 
 use std::path::Path;
 
@@ -476,7 +479,7 @@ fn a_moving_record_is_refused() {
 }
 
 /// Every τ of a real unit's Allan deviation closes to T/8 from 15 ms (3Δt) or 25 ms (5Δt):
-/// the tables of gaowenliang/imu_utils (MIT; `tests/data/imu_utils/`): an ADIS16448 (2 h at
+/// the tables of gaowenliang/imu_utils (MIT; the public data set `imu_utils`): an ADIS16448 (2 h at
 /// 200 Hz) and a BMI160 (200 min at 196.4 Hz), 83 τ each to T/8. `fit` reads their output
 /// filters from the tables' shortest τ: for the ADIS16448 a CIC of order 2 and 4 taps at
 /// 819.2 Hz read by the host at 200 Hz — the data sheet's internal rate and Bartlett window
@@ -490,14 +493,17 @@ fn a_moving_record_is_refused() {
 /// from 0.15 s only (15 of its points below it outside), and the BMI160 from 0.15 s.
 #[test]
 fn real_unit_tables_close_above_thirty_samples() {
+    let Some(tables) = public_data::set("imu_utils", "real_unit_tables_close_above_thirty_samples")
+    else {
+        return;
+    };
     let dir = TempDir::new().unwrap();
     let d = dir.path();
     for (unit, filter, from) in [
         ("adis16448", "internal_rate_hz = 819.19943", [0.015; 6]),
         ("bmi160", "kind = \"butterworth\"\norder = 4", [0.025; 6]),
     ] {
-        let table = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join(format!("tests/data/imu_utils/{unit}-adev.csv"));
+        let table = tables.join(format!("{unit}-adev.csv"));
         let out = d.join(format!("{unit}.toml"));
         let report = d.join(format!("{unit}.md"));
         ok(imu_emu([
@@ -558,12 +564,10 @@ fn real_unit_tables_close_above_thirty_samples() {
     }
 }
 
-/// A recording of the sensor-fusion data set (tests/data/sensor-fusion/README.md), its register
+/// A recording of the sensor-fusion data set in the folder `set` (its README), its register
 /// counts written as the CSV a user has: deg/s and g, no time column.
-fn mpu6050_csv(name: &str, dir: &Path) -> std::path::PathBuf {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!(
-        "tests/data/sensor-fusion/mpu6050-{name}-counts.csv"
-    ));
+fn mpu6050_csv(set: &Path, name: &str, dir: &Path) -> std::path::PathBuf {
+    let src = set.join(format!("mpu6050-{name}-counts.csv"));
     let text = std::fs::read_to_string(&src).unwrap();
     let mut csv = String::from("gx,gy,gz,ax,ay,az\n");
     for line in text.lines().skip(1) {
@@ -592,10 +596,14 @@ fn mpu6050_csv(name: &str, dir: &Path) -> std::path::PathBuf {
 /// every channel. Its record of a turn about z is refused as not static, and leaves no file.
 #[test]
 fn a_real_mpu6050_recording_closes_and_a_moving_one_is_refused() {
+    let test = "a_real_mpu6050_recording_closes_and_a_moving_one_is_refused";
+    let Some(set) = public_data::set("sensor-fusion", test) else {
+        return;
+    };
     let dir = TempDir::new().unwrap();
     let d = dir.path();
     let rate = 99.32;
-    let csv = mpu6050_csv("static", d);
+    let csv = mpu6050_csv(&set, "static", d);
     let (out, report) = (d.join("mpu6050.toml"), d.join("mpu6050.md"));
     let flags = [
         "--rate",
@@ -652,7 +660,7 @@ fn a_real_mpu6050_recording_closes_and_a_moving_one_is_refused() {
     }
     assert!(gates >= 8, "{toml}");
 
-    let moving = mpu6050_csv("moving", d);
+    let moving = mpu6050_csv(&set, "moving", d);
     let refused = d.join("moving.toml");
     let mut args = vec!["fit", p(&moving), "-o", p(&refused), "--rate", "100"];
     args.extend(&flags[2..]);

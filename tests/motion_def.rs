@@ -1,6 +1,8 @@
-//! Motion definitions (`imu_emu::motiondef`): gnss-ins-sim's demo files read as they are and
-//! navigated closed; each command type against its closed form; continuity of the sensed
-//! signal at every piece boundary; bad files refused with file, line and column.
+//! Motion definitions (`imu_emu::motiondef`): gnss-ins-sim's motion-definition format read as
+//! it is, each command type against its closed form on files of this repository's own (written
+//! below), continuity of the sensed signal at every piece boundary, bad files refused with
+//! file, line and column; and gnss-ins-sim's own demo files navigated closed when the public
+//! data sets are at hand (tests/common/public_data.rs).
 
 use std::path::{Path, PathBuf};
 
@@ -11,27 +13,138 @@ use imu_emu::motiondef::{self, DefinedMotion};
 use imu_emu::nav::{Settings, close};
 use imu_emu::source::AnyMotion;
 
-fn demo(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/gnss-ins-sim")
-        .join(name)
+#[path = "common/public_data.rs"]
+mod public_data;
+
+/// The first header line of the format (the start state's columns).
+const H1: &str = "ini lat (deg),ini lon (deg),ini alt (m),ini vx_body (m/s),ini vy_body (m/s),ini vz_body (m/s),ini yaw (deg),ini pitch (deg),ini roll (deg)";
+/// The second header line (the commands' columns, GNSS visibility last).
+const H2: &str = "command type,yaw (deg),pitch (deg),roll (deg),vx_body (m/s),vy_body (m/s),vz_body (m/s),command duration (s),GPS visibility";
+
+/// A file of the format: the start state (lat, lon, h, body velocity, yaw, pitch, roll), then
+/// the commands, one line each.
+fn file_text(start: &str, commands: &[&str]) -> String {
+    let mut t = format!("{H1}\n{start}\n{H2}\n");
+    for c in commands {
+        t.push_str(c);
+        t.push('\n');
+    }
+    t
 }
 
-fn load(name: &str) -> DefinedMotion {
-    motiondef::open(&demo(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+/// A 90° turn at 10 m/s heading east: 1 s straight, −15°/s for 6 s, 3 s straight.
+fn turn_text() -> String {
+    file_text(
+        "41.27,1.98,0,10,0,0,90,0,0",
+        &[
+            "1,0,0,0,0,0,0,1,1",
+            "1,-15,0,0,0,0,0,6,1",
+            "1,0,0,0,0,0,0,3,1",
+        ],
+    )
+}
+
+/// Forward body acceleration of 10 m/s² for 10 s from rest.
+fn accel_text() -> String {
+    file_text("41.27,1.98,0,0,0,0,0,0,0", &["1,0,0,0,10,0,0,10,1"])
+}
+
+/// Targets of type 2 (absolute) from rest: 10 s at rest, forward to 10 m/s, back to rest,
+/// sideways to 10 m/s (body y), back to rest, each given 20 s.
+fn targets_text() -> String {
+    file_text(
+        "41.27,1.98,0,0,0,0,0,0,0",
+        &[
+            "1,0,0,0,0,0,0,10,1",
+            "2,0,0,0,10,0,0,20,1",
+            "2,0,0,0,0,0,0,20,1",
+            "2,0,0,0,0,10,0,20,1",
+            "2,0,0,0,0,0,0,20,1",
+        ],
+    )
+}
+
+/// Types 5 and 3: at rest 10 s, climb at 45° and 10 m/s (type 5: pitch relative, speed
+/// absolute), level off turning +90° (type 3: both relative), fly on.
+fn climb_text() -> String {
+    file_text(
+        "41.27,1.98,0,0,0,0,0,0,0",
+        &[
+            "1,0,0,0,0,0,0,10,1",
+            "5,0,45,0,10,0,0,250,1",
+            "1,0,0,0,0,0,0,10,1",
+            "3,90,-45,0,0,0,0,25,1",
+            "1,0,0,0,0,0,0,50,1",
+        ],
+    )
+}
+
+/// A drive with an outage: GNSS is lost for the third and fourth commands (lines 6 and 7).
+fn outage_text() -> String {
+    file_text(
+        "41.27,1.98,0,0,0,0,0,0,0",
+        &[
+            "1,0,0,0,0,0,0,20,1",
+            "5,0,0,0,10,0,0,15,1",
+            "1,0,0,0,0,0,0,30,0",
+            "3,90,0,0,0,0,0,15,0",
+            "1,0,0,0,0,0,0,30,1",
+            "5,0,0,0,0,0,0,15,1",
+        ],
+    )
+}
+
+/// A long drive of the repository's own: 24 blocks of setting off, a turn left or right, a
+/// straight, a change of speed and a stop, every command type of a road trip (1, 2, 3, 5).
+fn drive_text() -> String {
+    let mut c: Vec<String> = vec!["1,0,0,0,0,0,0,10,1".into()];
+    for i in 0..24 {
+        let turn = if i % 3 == 2 { -90 } else { 90 };
+        let speed = 8 + (i % 5) * 3;
+        c.push(format!("5,0,0,0,{speed},0,0,15,1"));
+        c.push(format!("3,{turn},0,0,0,0,0,12,1"));
+        c.push(format!("1,0,0,0,0,0,0,{},1", 5 + i % 4));
+        c.push(format!("2,{},0,0,{},0,0,10,1", 0, speed / 2));
+        c.push("1,0,0,0,-0.5,0,0,4,1".into());
+        c.push("5,0,0,0,0,0,0,15,1".into());
+    }
+    let c: Vec<&str> = c.iter().map(String::as_str).collect();
+    file_text("41.27,1.98,120,0,0,0,30,0,0", &c)
+}
+
+/// Writes `text` to a file of the scratch folder `dir` named `name` and returns its path.
+fn written(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// The motion of a file of the format whose text is `text`.
+fn load_text(text: &str) -> DefinedMotion {
+    let dir = tempfile::tempdir().unwrap();
+    let p = written(dir.path(), "m.csv", text);
+    motiondef::open(&p).unwrap_or_else(|e| panic!("{e}\n{text}"))
 }
 
 /// Every demo file of gnss-ins-sim runs, and the reference navigator fed its error-free
-/// records at 100 Hz closes the whole trip within 1 mm (the bound).
+/// records at 100 Hz closes the whole trip within 1 mm (the bound); on its two road
+/// demos the sensed signal is continuous at every boundary, as on [`drive_text`].
 #[test]
 fn every_gnss_ins_sim_demo_closes_within_a_millimetre() {
-    let mut names: Vec<String> = std::fs::read_dir(demo(""))
+    let Some(dir) = public_data::set(
+        "gnss-ins-sim",
+        "every_gnss_ins_sim_demo_closes_within_a_millimetre",
+    ) else {
+        return;
+    };
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .filter(|n| n.ends_with(".csv"))
         .collect();
     names.sort();
     assert_eq!(names.len(), 11, "{names:?}");
+    let load = |name: &str| motiondef::open(&dir.join(name)).unwrap_or_else(|e| panic!("{e}"));
     for name in names {
         let m = AnyMotion::Defined(load(&name));
         let grid = engine::plan(&m, 100.0, None, None).unwrap();
@@ -46,6 +159,14 @@ fn every_gnss_ins_sim_demo_closes_within_a_millimetre() {
         );
         assert!(c.max_pos <= 1e-3, "{name}: {:.3e} m", c.max_pos);
     }
+    for name in ["motion_def-long_drive.csv", "motion_def-Holland_tunnel.csv"] {
+        continuous(name, &load(name));
+    }
+    // The tunnel demo loses GNSS in the tunnel (its command on line 35).
+    let m = load("motion_def-Holland_tunnel.csv");
+    let s = m.segments();
+    assert!(s[0].gnss_visible && !s[31].gnss_visible && s[42].gnss_visible);
+    assert_eq!(s[31].line, 35);
 }
 
 /// North distance (m) between two latitudes at height h: ∫R_N dφ by Simpson's rule on 64
@@ -61,12 +182,12 @@ fn meridian_arc(lat0: f64, lat1: f64, h: f64) -> f64 {
     s * step / 3.0
 }
 
-/// Type 1, body acceleration: `0to100` holds 10 m/s² for 10 s; after the 0.5 s blend the speed
+/// Type 1, body acceleration: [`accel_text`] holds 10 m/s² for 10 s; after the 0.5 s blend the speed
 /// is 2.5 + 10(t − 0.5) m/s (the blend gains half the new acceleration times its length), and
 /// the distance run between t = 1 s and 10 s is ∫(10t − 2.5)dt = 472.5 m.
 #[test]
 fn type_1_acceleration_against_its_closed_form() {
-    let m = load("motion_def-0to100.csv");
+    let m = load_text(&accel_text());
     for t in [0.5, 1.0, 3.3, 7.77, 9.999] {
         let p = m.pose(t);
         let v = 10.0 * t - 2.5;
@@ -80,12 +201,12 @@ fn type_1_acceleration_against_its_closed_form() {
     assert!((d - 472.5).abs() < 3e-9, "{d}");
 }
 
-/// Type 1, Euler-angle rate: the 90° turn at 10 m/s. In the held part the yaw is linear,
+/// Type 1, Euler-angle rate: the 90° turn at 10 m/s ([`turn_text`]). In the held part the yaw is linear,
 /// 90° − 3.75° − 15°/s·(t − 1.5 s) (half the blend lost), the speed stays 10 m/s and the
 /// velocity points along the yaw (no side-slip); the whole turn is −90° exactly.
 #[test]
 fn type_1_turn_against_its_closed_form() {
-    let m = load("motion_def-90deg_turn.csv");
+    let m = load_text(&turn_text());
     let worst = (0..=400)
         .map(|i| 1.5 + 5.5 * i as f64 / 400.0)
         .map(|t| {
@@ -108,10 +229,10 @@ fn type_1_turn_against_its_closed_form() {
 
 /// Types 2–5: a target reached rest to rest follows the minimum-jerk step
 /// v = Δv(10s³ − 15s⁴ + 6s⁵), s = τ/T, with T = 1.875Δv/a_max (18.75 s for 10 m/s at
-/// 1 m/s²): the `3d` demo's first type-2 command, forward to 10 m/s, then its sideways one.
+/// 1 m/s²): [`targets_text`]'s first type-2 command, forward to 10 m/s, then its sideways one.
 #[test]
 fn type_2_target_against_its_closed_form() {
-    let m = load("motion_def-3d.csv");
+    let m = load_text(&targets_text());
     let segs = m.segments();
     assert_eq!(segs[1].span, (10.0, 28.75));
     for s in [0.1f64, 0.5, 0.8, 1.0] {
@@ -130,11 +251,11 @@ fn type_2_target_against_its_closed_form() {
     );
 }
 
-/// Relative and absolute targets (types 3 and 5): `motion_def.csv` climbs at 45° (type 5,
+/// Relative and absolute targets (types 3 and 5): [`climb_text`] climbs at 45° (type 5,
 /// pitch +45° relative, 10 m/s absolute), then turns +90° and pitches −45° (type 3).
 #[test]
 fn types_3_and_5_reach_their_targets() {
-    let m = load("motion_def.csv");
+    let m = load_text(&climb_text());
     let s = m.segments();
     let after = |i: usize| {
         let p = m.pose(s[i].span.1);
@@ -154,38 +275,47 @@ fn types_3_and_5_reach_their_targets() {
 }
 
 /// Angular rate and specific force have no jump at any piece boundary (knots, blends,
-/// command changes) of the two road demos: the left piece's value at the boundary against
-/// the right one's.
+/// command changes) of a long drive ([`drive_text`]): the left piece's value at the boundary
+/// against the right one's.
 #[test]
 fn sensed_signal_is_continuous_at_every_boundary() {
-    for name in ["motion_def-long_drive.csv", "motion_def-Holland_tunnel.csv"] {
-        let m = load(name);
-        let (mut dw, mut df, mut n) = (0.0f64, 0.0f64, 0);
-        let mut i = 0;
-        while m.piece_end(i).is_finite() {
-            let t = m.piece_end(i);
-            let (a, b) = (m.sense(i, t), m.sense(i + 1, t));
-            dw = dw.max((a.omega_ib_b - b.omega_ib_b).amax());
-            df = df.max((a.f_b - b.f_b).amax());
-            i += 1;
-            n += 1;
-        }
-        println!("{name}: {n} boundaries, largest jump ω {dw:.2e} rad/s, f {df:.2e} m/s²");
-        assert!(n > 1000);
-        assert!(dw < 1e-12 && df < 1e-9, "{name}: {dw:e} {df:e}");
-    }
+    continuous("drive", &load_text(&drive_text()));
 }
 
-/// GNSS visibility is kept per command: the Holland tunnel demo loses GNSS in the tunnel.
+/// The number of piece boundaries of `m` and the largest jump of ω (rad/s) and f (m/s²) at
+/// them: the left piece's value at the boundary against the right one's.
+fn jumps(m: &DefinedMotion) -> (usize, f64, f64) {
+    let (mut dw, mut df, mut n) = (0.0f64, 0.0f64, 0);
+    while m.piece_end(n).is_finite() {
+        let t = m.piece_end(n);
+        let (a, b) = (m.sense(n, t), m.sense(n + 1, t));
+        dw = dw.max((a.omega_ib_b - b.omega_ib_b).amax());
+        df = df.max((a.f_b - b.f_b).amax());
+        n += 1;
+    }
+    (n, dw, df)
+}
+
+/// The sensed signal of `m` has no jump at any of its (over 1000) piece boundaries.
+fn continuous(name: &str, m: &DefinedMotion) {
+    let (n, dw, df) = jumps(m);
+    println!("{name}: {n} boundaries, largest jump ω {dw:.2e} rad/s, f {df:.2e} m/s²");
+    assert!(n > 1000, "{name}: {n} boundaries");
+    assert!(dw < 1e-12 && df < 1e-9, "{name}: {dw:e} {df:e}");
+}
+
+/// GNSS visibility is kept per command: [`outage_text`] loses GNSS for its third and fourth
+/// commands.
 #[test]
 fn gnss_visibility_is_kept_per_segment() {
-    let m = load("motion_def-Holland_tunnel.csv");
+    let m = load_text(&outage_text());
     let s = m.segments();
-    assert_eq!(s.len(), 52);
-    assert!(s[0].gnss_visible && !s[31].gnss_visible && s[42].gnss_visible);
-    assert_eq!(s[31].line, 35);
-    let mid = 0.5 * (s[31].span.0 + s[31].span.1);
+    assert_eq!(s.len(), 6);
+    assert!(s[1].gnss_visible && !s[2].gnss_visible && !s[3].gnss_visible && s[4].gnss_visible);
+    assert_eq!((s[2].line, s[3].line), (6, 7));
+    let mid = 0.5 * (s[2].span.0 + s[2].span.1);
     assert!(!m.gnss_visible(mid) && m.gnss_visible(1.0));
+    assert!(m.gnss_visible(0.5 * (s[4].span.0 + s[4].span.1)));
 }
 
 fn refused(text: &str) -> String {
@@ -197,9 +327,6 @@ fn refused(text: &str) -> String {
     std::fs::remove_file(&p).unwrap();
     e
 }
-
-const H1: &str = "ini lat (deg),ini lon (deg),ini alt (m),ini vx_body (m/s),ini vy_body (m/s),ini vz_body (m/s),ini yaw (deg),ini pitch (deg),ini roll (deg)";
-const H2: &str = "command type,yaw (deg),pitch (deg),roll (deg),vx_body (m/s),vy_body (m/s),vz_body (m/s),command duration (s),GPS visibility";
 
 #[test]
 fn bad_files_are_refused_with_line_and_column() {
@@ -253,15 +380,7 @@ fn mission() -> DefinedMotion {
 #[test]
 fn native_mission_closes_and_is_continuous() {
     let m = mission();
-    let mut i = 0;
-    let (mut dw, mut df) = (0.0f64, 0.0f64);
-    while m.piece_end(i).is_finite() {
-        let t = m.piece_end(i);
-        let (a, b) = (m.sense(i, t), m.sense(i + 1, t));
-        dw = dw.max((a.omega_ib_b - b.omega_ib_b).amax());
-        df = df.max((a.f_b - b.f_b).amax());
-        i += 1;
-    }
+    let (i, dw, df) = jumps(&m);
     println!("mission: {i} boundaries, largest jump ω {dw:.2e} rad/s, f {df:.2e} m/s²");
     assert!(dw < 1e-12 && df < 1e-9, "{dw:e} {df:e}");
     let m = AnyMotion::Defined(m);
@@ -378,7 +497,7 @@ fn scratch(name: &str) -> PathBuf {
 #[test]
 fn command_line_and_scene_files() {
     let dir = scratch("cli");
-    let turn = demo("motion_def-90deg_turn.csv");
+    let turn = written(&dir, "the-turn.csv", &turn_text());
     let turn = turn.to_str().unwrap();
     let out = bin(
         &[
@@ -794,7 +913,7 @@ fn ok(out: std::process::Output) -> String {
 #[test]
 fn every_command_takes_a_motion_definition() {
     let dir = scratch("cmds");
-    let turn = demo("motion_def-90deg_turn.csv");
+    let turn = written(&dir, "turn.csv", &turn_text());
     let turn = turn.to_str().unwrap();
     let common = ["--motion-def", turn, "--imu", "ideal"];
     let frames = ["--format", "kvh1750", "--duration", "2"];
