@@ -399,7 +399,9 @@ fn links_resolve_and_no_page_cites_outside_notes() {
                 "HIL.md",
                 "shared/",
             ] {
-                if line.contains(name) {
+                // The public data sets' default folder (docs/testing.md) is not a note.
+                let cited = line.replace("shared/data", "");
+                if cited.contains(name) {
                     bad.push(format!("{label}:{}: cites `{name}`", n + 1));
                 }
             }

@@ -135,7 +135,7 @@ fn every_unit_samples_once_per_edge() {
         ),
     );
     let port = free_port();
-    let (frames_to, frames) = receive(10.0);
+    let (frames_to, frames) = receive();
     let mut c = Command::new(BIN);
     c.arg("run").arg(&scene).args([
         "--trigger",

@@ -51,8 +51,8 @@ fn time_marks_over_udp_and_file() {
         "latency = \"400 us\"\nlatency_spread = \"50 us\"\n",
     );
     let csv = dir.path().join("marks.csv");
-    let (frames_to, frames) = receive(5.0);
-    let (marks_to, marks) = receive(5.0);
+    let (frames_to, frames) = receive();
+    let (marks_to, marks) = receive();
     let err = run(&[
         "--imu",
         imu.to_str().unwrap(),
@@ -369,8 +369,8 @@ fn software_pps_pulls_the_phase() {
             }
         })
     };
-    let (frames_to, frames) = receive(secs as f64 + 6.0);
-    let (marks_to, marks) = receive(secs as f64 + 6.0);
+    let (frames_to, frames) = receive();
+    let (marks_to, marks) = receive();
     let err = run(&[
         "--rate",
         "200",
@@ -434,7 +434,7 @@ fn external_trigger_one_frame_per_edge() {
         .unwrap()
         .local_addr()
         .unwrap();
-    let (frames_to, frames) = receive(8.0);
+    let (frames_to, frames) = receive();
     let mut child = Command::new(BIN)
         .args([
             "run",

@@ -40,7 +40,7 @@ fn finish(c: Child) -> String {
 fn gps_delays(timing: &str) -> (Vec<f64>, String) {
     let dir = tempfile::tempdir().unwrap();
     let imu = loopback::timed_ln200(dir.path(), timing);
-    let (dest, rx) = receive(5.0);
+    let (dest, rx) = receive();
     let err = finish(spawn(&[
         "--time-base",
         "gps",
@@ -140,8 +140,8 @@ fn two_emulators_started_next_second_agree() {
     while utc_now_ns() % 1_000_000_000 > 300_000_000 {
         std::thread::sleep(Duration::from_millis(5));
     }
-    let (d1, r1) = receive(5.0);
-    let (d2, r2) = receive(5.0);
+    let (d1, r1) = receive();
+    let (d2, r2) = receive();
     let args = |d: &str| -> Vec<String> {
         [
             "--protocol",

@@ -62,6 +62,10 @@ pub struct Corrections {
     pub velocity: f64,
     /// Largest attitude difference (rad).
     pub attitude: f64,
+    /// The earliest time (s) the emitted motion left the received one: extrapolated or held
+    /// past the newest state of the moment. Records up to it follow the received states
+    /// exactly (a lockstep run of the same input makes the same ones).
+    pub departed: Option<f64>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -141,6 +145,7 @@ impl Chain {
                 let e = taylor(&k, self.settings.max_extrapolation);
                 self.push(k, e, self.covered, e.t);
                 self.tail = Tail::Extrapolating;
+                self.corrections.departed.get_or_insert(k.t);
                 self.seen = n;
             } else {
                 let last = self.pieces.back().expect("a tail piece").k1;
@@ -164,6 +169,7 @@ impl Chain {
         let k1 = taylor(&k0, self.settings.max_extrapolation.max(0.1));
         self.push(k0, k1, emitted, k1.t);
         self.tail = Tail::Holding;
+        self.corrections.departed.get_or_insert(emitted);
     }
 
     /// Drops what lies after `t` (never emitted) and returns the chain's knot at `t`.

@@ -47,8 +47,11 @@ impl LiveStatus {
             (_, Some(Tail::Holding)) => "holding",
         };
         let c = &self.corrections;
+        let departed = c.departed.map_or_else(String::new, |t| {
+            format!("; first frame past the newest state at t = {t:.6} s")
+        });
         format!(
-            "{state}; input {:.1} Hz, jitter {:.2} ms, clock {:+.1} ppm, {} re-locks, {} missing, {} late; delay {:.2} ms; {} frames ({} extrapolated); {} corrections, max {:.3e} m, {:.3e} m/s, {:.3e} rad",
+            "{state}; input {:.1} Hz, jitter {:.2} ms, clock {:+.1} ppm, {} re-locks, {} missing, {} late; delay {:.2} ms; {} frames ({} extrapolated); {} corrections, max {:.3e} m, {:.3e} m/s, {:.3e} rad{departed}",
             self.rate,
             self.jitter * 1e3,
             self.clock_rate * 1e6,

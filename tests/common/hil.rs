@@ -13,6 +13,9 @@ use std::sync::mpsc;
 use std::thread;
 use std::time::{Duration, Instant};
 
+#[path = "udp_rx.rs"]
+mod udp_rx;
+
 use imu_emu::realtime::hostclock::GpsClock;
 use imu_emu::timebase::LeapTable;
 
@@ -244,31 +247,25 @@ pub fn sleep_to(i0: Instant, g0: i128, at_ns: i128) {
 /// Datagrams, each with the host's GPS time of its arrival (ns).
 pub type Datagrams = Vec<(i128, Vec<u8>)>;
 
-/// A loopback UDP receiver collecting every datagram until it has been quiet for 3 s after
-/// the first (60 s for the first): its address, and the datagrams with the host's GPS time
-/// of their arrival (ns).
-pub fn receive() -> (String, thread::JoinHandle<Datagrams>) {
-    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
-    let addr = sock.local_addr().unwrap().to_string();
-    let h = thread::spawn(move || {
-        let (g0, i0) = gps_now();
-        sock.set_read_timeout(Some(Duration::from_secs(3))).unwrap();
-        let give_up = Instant::now() + Duration::from_secs(60);
-        let mut got = Vec::new();
-        let mut buf = vec![0u8; 65536];
-        loop {
-            match sock.recv(&mut buf) {
-                Ok(n) => {
-                    let at = g0 + (Instant::now() - i0).as_nanos() as i128;
-                    got.push((at, buf[..n].to_vec()));
-                }
-                Err(_) if got.is_empty() && Instant::now() < give_up => continue,
-                Err(_) => break,
-            }
-        }
-        got
-    });
-    (addr, h)
+/// A loopback UDP receiver ([`udp_rx::UdpRx`]: kernel arrival stamps, a large buffer): its
+/// address, and a handle whose `join`, called once the sender has exited, gives every datagram
+/// with the host's GPS time of its arrival (ns).
+pub fn receive() -> (String, Receiving) {
+    let rx = udp_rx::UdpRx::start();
+    (rx.dest.clone(), Receiving(rx))
+}
+
+/// A receiver started by [`receive`].
+pub struct Receiving(udp_rx::UdpRx);
+
+impl Receiving {
+    /// Everything received, with GPS arrival times (call once the sender has exited).
+    pub fn join(self) -> thread::Result<Datagrams> {
+        let leaps = LeapTable::builtin();
+        Ok((self.0.stop().into_iter())
+            .map(|(utc, b)| (leaps.utc_to_gps_ns(utc), b))
+            .collect())
+    }
 }
 
 /// The datagrams' bytes back to back.

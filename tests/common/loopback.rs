@@ -1,9 +1,12 @@
 //! Helpers of the wall-clock tests (tests/sync.rs, tests/timebase.rs): a loopback UDP
-//! receiver timestamping each datagram on CLOCK_REALTIME, and simple order statistics.
+//! receiver whose datagrams the kernel stamps on CLOCK_REALTIME, and simple order statistics.
 #![allow(dead_code)]
 
 use std::net::UdpSocket;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+#[path = "udp_rx.rs"]
+mod udp_rx;
 
 /// CLOCK_REALTIME now (ns since the Unix epoch).
 pub fn utc_now_ns() -> i128 {
@@ -13,27 +16,25 @@ pub fn utc_now_ns() -> i128 {
         .as_nanos() as i128
 }
 
-/// A datagram: CLOCK_REALTIME when `recv` returned (ns), and its bytes.
+/// A datagram: the kernel's CLOCK_REALTIME stamp of its arrival (ns), and its bytes.
 pub type Arrival = (i128, Vec<u8>);
 
-/// A loopback UDP receiver on its own thread until `secs` have passed: its address and, when
-/// joined, each datagram with CLOCK_REALTIME at its arrival.
-pub fn receive(secs: f64) -> (String, std::thread::JoinHandle<Vec<Arrival>>) {
-    let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
-    rx.set_read_timeout(Some(Duration::from_millis(100)))
-        .unwrap();
-    let dest = rx.local_addr().unwrap().to_string();
-    let end = utc_now_ns() + (secs * 1e9) as i128;
-    let h = std::thread::spawn(move || {
-        let (mut got, mut buf) = (Vec::new(), [0u8; 2048]);
-        while utc_now_ns() < end {
-            if let Ok(n) = rx.recv(&mut buf) {
-                got.push((utc_now_ns(), buf[..n].to_vec()));
-            }
-        }
-        got
-    });
-    (dest, h)
+/// A loopback UDP receiver ([`udp_rx::UdpRx`]: kernel arrival stamps, a large buffer):
+/// its address and a handle whose `join`, called once the sender has exited, gives every
+/// datagram with its CLOCK_REALTIME arrival.
+pub fn receive() -> (String, Receiving) {
+    let rx = udp_rx::UdpRx::start();
+    (rx.dest.clone(), Receiving(rx))
+}
+
+/// A receiver started by [`receive`].
+pub struct Receiving(udp_rx::UdpRx);
+
+impl Receiving {
+    /// Everything received (call once the sender has exited).
+    pub fn join(self) -> std::thread::Result<Vec<Arrival>> {
+        Ok(self.0.stop())
+    }
 }
 
 /// The median (the upper one of an even count).
