@@ -150,10 +150,13 @@ impl<M: Motion> IdealImu<M> {
         gravitation_gradient_b(&self.motion.pose(t))
     }
 
-    /// ω_ib^b at `t`.
+    /// ω_ib^b at `t` as the end of an interval: on the piece that holds the instants just
+    /// before `t` (a state's time tag a rounding before `t` counts as `t`, see
+    /// [`Self::reaches`]), so that it does not depend on whether a later piece is known yet.
     fn omega_at(&self, t: f64) -> Vec3 {
+        let before = t - crate::engine::tag_slack(t, t);
         self.motion
-            .sense(self.motion.piece_at(t, self.hint), t)
+            .sense(self.motion.piece_at(before, self.hint), t)
             .omega_ib_b
     }
 
@@ -165,7 +168,8 @@ impl<M: Motion> IdealImu<M> {
         let mut piece = self.motion.piece_at(lo, self.hint);
         let mut a = lo;
         loop {
-            let b = self.motion.piece_end(piece).min(hi);
+            let end = self.motion.piece_end(piece);
+            let b = if Self::reaches(end, hi) { hi } else { end };
             let len = b - a;
             if len > 0.0 {
                 for (x, wt) in self.rule.nodes.iter().zip(&self.rule.weights) {
@@ -190,6 +194,17 @@ impl<M: Motion> IdealImu<M> {
         }
     }
 
+    /// True when a piece ending at `end` covers an interval ending at `hi`: also when `end` is
+    /// an ulp or two short of it. A piece end is a state's time tag and `hi` is t₀ + k/rate,
+    /// computed: the same instant can come out a rounding apart, and a split there would
+    /// evaluate a sliver of 1e-17 s on the next piece when it is known (a live run ahead of
+    /// its clock) and not when it is not yet (lockstep at the newest state), so the same
+    /// input would give records that differ in their last bits.
+    #[inline]
+    fn reaches(end: f64, hi: f64) -> bool {
+        end >= hi || hi - end <= crate::engine::tag_slack(hi, hi)
+    }
+
     /// Mean of ω_ib^b and f^b over (t_{k−1}, t_k].
     #[inline]
     fn interval_mean(&mut self, k: u64) -> (Vec3, Vec3) {
@@ -198,7 +213,7 @@ impl<M: Motion> IdealImu<M> {
         let piece = self.motion.piece_at(lo, self.hint);
         self.hint = piece;
         let end = self.motion.piece_end(piece);
-        if end >= hi {
+        if Self::reaches(end, hi) {
             // The common case: one smooth piece; node times from the integer k.
             let base = (k - 1) as f64;
             let (mut sg, mut sa) = (Vec3::zeros(), Vec3::zeros());
@@ -226,7 +241,7 @@ impl<M: Motion> IdealImu<M> {
         let (mut sg, mut sa) = (Vec3::zeros(), Vec3::zeros());
         let mut a = lo;
         loop {
-            let b = end.min(hi);
+            let b = if Self::reaches(end, hi) { hi } else { end };
             let len = b - a;
             if len > 0.0 {
                 for (x, w) in self.rule.nodes.iter().zip(&self.rule.weights) {
@@ -510,5 +525,66 @@ mod tests {
             worst <= 1.0 && worst > 0.02,
             "{worst} of the bound {bound:e}"
         );
+    }
+
+    /// A motion of two pieces meeting at a state's tag, 0.15 s, the second 10⁶ rad/s and m/s²
+    /// off (so a sliver evaluated on it would show); `known`: whether the second piece is
+    /// known yet (else the first runs on, as a live model's newest piece does).
+    struct Knot15 {
+        known: bool,
+    }
+
+    impl Motion for Knot15 {
+        fn start(&self) -> f64 {
+            0.0
+        }
+        fn end(&self) -> f64 {
+            1.0
+        }
+        fn piece_at(&self, t: f64, _: usize) -> usize {
+            usize::from(self.known && t >= 0.15)
+        }
+        fn piece_end(&self, piece: usize) -> f64 {
+            if piece == 0 && self.known {
+                0.15
+            } else {
+                f64::INFINITY
+            }
+        }
+        fn sense(&self, piece: usize, t: f64) -> Sensed {
+            let v = t + 1e6 * piece as f64;
+            Sensed {
+                omega_ib_b: Vec3::new(v, 0.0, 0.0),
+                f_b: Vec3::new(0.0, v, 0.0),
+            }
+        }
+        fn pose(&self, t: f64) -> Pose {
+            Poly.pose(t)
+        }
+    }
+
+    /// The record ending on a state's tag comes out the same whether the next piece is known:
+    /// t₀ = 0.08 s at 400 Hz puts record 28's end at 0.08 + 28/400 = 0.15000000000000002, an
+    /// ulp past the tag 0.15; split there, the known motion would add a 2.8e-17 s sliver of
+    /// the second piece (10⁶ · 2.8e-17/0.0025 = 1.1e-8 rad/s). Its interval mean is then the
+    /// first piece's, t at the middle (the rule is exact for a line), and the same for the
+    /// rotation terms' ω at its end.
+    #[test]
+    fn a_record_on_a_tag_does_not_split_a_rounding_off() {
+        let hi = 0.08 + 28.0 / 400.0;
+        assert!(hi > 0.15, "the case this test is for");
+        let rec = |known: bool| {
+            let mut imu = IdealImu::new(Knot15 { known }, 400.0, 0.08, 40, 3);
+            let mut out = vec![Record::default(); 1];
+            imu.fill(28, &mut out);
+            let mut rot = vec![RotationTerms::default(); 1];
+            imu.rotation_terms(28, &mut rot);
+            (out[0], rot[0].d_omega)
+        };
+        let (a, da) = rec(true);
+        let (b, db) = rec(false);
+        assert_eq!((a.gyro, a.accel, da), (b.gyro, b.accel, db));
+        let mid = 0.08 + 27.5 / 400.0;
+        assert!((a.gyro.x - mid).abs() < 1e-16, "{}", a.gyro.x);
     }
 }

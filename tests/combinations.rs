@@ -15,6 +15,8 @@ use std::path::Path;
 
 #[path = "common/hil.rs"]
 mod hil;
+#[path = "common/realtime_run.rs"]
+mod rt;
 use hil::{
     Tagged, failed, free_udp_port, imu_emu, joined, marks, number_before, ok, receive, start,
     survey_rows,
@@ -30,30 +32,135 @@ const DELAY: &str = "0.2";
 const AHEAD_NS: i128 = 51_250_000;
 
 /// Each time mark's time of validity, on the host's clock, is its record's GPS instant plus
-/// the output delay: the GPS time base put the tags on the host's GPS clock. Its offset from
-/// the tags' 2.5 ms grid is the error of the one conversion of the pacer's monotonic instants
-/// to UTC (the time between two clock reads: 65–110 ns seen), bounded here by 250 µs for a
-/// preempted read; on the sim time base the first state's arrival (51.25 ms before its tag,
-/// plus the loopback's µs) would set t₀, about 1.25 ms off that grid.
+/// the output delay: the GPS time base put the tags on the host's GPS clock. The run converts
+/// the tags to the monotonic clock and the marks back to UTC through one reading of the
+/// clocks' offset, so its offset from the tags' 2.5 ms grid is the rounding of a record time
+/// (GPS seconds of the week in an f64, 1.2e-10 s apart) to whole nanoseconds: at most 1 ns.
+/// On the sim time base the first state's arrival (51.25 ms before its tag, plus the
+/// loopback's µs) would set t₀, about 1.25 ms off that grid.
 fn on_the_tags(m: &[[i128; 5]], tags: &Tagged) {
     assert!(!m.is_empty());
     for r in m {
         let off = hil::gps_of_utc(r[2]) - 200_000_000 - tags.first_ns;
         let residual = (off + 1_250_000).rem_euclid(2_500_000) - 1_250_000;
         assert!(
-            residual.abs() < 250_000,
+            residual.abs() <= 1,
             "{r:?}: {residual} ns off the tags' grid"
         );
     }
 }
 
-/// The summary's count of frames past the newest state, 0 when it says none.
-fn extrapolated(err: &str) -> usize {
-    if err.contains("extrapolated)") {
-        number_before(err, "extrapolated)") as usize
-    } else {
-        0
+/// What a live run's summary says of where its output left its input.
+struct Left {
+    /// The output's frames are the input's (a lockstep replay's) up to this time (s); past the
+    /// newest state of all, every frame was made from the input.
+    until: f64,
+    /// A state came after the delay before the input's end, so the run extrapolated and
+    /// corrected mid-run (possible on a loaded machine).
+    mid_run: bool,
+    /// Frames past the newest state of the moment, over the run.
+    extrapolated: usize,
+    /// Frames past the newest state of all, at most: the run stops extrapolating once the
+    /// silence that ends it is over (`--on-timeout stop`), the input's timeout after the newest
+    /// state arrived, which is at most the arrival jitter the run reports after its tag's
+    /// instant. Per stream, at `rate`, in [`Left::past`].
+    span: f64,
+}
+
+impl Left {
+    /// Reads the summary in `err`; `newest` is the newest state's time (s) and `timeout` the
+    /// input's timeout (s).
+    fn read(err: &str, newest: f64, timeout: f64) -> Left {
+        let summary = err
+            .lines()
+            .find(|l| l.contains("extrapolated)"))
+            .unwrap_or_else(|| panic!("a live summary: {err}"));
+        let extrapolated = number_before(summary, "extrapolated)") as usize;
+        let jitter = hil::number_after(summary, "jitter ") * 1e-3;
+        let left = rt::departed(summary).unwrap_or(f64::INFINITY);
+        // The times are GPS seconds of the week: 1e-6 s is far above their rounding.
+        let mid_run = left < newest - 1e-6;
+        if mid_run {
+            eprintln!(
+                "the output left the input at {left} s, before its end at {newest} s: {summary}"
+            );
+        }
+        Left {
+            until: left.min(newest),
+            mid_run,
+            extrapolated,
+            span: timeout + jitter,
+        }
     }
+
+    /// Most records of a stream at `rate` past the newest state: those in the span, and one
+    /// for the grid's phase.
+    fn past(&self, rate: f64) -> usize {
+        (self.span * rate).ceil() as usize + 1
+    }
+}
+
+/// A live stream of fixed-size frames (`size` bytes, `rate` Hz from `t0`) is the lockstep
+/// replay's up to where the run left its input, and has no more frames past the newest state
+/// than the run extrapolated, nor than the silence allows.
+fn frames_follow(
+    what: &str,
+    live: &[u8],
+    replay: &[u8],
+    (size, rate, t0): (usize, f64, f64),
+    l: &Left,
+) {
+    assert!(!replay.is_empty(), "{what}: the replay wrote nothing");
+    assert_eq!(live.len() % size, 0, "{what}: whole frames");
+    let same = rt::records_to(t0, rate, l.until).min(replay.len() / size) * size;
+    assert!(
+        live.len() >= same && live[..same] == replay[..same],
+        "{what}: the live frames up to {} s are not the lockstep replay's",
+        l.until
+    );
+    if !l.mid_run {
+        assert!(
+            live.starts_with(replay),
+            "{what}: the live bytes ({}) do not begin with the lockstep replay's ({})",
+            live.len(),
+            replay.len()
+        );
+    }
+    let past = (live.len() / size).saturating_sub(replay.len() / size);
+    assert!(
+        past <= l.extrapolated && past <= l.past(rate),
+        "{what}: {past} frames past the replay's, {} extrapolated, {} at most in the silence",
+        l.extrapolated,
+        l.past(rate)
+    );
+}
+
+/// A live text stream (CSV rows, NMEA sentences: `per` lines per epoch at `rate` Hz) begins
+/// with the lockstep replay's lines and has at most the silence's epochs more; compared only
+/// when the run never left its input before the end (text lines carry no grid to cut at).
+fn lines_follow(what: &str, live: &[u8], replay: &[u8], (per, rate): (usize, f64), l: &Left) {
+    let (live, replay) = (
+        String::from_utf8_lossy(live).into_owned(),
+        String::from_utf8_lossy(replay).into_owned(),
+    );
+    let (live, replay): (Vec<&str>, Vec<&str>) = (live.lines().collect(), replay.lines().collect());
+    assert!(!replay.is_empty(), "{what}: the replay wrote nothing");
+    if l.mid_run {
+        eprintln!("{what}: not compared, the run left its input before its end");
+        return;
+    }
+    assert!(
+        live.starts_with(&replay),
+        "{what}: the live lines ({}) do not begin with the lockstep replay's ({})",
+        live.len(),
+        replay.len()
+    );
+    let past = live.len() - replay.len();
+    assert!(
+        past <= per * l.past(rate),
+        "{what}: {past} lines past the replay's, at most {per} × {}",
+        l.past(rate)
+    );
 }
 
 /// Starts `imu-emu BEFORE --motion udp://127.0.0.1:PORT AFTER` in `dir`, in real time on the
@@ -70,7 +177,9 @@ fn start_live(dir: &Path, port: u16, before: &[&str], after: &[&str]) -> hil::St
         "--output-delay",
         DELAY,
     ]);
+    // No frame is skipped as late: the bytes are compared with the replay's.
     args.extend(["--input-timeout", "0.5", "--record-input", "in.rec"]);
+    args.extend(["--max-behind-ms", "60000"]);
     args.extend_from_slice(after);
     start(dir, &args)
 }
@@ -90,21 +199,12 @@ fn replay(dir: &Path, args: &[&str]) -> String {
     ok(&imu_emu(dir, &all))
 }
 
-/// `live` begins with `replay`'s bytes, which are not empty, and has at most `extra` bytes
-/// more (the frames made past the newest state).
-fn starts_with(what: &str, live: &[u8], replay: &[u8], extra: usize) {
-    assert!(!replay.is_empty(), "{what}: the replay wrote nothing");
-    assert!(
-        live.starts_with(replay),
-        "{what}: the live bytes ({}) do not begin with the lockstep replay's ({})",
-        live.len(),
-        replay.len()
-    );
-    assert!(
-        live.len() - replay.len() <= extra,
-        "{what}: {} bytes past the replay's, at most {extra} expected",
-        live.len() - replay.len()
-    );
+/// NMEA sentences per epoch of `text`: its lines over its GGA sentences.
+fn per_epoch(text: &[u8]) -> usize {
+    let text = String::from_utf8_lossy(text);
+    let epochs = text.lines().filter(|l| l.starts_with("$GPGGA")).count();
+    assert!(epochs > 0, "{text}");
+    text.lines().count().div_ceil(epochs)
 }
 
 /// Seconds of the day of an NMEA `hhmmss.ss` field.
@@ -123,6 +223,7 @@ fn seconds_of_day(hms: &str) -> f64 {
 /// the sim time base the epochs would be dated from 1980).
 #[test]
 fn live_motion_with_gnss_and_sensors_on_gps_time() {
+    let _rt = rt::serial();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let rows = survey_rows(d, 2.0);
@@ -168,18 +269,18 @@ fn live_motion_with_gnss_and_sensors_on_gps_time() {
         ],
     );
     let read = |f: &str| std::fs::read(d.join(f)).unwrap();
-    // LN-200 frames are 26 bytes; the extrapolation lasts the 0.5 s timeout at most (400 Hz).
-    let extra = extrapolated(&err);
-    assert!(extra <= 200, "{err}");
-    starts_with("imu", &imu, &read("imu.bin"), 26 * extra);
-    // Past the newest state, the 0.5 s holds at most 3 epochs (5 Hz), 5 rows (10 Hz) each.
-    starts_with("nmea", &nmea, &read("gnss.nmea"), 3 * 600);
+    let l = Left::read(&err, tagged.newest_sow(), 0.5);
+    let t0 = hil::number_after(&err, "from t = ");
+    // LN-200 frames: 26 bytes at 400 Hz; NMEA epochs at 5 Hz, the sensors' rows at 10 Hz.
+    frames_follow("imu", &imu, &read("imu.bin"), (26, 400.0, t0), &l);
+    let per = per_epoch(&read("gnss.nmea"));
+    lines_follow("nmea", &nmea, &read("gnss.nmea"), (per, 5.0), &l);
     for (live, again) in [
         ("odo.csv", "odo2.csv"),
         ("baro.csv", "baro2.csv"),
         ("mag.csv", "mag2.csv"),
     ] {
-        starts_with(live, &read(live), &read(again), 5 * 300);
+        lines_follow(live, &read(live), &read(again), (1, 10.0), &l);
     }
     // The NMEA epochs' UTC lies within the tags' span, less the 18 leap seconds.
     let text = String::from_utf8(nmea).unwrap();
@@ -238,6 +339,7 @@ fn first_t(csv: &[u8]) -> f64 {
 /// delay later.
 #[test]
 fn live_rig_on_gps_time() {
+    let _rt = rt::serial();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let scene = rig_scene(d, "");
@@ -253,8 +355,10 @@ fn live_rig_on_gps_time() {
         ],
     );
     let read = |f: &str| std::fs::read(d.join(f)).unwrap();
-    starts_with("nav", &nav, &read("nav.bin"), 26 * 200);
-    starts_with("tac", &read("tac.csv"), &read("tac2.csv"), 50 * 200);
+    let l = Left::read(&err, tags.newest_sow(), 0.5);
+    let t0 = hil::number_after(&err, "from t = ");
+    frames_follow("nav", &nav, &read("nav.bin"), (26, 400.0, t0), &l);
+    lines_follow("tac", &read("tac.csv"), &read("tac2.csv"), (1, 100.0), &l);
     let t = first_t(&read("tac.csv"));
     assert!(t > 0.0 && t < 604_800.0, "{t}: {err}");
     let m = marks(&d.join("marks.csv"));
@@ -288,6 +392,16 @@ fn send_pps(port: u16, from_ns: i128, to_ns: i128) -> usize {
     sent
 }
 
+/// A UTC instant (ns since the Unix epoch, whole seconds) as RFC 3339.
+fn rfc3339(utc_ns: i128) -> String {
+    let out = std::process::Command::new("date")
+        .args(["-u", "-d", &format!("@{}", utc_ns / 1_000_000_000)])
+        .arg("+%Y-%m-%dT%H:%M:%SZ")
+        .output()
+        .unwrap();
+    String::from_utf8(out.stdout).unwrap().trim().to_string()
+}
+
 /// The edges a run's summary says its PPS lock took.
 fn lock_edges(err: &str) -> usize {
     let line = err
@@ -307,49 +421,54 @@ fn lock_edges(err: &str) -> usize {
 /// the unit asked for (its edges: the next test).
 #[test]
 fn rig_with_time_marks_pps_and_pulse() {
+    let _rt = rt::serial();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let scene = rig_scene(d, "[output]\nduration_s = 2.0\n");
     let s = scene.to_str().unwrap();
     ok(&imu_emu(d, &["generate", s, "-o", "offline"]));
-    let pps_port = free_udp_port();
-    let (nav_to, nav_rx) = receive();
-    // t₀ at a whole second 1.5 s or more ahead, as RFC 3339.
-    let t0 = (utc_now_ns() / 1_000_000_000 + 2) * 1_000_000_000;
-    let at = {
-        let out = std::process::Command::new("date")
-            .args(["-u", "-d", &format!("@{}", t0 / 1_000_000_000)])
-            .arg("+%Y-%m-%dT%H:%M:%SZ")
-            .output()
-            .unwrap();
-        String::from_utf8(out.stdout).unwrap().trim().to_string()
+    // t₀ at a whole second 1 to 2 s ahead, as RFC 3339. The run refuses an instant already
+    // past when it starts; a machine that took longer than that to start it is told so by the
+    // run, and the row is run again at a later second (three tries).
+    let mut tries = 0;
+    let (out, sent, nav_rx) = loop {
+        tries += 1;
+        let pps_port = free_udp_port();
+        let (nav_to, nav_rx) = receive();
+        let t0 = (utc_now_ns() / 1_000_000_000 + 2) * 1_000_000_000;
+        let at = rfc3339(t0);
+        let pps = format!("udp://127.0.0.1:{pps_port}");
+        let nav = format!("nav=udp:{nav_to}");
+        let sender = std::thread::spawn(move || send_pps(pps_port, t0, t0 + 2_000_000_000));
+        let out = imu_emu(
+            d,
+            &[
+                "run",
+                s,
+                "--speed",
+                "1",
+                "--start-at",
+                &at,
+                "--max-behind-ms",
+                "10000",
+                "--pps-in",
+                &pps,
+                "--time-marks",
+                "nav=marks.csv",
+                "--unit-sink",
+                &nav,
+                "--unit-sink",
+                "tac=file:tac.csv",
+            ],
+        );
+        let sent = sender.join().unwrap();
+        let past = String::from_utf8_lossy(&out.stderr).contains("in the past");
+        if out.status.success() || !past || tries == 3 {
+            break (out, sent, nav_rx);
+        }
+        eprintln!("the run started after its instant {at}: again");
     };
-    let pps = format!("udp://127.0.0.1:{pps_port}");
-    let nav = format!("nav=udp:{nav_to}");
-    let sender = std::thread::spawn(move || send_pps(pps_port, t0, t0 + 2_000_000_000));
-    let out = imu_emu(
-        d,
-        &[
-            "run",
-            s,
-            "--speed",
-            "1",
-            "--start-at",
-            &at,
-            "--max-behind-ms",
-            "10000",
-            "--pps-in",
-            &pps,
-            "--time-marks",
-            "nav=marks.csv",
-            "--unit-sink",
-            &nav,
-            "--unit-sink",
-            "tac=file:tac.csv",
-        ],
-    );
     let err = ok(&out);
-    let sent = sender.join().unwrap();
     let read = |f: &str| std::fs::read(d.join(f)).unwrap();
     assert_eq!(joined(&nav_rx.join().unwrap()), read("offline/nav.bin"));
     assert_eq!(read("tac.csv"), read("offline/tac.csv"));
@@ -413,6 +532,7 @@ impl imu_emu::realtime::pulse::Line for Rising {
 /// are `generate`'s bytes.
 #[test]
 fn rig_pulse_marks_its_unit() {
+    let _rt = rt::serial();
     use imu_emu::run::{Control, RunSpec, Speed, StreamId};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
@@ -433,6 +553,8 @@ fn rig_pulse_marks_its_unit() {
         .sink(StreamId::unit("tac"), &file("tac.csv"))
         .unwrap()
         .speed(Speed::Factor(4.0))
+        // The files are compared with generate's: no frame may be skipped as late.
+        .max_behind_ms(60_000.0)
         .pulse("rts:tov", Some("tac"))
         .pulse_on(line.clone())
         .build()
@@ -456,6 +578,7 @@ fn rig_pulse_marks_its_unit() {
 /// a start instant (a live run starts with its first state).
 #[test]
 fn live_motion_with_sync_lines() {
+    let _rt = rt::serial();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let rows = survey_rows(d, 2.5);
@@ -506,7 +629,9 @@ fn live_motion_with_sync_lines() {
     replay(d, &["--file", "again.bin"]);
     let read = |f: &str| std::fs::read(d.join(f)).unwrap();
     let live = read("imu.bin");
-    starts_with("imu", &live, &read("again.bin"), 26 * extrapolated(&err));
+    let l = Left::read(&err, tags.newest_sow(), 0.5);
+    let t0 = hil::number_after(&err, "from t = ");
+    frames_follow("imu", &live, &read("again.bin"), (26, 400.0, t0), &l);
     let m = marks(&d.join("marks.csv"));
     assert_eq!(m.len(), live.len() / 26, "{err}");
     on_the_tags(&m, &tags);
@@ -517,6 +642,7 @@ fn live_motion_with_sync_lines() {
 /// refuses garbage naming the flag too.
 #[test]
 fn lockstep_start_at_is_refused() {
+    let _rt = rt::serial();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let err = failed(&imu_emu(
@@ -561,6 +687,7 @@ fn lockstep_start_at_is_refused() {
 /// extrapolation); not routed, the description warns naming each table and how to route it.
 #[test]
 fn live_rig_streams_its_gnss_and_odometer() {
+    let _rt = rt::serial();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let scene = rig_scene(
@@ -587,15 +714,30 @@ fn live_rig_streams_its_gnss_and_odometer() {
         "--odometer",
         "file:odo.csv",
     ];
-    let (err, nav, _) = live_rig(d, &scene, &routes);
+    let (err, nav, tags) = live_rig(d, &scene, &routes);
     let mut again = vec![s, "--unit-sink", "nav=file:nav.bin", "--unit-sink"];
     again.extend(["tac=file:tac2.csv", "--gnss", "nmea:file:gnss2.nmea"]);
     again.extend(["--odometer", "file:odo2.csv"]);
     replay(d, &again);
     let read = |f: &str| std::fs::read(d.join(f)).unwrap();
-    starts_with("nav", &nav, &read("nav.bin"), 26 * 200);
-    starts_with("gnss", &read("gnss.nmea"), &read("gnss2.nmea"), 3 * 600);
-    starts_with("odometer", &read("odo.csv"), &read("odo2.csv"), 5 * 300);
+    let l = Left::read(&err, tags.newest_sow(), 0.5);
+    let t0 = hil::number_after(&err, "from t = ");
+    frames_follow("nav", &nav, &read("nav.bin"), (26, 400.0, t0), &l);
+    let per = per_epoch(&read("gnss2.nmea"));
+    lines_follow(
+        "gnss",
+        &read("gnss.nmea"),
+        &read("gnss2.nmea"),
+        (per, 5.0),
+        &l,
+    );
+    lines_follow(
+        "odometer",
+        &read("odo.csv"),
+        &read("odo2.csv"),
+        (1, 10.0),
+        &l,
+    );
     assert!(
         err.contains("gnss-nmea") && err.contains("odometer"),
         "{err}"
@@ -607,6 +749,7 @@ fn live_rig_streams_its_gnss_and_odometer() {
 /// file and paced to UDP, both `generate`'s bytes in that protocol at that rate.
 #[test]
 fn filtered_template_keeps_its_rate() {
+    let _rt = rt::serial();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let t = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/filtered.toml");
@@ -644,6 +787,7 @@ fn filtered_template_keeps_its_rate() {
 /// piece, and stamped with t₀'s UTC (GPS − 18 s).
 #[test]
 fn lockstep_gnss_epoch_on_t0() {
+    let _rt = rt::serial();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let rows = survey_rows(d, 1.0);

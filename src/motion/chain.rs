@@ -66,6 +66,12 @@ pub struct Corrections {
     /// past the newest state of the moment. Records up to it follow the received states
     /// exactly (a lockstep run of the same input makes the same ones).
     pub departed: Option<f64>,
+    /// The longest span (s) the emitted motion ran past the newest state before a newer one
+    /// brought it back (0 without a correction): the extrapolation a correction undoes.
+    pub longest: f64,
+    /// Where the latest correction's bridge rejoined the received motion (s): from there on
+    /// the output follows the input again, until it next leaves it.
+    pub rejoined: Option<f64>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -90,6 +96,8 @@ pub(super) struct Chain {
     next_pair: usize,
     /// Received knots when the tail last left them (a newer one triggers a correction).
     seen: usize,
+    /// Where the tail last left the received motion (s), while it has not come back.
+    left: Option<f64>,
     pub(super) corrections: Corrections,
 }
 
@@ -103,6 +111,7 @@ impl Chain {
             covered: f64::NAN,
             next_pair: 0,
             seen: 0,
+            left: None,
             corrections: Corrections::default(),
         }
     }
@@ -145,6 +154,7 @@ impl Chain {
                 let e = taylor(&k, self.settings.max_extrapolation);
                 self.push(k, e, self.covered, e.t);
                 self.tail = Tail::Extrapolating;
+                self.left = Some(k.t);
                 self.corrections.departed.get_or_insert(k.t);
                 self.seen = n;
             } else {
@@ -169,6 +179,7 @@ impl Chain {
         let k1 = taylor(&k0, self.settings.max_extrapolation.max(0.1));
         self.push(k0, k1, emitted, k1.t);
         self.tail = Tail::Holding;
+        self.left.get_or_insert(emitted);
         self.corrections.departed.get_or_insert(emitted);
     }
 
@@ -191,6 +202,9 @@ impl Chain {
         let now = reference(knots, self.settings.max_extrapolation, t_e);
         let co = &mut self.corrections;
         co.count += 1;
+        if let Some(left) = self.left {
+            co.longest = co.longest.max(t_e - left);
+        }
         co.position = co.position.max((now.knot.r - c.r).norm());
         co.velocity = co.velocity.max((now.knot.v - c.v).norm());
         let (qa, qb) = (now.knot.q.normalize(), c.q.normalize());
@@ -209,6 +223,7 @@ impl Chain {
         };
         let target = reference(knots, self.settings.max_extrapolation, t_b);
         self.push(c, target.knot, t_e, t_b);
+        self.corrections.rejoined = Some(t_b);
         match target.after {
             After::Pair(i) => {
                 let (k0, k1) = (knots[i], knots[i + 1]);
@@ -217,13 +232,18 @@ impl Chain {
                 }
                 self.next_pair = kbase + i + 1;
                 self.tail = Tail::Following;
+                self.left = None;
             }
             After::Extrapolation(pair) => {
                 let (k0, k1) = *pair;
                 self.push(k0, k1, t_b, k1.t);
                 self.tail = Tail::Extrapolating;
+                self.left = Some(newest);
             }
-            After::Hold => self.tail = Tail::Holding,
+            After::Hold => {
+                self.tail = Tail::Holding;
+                self.left = Some(newest);
+            }
         }
     }
 
@@ -625,6 +645,11 @@ mod tests {
         let co = c.corrections;
         assert_eq!(co.count, 1);
         let d = t_e - 0.1;
+        // The output left the received motion at the newest knot then, 0.1 s, and ran 30 ms
+        // past it before the bridge.
+        assert_eq!(co.departed, Some(0.1));
+        assert!((co.longest - d).abs() < 1e-15, "{}", co.longest);
+        assert_eq!(co.rejoined, Some(t_b));
         // Positions are ECEF coordinates of 6.4e6 m (ulp 1e-9 m) against Δr ≈ 1.7e-5 m.
         assert!((co.position / (dj.norm() * d.powi(3) / 6.0) - 1.0).abs() < 1e-3);
         assert!((co.velocity / (dj.norm() * d * d / 2.0) - 1.0).abs() < 1e-8);

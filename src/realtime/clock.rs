@@ -38,10 +38,38 @@ pub fn sleep_until(deadline: i128) {
     }
 }
 
-/// Converts a UTC instant (ns since the Unix epoch) to CLOCK_MONOTONIC, through the current
-/// offset between the two clocks ([`utc_minus_monotonic`]).
+/// Converts a UTC instant (ns since the Unix epoch) to CLOCK_MONOTONIC, through the
+/// process's one reading of the offset between the two clocks ([`host_offset`]).
 pub fn utc_to_monotonic(utc_ns: i128) -> i128 {
-    utc_ns - utc_minus_monotonic()
+    utc_ns - host_offset().utc_minus_mono
+}
+
+/// The offset between the host's UTC and monotonic clocks as this process uses it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HostOffset {
+    /// CLOCK_REALTIME − CLOCK_MONOTONIC (ns).
+    pub utc_minus_mono: i128,
+    /// Half the width of the bracket it was read in (ns): the true offset at that reading is
+    /// within this of `utc_minus_mono`.
+    pub within_ns: i128,
+}
+
+/// CLOCK_REALTIME − CLOCK_MONOTONIC, read once per process ([`read_offset`]): every UTC or GPS
+/// instant a run converts (a `--start-at`, a GPS time base, time marks) uses the same reading,
+/// so they agree with each other to the nanosecond, and each is within
+/// [`HostOffset::within_ns`] of the clocks' true offset. The offset moves only when the realtime
+/// clock is stepped: the kernel slews both clocks alike.
+pub fn host_offset() -> HostOffset {
+    static OFFSET: std::sync::OnceLock<HostOffset> = std::sync::OnceLock::new();
+    *OFFSET.get_or_init(read_offset)
+}
+
+/// A few words for logs: how well the run's UTC and GPS instants sit on the host clocks.
+pub fn describe_offset() -> String {
+    format!(
+        "host clocks: UTC − monotonic read to ±{} ns",
+        host_offset().within_ns
+    )
 }
 
 /// CLOCK_REALTIME − CLOCK_MONOTONIC now (ns). One CLOCK_MONOTONIC read is bracketed by two
@@ -50,6 +78,12 @@ pub fn utc_to_monotonic(utc_ns: i128) -> i128 {
 /// preemption into every instant it converts, so that two emulators started on the same
 /// `--start-at` second would disagree by it.
 pub fn utc_minus_monotonic() -> i128 {
+    read_offset().utc_minus_mono
+}
+
+/// A fresh reading of [`HostOffset`]: the tightest of a few brackets (see
+/// [`utc_minus_monotonic`]); its half-width is the reading's uncertainty.
+pub fn read_offset() -> HostOffset {
     let mut best: Option<(i128, i128)> = None;
     for _ in 0..5 {
         let r0 = realtime_ns();
@@ -61,7 +95,17 @@ pub fn utc_minus_monotonic() -> i128 {
             best = Some((width, r0 + width / 2 - m));
         }
     }
-    best.map_or_else(|| realtime_ns() - monotonic_ns(), |b| b.1)
+    match best {
+        Some((width, off)) => HostOffset {
+            utc_minus_mono: off,
+            within_ns: (width + 1) / 2,
+        },
+        // Every reading saw a step: read again, plainly, and say nothing of its bounds.
+        None => HostOffset {
+            utc_minus_mono: realtime_ns() - monotonic_ns(),
+            within_ns: i128::MAX,
+        },
+    }
 }
 
 /// The CLOCK_MONOTONIC instant of `--start-at` `utc_ns`, which must still be ahead: frames

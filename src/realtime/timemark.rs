@@ -97,8 +97,7 @@ pub struct TimeMarks {
 /// `--time-marks` target uses the same conversion, so a UDP mark and the file's mark of the
 /// same frame are equal to the nanosecond (two reads differ by the tens of ns between them).
 fn utc_minus_mono() -> i128 {
-    static OFFSET: std::sync::OnceLock<i128> = std::sync::OnceLock::new();
-    *OFFSET.get_or_init(super::clock::utc_minus_monotonic)
+    super::clock::host_offset().utc_minus_mono
 }
 
 impl TimeMarks {

@@ -54,6 +54,11 @@ pub(super) struct Input {
     pub(super) stats: InputStats,
     pub(super) map: ClockMap,
     pub(super) ended: bool,
+    /// When the silence that ended the input was over (CLOCK_MONOTONIC ns): the newest
+    /// datagram's arrival plus the idle timeout; `None` for a stream's end.
+    pub(super) silence_over_ns: Option<i128>,
+    /// When the newest message arrived (CLOCK_MONOTONIC ns).
+    pub(super) last_arrival_ns: Option<i128>,
     error: Option<std::io::Error>,
     /// The GPS week the states' times count from, once a GPS tag has come.
     pub(super) week: Option<u32>,
@@ -89,6 +94,8 @@ pub(super) fn start<W: Write + Send + 'static>(
                 None => ClockMap::new(),
             },
             ended: false,
+            silence_over_ns: None,
+            last_arrival_ns: None,
             error: None,
             week: None,
         }),
@@ -137,13 +144,34 @@ pub(super) fn first_knot(
 /// Takes the input's counts and clock-map figures into `st`; returns a snapshot of the map
 /// and whether the input has ended.
 pub(super) fn observe(st: &mut LiveStatus, shared: &Shared) -> (ClockMap, bool) {
+    let seen = observe_end(st, shared);
+    (seen.map, seen.end.is_some())
+}
+
+/// What [`observe_end`] sees of the input.
+pub(super) struct Seen {
+    /// The clock map.
+    pub(super) map: ClockMap,
+    /// How the input ended: `None` while it goes on, `Some(None)` at a stream's end,
+    /// `Some(Some(ns))` after a silence that was over at host instant `ns`.
+    pub(super) end: Option<Option<i128>>,
+    /// When the newest message arrived (CLOCK_MONOTONIC ns).
+    pub(super) last_arrival_ns: Option<i128>,
+}
+
+/// [`observe`], with how the input ended and when its newest message came.
+pub(super) fn observe_end(st: &mut LiveStatus, shared: &Shared) -> Seen {
     let g = lock(shared);
     st.stats = g.stats.clone();
     st.rate = g.map.rate();
     st.jitter = g.map.jitter();
     st.clock_rate = g.map.clock_rate();
     st.relocks = g.map.relocks();
-    (g.map.clone(), g.ended)
+    Seen {
+        map: g.map.clone(),
+        end: g.ended.then_some(g.silence_over_ns),
+        last_arrival_ns: g.last_arrival_ns,
+    }
 }
 
 /// The input's read error, if it had one (the run's error then).
@@ -197,6 +225,7 @@ fn receive<W: Write>(
         let decoded = decoder.decode(&m.bytes);
         let mut g = lock.lock().unwrap_or_else(|e| e.into_inner());
         g.stats.messages += 1;
+        g.last_arrival_ns = Some(arrival_ns);
         match decoded {
             Ok(Some(d)) => {
                 let outcome = model.push(&d.state);
@@ -222,6 +251,11 @@ fn receive<W: Write>(
     };
     let mut g = lock.lock().unwrap_or_else(|e| e.into_inner());
     g.ended = true;
+    g.silence_over_ns = rx.silence_over_at().map(|at| {
+        let now = std::time::Instant::now();
+        let before = now.saturating_duration_since(at).as_nanos() as i128;
+        monotonic_ns() - before
+    });
     g.error = error;
     g.stats.skipped_bytes = rx.skipped_bytes();
     drop(g);

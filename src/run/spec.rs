@@ -376,6 +376,12 @@ impl RunSpec {
         self
     }
 
+    /// Frames later than `ms` are skipped and counted rather than sent in a burst.
+    pub fn max_behind_ms(mut self, ms: f64) -> RunSpec {
+        self.clock.max_behind_ms = Some(ms);
+        self
+    }
+
     /// The time base.
     pub fn time_base(mut self, base: TimeBase) -> RunSpec {
         self.clock.time_base = Some(base);

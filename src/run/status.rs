@@ -47,9 +47,15 @@ impl LiveStatus {
             (_, Some(Tail::Holding)) => "holding",
         };
         let c = &self.corrections;
-        let departed = c.departed.map_or_else(String::new, |t| {
-            format!("; first frame past the newest state at t = {t:.6} s")
+        let mut departed = c.departed.map_or_else(String::new, |t| {
+            format!(
+                "; first frame past the newest state at t = {t:.6} s; longest extrapolation corrected {:.1} ms",
+                c.longest * 1e3
+            )
         });
+        if let Some(t) = c.rejoined {
+            departed += &format!("; back on the input from t = {t:.6} s");
+        }
         format!(
             "{state}; input {:.1} Hz, jitter {:.2} ms, clock {:+.1} ppm, {} re-locks, {} missing, {} late; delay {:.2} ms; {} frames ({} extrapolated); {} corrections, max {:.3e} m, {:.3e} m/s, {:.3e} rad{departed}",
             self.rate,

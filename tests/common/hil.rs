@@ -73,6 +73,8 @@ pub fn free_udp_port() -> u16 {
 /// A run started in the background, and its stderr lines.
 pub struct Started {
     child: Child,
+    /// Its stderr lines up to the one saying it follows its input.
+    early: Vec<String>,
     lines: mpsc::Receiver<String>,
 }
 
@@ -99,19 +101,28 @@ pub fn start(dir: &Path, args: &[&str]) -> Started {
     loop {
         // A loaded machine may take long to start the emulator.
         match lines.recv_timeout(Duration::from_secs(60)) {
-            Ok(l) if l.contains("following udp://") => break,
-            Ok(l) => seen.push(l),
+            Ok(l) => {
+                let following = l.contains("following udp://");
+                seen.push(l);
+                if following {
+                    break;
+                }
+            }
             Err(_) => panic!("the run did not start:\n{}", seen.join("\n")),
         }
     }
-    Started { child, lines }
+    Started {
+        child,
+        early: seen,
+        lines,
+    }
 }
 
 impl Started {
     /// Waits for the run to end successfully: its stderr.
     pub fn finish(self) -> String {
         let out = self.child.wait_with_output().unwrap();
-        let err: Vec<String> = self.lines.iter().collect();
+        let err: Vec<String> = self.early.into_iter().chain(self.lines.iter()).collect();
         let err = err.join("\n");
         assert!(out.status.success(), "{err}");
         err
@@ -172,6 +183,11 @@ impl Tagged {
     /// GPS time of state `i` (ns since the GPS epoch).
     pub fn tag_ns(&self, i: usize) -> i128 {
         self.first_ns + i as i128 * 10_000_000
+    }
+
+    /// Seconds of the week of the newest state, as the run reads it.
+    pub fn newest_sow(&self) -> f64 {
+        self.sow(self.rows.len() - 1).parse().unwrap()
     }
 
     /// Seconds of the week of state `i`, as the states' text writes it (exact to 10 ms).

@@ -173,6 +173,8 @@ pub struct Receiver {
     idle: Option<Duration>,
     /// When the newest datagram came (UDP).
     last_data: Option<Instant>,
+    /// The input ended by its idle timeout.
+    idled: bool,
     /// The run's stop flag: a wait for data ends when it is set.
     stop: Option<Arc<AtomicBool>>,
     /// The UDP socket is polled (opened here); a caller's socket ends at its own timeout.
@@ -296,6 +298,7 @@ impl Receiver {
             discarding: false,
             idle: None,
             last_data: None,
+            idled: false,
             stop: None,
             polled: false,
             rbuf: Vec::new(),
@@ -318,6 +321,16 @@ impl Receiver {
     /// Stream bytes that were outside any frame so far.
     pub fn skipped_bytes(&self) -> u64 {
         self.skipped
+    }
+
+    /// When the silence that ended the input began to count as one (the newest datagram's
+    /// arrival plus the idle timeout), if the input ended by its idle timeout; `None` for a
+    /// stream's end or an input still going.
+    pub fn silence_over_at(&self) -> Option<Instant> {
+        match (self.idle, self.last_data) {
+            (Some(i), Some(l)) if self.idled => Some(l + i),
+            _ => None,
+        }
     }
 
     /// The next message; `None` at the end of a stream or after the idle timeout.
@@ -346,6 +359,7 @@ impl Receiver {
                                 _ => false,
                             };
                             if !self.polled || stopped(&self.stop) || idle {
+                                self.idled = idle;
                                 false
                             } else {
                                 continue;

@@ -161,6 +161,8 @@ struct Follow<'a> {
     shared: &'a input::Shared,
     model: &'a CausalMotion,
     on_timeout: OnTimeout,
+    /// The input's idle timeout (ns) when a silence that long ends it (UDP, TCP).
+    idle_ns: Option<i128>,
     /// The pacer's schedule once a phase lock slewed it.
     slewed: ScheduleWatch,
     /// The pacer's start (CLOCK_MONOTONIC ns).
@@ -227,16 +229,31 @@ impl JustInTime for Follow<'_> {
         now: i128,
         sources: &mut Sources,
     ) -> ControlFlow<&'static str, Option<Until>> {
-        let (map, input_ended) = input::observe(self.st, self.shared);
+        let input::Seen {
+            map,
+            end,
+            last_arrival_ns,
+        } = input::observe_end(self.st, self.shared);
+        let input_ended = end.is_some();
         self.st.stale = input_ended;
         let newest = self.model.newest();
         let mut horizon = map.sim_at(self.undue(now + LEAD_NS) - self.delay_ns);
-        if input_ended {
+        // A run that stops after a silence makes no frame due after the silence would be over:
+        // however late the silence is noticed, its extrapolation lasts the timeout at most.
+        if let (OnTimeout::Stop, Some(a), Some(idle)) =
+            (self.on_timeout, last_arrival_ns, self.idle_ns)
+        {
+            let over = map.sim_at(self.undue(a + idle) - self.delay_ns);
+            horizon = horizon.min(over.max(newest));
+        }
+        if let Some(silence) = end {
             match self.on_timeout {
                 OnTimeout::Stop => {
                     // The records on the newest state's time are still the input's, as in
-                    // lockstep (`Until::state`).
-                    let last = Until::state(self.origin, newest);
+                    // lockstep (`Until::state`); after a silence, so are those that fell due
+                    // while it was waited out, however late this wake-up comes.
+                    let waited = silence.map(|ns| map.sim_at(self.undue(ns) - self.delay_ns));
+                    let last = Until::state(self.origin, newest.max(waited.unwrap_or(newest)));
                     let next = sources.next_due();
                     if next.is_none_or(|d| d > last.ns) {
                         return ControlFlow::Break("input ended");
@@ -371,7 +388,7 @@ pub(super) fn triggered(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport
             ));
         }
     };
-    let utc0 = first + clock::utc_minus_monotonic();
+    let utc0 = first + clock::host_offset().utc_minus_mono;
     let gps = time_base_ref(time_base, utc0, ctl);
     let mut built = layout.build(signal, gps, true)?;
     out.preamble(&built.preambles)?;
@@ -424,10 +441,14 @@ pub(super) fn realtime(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport,
     let need = settings.stencil.max(3);
     let gps = (time_base == TimeBase::Gps).then(|| {
         let host = GpsClock::new(LeapTable::builtin());
-        let (gps_ns, mono_ns) = (host.now_gps_ns(), monotonic_ns());
+        // GPS time on the host's clocks through the run's one reading of their offset
+        // (clock::host_offset), as every other UTC or GPS instant of the run.
+        let mono_ns = monotonic_ns();
+        let gps_ns = host.utc_to_gps_ns(mono_ns + clock::host_offset().utc_minus_mono);
         ctl.note(&format!(
-            "time base gps: the input's time tags are GPS time, mapped to {}",
-            host.describe(clock::realtime_ns())
+            "time base gps: the input's time tags are GPS time, mapped to {}; {}",
+            host.describe(clock::realtime_ns()),
+            clock::describe_offset()
         ));
         GpsBase::at(gps_ns, mono_ns)
     });
@@ -544,6 +565,8 @@ pub(super) fn realtime(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport,
         shared: &shared,
         model: &model,
         on_timeout: live.on_timeout,
+        idle_ns: (!matches!(live.endpoint, crate::live::transport::Endpoint::Stream(_)))
+            .then(|| (live.idle_s * 1e9).round() as i128),
         slewed,
         anchor,
         delay_ns: (delay * 1e9).round() as i128,

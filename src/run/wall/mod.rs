@@ -103,6 +103,9 @@ fn paced(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport, RunError> {
         .map(clock::start_at)
         .transpose()
         .map_err(|e| RunError::spec("--start-at", e))?;
+    if start_ns.is_some() {
+        ctl.note(&clock::describe_offset());
+    }
     let c = clocking(&layout.streams, &wall, start_ns)?;
     tracing::info!(
         "{} streams, {} frames per wall-clock second at {}× real time, {} per wake-up",
