@@ -10,7 +10,7 @@
 use std::net::UdpSocket;
 use std::os::fd::AsRawFd;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
@@ -25,6 +25,7 @@ pub struct UdpRx {
     /// Its address (`127.0.0.1:PORT`).
     pub dest: String,
     done: Arc<AtomicBool>,
+    count: Arc<AtomicUsize>,
     thread: JoinHandle<Vec<Stamped>>,
 }
 
@@ -43,7 +44,8 @@ impl UdpRx {
             .unwrap();
         let dest = sock.local_addr().unwrap().to_string();
         let done = Arc::new(AtomicBool::new(false));
-        let stop = done.clone();
+        let count = Arc::new(AtomicUsize::new(0));
+        let (stop, counted) = (done.clone(), count.clone());
         let thread = std::thread::spawn(move || {
             let mut got = Vec::new();
             loop {
@@ -52,6 +54,7 @@ impl UdpRx {
                 let last = stop.load(Ordering::Acquire);
                 while let Some(d) = recv(&sock) {
                     got.push(d);
+                    counted.fetch_add(1, Ordering::Relaxed);
                 }
                 if last {
                     break;
@@ -59,7 +62,22 @@ impl UdpRx {
             }
             got
         });
-        UdpRx { dest, done, thread }
+        UdpRx {
+            dest,
+            done,
+            count,
+            thread,
+        }
+    }
+
+    /// Waits until `n` datagrams have come (a hang guard of 60 s: the sender is started by the
+    /// caller, however loaded the machine).
+    pub fn wait_for(&self, n: usize) {
+        let t = std::time::Instant::now();
+        while self.count.load(Ordering::Relaxed) < n {
+            assert!(t.elapsed() < Duration::from_secs(60), "no frames came");
+            std::thread::sleep(Duration::from_millis(5));
+        }
     }
 
     /// The port.

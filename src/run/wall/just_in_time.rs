@@ -393,6 +393,9 @@ pub(super) fn triggered(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport
     let mut built = layout.build(signal, gps, true)?;
     out.preamble(&built.preambles)?;
     let extras = extras(&sync, &layout.streams, 1.0, &stop)?;
+    if !sync.time_marks.is_empty() {
+        ctl.note(&clock::describe_offset());
+    }
     let c = clocking(&layout.streams, &wall, Some(first))?.with_edges();
     let (pacer, mut feed) = PacerThread::start(out, &layout.streams, c, extras, stop.clone())?;
     let mut trigger = Trigger::new(f64::INFINITY);
@@ -532,6 +535,9 @@ pub(super) fn realtime(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport,
     };
     out.preamble(&built.preambles)?;
     let mut extras = extras(&sync, &layout.streams, 1.0, &stop)?;
+    if !sync.time_marks.is_empty() && time_base != TimeBase::Gps {
+        ctl.note(&clock::describe_offset());
+    }
     // The pacer's whole seconds are what a PPS lock pulls onto its edges: on the GPS time
     // base they are the host's whole GPS seconds (the week began on one), so the lock
     // disciplines the map from the input's GPS tags to the host clock.

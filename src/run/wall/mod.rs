@@ -103,7 +103,7 @@ fn paced(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport, RunError> {
         .map(clock::start_at)
         .transpose()
         .map_err(|e| RunError::spec("--start-at", e))?;
-    if start_ns.is_some() {
+    if start_ns.is_some() || !sync.time_marks.is_empty() {
         ctl.note(&clock::describe_offset());
     }
     let c = clocking(&layout.streams, &wall, start_ns)?;
