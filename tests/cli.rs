@@ -1282,10 +1282,10 @@ fn trajectory_from_stdin() {
     assert_eq!(from_file.len(), 30 * 200 * 104);
 }
 
-// A survey of 100 000 lines is set up in well under a second (the quadratic setup took
-// minutes); the 20 s bound leaves room for a loaded machine.
+// A survey of 100 000 lines is set up and runs (its setup was quadratic and took minutes;
+// how long it takes now is a timing figure: printed here, measured in benches/throughput.rs).
 #[test]
-fn survey_with_many_lines_sets_up_fast() {
+fn survey_with_many_lines_sets_up() {
     let dir = TempDir::new().unwrap();
     let scene = dir.path().join("s.toml");
     write(
@@ -1295,8 +1295,7 @@ fn survey_with_many_lines_sets_up_fast() {
     let started = std::time::Instant::now();
     let out = succeeded(run!("generate --rate 10 --duration 1 --format bin", scene));
     assert_eq!(out.len(), 10 * 104);
-    let took = started.elapsed().as_secs_f64();
-    assert!(took < 20.0, "setup took {took} s");
+    eprintln!("100 000 lines: {:.2} s", started.elapsed().as_secs_f64());
 }
 
 // Time tags that cannot hold the record interval are refused (t₀ = 1.4e9 s is held to

@@ -278,23 +278,18 @@ fn udp_binary_damage_is_counted_and_replay_is_bit_identical() {
             .set_read_timeout(Some(Duration::from_millis(500)))
             .unwrap();
         let addr = rx_socket.local_addr().unwrap();
-        let sent = sent.to_vec();
-        let sender = thread::spawn(move || {
-            let s = UdpSocket::bind("127.0.0.1:0").unwrap();
-            for (i, d) in sent.iter().enumerate() {
-                s.send_to(d, addr).unwrap();
-                // Paced so that the loopback receive buffer never overflows.
-                if i % 20 == 0 {
-                    thread::sleep(Duration::from_millis(2));
-                }
-            }
-        });
+        // Every datagram is queued before the run reads any (a 4 MiB buffer holds them all):
+        // the run's end, at its socket's timeout, comes after the last one whatever the load.
+        imu_emu::realtime::udp::grow_receive_buffer(&rx_socket);
+        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        for d in sent {
+            s.send_to(d, addr).unwrap();
+        }
         let mut rx = Receiver::from_socket(rx_socket, InputFormat::Binary, "udp");
         let b = Simulation::builder().rate(400.0).format("ln200");
         let run = Lockstep::new(b, InputFormat::Binary).unwrap();
         let (mut out, mut rec) = (Vec::new(), Vec::new());
         let s = run.run(&mut rx, &mut out, Some(&mut rec), |_| ()).unwrap();
-        sender.join().unwrap();
         (out, rec, s)
     };
     let (out, rec, s) = live(&sent);
@@ -460,21 +455,19 @@ fn multicast_group_is_joined() {
     .unwrap();
     let port = rx.local_addr().unwrap().port();
     let m = survey();
-    let sender = thread::spawn(move || {
-        // Unbound, as a simulation's sender usually is: the group is reached on the default
-        // multicast interface, the one the receiver joined on.
-        let s = UdpSocket::bind("0.0.0.0:0").unwrap();
-        s.set_multicast_loop_v4(true).unwrap();
-        for i in 0..40u32 {
-            let d = datagram(&m.pose(i as f64 * 0.01), i);
-            s.send_to(&d, (group, port)).unwrap();
-            thread::sleep(Duration::from_millis(1));
-        }
-    });
+    // Every datagram is queued before the run reads any, so its end, 0.5 s after the last
+    // one read, comes after them all whatever the load. Unbound, as a simulation's sender
+    // usually is: the group is reached on the default multicast interface, the one the
+    // receiver joined on.
+    let s = UdpSocket::bind("0.0.0.0:0").unwrap();
+    s.set_multicast_loop_v4(true).unwrap();
+    for i in 0..40u32 {
+        let d = datagram(&m.pose(i as f64 * 0.01), i);
+        s.send_to(&d, (group, port)).unwrap();
+    }
     let run = Lockstep::new(Simulation::builder().rate(400.0), InputFormat::Binary).unwrap();
     let mut out = Vec::new();
     let s = run.run(&mut rx, &mut out, None, |_| ()).unwrap();
-    sender.join().unwrap();
     assert_eq!((s.stats.states, s.stats.missing), (40, 0));
     assert_eq!(s.records, released(&s.grid, 0.39));
 }

@@ -148,14 +148,13 @@ fn over_udp(datagrams: Vec<Vec<u8>>) -> (Vec<u8>, imu_emu::run::lockstep::LiveSu
         .set_read_timeout(Some(Duration::from_millis(500)))
         .unwrap();
     let addr = socket.local_addr().unwrap();
-    let sender = thread::spawn(move || {
-        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
-        for d in datagrams {
-            s.send_to(&d, addr).unwrap();
-            // Paced so that loopback never drops one.
-            thread::sleep(Duration::from_micros(200));
-        }
-    });
+    // Every datagram is queued before the run reads any (a 4 MiB buffer holds them all): the
+    // run's end, at its socket's timeout, comes after the last one whatever the load.
+    imu_emu::realtime::udp::grow_receive_buffer(&socket);
+    let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+    for d in datagrams {
+        s.send_to(&d, addr).unwrap();
+    }
     let mut rx = Receiver::from_socket(socket, InputFormat::Binary, "udp");
     let b = Simulation::builder().rate(400.0).duration(2.0);
     let mut out = Vec::new();
@@ -163,7 +162,6 @@ fn over_udp(datagrams: Vec<Vec<u8>>) -> (Vec<u8>, imu_emu::run::lockstep::LiveSu
         .unwrap()
         .run(&mut rx, &mut out, None, |_| ())
         .unwrap();
-    sender.join().unwrap();
     (out, s)
 }
 

@@ -52,8 +52,9 @@ fn start(source: &str, mode: &str, dir: &std::path::Path) -> (Child, mpsc::Recei
     (child, rx)
 }
 
-/// Sends `sig` once `ready` says the run waits for its input, then expects it to end within
-/// 10 s with `code`, having said it was interrupted; nothing left behind.
+/// Sends `sig` once `ready` says the run waits for its input, then expects it to end with
+/// `code` (a hang guard of 60 s: how soon is a timing figure), having said it was
+/// interrupted; nothing left behind.
 fn stops(
     (mut child, lines): (Child, mpsc::Receiver<String>),
     ready: impl Fn(&mpsc::Receiver<String>) -> bool,
@@ -72,7 +73,7 @@ fn stops(
     // The run is waiting for a state that never comes: give it time to be blocked there.
     thread::sleep(Duration::from_millis(300));
     kill(Pid::from_raw(child.id() as i32), sig).unwrap();
-    let deadline = Instant::now() + Duration::from_secs(10);
+    let deadline = Instant::now() + Duration::from_secs(60);
     let status = loop {
         if let Some(s) = child.try_wait().unwrap() {
             break s;

@@ -78,7 +78,7 @@ fn nmea_epochs_interleave_with_unit_frames_over_udp() {
     assert_eq!(truth.len(), 8, "epochs at 0, 0.2, …, 1.4 s");
 
     let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
-    rx.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    rx.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
     imu_emu::realtime::udp::grow_receive_buffer(&rx);
     let port = rx.local_addr().unwrap().port();
     let rig = scene(
@@ -91,6 +91,7 @@ fn nmea_epochs_interleave_with_unit_frames_over_udp() {
     );
     let child = Command::new(BIN)
         .args(["run", rig.to_str().unwrap(), "--speed", "2"])
+        .args(["--max-behind-ms", "60000"])
         .args(["--gnss", &format!("nmea:udp:127.0.0.1:{port}")])
         .stderr(Stdio::piped())
         .spawn()
@@ -102,7 +103,7 @@ fn nmea_epochs_interleave_with_unit_frames_over_udp() {
         let n = loop {
             match rx.recv(&mut buf) {
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                r => break r.expect("a datagram within 10 s"),
+                r => break r.expect("a datagram within 60 s"),
             }
         };
         got.push(String::from_utf8(buf[..n].to_vec()).unwrap());

@@ -83,6 +83,10 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
         _ => Source::Stdin,
     };
     let mut input = capture::Input::open(&source).map_err(io_first)?;
+    if let Source::Udp(addr) = &source {
+        // Said once the socket is bound: a script can start the sender then.
+        eprintln!("imu-emu decode: listening on udp://{addr}");
+    }
     // Live input ends on Ctrl-C / SIGTERM with its tally printed, like a finished stream.
     let until = capture::Until {
         frames: a.frames,

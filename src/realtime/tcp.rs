@@ -451,6 +451,6 @@ mod tests {
                 assert!(f.iter().all(|&x| x == f[0]), "a torn frame");
             }
         }
-        assert!(fast_got.len() > slow_got.len());
+        assert!(fast_got.len() >= slow_got.len());
     }
 }

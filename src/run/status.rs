@@ -34,6 +34,9 @@ pub struct LiveStatus {
     pub frames: u64,
     /// Frames whose motion was extrapolated or held past the newest state.
     pub extrapolated: u64,
+    /// Trigger edges after the first that closed no sample interval: mapped before the run's
+    /// t₀ (the input not yet followed) or not after the previous edge.
+    pub edges_unused: u64,
 }
 
 impl LiveStatus {
@@ -55,6 +58,12 @@ impl LiveStatus {
         });
         if let Some(t) = c.rejoined {
             departed += &format!("; back on the input from t = {t:.6} s");
+        }
+        if self.edges_unused > 0 {
+            departed += &format!(
+                "; {} trigger edges closed no interval (before t₀ or not after the previous)",
+                self.edges_unused
+            );
         }
         format!(
             "{state}; input {:.1} Hz, jitter {:.2} ms, clock {:+.1} ppm, {} re-locks, {} missing, {} late; delay {:.2} ms; {} frames ({} extrapolated); {} corrections, max {:.3e} m, {:.3e} m/s, {:.3e} rad{departed}",

@@ -217,6 +217,10 @@ impl Receiver {
                     _ => UdpSocket::bind(addr)?,
                 };
                 socket.set_read_timeout(Some(POLL))?;
+                // A burst of states, or an input thread not scheduled for a while, must not
+                // overflow the socket: the kernel would drop states without a word.
+                #[cfg(feature = "realtime")]
+                crate::realtime::udp::grow_receive_buffer(&socket);
                 (Kind::Udp(socket), format!("udp://{addr}"))
             }
             Endpoint::Tcp(addr) => {

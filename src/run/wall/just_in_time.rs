@@ -215,11 +215,14 @@ impl JustInTime for Follow<'_> {
     fn edge(&mut self, e: i128, sources: &mut Sources) -> Result<(), RunError> {
         // The edge asks for the sample the output delay puts at its instant.
         let t = self.map.sim_at(e - self.delay_ns);
-        if let Some(p) = self.prev_edge.replace(t)
-            && t > p
-            && p >= self.origin
-        {
-            sources.edge(p - self.origin, t - self.origin);
+        if let Some(p) = self.prev_edge.replace(t) {
+            if t > p && p >= self.origin {
+                sources.edge(p - self.origin, t - self.origin);
+            } else {
+                // Before the run's t₀ (the input not yet followed) or not after the previous:
+                // no interval to sample; said in the summary.
+                self.st.edges_unused += 1;
+            }
         }
         Ok(())
     }
