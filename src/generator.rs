@@ -154,7 +154,7 @@ impl<M: Motion> IdealImu<M> {
     /// before `t` (a state's time tag a rounding before `t` counts as `t`, see
     /// [`Self::reaches`]), so that it does not depend on whether a later piece is known yet.
     fn omega_at(&self, t: f64) -> Vec3 {
-        let before = t - crate::engine::tag_slack(t, t);
+        let before = t - crate::math::tag_slack(t, t);
         self.motion
             .sense(self.motion.piece_at(before, self.hint), t)
             .omega_ib_b
@@ -202,7 +202,7 @@ impl<M: Motion> IdealImu<M> {
     /// input would give records that differ in their last bits.
     #[inline]
     fn reaches(end: f64, hi: f64) -> bool {
-        end >= hi || hi - end <= crate::engine::tag_slack(hi, hi)
+        end >= hi || hi - end <= crate::math::tag_slack(hi, hi)
     }
 
     /// Mean of ω_ib^b and f^b over (t_{k−1}, t_k].

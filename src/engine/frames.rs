@@ -78,9 +78,9 @@ impl Until {
 
     /// The window ending at a state's time tag `t` (the newest the motion is known to): the
     /// records on `t` are released even when their computed time comes out a rounding after
-    /// it ([`super::grid::tag_slack`]).
+    /// it ([`crate::math::tag_slack`]).
     pub fn state(origin: f64, t: f64) -> Until {
-        Until::time(origin, t + super::grid::tag_slack(t, origin))
+        Until::time(origin, t + crate::math::tag_slack(t, origin))
     }
 
     /// A window that releases everything.

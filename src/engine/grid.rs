@@ -97,18 +97,6 @@ pub fn released(grid: &Grid, t: f64) -> u64 {
     k
 }
 
-/// How far past a state's time tag `t` a record time still counts as that instant: a record's
-/// time t₀ + k/rate is computed in f64 (t₀ itself a tag read from the input), so the record that
-/// falls on a state's own time can come out an ulp or two after the tag read for it (seen:
-/// 1.2e-10 s at 5.7e5 s, GPS seconds of the week). Both roundings are within half an ulp of the
-/// larger of |t|, |t₀|, the sum's and the quotient's within one more: four ulps cover them all.
-/// Being that far past the newest state, the record extrapolates by less than
-/// 4·[`TIME_RESOLUTION`] of its interval (a grid finer than that is refused).
-pub fn tag_slack(t: f64, t0: f64) -> f64 {
-    let m = t.abs().max(t0.abs());
-    4.0 * (f64::from_bits(m.to_bits() + 1) - m)
-}
-
 /// Largest spacing of representable times near a run's times, as a fraction of the record
 /// interval. A time tag t₀ + k/rate is rounded to the nearest f64, off by up to half that
 /// spacing, so successive tags differ from Δt by up to one spacing: at 1/1000 of Δt the tags

@@ -21,7 +21,7 @@ pub mod trigger;
 pub use drain::{drain, run};
 pub use encoding::Encoding;
 pub use error::EngineError;
-pub use grid::{DEFAULT_UNBOUNDED_DURATION_S, Grid, TIME_RESOLUTION, plan, released, tag_slack};
+pub use grid::{DEFAULT_UNBOUNDED_DURATION_S, Grid, TIME_RESOLUTION, plan, released};
 pub use producer::{Block, Producer, TruthPlace};
 pub use source_spec::{SourceSpec, build_motion};
 
