@@ -808,6 +808,9 @@ fn gps_run(extra: &[&str], emission: impl Fn(usize) -> f64) {
     let u = realtime_run::clock_reading_ns(&err) as f64 * 1e-9;
     // Seconds of the week of the first frame's interval start.
     let t0 = number_after(summary, "from t =");
+    // The run counts from the GPS week its host clock read at the start, which is the week
+    // before the first state's when the run starts a moment before the week rolls over.
+    let epoch = week - (t0 / 604_800.0).floor() as i128;
     let stamps = sink.stop();
     let frames = number_before(summary, "frames at 400 Hz") as usize;
     let skipped = number_before(pacer, "skipped (too late)") as usize;
@@ -817,7 +820,7 @@ fn gps_run(extra: &[&str], emission: impl Fn(usize) -> f64) {
         .iter()
         .enumerate()
         .map(|(k, &(utc, _))| {
-            let due = week * week_ns + ((t0 + emission(k)) * 1e9).round() as i128;
+            let due = epoch * week_ns + ((t0 + emission(k)) * 1e9).round() as i128;
             (leap.utc_to_gps_ns(utc) - due) as f64 / 1e9 - 0.05
         })
         .collect();
