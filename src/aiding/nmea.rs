@@ -45,7 +45,7 @@ pub fn encode(e: &GnssEpoch, time: GpsTime, leap: i64, out: &mut Vec<u8>) {
     let date = format!("{:02}{:02}{:02}", u.day, u.month, u.year.rem_euclid(100));
     let (sog_kn, cog_deg) = (
         blank(format!("{:.3}", sog / M_S_PER_KNOT)),
-        blank(format!("{cog:.2}")),
+        blank(course_text(cog)),
     );
     sentence(
         out,
@@ -95,6 +95,15 @@ pub fn encode(e: &GnssEpoch, time: GpsTime, leap: i64, out: &mut Vec<u8>) {
 pub fn course(v_north: f64, v_east: f64) -> (f64, f64) {
     let c = v_east.atan2(v_north).to_degrees();
     (v_north.hypot(v_east), if c < 0.0 { c + 360.0 } else { c })
+}
+
+/// `deg` (in [0, 360)) as NMEA prints a course, to 0.01°: rounded first and wrapped after, so a
+/// course a rounding below 360° prints `0.00`, not `360.00` (which gpsd reads as 0 and others
+/// as 360).
+pub fn course_text(deg: f64) -> String {
+    let hundredths = (deg * 100.0).round() as i64;
+    let h = hundredths.rem_euclid(36_000);
+    format!("{}.{:02}", h / 100, h % 100)
 }
 
 /// GGA fix quality: 0 invalid, 1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float.
@@ -174,5 +183,16 @@ mod tests {
         assert!((s - 2f64.sqrt()).abs() < 1e-15);
         assert!((c - 225.0).abs() < 1e-12);
         assert_eq!(course(0.0, 3.0), (3.0, 90.0));
+    }
+
+    /// A course a rounding west of north is in [0, 360) but prints as 360.00 at two decimals.
+    #[test]
+    fn a_course_just_below_north_prints_as_zero() {
+        let (_, c) = course(10.0, -1e-9);
+        assert!(c < 360.0 && c > 359.99);
+        assert_eq!(course_text(c), "0.00");
+        assert_eq!(course_text(359.994), "359.99");
+        assert_eq!(course_text(0.0), "0.00");
+        assert_eq!(course_text(225.0), "225.00");
     }
 }

@@ -52,7 +52,12 @@ pub fn encode(e: &GnssEpoch, time: GpsTime, leap: i64, out: &mut Vec<u8>) {
             put(&mut p, 48 + 4 * i, &mm(*v).to_le_bytes());
         }
         put(&mut p, 60, &mm(speed).to_le_bytes());
-        put(&mut p, 64, &((cog * 1e5).round() as i32).to_le_bytes());
+        // Rounded, then wrapped: a course a rounding below 360° reads 0, not 360.
+        put(
+            &mut p,
+            64,
+            &(((cog * 1e5).round() as i32) % 36_000_000).to_le_bytes(),
+        );
         put(&mut p, 68, &(mm(sv.norm()) as u32).to_le_bytes());
         // Course σ ≈ horizontal speed σ / speed, at most 180°.
         let head_acc = if speed > 0.0 {
