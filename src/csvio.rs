@@ -113,6 +113,13 @@ pub fn num(x: f64) -> String {
     }
 }
 
+/// [`num`] of `x` rounded to `digits` significant digits: for a value computed from others
+/// (a difference of times), whose last digits are rounding.
+pub fn num_sig(x: f64, digits: usize) -> String {
+    let p = digits.max(1) - 1;
+    num(format!("{x:.p$e}").parse().unwrap_or(x))
+}
+
 /// Parses a field as a finite number; the message (for a column error) quotes the clipped text.
 pub fn parse_finite(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {

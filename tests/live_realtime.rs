@@ -1074,3 +1074,86 @@ fn on_timeout_stop_does_what_its_help_says() {
         "{summary}"
     );
 }
+
+/// States the clock map cannot place (issue 38: one state tagged tens of seconds ahead put
+/// 8.6e8 m/s² on every sink and the run never ended; one tagged 1e9 s made it compute
+/// records up to 1e9 s, its memory growing until the machine ran out). Among the survey's
+/// states sent in real time, one tagged 30 s ahead and one tagged 1e9 s, each sent beside the
+/// state of its moment: both are refused and counted with their place and how far ahead they
+/// were; the run ends on the input's timeout, and every frame is the survey's motion — its
+/// specific force within 1e-6 of the scene's where the run followed its input, and never
+/// beyond 20 m/s² (the survey is at rest on these seconds: 9.8 m/s²).
+#[test]
+fn a_state_tagged_far_ahead_of_its_arrival_is_refused() {
+    let _rt = serial();
+    let dir = tempfile::TempDir::new().unwrap();
+    std::fs::write(dir.path().join("f64.toml"), F64_SPEC).unwrap();
+    let (child, port, lines) = start(
+        dir.path(),
+        &[
+            "--protocol-file",
+            "f64.toml",
+            "--output-delay",
+            "0.05",
+            "--file",
+            "out.bin",
+        ],
+    );
+    let states = survey_states(3.0);
+    let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let start = Instant::now();
+    for (i, p) in states.iter().enumerate() {
+        let at = start + Duration::from_secs_f64(p.t);
+        if let Some(d) = at.checked_duration_since(Instant::now()) {
+            thread::sleep(d);
+        }
+        s.send_to(&binary::encode(&datagram(p, i as u32)), ("127.0.0.1", port))
+            .unwrap();
+        for (k, ahead) in [(100, 30.0), (200, 1e9)] {
+            if i == k {
+                let mut d = datagram(p, i as u32);
+                d.time += ahead;
+                s.send_to(&binary::encode(&d), ("127.0.0.1", port)).unwrap();
+            }
+        }
+    }
+    let err = finish(child, &lines, "");
+    let summary = summary(&err);
+    assert!(summary.contains(", 2 refused,"), "{summary}");
+    let mut aheads: Vec<f64> = err
+        .lines()
+        .filter(|l| l.contains(" s ahead of the sender's clock as the clock map reads it"))
+        .map(|l| number_after(l, ": `t`:"))
+        .collect();
+    aheads.sort_by(f64::total_cmp);
+    assert_eq!(aheads.len(), 2, "{err}");
+    // Each the tag's lead less the path's delay (the map is the envelope of the delays).
+    assert!((29.0..=30.0).contains(&aheads[0]), "{err}");
+    assert!((1e9 - 1.0..=1e9).contains(&aheads[1]), "{err}");
+    let rate = 400.0;
+    let t0 = number_after(summary, "from t =");
+    let frames = f64_frames(&std::fs::read(dir.path().join("out.bin")).unwrap(), rate);
+    assert_eq!(
+        frames.len() as f64,
+        number_before(summary, "frames at 400 Hz")
+    );
+    let truth = Simulation::builder()
+        .rate(rate)
+        .start(t0)
+        .duration(frames.len() as f64 / rate)
+        .build()
+        .unwrap();
+    let truth: Vec<_> = truth.records().unwrap().flat_map(Result::unwrap).collect();
+    let left = departed(summary).unwrap_or(f64::INFINITY);
+    for (k, (a, b)) in frames.iter().zip(&truth).enumerate() {
+        let t = t0 + (k + 1) as f64 / rate;
+        let f = (a[3] * a[3] + a[4] * a[4] + a[5] * a[5]).sqrt();
+        assert!(f < 20.0, "specific force {f} m/s² at {t} s");
+        if t <= left {
+            let d = (0..3)
+                .map(|i| (a[3 + i] - b.accel[i]).abs())
+                .fold(0.0, f64::max);
+            assert!(d < 1e-6, "{d} m/s² off the scene at {t} s");
+        }
+    }
+}

@@ -313,3 +313,40 @@ fn a_megabyte_line_without_a_line_end_is_cut_and_counted() {
     println!("peak memory {peak} kB, {base} kB without the long line");
     assert!(peak < base + 8 * 1024, "{peak} kB vs {base} kB");
 }
+
+/// A state whose time tag is off the sender's time line (issue 38: `t` = 1e9 s among states
+/// at 0–4 s once made a lockstep run compute records up to 1e9 s, its memory growing without
+/// bound and deaf to SIGINT; with a duration, specific forces of 1e80 m/s² came out with
+/// exit 0): refused with its line, step and limit, counted, and the run writes the bytes of
+/// the input without it. A step a hundred times the input's spacing is still bridged (a
+/// hundred states lost in a row), so the limit is what it says.
+#[test]
+fn a_time_tag_off_the_time_line_is_refused() {
+    let lines = circle_lines(4.0);
+    let mut outlier = lines.clone();
+    set(&mut outlier, 250, 0, "1e9");
+    let (status, err, got) = lockstep_pipe(&join(&outlier));
+    assert!(status.success(), "{err}");
+    assert!(err.contains(", 1 refused,"), "{err}");
+    assert!(
+        err.contains(
+            "stdin: line 250: `t`: 999999998 s after the newest state (2.46 s), beyond the longest step the model bridges there (1 s)"
+        ),
+        "{err}"
+    );
+    let mut without = lines.clone();
+    without.remove(249);
+    let (status, err, want) = lockstep_pipe(&join(&without));
+    assert!(status.success(), "{err}");
+    assert!(
+        got.is_some() && got == want,
+        "not the bytes without the line"
+    );
+
+    // 99 states lost in a row: a step of 100 spacings (1 s) is bridged, so nothing refused.
+    let mut outage = lines.clone();
+    outage.drain(150..249);
+    let (status, err, _) = lockstep_pipe(&join(&outage));
+    assert!(status.success(), "{err}");
+    assert!(err.contains(", 0 refused,"), "{err}");
+}

@@ -27,7 +27,8 @@ pub struct InputStats {
     pub gaps: u64,
     /// States missing by the sequence numbers (some may arrive later, as reordered).
     pub missing: u64,
-    /// States refused by the physical limits.
+    /// States refused: beyond the physical limits, or a time tag the run cannot place (a step
+    /// too long to bridge, a tag ahead of the sender's clock).
     pub refused: u64,
     /// Stream bytes outside any frame (garbage, a lost frame's remains).
     pub skipped_bytes: u64,
@@ -78,7 +79,7 @@ impl InputStats {
                     self.reordered += 1;
                 }
             }
-            Err(e @ Rejected::Limit(_)) => {
+            Err(e) => {
                 self.refused += 1;
                 self.note(format!("{place}: {e}"));
                 // It arrived: the states after it are no gap.

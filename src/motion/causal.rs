@@ -22,6 +22,7 @@ use super::fd::fornberg;
 use super::limits::{Violation, check_given, check_sample, check_step};
 use super::sampled::{Conv, Degree, Knot, ModelSettings, Sample, convert, hermite, knot_at};
 use super::{Motion, Pose};
+use crate::csvio::{num, num_sig};
 use crate::earth::{Geodetic, OMEGA_IE, omega_en_n};
 use crate::kinematics::{Sensed, sense_ecef};
 use crate::math::{Quat, QuatExt, Vec3, all_finite};
@@ -73,6 +74,25 @@ pub enum Rejected {
     },
     /// A value is beyond the limits of [`super::limits`] (alone or against the newest state).
     Limit(Violation),
+    /// Its time is so far after the newest state's that the model cannot bridge the step
+    /// ([`CausalMotion::refuse_gaps`]): a tag off the sender's time line, or an outage longer
+    /// than the model's stencil can span.
+    Gap {
+        /// Newest time in the model (s).
+        newest: f64,
+        /// The step from it (s).
+        step: f64,
+        /// The longest step allowed there (s).
+        limit: f64,
+    },
+    /// Its time tag lies further ahead of the time the clock map gives its arrival than any
+    /// path delay or clock error explains (s): the sender's clock cannot have read it then.
+    Ahead {
+        /// How far ahead of the clock map (s).
+        by: f64,
+        /// The most allowed (s).
+        limit: f64,
+    },
 }
 
 impl std::fmt::Display for Rejected {
@@ -81,6 +101,23 @@ impl std::fmt::Display for Rejected {
             Rejected::NotAfter { newest } => write!(f, "not after the newest state ({newest} s)"),
             Rejected::Limit(v) if v.column.is_empty() => write!(f, "{}", v.message),
             Rejected::Limit(v) => write!(f, "`{}`: {}", v.column, v.message),
+            Rejected::Gap {
+                newest,
+                step,
+                limit,
+            } => write!(
+                f,
+                "`t`: {} s after the newest state ({} s), beyond the longest step the model bridges there ({} s): a time tag off the sender's time line, or an outage too long to interpolate over",
+                num_sig(*step, 9),
+                num(*newest),
+                num_sig(*limit, 9)
+            ),
+            Rejected::Ahead { by, limit } => write!(
+                f,
+                "`t`: {} s ahead of the sender's clock as the clock map reads it at the state's arrival (at most {} s): a time tag the sender's clock cannot have read then",
+                num_sig(*by, 9),
+                num(*limit)
+            ),
         }
     }
 }
@@ -95,6 +132,8 @@ struct Inner {
     first: f64,
     /// The emitted chain of a real-time run (`None`: the received pieces as they are).
     chain: Option<Chain>,
+    /// Whether steps the model cannot bridge are refused ([`CausalMotion::refuse_gaps`]).
+    refuse_gaps: bool,
 }
 
 /// A live, causal motion model (a shared handle: clones see the same states).
@@ -124,6 +163,7 @@ impl CausalMotion {
                 base: 0,
                 first: f64::NAN,
                 chain: None,
+                refuse_gaps: false,
             })),
         }
     }
@@ -142,6 +182,19 @@ impl CausalMotion {
             && s.sample.t.partial_cmp(&p.t) != Some(std::cmp::Ordering::Greater)
         {
             return Err(Rejected::NotAfter { newest: p.t });
+        }
+        if m.refuse_gaps
+            && let Some((p, _)) = prev
+        {
+            let limit = gap_limit(&m.recent);
+            let step = s.sample.t - p.t;
+            if step > limit {
+                return Err(Rejected::Gap {
+                    newest: p.t,
+                    step,
+                    limit,
+                });
+            }
         }
         check_sample(&s.sample).map_err(Rejected::Limit)?;
         if let Some((p, _)) = prev {
@@ -198,6 +251,16 @@ impl CausalMotion {
         Ok(())
     }
 
+    /// Refuses from now on a state whose step from the newest is longer than the model can
+    /// bridge ([`GAP_FACTOR`] times the longest step of the stencil before it, or
+    /// [`FIRST_GAP_S`] after the first state), as [`Rejected::Gap`]. For a run that follows
+    /// its input's time tags only (lockstep): there a tag off the time line would otherwise
+    /// make the run compute every record up to it. A real-time run places tags by their
+    /// arrival instead ([`Rejected::Ahead`]) and bridges outages by extrapolating.
+    pub fn refuse_gaps(&self) {
+        self.lock().refuse_gaps = true;
+    }
+
     /// Time of the newest knot: the model is complete up to it (NaN before the first).
     pub fn newest(&self) -> f64 {
         self.lock().knots.back().map_or(f64::NAN, |k| k.t)
@@ -251,6 +314,30 @@ impl CausalMotion {
     /// The newest state received, if any.
     pub fn newest_state(&self) -> Option<Sample> {
         self.lock().recent.back().map(|e| e.sample)
+    }
+}
+
+/// Largest step, as a multiple of the longest step between the states of the stencil before it,
+/// that [`CausalMotion::refuse_gaps`] lets the model bridge: states lost in a row on a lossy
+/// link (a hundred) pass; a tag off the time line — a clock in µs read as s, a stray GPS
+/// time among simulation seconds — lands orders of magnitude further. The knot past a
+/// long step takes its derivatives from a stencil a hundred times wider on one side, whose
+/// error grows with its width: the bridge is an interpolation, not the motion.
+pub const GAP_FACTOR: f64 = 100.0;
+
+/// Largest step after the first state (s), before any step tells the input's spacing: an hour.
+/// A run computes every record over the step, which must stay a bounded amount of work.
+pub const FIRST_GAP_S: f64 = 3600.0;
+
+/// The longest step [`CausalMotion::refuse_gaps`] allows after the newest of `recent`.
+fn gap_limit(recent: &VecDeque<Entry>) -> f64 {
+    let longest = (recent.iter().zip(recent.iter().skip(1)))
+        .map(|(a, b)| b.sample.t - a.sample.t)
+        .fold(0.0, f64::max);
+    if longest > 0.0 {
+        (GAP_FACTOR * longest).min(FIRST_GAP_S)
+    } else {
+        FIRST_GAP_S
     }
 }
 
@@ -609,5 +696,45 @@ mod tests {
         // Before the first knot and after the kept ones: NaN, never a stale piece.
         let fresh = CausalMotion::new(ModelSettings::default());
         assert!(fresh.sense(0, 0.0).f_b.x.is_nan());
+    }
+
+    /// With gaps refused, a step longer than [`GAP_FACTOR`] times the stencil's longest step
+    /// is refused naming the limit, the model unchanged; a step just within it is taken.
+    /// After the first state alone, the limit is [`FIRST_GAP_S`].
+    #[test]
+    fn steps_too_long_to_bridge_are_refused() {
+        let c = Cubic::new();
+        let m = CausalMotion::new(ModelSettings::default());
+        m.refuse_gaps();
+        m.push(&LiveSample::plain(c.sample(0.0))).unwrap();
+        let far = LiveSample::plain(c.sample(FIRST_GAP_S * 1.001));
+        assert!(matches!(m.push(&far), Err(Rejected::Gap { limit, .. }) if limit == FIRST_GAP_S));
+        for i in 1..12 {
+            m.push(&LiveSample::plain(c.sample(i as f64 * 0.01)))
+                .unwrap();
+        }
+        let before = (m.knots(), m.newest());
+        // The longest step of the stencil is 0.01 s give or take a rounding: the limit 1 s.
+        let over = LiveSample::plain(c.sample(0.11 + 1.001));
+        match m.push(&over) {
+            Err(Rejected::Gap {
+                newest,
+                step,
+                limit,
+            }) => {
+                assert_eq!(newest, 0.11);
+                assert!((step - 1.001).abs() < 1e-12 && (limit - 1.0).abs() < 1e-12);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!((m.knots(), m.newest()), before);
+        m.push(&LiveSample::plain(c.sample(0.11 + 0.999))).unwrap();
+        // Without the rule (a real-time run) the same step is taken.
+        let free = CausalMotion::new(ModelSettings::default());
+        for i in 0..12 {
+            free.push(&LiveSample::plain(c.sample(i as f64 * 0.01)))
+                .unwrap();
+        }
+        free.push(&over).unwrap();
     }
 }

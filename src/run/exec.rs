@@ -271,13 +271,16 @@ impl Feed {
             )),
             None => None,
         };
+        // Lockstep follows the tags alone: a step it cannot bridge is refused, not computed.
+        let model = CausalMotion::new(settings);
+        model.refuse_gaps();
         let name = rx.name().to_string();
         ctl.note(&format!("following {name} in lockstep"));
         Ok(Feed {
             rx,
             name,
             decoder: Decoder::with_base(input.format, input_base(base), None),
-            model: CausalMotion::new(settings),
+            model,
             need: settings.stencil.max(3),
             modulo: modulo(input.format),
             stats: InputStats::default(),

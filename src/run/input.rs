@@ -26,6 +26,32 @@ pub const MARGIN_S: f64 = 0.003;
 /// map is refused: tags that are not GPS time (simulation seconds) land years away.
 pub const GPS_TAG_TOLERANCE_S: f64 = 60.0;
 
+/// Largest lead of a state's time tag over the time the clock map gives its arrival (s). A
+/// state cannot have been sent after it arrived, so a tag ahead of its arrival's time is the
+/// map's own error — its slew behind a path that got faster, a sender clock off its fitted
+/// rate — far below this; a second leaves room for either. A tag beyond it (a clock in µs
+/// read as s, a stray GPS time, a sender that jumped its clock) would pull every frame
+/// towards a motion seconds away.
+pub const MAX_AHEAD_S: f64 = 1.0;
+
+/// Why a state with time tag `t` that arrived at `arrival_ns` is refused by the clock map:
+/// its tag more than [`MAX_AHEAD_S`] ahead of the map's time for its arrival (none before
+/// the map has a state).
+fn ahead_of_clock(
+    map: &ClockMap,
+    t: f64,
+    arrival_ns: i128,
+) -> Option<crate::motion::causal::Rejected> {
+    if !map.ready() {
+        return None;
+    }
+    let by = t - map.sim_at(arrival_ns);
+    (by > MAX_AHEAD_S).then_some(crate::motion::causal::Rejected::Ahead {
+        by,
+        limit: MAX_AHEAD_S,
+    })
+}
+
 /// The host's GPS clock read once: the input's tags (GPS time) map to the host's monotonic
 /// clock directly. Tags are taken relative to the start of `week`, so the motion model works
 /// in seconds of that week (resolution 1e-10 s, where GPS seconds since 1980 have 2.4e-7 s).
@@ -228,7 +254,10 @@ fn receive<W: Write>(
         g.last_arrival_ns = Some(arrival_ns);
         match decoded {
             Ok(Some(d)) => {
-                let outcome = model.push(&d.state);
+                let outcome = match ahead_of_clock(&g.map, d.state.sample.t, arrival_ns) {
+                    Some(r) => Err(r),
+                    None => model.push(&d.state),
+                };
                 let place = format!("{name}: {}", m.place);
                 g.stats.state(&d, &outcome, modulo, &place);
                 if outcome.is_ok() {

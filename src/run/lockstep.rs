@@ -100,6 +100,9 @@ impl Lockstep {
         } else {
             Layout::resolve(&[route(StreamId::imu())], &Units::Imu(&stand_in.build()?))?
         };
+        // Lockstep follows the tags alone: a step it cannot bridge is refused, not computed.
+        let model = CausalMotion::new(settings);
+        model.refuse_gaps();
         let base = match base {
             crate::live::TimeBase::Gps => super::spec::TimeBase::Gps,
             crate::live::TimeBase::Sim => super::spec::TimeBase::Sim,
@@ -109,7 +112,7 @@ impl Lockstep {
             written: vec![0; layout.streams.len()],
             layout,
             builder,
-            model: CausalMotion::new(settings),
+            model,
             need: settings.stencil.max(3),
             decoder: Decoder::with_base(format, input_base(base), None),
             modulo: modulo(format),
