@@ -350,3 +350,29 @@ fn a_time_tag_off_the_time_line_is_refused() {
     assert!(status.success(), "{err}");
     assert!(err.contains(", 0 refused,"), "{err}");
 }
+
+/// An input that gives no usable state (issue 38: the run said only "the input ended after 0
+/// usable states"): the error counts what became of its messages and names the first
+/// problems with their lines, and the run fails with no output left.
+#[test]
+fn an_input_without_a_usable_state_says_why() {
+    let mut text = String::from("t,lat,lon,h,vn,ve,vd,roll,pitch,yaw\n");
+    for k in 0..20 {
+        text.push_str(&format!("{},45,7,100,0,0\n", k as f64 * 0.01));
+    }
+    let (status, err, out) = lockstep_pipe(&text);
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(err.contains("after 0 usable states"), "{err}");
+    assert!(err.contains("21 messages (1 without a state"), "{err}");
+    assert!(err.contains("; 20 malformed,"), "{err}");
+    assert!(
+        err.contains("; first: stdin: line 2, byte 0: 6 fields, expected 10;"),
+        "{err}"
+    );
+    assert!(err.contains("; stdin: line 4, byte 0: "), "{err}");
+    assert!(
+        !err.contains("stdin: line 5"),
+        "three problems named: {err}"
+    );
+    assert!(out.is_none());
+}

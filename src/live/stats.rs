@@ -7,6 +7,9 @@ use crate::motion::causal::Rejected;
 /// Problems kept word for word (the rest are only counted).
 pub const KEEP_PROBLEMS: usize = 10;
 
+/// Problems an input that gave too few states names in its error.
+pub const WHY_PROBLEMS: usize = 3;
+
 /// Counters of the input.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct InputStats {
@@ -92,6 +95,26 @@ impl InputStats {
                 }
             }
         }
+    }
+
+    /// Why messages gave no usable state, for a run that ended without enough: the counts and
+    /// the first [`WHY_PROBLEMS`] problems with their places; empty when every message gave
+    /// a state (or none came).
+    pub fn why_unused(&self) -> String {
+        if self.messages == 0 {
+            return "; no message came".into();
+        }
+        let mut s = format!("; input: {}", self.summary());
+        if !self.problems.is_empty() {
+            let first: Vec<&str> = self
+                .problems
+                .iter()
+                .take(WHY_PROBLEMS)
+                .map(String::as_str)
+                .collect();
+            s.push_str(&format!("; first: {}", first.join("; ")));
+        }
+        s
     }
 
     /// One line for the summary; the messages without a state are told apart, so that a CSV

@@ -32,7 +32,7 @@ pub enum RunError {
     },
     /// The live input ended before the motion model had its first piece.
     #[error(
-        "{input}: the input ended after {states} usable states; the motion model needs {need} before the first record"
+        "{input}: the input ended after {states} usable states; the motion model needs {need} before the first record{why}"
     )]
     TooFewStates {
         /// The input's name.
@@ -41,6 +41,8 @@ pub enum RunError {
         states: u64,
         /// States needed.
         need: usize,
+        /// What became of the other messages ([`crate::live::stats::InputStats::why_unused`]).
+        why: String,
     },
     /// The live input's time tags do not fit the time base chosen.
     #[error("{0}")]

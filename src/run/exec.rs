@@ -186,6 +186,7 @@ impl Run {
                 input: name,
                 states: stats.states,
                 need,
+                why: stats.why_unused(),
             });
         };
         finish(
@@ -311,7 +312,10 @@ impl Feed {
                 self.stats.state(&d, &outcome, self.modulo, &place);
                 Ok(Some(outcome.is_ok() && self.model.knots() > 0))
             }
-            Ok(None) => Ok(Some(false)),
+            Ok(None) => {
+                self.stats.no_state();
+                Ok(Some(false))
+            }
             Err(e) if e.fatal => Err(RunError::TimeBase(format!(
                 "{}: {}: {}",
                 self.name,

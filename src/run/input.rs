@@ -161,6 +161,7 @@ pub(super) fn first_knot(
                 input: name.to_string(),
                 states: g.stats.states,
                 need,
+                why: g.stats.why_unused(),
             });
         }
         drop(shared.1.wait_timeout(g, Duration::from_millis(50)));
@@ -265,7 +266,7 @@ fn receive<W: Write>(
                 }
                 g.week = decoder.epoch_week();
             }
-            Ok(None) => {}
+            Ok(None) => g.stats.no_state(),
             Err(e) if e.fatal => {
                 let what = format!("{}: {}", m.place.at(e.offset), e.message);
                 break Some(std::io::Error::new(std::io::ErrorKind::InvalidData, what));

@@ -158,7 +158,10 @@ impl Lockstep {
         self.stats.messages += 1;
         match self.decoder.decode(&m.bytes) {
             Ok(Some(d)) => self.state_to(&d, &format!("{input}: {}", m.place), outs),
-            Ok(None) => Ok(()),
+            Ok(None) => {
+                self.stats.no_state();
+                Ok(())
+            }
             Err(e) if e.fatal => Err(RunError::TimeBase(format!(
                 "{input}: {}: {}",
                 m.place.at(e.offset),
@@ -279,6 +282,7 @@ impl Lockstep {
                 input: name,
                 states: self.stats.states,
                 need: self.need,
+                why: self.stats.why_unused(),
             });
         };
         Ok(LiveSummary {

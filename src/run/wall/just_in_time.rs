@@ -507,6 +507,7 @@ pub(super) fn realtime(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport,
                 input: name,
                 states: input::lock(&shared).stats.states,
                 need,
+                why: input::lock(&shared).stats.why_unused(),
             }),
         };
     }
