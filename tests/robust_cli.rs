@@ -359,3 +359,81 @@ fn a_huge_start_is_named_in_short_numbers() {
     assert!(err.len() < 400, "{err}");
     assert!(!out.exists());
 }
+
+/// Two outputs on one file (issue 38: `generate -o X --truth X` interleaved both streams in X,
+/// `run --file X --record-input X` lost the input record), both on stdout, or an output on
+/// the file the live input reads: refused naming both flags before anything is written — no
+/// file is created, the input is left as it was.
+#[test]
+fn two_outputs_on_one_file_are_refused_before_anything_is_written() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join("sub")).unwrap();
+    let input = "t,lat,lon,h,vn,ve,vd,roll,pitch,yaw\n";
+    std::fs::write(d.join("in.csv"), input).unwrap();
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &[
+                "generate",
+                "--duration",
+                "1",
+                "-o",
+                "x.csv",
+                "--truth",
+                "x.csv",
+            ],
+            "--truth: writes to x.csv, as --output does",
+        ),
+        // The same file under another name.
+        (
+            &[
+                "generate",
+                "--duration",
+                "1",
+                "-o",
+                "x.csv",
+                "--truth",
+                "sub/../x.csv",
+            ],
+            "--truth: writes to sub/../x.csv, as --output does",
+        ),
+        (
+            &["generate", "--duration", "1", "--truth", "-"],
+            "--truth: writes to stdout, as --output does",
+        ),
+        (
+            &[
+                "run",
+                "--motion",
+                "in.csv",
+                "--time-mode",
+                "lockstep",
+                "--file",
+                "x.csv",
+                "--record-input",
+                "./x.csv",
+            ],
+            "--record-input: writes to ./x.csv, as --file x.csv does",
+        ),
+        (
+            &[
+                "run",
+                "--motion",
+                "in.csv",
+                "--time-mode",
+                "lockstep",
+                "--file",
+                "./in.csv",
+            ],
+            "--file ./in.csv: writes to in.csv, the file --motion reads",
+        ),
+    ];
+    for (args, want) in cases {
+        let o = imu_emu().current_dir(d).args(args).output().unwrap();
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(!d.join("x.csv").exists(), "{args:?}: x.csv written");
+        assert_eq!(std::fs::read_to_string(d.join("in.csv")).unwrap(), input);
+    }
+}

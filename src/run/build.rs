@@ -17,7 +17,7 @@ use super::clock::{Clock, decide_clock};
 use super::error::{RunError, refuse};
 use super::routing::{Layout, Units, unrouted_aiding};
 use super::sinks::Links;
-use super::spec::{LiveSpec, RunSpec, TimeBase};
+use super::spec::{LiveSpec, Route, RunSpec, TimeBase};
 use super::sync::{Sync, check_sync};
 
 /// Default longest extrapolation past the newest live state (s).
@@ -179,6 +179,7 @@ impl RunSpec {
             file_keys: _,
         } = self;
         let time_base = clock.time_base.unwrap_or_default();
+        one_writer_per_file(&routes, input.as_ref())?;
         let live = input.as_ref().map(|i| live_plan(i, &signal)).transpose()?;
         let mode = decide_clock(&clock, input.as_ref(), &routes)?;
         if time_base != TimeBase::Sim && signal.gps_time_given() {
@@ -516,4 +517,68 @@ fn triggered_filters(sig: &Signal) -> Option<String> {
             names.join(", ")
         )
     })
+}
+
+/// Where a file output writes, to tell two names of one file apart: its folder resolved
+/// (symbolic links, `..`) when it exists, else the path made absolute; `-` is stdout.
+fn file_key(path: &str) -> PathBuf {
+    if path == "-" {
+        return PathBuf::from("-");
+    }
+    let p = std::path::Path::new(path);
+    let abs = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    match (abs.parent(), abs.file_name()) {
+        (Some(dir), Some(name)) => dir
+            .canonicalize()
+            .map_or_else(|_| abs.clone(), |d| d.join(name)),
+        _ => abs,
+    }
+}
+
+/// Refuses two outputs on one file (or both on stdout), or an output on the file the live
+/// input reads, before anything is opened: their bytes would interleave, or one would replace
+/// the other (issue 38: `generate -o X --truth X`, `run --file X --record-input X`).
+fn one_writer_per_file(routes: &[Route], input: Option<&LiveSpec>) -> Result<(), RunError> {
+    let record = (input.and_then(|i| i.record.as_ref())).map(|p| {
+        (
+            p.to_string_lossy().into_owned(),
+            "--record-input".to_string(),
+        )
+    });
+    let files = (routes.iter())
+        .filter_map(|r| match &r.sink {
+            SinkAddr::File(p) => Some((p.clone(), r.origin.clone())),
+            _ => None,
+        })
+        .chain(record);
+    let mut seen: Vec<(PathBuf, String)> = Vec::new();
+    for (path, origin) in files {
+        let key = file_key(&path);
+        if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
+            let what = if path == "-" {
+                "stdout".to_string()
+            } else {
+                path
+            };
+            return Err(refuse(
+                &origin,
+                format!("writes to {what}, as {first} does: give each output a file of its own"),
+            ));
+        }
+        seen.push((key, origin));
+    }
+    let read = input
+        .filter(|i| !i.source.contains("://") && i.source != "-")
+        .map(|i| (file_key(&i.source), &i.source));
+    if let Some((key, source)) = read
+        && let Some((_, origin)) = seen.iter().find(|(k, _)| *k == key)
+    {
+        return Err(refuse(
+            origin,
+            format!(
+                "writes to {source}, the file --motion reads: give the output a file of its own"
+            ),
+        ));
+    }
+    Ok(())
 }
