@@ -437,3 +437,50 @@ fn two_outputs_on_one_file_are_refused_before_anything_is_written() {
         assert_eq!(std::fs::read_to_string(d.join("in.csv")).unwrap(), input);
     }
 }
+
+/// A Welch segment that costs more than the analysis can use, or that is not a power of two
+/// (issue 38: `analyze --segment 268435456` on a 6 000-sample file asked for 20 GB and met
+/// the kernel's OOM killer; 1000 was rounded down to 512 without a word): refused before
+/// the file is read, naming the limit; 2^20 itself is taken.
+#[test]
+fn a_segment_beyond_its_limit_is_refused() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let rec = dir.path().join("static.csv");
+    let o = imu_emu()
+        .args(["generate", "--scene", "static", "--duration", "6", "-o"])
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (segment, ok) in [
+        ("268435456", false),
+        ("1000", false),
+        ("4", false),
+        ("1048576", true),
+    ] {
+        for command in ["analyze", "fit"] {
+            let o = imu_emu()
+                .args([command, "--segment", segment])
+                .arg(&rec)
+                .args(if command == "fit" {
+                    &["-o", "/dev/null"][..]
+                } else {
+                    &[][..]
+                })
+                .output()
+                .unwrap();
+            let err = stderr(&o);
+            if ok {
+                assert!(!err.contains("--segment"), "{command} {segment}: {err}");
+            } else {
+                assert_eq!(o.status.code(), Some(1), "{command} {segment}: {err}");
+                assert!(
+                    err.contains(&format!(
+                        "--segment: {segment} samples; expected a power of two from 8 to 1048576"
+                    )),
+                    "{command} {segment}: {err}"
+                );
+            }
+        }
+    }
+}

@@ -67,6 +67,7 @@ fn analysis(
     {
         return Err(format!("rate: expected a positive number of Hz, got {r}"));
     }
+    imu_emu::analysis::analyzer::check_segment(segment)?;
     let rows = match input {
         Input::Rows(rows) => rows,
         Input::File(p, format) => {

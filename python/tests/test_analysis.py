@@ -1,6 +1,7 @@
 """`analyze` and `fit` against `imu-emu analyze --csv` and `imu-emu fit`."""
 
 import numpy as np
+import pytest
 
 import imu_emu
 
@@ -89,3 +90,12 @@ def test_a_knock_in_records_is_left_out_as_from_a_file(cli, tmp_path):
     kept = imu_emu.analyze(rows, keep_transients=True)
     assert kept["transients"]["handling"] == "kept" and kept["transients"]["left_out"] == 0
     assert kept["channels"][5]["adev"]["adev"][0] > clean["hi"][0]
+
+
+def test_a_segment_beyond_its_limit_raises():
+    """Issue 38: `analyze(a, segment=2**40)` aborted the interpreter; now it raises, naming
+    the limit, for records in memory and for a file alike."""
+    sim = imu_emu.simulate("static", rate=100.0, duration=2.0)
+    for segment in (2**40, 1000):
+        with pytest.raises(imu_emu.ImuEmuError, match="expected a power of two from 8 to 1048576"):
+            imu_emu.analyze(sim, segment=segment)

@@ -20,6 +20,24 @@ pub const CHANNELS: [&str; 6] = [
 /// Default Welch segment length (samples).
 pub const DEFAULT_SEGMENT: usize = 1 << 14;
 
+/// Longest Welch segment (samples): 2²⁰, 17 min at 1 kHz, a frequency resolution of 1 mHz,
+/// below which the Allan deviation is the better estimator. Each channel holds a segment's
+/// samples, window and FFT scratch (40 bytes a sample): 2²⁰ is 250 MB over six channels,
+/// where 2²⁸ once asked for 60 GB before reading a byte.
+pub const MAX_SEGMENT: usize = 1 << 20;
+
+/// Refuses a Welch segment length that is not a power of two in 8..=[`MAX_SEGMENT`], naming
+/// the limit.
+pub fn check_segment(segment: usize) -> Result<(), String> {
+    if segment.is_power_of_two() && (8..=MAX_SEGMENT).contains(&segment) {
+        Ok(())
+    } else {
+        Err(format!(
+            "segment: {segment} samples; expected a power of two from 8 to {MAX_SEGMENT} (2^20)"
+        ))
+    }
+}
+
 /// Streaming analysis of six channels.
 pub struct Analyzer {
     stats: [Stats; 6],

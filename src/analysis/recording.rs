@@ -164,6 +164,7 @@ impl Recording {
     /// Reads the recording (or ADEV table) through an analyzer with Welch segments of
     /// `segment` samples.
     pub fn read(&self, segment: usize) -> Result<Read, RecordingError> {
+        super::analyzer::check_segment(segment).map_err(RecordingError::Refused)?;
         let refuse = |m: String| Err(RecordingError::Refused(m));
         if let Some(r) = self.rate
             && !(r > 0.0 && r.is_finite())

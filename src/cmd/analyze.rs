@@ -24,7 +24,7 @@ pub struct AnalyzeArgs {
     /// Write the ADEV / PSD curves here as CSV
     #[arg(long)]
     pub csv: Option<PathBuf>,
-    /// Welch segment length in samples (a power of two)
+    /// Welch segment length in samples: a power of two from 8 to 1048576 (2^20)
     #[arg(long, default_value_t = DEFAULT_SEGMENT)]
     pub segment: usize,
     /// A second recording or ADEV table to compare with: overlaid on the plot, terms compared (repeatable)

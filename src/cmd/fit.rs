@@ -36,7 +36,7 @@ pub struct FitArgs {
     /// Seed of the closure simulation
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Welch segment length in samples (a power of two)
+    /// Welch segment length in samples: a power of two from 8 to 1048576 (2^20)
     #[arg(long, default_value_t = DEFAULT_SEGMENT)]
     pub segment: usize,
 }

@@ -61,6 +61,7 @@ impl InputArgs {
 
 /// Reads `r` with Welch segments of `segment` samples; a warning names `command`.
 pub fn analyze(r: &Recording, segment: usize, command: &str) -> Result<(Analysis, ReadSummary)> {
+    imu_emu::analysis::analyzer::check_segment(segment).map_err(|e| anyhow::anyhow!("--{e}"))?;
     let read = r.read(segment)?;
     if let Some(w) = read.warning {
         eprintln!("imu-emu {command}: warning: {w}");
