@@ -503,12 +503,16 @@ pub(super) fn realtime(run: Run, wall: Wall, ctl: &Control) -> Result<RunReport,
         keep_record(&record)?;
         return match e {
             Some(e) => Err(e),
-            None => Err(RunError::TooFewStates {
-                input: name,
-                states: input::lock(&shared).stats.states,
-                need,
-                why: input::lock(&shared).stats.why_unused(),
-            }),
+            None => {
+                // One lock: a second in the same expression would wait for the first.
+                let stats = input::lock(&shared).stats.clone();
+                Err(RunError::TooFewStates {
+                    input: name,
+                    states: stats.states,
+                    need,
+                    why: stats.why_unused(),
+                })
+            }
         };
     }
     let mut st = LiveStatus::default();
