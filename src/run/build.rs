@@ -554,7 +554,8 @@ fn one_writer_per_file(routes: &[Route], input: Option<&LiveSpec>) -> Result<(),
     let mut seen: Vec<(PathBuf, String)> = Vec::new();
     for (path, origin) in files {
         let key = file_key(&path);
-        if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
+        // The same setting twice (two rig units of one name) is the rig's error, told there.
+        if let Some((_, first)) = seen.iter().find(|(k, o)| *k == key && *o != origin) {
             let what = if path == "-" {
                 "stdout".to_string()
             } else {
