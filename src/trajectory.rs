@@ -11,7 +11,7 @@ use std::sync::Arc;
 use crate::csvio::{CsvLines, FileError, clip, num, parse_finite};
 use crate::math::{Vec3, quat_from_euler};
 use crate::motion::limits::{check_sample, check_step};
-use crate::motion::sampled::{ModelSettings, Sample, SampledMotion};
+use crate::motion::sampled::{ModelError, ModelSettings, Sample, SampledMotion};
 use crate::motion::stream::{IndexBuilder, Mark, SampleSource};
 
 /// The required columns, in the order they are stored in a [`Sample`].
@@ -207,13 +207,27 @@ pub fn open_motion(path: &Path, settings: ModelSettings) -> Result<SampledMotion
         path,
     ))?;
     let mut index = IndexBuilder::new(settings);
+    let t_col = 1 + reader
+        .order
+        .iter()
+        .position(|&k| COLUMNS[k] == "t")
+        .unwrap_or(0);
     while let Some(s) = reader.next_sample()? {
         let l = reader.lines();
         let mark = Mark(l.line_offset(), l.line_no() - 1);
-        // The reader has checked everything the index checks, with line and column.
-        index.push(&s, mark).map_err(|e| l.error(e.to_string()))?;
+        // The reader has checked everything the index checks, with line and column; what it
+        // finds later (samples alone between gaps) it names by their marks.
+        index
+            .push(&s, mark)
+            .map_err(|e| index_error(path, &index, t_col, e, || l.error("")))?;
     }
     let got = index.len();
+    if got >= settings.min_samples() {
+        let last = reader.lines().error("");
+        index
+            .finish_gaps()
+            .map_err(|e| index_error(path, &index, t_col, e, || last))?;
+    }
     let index = index.finish().map_err(|_| {
         let need = settings.min_samples();
         FileError::file(
@@ -232,6 +246,27 @@ pub fn open_motion(path: &Path, settings: ModelSettings) -> Result<SampledMotion
         index,
         settings,
     ))
+}
+
+/// A first-pass error as a file error: samples alone between gaps at their first line, in
+/// the `t` column (the file's column `t_col`); anything else at the line `here` names.
+fn index_error(
+    path: &Path,
+    index: &IndexBuilder,
+    t_col: usize,
+    e: ModelError,
+    here: impl FnOnce() -> FileError,
+) -> FileError {
+    match &e {
+        ModelError::Isolated(i) => match index.mark(i.first) {
+            Some(m) => FileError::line(path, m.1 + 1, e.to_string()).in_column(t_col, "t"),
+            None => FileError::file(path, e.to_string()),
+        },
+        _ => FileError {
+            message: e.to_string(),
+            ..here()
+        },
+    }
 }
 
 /// An unnamed temporary file (created and at once unlinked) for a copy of stdin.

@@ -277,6 +277,25 @@ fn trajectory_latitude_out_of_range() {
     reject_trajectory(&text, &[]).at(4, &["column 2 (`lat`)", problem]);
 }
 
+// A sample alone after a gap (a step more than 100 times those beside it) is refused at its
+// line: its finite differences would extrapolate from samples a hundred steps of theirs away
+// (1e4 m/s² off across 10 s). With a stencil's samples past the gap, the gap is bridged.
+#[test]
+fn trajectory_sample_alone_beyond_a_gap() {
+    let alone = format!("{TRAJ_HEADER}\n{}{}", rest_rows(20), rest_row(1000.0));
+    let problem = "the sample at t = 1e3 s lies between a gap of 988.1 s and the end";
+    reject_trajectory(&alone, &[]).at(22, &["column 1 (`t`)", problem, "9 samples on each side"]);
+    let dir = TempDir::new().unwrap();
+    let csv = dir.path().join("traj.csv");
+    let far: String = (0..9).map(|i| rest_row(1000.0 + i as f64 / 10.0)).collect();
+    write(&csv, &format!("{TRAJ_HEADER}\n{}{far}", rest_rows(20)));
+    let o = run!(
+        "generate --rate 10 --format bin -o /dev/null --trajectory",
+        csv
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 // Fewer samples than the motion model needs (its stencil) is refused, saying how many there
 // are and how many are needed; a smaller --stencil accepts the same file.
 #[test]

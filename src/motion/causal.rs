@@ -19,6 +19,7 @@ use std::sync::{Arc, Mutex};
 
 use super::chain::{Chain, ChainSettings, Corrections, Tail};
 use super::fd::fornberg;
+use super::knot::GAP_FACTOR;
 use super::limits::{Violation, check_given, check_sample, check_step};
 use super::sampled::{Conv, Degree, Knot, ModelSettings, Sample, convert, hermite, knot_at};
 use super::{Motion, Pose};
@@ -316,14 +317,6 @@ impl CausalMotion {
         self.lock().recent.back().map(|e| e.sample)
     }
 }
-
-/// Largest step, as a multiple of the longest step between the states of the stencil before it,
-/// that [`CausalMotion::refuse_gaps`] lets the model bridge: states lost in a row on a lossy
-/// link (a hundred) pass; a tag off the time line — a clock in µs read as s, a stray GPS
-/// time among simulation seconds — lands orders of magnitude further. The knot past a
-/// long step takes its derivatives from a stencil a hundred times wider on one side, whose
-/// error grows with its width: the bridge is an interpolation, not the motion.
-pub const GAP_FACTOR: f64 = 100.0;
 
 /// Largest step after the first state (s), before any step tells the input's spacing: an hour.
 /// A run computes every record over the step, which must stay a bounded amount of work.

@@ -7,8 +7,18 @@
 use std::ops::Range;
 
 use super::fd::fornberg;
+use crate::csvio::{num, num_sig};
 use crate::earth::Geodetic;
 use crate::math::{Quat, QuatExt, Vec3};
+
+/// Longest step a model bridges, as a multiple of the steps beside it: states lost in a row
+/// on a lossy link (a hundred) pass; a tag off the time line — a clock in µs read as s, a
+/// stray GPS time among simulation seconds — lands orders of magnitude further. A live model
+/// (`CausalMotion::refuse_gaps`) refuses a longer step after the stencil before it; a
+/// trajectory file's model (`stream::IndexBuilder`) splits the samples there and bridges the
+/// gap with one Hermite piece between its two sides. Either way the bridge is an
+/// interpolation, not the motion.
+pub const GAP_FACTOR: f64 = 100.0;
 
 /// One trajectory sample, in SI units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -176,6 +186,53 @@ pub(super) fn knot_at(c: &Conv, a: Vec3, j: Vec3, omega: Vec3, omega_dot: Vec3) 
     }
 }
 
+/// Samples between two gaps (or a gap and an end) too few to fill a finite-difference
+/// stencil, so the model cannot bridge the gap (see [`super::stream::IndexBuilder`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Isolated {
+    /// Zero-based index of the first of them.
+    pub first: usize,
+    /// Zero-based index of the last of them.
+    pub last: usize,
+    /// Time of the first (s).
+    pub t_first: f64,
+    /// Time of the last (s).
+    pub t_last: f64,
+    /// The gap before them (s), if they do not start the series.
+    pub before: Option<f64>,
+    /// The gap after them (s), if they do not end the series.
+    pub after: Option<f64>,
+    /// Samples a stencil needs.
+    pub need: usize,
+}
+
+/// Without the place: the caller names it.
+impl std::fmt::Display for Isolated {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let count = self.last + 1 - self.first;
+        let (t0, t1) = (num(self.t_first), num(self.t_last));
+        let which = if count == 1 {
+            format!("the sample at t = {t0} s lies")
+        } else {
+            format!("the {count} samples at t = {t0} … {t1} s lie")
+        };
+        let side = |gap: Option<f64>, end: &str| match gap {
+            Some(g) => format!("a gap of {} s", num_sig(g, 4)),
+            None => end.to_string(),
+        };
+        write!(
+            f,
+            "{which} between {} and {} (a gap is a step more than {} times the steps beside \
+             it); the motion model needs {} samples on each side of a gap to bridge it: fill the \
+             gap or cut the file there",
+            side(self.before, "the start"),
+            side(self.after, "the end"),
+            num(GAP_FACTOR),
+            self.need,
+        )
+    }
+}
+
 /// Why a motion model could not be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ModelError {
@@ -193,6 +250,9 @@ pub enum ModelError {
         /// Zero-based sample index.
         index: usize,
     },
+    /// Samples alone between gaps.
+    #[error("{0}")]
+    Isolated(Isolated),
     /// A value beyond the physical limits of [`super::limits`].
     #[error("sample {index}: `{column}`: {message}")]
     Limit {

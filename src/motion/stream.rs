@@ -11,10 +11,14 @@
 //! stencil's samples and the chained hemisphere, so the knots — and the output — are
 //! bit-identical to a model holding every knot.
 
+use std::collections::VecDeque;
+use std::ops::Range;
 use std::sync::Arc;
 
 use super::fd::stencil;
-use super::knot::{Conv, Knot, ModelError, ModelSettings, Sample, convert, make_knot};
+use super::knot::{
+    Conv, GAP_FACTOR, Isolated, Knot, ModelError, ModelSettings, Sample, convert, make_knot,
+};
 use super::limits::{check_sample, check_step};
 use crate::math::Quat;
 
@@ -73,13 +77,17 @@ struct Checkpoint {
     prev_q: Option<Quat>,
 }
 
-/// What the first pass learnt about the samples: their number, time span and checkpoints.
+/// What the first pass learnt about the samples: their number, time span, gaps and
+/// checkpoints.
 #[derive(Clone, Debug)]
 pub struct Index {
     len: usize,
     stencil: usize,
     first: f64,
     last: f64,
+    /// The first sample after each gap, in order: the stencils of a knot never reach across
+    /// one (see [`IndexBuilder`]).
+    gaps: Vec<usize>,
     checkpoints: Vec<Checkpoint>,
 }
 
@@ -100,13 +108,52 @@ impl Index {
     pub fn last_time(&self) -> f64 {
         self.last
     }
+
+    /// The samples between the gaps around sample `i`.
+    fn segment(&self, i: usize) -> Range<usize> {
+        let g = self.gaps.partition_point(|&s| s <= i);
+        let lo = if g == 0 { 0 } else { self.gaps[g - 1] };
+        lo..self.gaps.get(g).copied().unwrap_or(self.len)
+    }
+
+    /// The stencil of knot `i`: the nearest samples on its side of any gap.
+    fn stencil_of(&self, i: usize) -> Range<usize> {
+        let seg = self.segment(i);
+        let st = stencil(i - seg.start, self.stencil, seg.len());
+        st.start + seg.start..st.end + seg.start
+    }
+
+    /// The first knot whose stencil starts at or after sample `s` (within a stencil of `s`:
+    /// stencil starts never decrease with the knot, and the knot `s + n/2` or its segment's
+    /// end has one at `s` or past it).
+    fn first_knot_from(&self, s: usize) -> usize {
+        (s..self.len)
+            .find(|&i| self.stencil_of(i).start >= s)
+            .unwrap_or(self.len)
+    }
 }
 
-/// The first pass: checks each sample against the previous one and the limits, and builds
-/// the [`Index`].
+/// The first pass: checks each sample against the previous one and the limits, finds the
+/// gaps, and builds the [`Index`].
+///
+/// A gap is a step longer than [`GAP_FACTOR`] times every step within a stencil before it
+/// (since the last gap), or every step within a stencil after it. A knot's finite differences
+/// never reach across a gap: the samples on each side are modelled as if the series ended
+/// there, and the gap is one Hermite piece between the two sides' end knots. A stencil that
+/// did reach across would extrapolate (a lone sample after a dense run takes its derivatives
+/// from samples a hundred steps of theirs away: 1e4 m/s² off across a 10 s gap). So the
+/// samples between two gaps, or between a gap and an end, must fill a stencil; fewer are
+/// refused as [`ModelError::Isolated`].
 pub struct IndexBuilder {
     settings: ModelSettings,
     prev: Option<(Sample, Quat)>,
+    /// The latest samples' times and marks (a stencil before the oldest undecided step, and
+    /// the steps after it), from sample `recent_base` on.
+    recent: VecDeque<(f64, Mark)>,
+    recent_base: usize,
+    /// The first sample of the current segment, and the first step not yet judged a gap.
+    segment_start: usize,
+    undecided: usize,
     index: Index,
 }
 
@@ -116,14 +163,83 @@ impl IndexBuilder {
         IndexBuilder {
             settings,
             prev: None,
+            recent: VecDeque::new(),
+            recent_base: 0,
+            segment_start: 0,
+            undecided: 0,
             index: Index {
                 len: 0,
                 stencil: settings.stencil,
                 first: f64::NAN,
                 last: f64::NAN,
+                gaps: Vec::new(),
                 checkpoints: Vec::new(),
             },
         }
+    }
+
+    /// Where sample `i` starts in its source, while the builder still holds it (the samples of
+    /// an [`ModelError::Isolated`] it returned are held).
+    pub fn mark(&self, i: usize) -> Option<Mark> {
+        let k = i.checked_sub(self.recent_base)?;
+        self.recent.get(k).map(|r| r.1)
+    }
+
+    /// Time of a held sample.
+    fn time(&self, i: usize) -> f64 {
+        self.recent[i - self.recent_base].0
+    }
+
+    /// Judges the steps that have a stencil's steps after them (all of them at the end):
+    /// starts a segment at each gap, refusing the one it ends if too short.
+    fn judge_steps(&mut self, at_end: bool) -> Result<(), ModelError> {
+        let n = self.settings.stencil.max(2);
+        let len = self.index.len;
+        // Step k is from sample k to k + 1.
+        while self.undecided + 1 < len && (at_end || self.undecided + n < len) {
+            let k = self.undecided;
+            let step = |i: usize| self.time(i + 1) - self.time(i);
+            let longest = |r: Range<usize>| r.map(step).reduce(f64::max);
+            let before = longest(self.segment_start.max(k.saturating_sub(n - 1))..k);
+            let after = longest(k + 1..(k + n).min(len - 1));
+            let s = step(k);
+            if [before, after]
+                .into_iter()
+                .flatten()
+                .any(|l| s > GAP_FACTOR * l)
+            {
+                self.end_segment(k)?;
+                self.segment_start = k + 1;
+                self.index.gaps.push(k + 1);
+            }
+            self.undecided += 1;
+        }
+        // What judging the next step needs: a stencil's steps before it, and the start of a
+        // segment that may still turn out too short (it then lies within a stencil).
+        let keep = self.undecided.saturating_sub(n);
+        while self.recent_base < keep {
+            self.recent.pop_front();
+            self.recent_base += 1;
+        }
+        Ok(())
+    }
+
+    /// Ends the current segment at sample `last`: refused when a stencil does not fit in it.
+    fn end_segment(&self, last: usize) -> Result<(), ModelError> {
+        let (first, need) = (self.segment_start, self.settings.min_samples());
+        if last + 1 - first >= need {
+            return Ok(());
+        }
+        let step = |i: usize| self.time(i + 1) - self.time(i);
+        Err(ModelError::Isolated(Isolated {
+            first,
+            last,
+            t_first: self.time(first),
+            t_last: self.time(last),
+            before: (first > 0).then(|| step(first - 1)),
+            after: (last + 1 < self.index.len).then(|| step(last)),
+            need,
+        }))
     }
 
     /// Adds the next sample; `mark` is where the source can resume reading it.
@@ -160,7 +276,8 @@ impl IndexBuilder {
         }
         self.index.last = s.t;
         self.index.len += 1;
-        Ok(())
+        self.recent.push_back((s.t, mark));
+        self.judge_steps(false)
     }
 
     /// Samples pushed so far.
@@ -173,8 +290,9 @@ impl IndexBuilder {
         self.index.len == 0
     }
 
-    /// The index, if there are enough samples for the model.
-    pub fn finish(self) -> Result<Index, ModelError> {
+    /// The index, if there are enough samples for the model and each side of every gap fills
+    /// a stencil.
+    pub fn finish(mut self) -> Result<Index, ModelError> {
         let need = self.settings.min_samples();
         if self.index.len < need {
             return Err(ModelError::TooFewSamples {
@@ -182,7 +300,15 @@ impl IndexBuilder {
                 need,
             });
         }
+        self.finish_gaps()?;
         Ok(self.index)
+    }
+
+    /// Judges the last steps and the last segment; after it [`IndexBuilder::mark`] still names
+    /// the samples of an [`ModelError::Isolated`] it returns.
+    pub fn finish_gaps(&mut self) -> Result<(), ModelError> {
+        self.judge_steps(true)?;
+        self.end_segment(self.index.len - 1)
     }
 }
 
@@ -288,7 +414,7 @@ impl Window {
             return;
         }
         if lo < self.knot_base {
-            let st = stencil(lo, self.index.stencil, self.index.len).start;
+            let st = self.index.stencil_of(lo).start;
             let c = self.index.checkpoints.partition_point(|c| c.sample <= st);
             self.restart_at(c.saturating_sub(1));
         }
@@ -316,11 +442,9 @@ impl Window {
         self.conv_base = cp.sample;
         self.next_sample = cp.sample;
         self.prev_q = cp.prev_q;
-        // The first knot whose stencil starts at the checkpoint: stencil(i).start =
-        // min(i − n/2, len − n) = cp.sample for i = cp.sample + n/2, since checkpoints used
-        // are at or before the stencil start of a knot (≤ len − n).
-        let n = self.index.stencil.min(self.index.len);
-        self.knot_base = if cp.sample == 0 { 0 } else { cp.sample + n / 2 };
+        // Checkpoints used are at or before the stencil start of the knot sought, so the
+        // first knot computable from the checkpoint's samples comes at or before it.
+        self.knot_base = self.index.first_knot_from(cp.sample);
         if let Err(e) = self.source.rewind(cp.mark) {
             self.failed.get_or_insert(e);
         }
@@ -329,7 +453,7 @@ impl Window {
     /// Computes the next knot, reading the samples its stencil needs.
     fn push_knot(&mut self) {
         let i = self.knot_base + self.knots.len();
-        let st = stencil(i, self.index.stencil, self.index.len);
+        let st = self.index.stencil_of(i);
         while self.conv_base + self.conv.len() < st.end {
             self.read_sample();
         }
@@ -464,6 +588,105 @@ mod tests {
         let p = m.piece_at(s[2500].t, p);
         assert!(m.sense(p, s[2500].t).f_b.x.is_nan());
         assert_eq!(m.failure().unwrap(), "ended after 2000 samples");
+    }
+
+    /// A level turn at 50 m/s and 0.1 rad/s, heading along the track, sampled at `times`.
+    fn turn(times: impl Iterator<Item = f64>) -> Vec<Sample> {
+        let (w, v, r) = (0.1, 50.0, 6.4e6);
+        times
+            .map(|t: f64| Sample {
+                t,
+                lat: 0.7 + v / w * (w * t).sin() / r,
+                lon: 0.1 + v / w * (1.0 - (w * t).cos()) / (r * 0.7f64.cos()),
+                h: 100.0,
+                v_n: Vec3::new(v * (w * t).cos(), v * (w * t).sin(), 0.0),
+                q_b_n: quat_from_euler(0.0, 0.0, w * t),
+            })
+            .collect()
+    }
+
+    /// 100 Hz samples of [`turn`] over `[a, b]`.
+    fn dense(a: f64, b: f64) -> Vec<Sample> {
+        let n = ((b - a) * 100.0).round() as usize;
+        turn((0..=n).map(|i| a + i as f64 * 0.01))
+    }
+
+    /// Samples alone beyond a gap (after a dense run, before one, between two gaps) are
+    /// refused naming them and both sides; the same samples with the gap filled are a model.
+    #[test]
+    fn samples_alone_beyond_a_gap_are_refused() {
+        let settings = ModelSettings::default();
+        let refused = |s: &[Sample]| match SampledMotion::new(s, settings) {
+            Err(ModelError::Isolated(i)) => i,
+            other => panic!("{other:?}"),
+        };
+        let mut end = dense(0.0, 5.0);
+        end.extend(turn([15.0].into_iter()));
+        let e = refused(&end);
+        assert_eq!((e.first, e.last, e.after, e.need), (501, 501, None, 9));
+        assert!((e.before.unwrap() - 10.0).abs() < 1e-9, "{e:?}");
+        let mut start = turn([-10.0].into_iter());
+        start.extend(dense(0.0, 5.0));
+        let e = refused(&start);
+        assert_eq!((e.first, e.last, e.before), (0, 0, None));
+        assert!(
+            e.to_string()
+                .contains("between the start and a gap of 10 s"),
+            "{e}"
+        );
+        let mut middle = dense(0.0, 5.0);
+        middle.extend(turn([10.0, 10.01, 10.02].into_iter()));
+        middle.extend(dense(15.0, 20.0));
+        let e = refused(&middle);
+        assert_eq!((e.first, e.last), (501, 503));
+        assert!(e.before.is_some() && e.after.is_some(), "{e:?}");
+        // Eight samples past the gap are one short of a stencil; nine are enough.
+        let mut eight = dense(0.0, 5.0);
+        eight.extend(dense(15.0, 15.07));
+        assert_eq!((refused(&eight).first, refused(&eight).last), (501, 508));
+        let mut nine = dense(0.0, 5.0);
+        nine.extend(dense(15.0, 15.08));
+        SampledMotion::new(&nine, settings).unwrap();
+        // A step a hundred times the others is no gap: states lost in a row.
+        let mut lossy = dense(0.0, 5.0);
+        lossy.extend(turn([6.0].into_iter()));
+        SampledMotion::new(&lossy, settings).unwrap();
+    }
+
+    /// The samples on each side of a gap are modelled as if the series ended there (to the bit:
+    /// no knot's stencil reaches across), and the gap is one quintic Hermite piece whose
+    /// velocity error is within the interpolation bound max|v⁽⁶⁾|·(H/2)⁶/6! (three conditions
+    /// at each end: the error is v⁽⁶⁾(ξ)/6!·(t−a)³(t−b)³, largest mid-gap).
+    #[test]
+    fn a_gap_is_one_hermite_piece_between_sides_modelled_alone() {
+        let settings = ModelSettings::default();
+        let (a, b) = (dense(0.0, 5.0), dense(15.0, 20.0));
+        let both: Vec<Sample> = a.iter().chain(&b).copied().collect();
+        let gapped = SampledMotion::new(&both, settings).unwrap();
+        let left = SampledMotion::new(&a, settings).unwrap();
+        let right = SampledMotion::new(&b, settings).unwrap();
+        for (side, t) in [
+            (&left, 4.995),
+            (&left, 4.9),
+            (&right, 15.005),
+            (&right, 15.1),
+        ] {
+            let (p, q) = (gapped.piece_at(t, 0), side.piece_at(t, 0));
+            assert_eq!(gapped.sense(p, t), side.sense(q, t), "t = {t}");
+        }
+        // Against the same motion without the gap (its own error ~1e-12 m/s).
+        let truth = SampledMotion::new(&dense(0.0, 20.0), settings).unwrap();
+        let (w, v, gap) = (0.1f64, 50.0, 10.0f64);
+        let bound = v * w.powi(6) * (gap / 2.0).powi(6) / 720.0;
+        let mut worst = 0.0f64;
+        for k in 1..100 {
+            let t = 5.0 + 0.1 * k as f64;
+            worst = worst.max((gapped.pose(t).v_n - truth.pose(t).v_n).norm());
+        }
+        assert!(worst <= bound, "{worst} > {bound}");
+        // The error is the interpolation's own, near its bound (v⁽⁶⁾ of the turn hardly varies
+        // over the gap): 1.069e-3 against 1.085e-3 m/s.
+        assert!(worst > 0.5 * bound, "{worst}");
     }
 
     /// The first pass refuses what the limits refuse, naming the sample.
