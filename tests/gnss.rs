@@ -496,3 +496,44 @@ fn simulation_gnss_follows_its_motion_and_clock() {
     );
     assert_eq!(String::from_utf8(truth).unwrap().lines().count(), 1 + 5);
 }
+
+/// With record time 0 at a fractional GPS second (a run started at 100 000.37 s of the week),
+/// the epochs fall on whole multiples of 1/rate of GPS time, as a receiver reports, not of
+/// record time; the planned count is the number written, and the NMEA time reads .00 or .50.
+#[test]
+fn epochs_fall_on_the_gps_time_grid() {
+    let sim = imu_emu::sim::Simulation::builder()
+        .scene("circle")
+        .duration(3.0)
+        .gps_time(2300, 100_000.37)
+        .gnss(GnssConfig {
+            rate_hz: 2.0,
+            ..GnssConfig::default()
+        })
+        .build()
+        .unwrap();
+    let epochs = sim.gnss_receiver().epochs(sim.motion(), 0.0, 3.0);
+    let t: Vec<f64> = epochs.iter().map(|e| e.t).collect();
+    let expected = [0.13, 0.63, 1.13, 1.63, 2.13, 2.63];
+    assert_eq!(t.len(), expected.len(), "{t:?}");
+    for (t, x) in t.iter().zip(expected) {
+        // Record time from GPS time: 100 000.5 − 100 000.37 rounds in the last bits.
+        assert!((t - x).abs() < 1e-9, "{t} {x}");
+        let gps = 100_000.37 + t;
+        assert!(
+            (gps * 2.0 - (gps * 2.0).round()).abs() < 1e-9,
+            "GPS time {gps}"
+        );
+    }
+    assert_eq!(sim.gnss_epochs(), 6);
+    let mut nmea = Vec::new();
+    let n = sim
+        .write_gnss(&mut [(imu_emu::aiding::GnssFormat::Nmea, &mut nmea)], None)
+        .unwrap();
+    assert_eq!(n, 6);
+    let nmea = String::from_utf8(nmea).unwrap();
+    for line in nmea.lines().filter(|l| l.starts_with("$GPGGA")) {
+        let time = line.split(',').nth(1).unwrap();
+        assert!(time.ends_with(".00") || time.ends_with(".50"), "{line}");
+    }
+}

@@ -356,6 +356,8 @@ pub struct Receiver {
     sigma_pos: Vec3,
     sigma_vel: Vec3,
     next_k: Option<i64>,
+    /// The grid's phase φ: epoch k is at record time (k − φ)/rate.
+    phase: f64,
     hint: usize,
 }
 
@@ -398,6 +400,7 @@ impl Receiver {
             sigma_pos: cfg.sigma_pos(),
             sigma_vel: cfg.sigma_vel(),
             next_k: None,
+            phase: 0.0,
             hint: 0,
             cfg,
         })
@@ -408,11 +411,23 @@ impl Receiver {
         &self.cfg
     }
 
+    /// The receiver with its epochs on whole multiples of 1/rate of GPS time, when record time
+    /// 0 is GPS second of week `seconds_of_week` (without it: of record time).
+    pub fn on_gps_grid(mut self, seconds_of_week: f64) -> Receiver {
+        self.phase = grid_phase(self.cfg.rate_hz, seconds_of_week);
+        self
+    }
+
+    /// Record time of epoch `k`.
+    fn epoch_time(&self, k: i64) -> f64 {
+        (k as f64 - self.phase) / self.cfg.rate_hz
+    }
+
     /// The time of validity of the epoch [`Receiver::next_epoch`] gives next: the first at or
     /// after `t_from` (before the first call), else the one after the previous.
     pub fn next_time(&self, t_from: f64) -> f64 {
-        let rate = self.cfg.rate_hz;
-        self.next_k.unwrap_or_else(|| first_epoch(t_from, rate)) as f64 / rate
+        let k = self.next_k.unwrap_or_else(|| self.first_epoch(t_from));
+        self.epoch_time(k)
     }
 
     /// The next epoch at or after `t_from` (the first call) or after the previous one, if its
@@ -423,10 +438,13 @@ impl Receiver {
         t_from: f64,
         t_to: f64,
     ) -> Option<GnssEpoch> {
-        let rate = self.cfg.rate_hz;
         let first = self.next_k.is_none();
-        let k = *self.next_k.get_or_insert_with(|| first_epoch(t_from, rate));
-        let t = k as f64 / rate;
+        let k = match self.next_k {
+            Some(k) => k,
+            None => self.first_epoch(t_from),
+        };
+        self.next_k = Some(k);
+        let t = self.epoch_time(k);
         if t > t_to {
             return None;
         }
@@ -459,6 +477,17 @@ impl Receiver {
             vdop: self.sigma_pos.z / uere,
             uere,
         })
+    }
+
+    /// Index of the first epoch at or after `t_from`.
+    fn first_epoch(&self, t_from: f64) -> i64 {
+        let k = (t_from * self.cfg.rate_hz + self.phase).ceil() as i64;
+        // The quotient can round below t_from by an ulp.
+        if self.epoch_time(k) < t_from {
+            k + 1
+        } else {
+            k
+        }
     }
 
     /// Every epoch with time of validity in `[t_from, t_to]`, from a fresh receiver.
@@ -509,15 +538,16 @@ pub fn displace(s: AntennaState, dp: Vec3, dv: Vec3) -> AntennaState {
     }
 }
 
-/// Index of the first epoch at `rate` at or after `t_from` (epoch k is at k/rate).
-fn first_epoch(t_from: f64, rate: f64) -> i64 {
-    let k = (t_from * rate).ceil() as i64;
-    // The quotient k/rate can round below t_from by an ulp.
-    if (k as f64) / rate < t_from { k + 1 } else { k }
+/// The phase φ ∈ [0, 1) of the epoch grid at `rate` (Hz) when record time 0 is GPS second
+/// `seconds_of_week`: epoch k at record time (k − φ)/rate is at GPS time
+/// (⌊seconds_of_week·rate⌋ + k)/rate, a whole multiple of 1/rate, as a receiver reports.
+pub fn grid_phase(rate: f64, seconds_of_week: f64) -> f64 {
+    let x = (seconds_of_week * rate).fract();
+    if x.is_finite() && x >= 0.0 { x } else { 0.0 }
 }
 
-/// How many epochs at `rate` (Hz) fall in `[t0, t1]` (outages included: they are sent
-/// without a fix).
-pub fn epoch_count(rate: f64, (t0, t1): (f64, f64)) -> u64 {
-    ((t1 * rate).floor() - (t0 * rate).ceil() + 1.0).max(0.0) as u64
+/// How many epochs at `rate` (Hz) on a grid of phase `phase` ([`grid_phase`]) fall in
+/// `[t0, t1]` (outages included: they are sent without a fix).
+pub fn epoch_count(rate: f64, phase: f64, (t0, t1): (f64, f64)) -> u64 {
+    ((t1 * rate + phase).floor() - (t0 * rate + phase).ceil() + 1.0).max(0.0) as u64
 }

@@ -3,7 +3,6 @@
 //! frame sources that make those streams, built from a [`Simulation`] or a [`Rig`].
 
 use crate::aiding::GnssFormat;
-use crate::aiding::gnss::epoch_count;
 use crate::aiding::sensors::SensorKind;
 use crate::engine::frames::WindowSource;
 use crate::output::SinkAddr;
@@ -319,7 +318,7 @@ impl Layout {
         let gnss_rate = aid
             .gnss
             .map_or(crate::aiding::GnssConfig::default().rate_hz, |g| g.rate_hz);
-        let epochs = epoch_count(gnss_rate, aid.span);
+        let epochs = aid.gnss_epochs();
         for f in &self.gnss {
             out.push(plan(
                 StreamId::Gnss(*f),

@@ -6,7 +6,7 @@ use std::io::Write;
 
 use super::streams::AidingStreams;
 use super::{SimError, Simulation};
-use crate::aiding::gnss::Receiver;
+use crate::aiding::gnss::{Receiver, epoch_count, grid_phase};
 use crate::aiding::stream::{TRUTH_HEADER, truth_row};
 use crate::aiding::{GnssConfig, GnssEncoder, GnssFormat};
 
@@ -19,7 +19,20 @@ impl AidingStreams<'_> {
             cfg.outages_s.extend(m.gnss_outages());
         }
         // The settings were checked when the simulation was built; the default is valid.
-        Receiver::new(cfg, self.seed).expect("checked GNSS settings")
+        let rx = Receiver::new(cfg, self.seed).expect("checked GNSS settings");
+        match self.gps_time {
+            Some((_, sow)) => rx.on_gps_grid(sow),
+            None => rx,
+        }
+    }
+
+    /// How many GNSS epochs fall in the run (outages included: they are sent without a fix).
+    pub fn gnss_epochs(&self) -> u64 {
+        let rate = self
+            .gnss
+            .map_or(GnssConfig::default().rate_hz, |g| g.rate_hz);
+        let phase = self.gps_time.map_or(0.0, |(_, sow)| grid_phase(rate, sow));
+        epoch_count(rate, phase, self.span)
     }
 
     /// An encoder of `format` on this run's GPS time reference.
@@ -70,7 +83,7 @@ impl Simulation {
 
     /// How many GNSS epochs fall in the run (outages included).
     pub fn gnss_epochs(&self) -> u64 {
-        crate::aiding::gnss::epoch_count(self.gnss_rate_hz(), self.span())
+        self.aiding().gnss_epochs()
     }
 }
 

@@ -33,7 +33,7 @@ impl Rig {
     /// How many GNSS epochs fall in [`Rig::span`] (outages included: they are sent without
     /// a fix).
     pub fn gnss_epochs(&self) -> u64 {
-        crate::aiding::gnss::epoch_count(self.gnss_rate_hz(), self.span())
+        self.aiding().gnss_epochs()
     }
 }
 
