@@ -6,7 +6,11 @@ use std::io::Write;
 
 use clap::{Parser, Subcommand};
 
+use imu_emu::output::failure::ReaderLeft;
 use imu_emu::scenes;
+
+/// Exit status when standard output, the only output, lost its reader: 128 + SIGPIPE.
+const READER_LEFT: i32 = 128 + 13;
 
 /// IMU simulator and emulator: error-free and corrupted inertial signals from a trajectory.
 #[derive(Parser)]
@@ -62,13 +66,11 @@ fn main() {
         Command::Scenes => list_scenes(),
     };
     if let Err(e) = result {
-        // A reader that stopped early (`… -o - | head`) is not an error of ours.
-        let broken_pipe = e.chain().any(|c| {
-            c.downcast_ref::<std::io::Error>()
-                .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
-        });
-        if broken_pipe {
-            std::process::exit(0);
+        // Standard output was the only output and its reader left (`… | head`): nothing is
+        // said, and the status is that of a command killed by SIGPIPE, so that a shell's
+        // `pipefail` still sees an output that was not written whole.
+        if e.chain().any(|c| c.is::<ReaderLeft>()) {
+            std::process::exit(READER_LEFT);
         }
         // A command stopped by a signal has said so; only the exit status is left to give.
         if let Some(i) = e.downcast_ref::<imu_emu::realtime::signal::Interrupted>() {
@@ -82,26 +84,25 @@ fn main() {
 /// `imu-emu scenes`: written, not printed, so that a full disk or a closed pipe is an error
 /// the caller sees rather than a panic.
 fn list_scenes() -> anyhow::Result<()> {
-    let mut out = std::io::stdout().lock();
+    let mut text = String::new();
     for name in scenes::NAMES {
         let default = if name == scenes::DEFAULT {
             " (default)"
         } else {
             ""
         };
-        writeln!(out, "{name}{default}")?;
+        text += &format!("{name}{default}\n");
     }
-    out.flush()?;
-    Ok(())
+    cmd::stdout::write(text.as_bytes(), "the scenes", true)
 }
 
 /// Prints clap's help, version or usage error and exits with its status; a help that could
-/// not be written is an error (exit 1: `--help > /dev/full` is no success), except into a
-/// reader that stopped early (`--help | head`).
+/// not be written is an error (exit 1: `--help > /dev/full` is no success), and into a reader
+/// that stopped early (`--help | head`) ends quietly with 141, as any command's only output.
 fn clap_exit(e: clap::Error) -> ! {
     match e.print().and_then(|()| std::io::stdout().flush()) {
         Ok(()) => std::process::exit(e.exit_code()),
-        Err(io) if io.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(0),
+        Err(io) if io.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(READER_LEFT),
         Err(io) => {
             eprintln!("error: writing the help: {io}");
             std::process::exit(1);

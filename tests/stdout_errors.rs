@@ -1,7 +1,9 @@
 //! Standard output that cannot be written (issue 23 item 5): a full disk (`/dev/full`) is an
 //! error with exit status 1 and a message, never a panic (exit 101) and never success; a
-//! reader that stopped early (`| head -1`) ends the command quietly with status 0, as the
-//! other commands' `-o -` do.
+//! reader that stopped early (`| head -1`) while standard output was the command's only
+//! output ends the command quietly with 141, what a command killed by SIGPIPE gives (issue
+//! 38: it was 0, which `set -o pipefail` took for a whole output). Beside other outputs it
+//! is an error like any other (tests/sink_failures.rs).
 
 use std::fs::File;
 use std::process::{Command, Output, Stdio};
@@ -62,13 +64,54 @@ fn help_to_a_full_disk_is_no_success() {
     assert_eq!(to_full(&["--no-such-flag"]).status.code(), Some(2));
 }
 
+/// Exit 141 and nothing on stderr.
+fn assert_reader_left(o: &Output, what: &str) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(141), "{what}: {err}");
+    assert!(err.is_empty(), "{what}: {err}");
+}
+
 #[test]
 fn a_reader_that_stopped_early_ends_the_listing_quietly() {
     for args in [&["templates"][..], &["scenes"], &["--help"]] {
+        assert_reader_left(&to_closed_pipe(args), &format!("{args:?}"));
+    }
+}
+
+/// Every command whose only output is standard output: generate's records (offline, and
+/// paced as `run` writes them), a trajectory, decoded frames, a run's description.
+#[test]
+fn a_reader_that_stopped_early_ends_every_command_quietly() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let frames = dir.path().join("f.bin");
+    let made = imu_emu()
+        .args("generate --scene circle --duration 60 --imu ln200 --format ln200 -o".split(' '))
+        .arg(&frames)
+        .output()
+        .unwrap();
+    assert!(made.status.success(), "{}", stderr(&made));
+    let frames = frames.to_str().unwrap();
+    let commands: [&[&str]; 5] = [
+        &["generate", "--scene", "circle", "--duration", "100"],
+        &[
+            "run",
+            "--scene",
+            "circle",
+            "--duration",
+            "0.2",
+            "--speed",
+            "1",
+            "--file",
+            "-",
+        ],
+        &["trajectory", "--scene", "circle", "--duration", "100"],
+        &["decode", "--protocol", "ln200", "--rate", "nominal", frames],
+        &["run", "--scene", "circle", "--describe"],
+    ];
+    for args in commands {
         let o = to_closed_pipe(args);
-        let err = stderr(&o);
-        assert_eq!(o.status.code(), Some(0), "{args:?}: {err}");
-        assert!(err.is_empty(), "{args:?}: {err}");
+        // The status line of a paced run is for a terminal: none here.
+        assert_reader_left(&o, &format!("{args:?}"));
     }
 }
 
@@ -97,5 +140,5 @@ fn navigate_summary_to_a_full_disk_fails_with_a_message() {
         "navigate",
     );
     let o = to_closed_pipe(&["navigate", rec, "--scene", "circle"]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_reader_left(&o, "navigate");
 }

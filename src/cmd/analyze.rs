@@ -77,10 +77,9 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     if let Some(p) = &a.csv {
         write_file(p, r.curves_csv.as_bytes())?;
     }
-    // The report goes to stdout in one write at the end, so a reader that stops early
-    // (`… | head`) ends the command quietly (main treats a broken pipe as success) instead of
-    // a panic in println!.
-    std::io::Write::write_all(&mut std::io::stdout().lock(), r.text.as_bytes())?;
+    // The report goes to stdout in one write at the end, after the files are whole.
+    let alone = a.plot.is_none() && a.csv.is_none() && a.compare_csv.is_none();
+    super::stdout::write(r.text.as_bytes(), "the report", alone)?;
     if let Some(v) = r.verdict {
         anyhow::bail!(v);
     }

@@ -1,7 +1,6 @@
 //! `imu-emu compare`: which IMU fits a mission — a Monte Carlo campaign
 //! ([`imu_emu::nav::campaign`]) run on local threads, printed as a median/95 % table.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Result;
@@ -99,13 +98,11 @@ pub fn compare(a: CompareArgs) -> Result<()> {
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let rows = campaign.run_local(threads)?;
-    let mut out = std::io::stdout().lock();
-    let header = report::header(&campaign, &rows, &a.reference.name());
-    writeln!(out, "{header}")?;
+    let mut text = report::header(&campaign, &rows, &a.reference.name()) + "\n";
     for n in &campaign.notes {
-        writeln!(out, "note: {n}")?;
+        text += &format!("note: {n}\n");
     }
-    out.write_all(report::table(&rows).as_bytes())?;
+    text += &report::table(&rows);
     if let Some(path) = &a.plot {
         let what = report::plot_title(&campaign);
         imu_emu::plot::render(path, &report::growth_panels(&rows, &what), 1, (1200, 1500))?;
@@ -114,5 +111,7 @@ pub fn compare(a: CompareArgs) -> Result<()> {
     if let Some(path) = &a.csv {
         imu_emu::output::write_whole(path, report::growth_csv(&rows).as_bytes())?;
     }
-    Ok(())
+    // Last, after the files are whole.
+    let alone = a.plot.is_none() && a.csv.is_none();
+    super::stdout::write(text.as_bytes(), "the table", alone)
 }

@@ -106,7 +106,7 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     }
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     if let Some(h) = session.header() {
-        out.write_all(h.as_bytes())?;
+        (out.write_all(h.as_bytes())).map_err(|e| super::stdout::failed(e, "the records", true))?;
     }
     let tell = |t: &str| eprintln!("imu-emu decode: {t}");
     let (stats, tally) = capture::run(
@@ -125,9 +125,13 @@ pub fn decode(a: DecodeArgs) -> Result<()> {
     Ok(())
 }
 
-/// A capture's I/O error as itself, so that a closed stdout reads as a broken pipe.
+/// A capture's I/O error as itself; a broken pipe is standard output's (the decoded records,
+/// the command's only output: reading one ends the input), whose reader left.
 fn io_first(e: CaptureError) -> anyhow::Error {
     match e {
+        CaptureError::Io(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+            super::stdout::failed(e, "the records", true)
+        }
         CaptureError::Io(e) => e.into(),
         e => e.into(),
     }

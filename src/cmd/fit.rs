@@ -1,7 +1,6 @@
 //! `imu-emu fit`: a template fitted to a static recording (any input `analyze` reads), with a
 //! report and the closure check against a record simulated from the template.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Result;
@@ -78,14 +77,14 @@ pub fn fit(a: FitArgs) -> Result<()> {
         write_file(p, fitted.sines.as_bytes())?;
         eprintln!("imu-emu fit: spectral lines written to {}", p.display());
     }
-    let mut stdout = std::io::stdout().lock();
+    let alone = a.report.is_none() && a.plot.is_none() && a.sines.is_none();
     match &a.output {
         Some(p) => {
             write_file(p, fitted.toml.as_bytes())?;
             eprintln!("imu-emu fit: template written to {}", p.display());
-            stdout.write_all(fitted.report.as_bytes())?;
+            super::stdout::write(fitted.report.as_bytes(), "the report", false)?;
         }
-        None => stdout.write_all(fitted.toml.as_bytes())?,
+        None => super::stdout::write(fitted.toml.as_bytes(), "the template", alone)?,
     }
     if fitted.failures > 0 {
         eprintln!(

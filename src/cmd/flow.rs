@@ -1,7 +1,7 @@
 //! Running a built run from the command line: its notes and warnings printed as they come,
 //! Ctrl-C and SIGTERM turned into a stop, a status line (paced runs) or a progress bar (long
 //! offline runs) on a terminal, then the summary; a run stopped by a signal exits 128 + its
-//! number.
+//! number, one that lost a sink on the way exits 1 after its summary.
 
 use std::io::IsTerminal;
 use std::sync::atomic::Ordering;
@@ -98,6 +98,15 @@ pub fn run(run: Run, quiet: bool) -> Result<RunReport> {
     }
     match interrupted {
         Some(i) => Err(i.into()),
+        // The run went on for its live links, but not every output is whole.
+        None if !report.failures.is_empty() => Err(anyhow::anyhow!(
+            "{} while the run went on for its other sinks: {}",
+            match report.failures.len() {
+                1 => "a sink failed".to_string(),
+                n => format!("{n} sinks failed"),
+            },
+            report.failures.join(" | ")
+        )),
         None => Ok(report),
     }
 }

@@ -1,6 +1,5 @@
 //! The listing commands (`scenes`, `templates`) and `trajectory`.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
@@ -32,10 +31,8 @@ pub struct TrajectoryArgs {
 /// `imu-emu templates`: the built-in IMU templates' headline figures. Written, not printed:
 /// a full disk or a closed pipe is an error, never a panic.
 pub fn list_templates() -> Result<()> {
-    let mut out = std::io::stdout().lock();
-    out.write_all(imu_emu::errors::headline::table()?.as_bytes())?;
-    out.flush()?;
-    Ok(())
+    let table = imu_emu::errors::headline::table()?;
+    super::stdout::write(table.as_bytes(), "the templates", true)
 }
 
 pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
@@ -49,7 +46,7 @@ pub fn export_trajectory(a: TrajectoryArgs) -> Result<()> {
         Some(&format!("imu-emu trajectory of {}", a.source.name())),
     );
     if a.output == Path::new("-") {
-        std::io::stdout().write_all(text.as_bytes())?;
+        super::stdout::write(text.as_bytes(), "the trajectory", a.plot.is_none())?;
     } else {
         imu_emu::output::write_whole(&a.output, text.as_bytes())?;
     }

@@ -13,4 +13,5 @@ pub mod navigate;
 pub mod plot_errors;
 pub mod run;
 pub mod setup;
+pub mod stdout;
 pub mod validate;

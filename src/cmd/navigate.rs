@@ -1,7 +1,6 @@
 //! `imu-emu navigate`: records in, the free-inertial trajectory and its errors against a
 //! reference out.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
@@ -98,9 +97,15 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
     let open = |p: &PathBuf| TextOut::create(p);
     let mut traj = a.output.as_ref().map(open).transpose()?;
     let mut errs = a.errors.as_ref().map(open).transpose()?;
-    let to_stdout = [&traj, &errs]
-        .iter()
-        .any(|o| o.as_ref().is_some_and(TextOut::is_stdout));
+    let outs = [&traj, &errs];
+    let to_stdout = (outs.iter()).any(|o| o.as_ref().is_some_and(TextOut::is_stdout));
+    // Standard output (a CSV or the summary) is the only output when no file is written.
+    let alone = !(outs.iter()).any(|o| o.as_ref().is_some_and(|o| !o.is_stdout()));
+    // A file's errors name it; standard output's say which output it carried.
+    let named = move |stdout: bool, what: &str, e: std::io::Error| match stdout {
+        true => super::stdout::failed(e, what, alone),
+        false => anyhow::Error::from(e),
+    };
     let (mut row, mut fmt) = (String::new(), ryu::Buffer::new());
     let mut write = |step: &Step, header: bool| -> Result<()> {
         if let Some(w) = &mut traj {
@@ -110,7 +115,7 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
                 row.push('\n');
             }
             step.trajectory_row(&mut row);
-            w.write_all(row.as_bytes())?;
+            (w.write_all(row.as_bytes())).map_err(|e| named(w.is_stdout(), "the trajectory", e))?;
         }
         if let Some(w) = &mut errs {
             row.clear();
@@ -118,22 +123,22 @@ pub fn navigate(a: NavigateArgs) -> Result<()> {
                 row.push_str(ERROR_HEADER);
             }
             step.error_row(&mut row, &mut fmt);
-            w.write_all(row.as_bytes())?;
+            (w.write_all(row.as_bytes())).map_err(|e| named(w.is_stdout(), "the errors", e))?;
         }
         Ok(())
     };
     write(&replay.first_step(), true)?;
     let summary = replay.run(|s| write(s, false))?;
-    for w in [traj, errs].into_iter().flatten() {
-        w.finish()?;
+    for (w, what) in [(traj, "the trajectory"), (errs, "the errors")] {
+        if let Some(w) = w {
+            let stdout = w.is_stdout();
+            w.finish().map_err(|e| named(stdout, what, e))?;
+        }
     }
     if to_stdout {
         eprint!("{summary}");
+        Ok(())
     } else {
-        // Written, not printed: a full disk or a closed pipe is an error, never a panic.
-        let mut out = std::io::stdout().lock();
-        write!(out, "{summary}")?;
-        out.flush()?;
+        super::stdout::write(summary.to_string().as_bytes(), "the summary", alone)
     }
-    Ok(())
 }

@@ -247,8 +247,8 @@ pub fn run(a: RunArgs) -> Result<()> {
     init_logging(a.verbose);
     let run = spec(&a)?.build()?;
     if a.describe {
-        println!("{}", run.describe());
-        return Ok(());
+        let text = run.describe() + "\n";
+        return super::stdout::write(text.as_bytes(), "the description", true);
     }
     super::flow::execute(run)
 }

@@ -2,6 +2,7 @@
 //! per record, same order), into a file that appears under its name only when complete.
 
 pub mod addr;
+pub mod failure;
 pub mod sink;
 pub mod text;
 
@@ -176,6 +177,15 @@ pub fn write_whole(dest: &Path, bytes: &[u8]) -> io::Result<()> {
     let mut f = AtomicFile::create(dest).map_err(named)?;
     f.write_all(bytes).map_err(named)?;
     f.commit().map_err(named)
+}
+
+/// Removes what a failed run wrote to `path`, when that is a regular file: a device or a FIFO
+/// (`/dev/null`, `/dev/full`, a pipe to another program) written directly is no output of
+/// ours to remove.
+pub fn remove_partial(path: &Path) {
+    if std::fs::symlink_metadata(path).is_ok_and(|m| m.is_file()) {
+        let _ = std::fs::remove_file(path);
+    }
 }
 
 /// A file written under a temporary name and renamed into place by [`AtomicFile::commit`];

@@ -15,15 +15,18 @@ use super::AtomicFile;
 /// What a sink delivered.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SinkStats {
-    /// Frames written whole.
+    /// Frames written whole (a buffered file's once flushed).
     pub sent: u64,
     /// Frames dropped because the consumer could not take them (full buffer, slow link).
     pub dropped: u64,
     /// Frames dropped because nobody was reading (a pty with no reader, a TCP port with no
     /// client).
     pub no_reader: u64,
-    /// Bytes written.
+    /// Bytes written (a buffered file's once flushed).
     pub bytes: u64,
+    /// Frames handed to the sink after it failed, never written: the run went on for its
+    /// other sinks ([`crate::output::failure`]).
+    pub lost: u64,
 }
 
 /// A destination for frames.
@@ -50,6 +53,21 @@ pub trait Sink: Send {
     fn discard(&mut self) {}
     /// Counts so far.
     fn stats(&self) -> SinkStats;
+    /// A link a consumer reads as the frames come (pty, serial, UDP, TCP): when another sink
+    /// of the run fails, the run goes on for this one ([`crate::output::failure::absorb`]).
+    fn live(&self) -> bool {
+        false
+    }
+    /// Takes the sink out of a run that goes on without it, after the failure `why`: what it
+    /// wrote is discarded, the frames it is handed from then on are counted as lost. False
+    /// when the sink cannot be retired: the run ends instead.
+    fn retire(&mut self, _why: &io::Error) -> bool {
+        false
+    }
+    /// Why the sink was retired and what it lost; `None` while it works.
+    fn failure(&self) -> Option<String> {
+        None
+    }
 }
 
 /// How a file sink writes.
@@ -78,6 +96,8 @@ pub struct FileSink {
     out: Box<dyn Write + Send>,
     flush_each: bool,
     stats: SinkStats,
+    /// Frames and bytes in the buffer, counted once flushed: a sink that fails loses them.
+    held: (u64, u64),
 }
 
 /// Buffer of a file sink (bytes).
@@ -94,6 +114,7 @@ impl FileSink {
                 out: Box::new(Labeled::new("stdout", out)),
                 flush_each: mode == FileMode::Live,
                 stats: SinkStats::default(),
+                held: (0, 0),
             });
         }
         let label = format!("file {}", path.display());
@@ -117,6 +138,7 @@ impl FileSink {
             label,
             flush_each: mode == FileMode::Live,
             stats: SinkStats::default(),
+            held: (0, 0),
         })
     }
 
@@ -129,7 +151,16 @@ impl FileSink {
             out,
             flush_each,
             stats: SinkStats::default(),
+            held: (0, 0),
         }
+    }
+
+    /// Flushes, and counts what was held as written.
+    fn flush(&mut self) -> io::Result<()> {
+        self.out.flush()?;
+        self.stats.sent += std::mem::take(&mut self.held.0);
+        self.stats.bytes += std::mem::take(&mut self.held.1);
+        Ok(())
     }
 }
 
@@ -140,27 +171,27 @@ impl Sink for FileSink {
 
     fn write(&mut self, bytes: &[u8], ends: &[usize]) -> io::Result<()> {
         self.out.write_all(bytes)?;
+        self.held.0 += ends.len() as u64;
+        self.held.1 += bytes.len() as u64;
         if self.flush_each {
-            self.out.flush()?;
+            self.flush()?;
         }
-        self.stats.sent += ends.len() as u64;
-        self.stats.bytes += bytes.len() as u64;
         Ok(())
     }
 
     fn preamble(&mut self, bytes: &[u8]) -> io::Result<()> {
         // Not a frame: only the bytes count.
         self.out.write_all(bytes)?;
-        self.stats.bytes += bytes.len() as u64;
+        self.held.1 += bytes.len() as u64;
         Ok(())
     }
 
     fn finish(&mut self) -> io::Result<()> {
-        self.out.flush()
+        self.flush()
     }
 
     fn commit(&mut self) -> io::Result<()> {
-        self.out.flush()?;
+        self.flush()?;
         match &mut self.target {
             Target::Atomic(f) => match f.take() {
                 Some(f) => f
@@ -182,7 +213,7 @@ impl Sink for FileSink {
             Target::Atomic(f) => drop(f.take()),
             Target::Live(f, path) => {
                 if f.take().is_some() {
-                    let _ = std::fs::remove_file(path);
+                    super::remove_partial(path);
                 }
             }
             Target::Stdout | Target::Writer => {}
@@ -196,7 +227,7 @@ impl Sink for FileSink {
 
 /// An I/O error that names what was being done, keeping the cause's kind (a broken pipe stays
 /// one, so the binary can tell a reader that stopped early).
-fn labeled(what: &str, e: io::Error) -> io::Error {
+pub(crate) fn labeled(what: &str, e: io::Error) -> io::Error {
     io::Error::new(
         e.kind(),
         LabeledError {

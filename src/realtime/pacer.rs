@@ -27,6 +27,7 @@ use super::hook::{FrameHook, FrameTime};
 use super::lock::{LockState, PhaseLock, Schedule};
 use super::sink::{Sink, SinkStats};
 use super::stats::Lateness;
+use crate::output::failure::absorb;
 
 /// Frame rates (frames per wall-clock second) above which frames are batched per wake-up.
 pub const BATCH_ABOVE_HZ: f64 = 2000.0;
@@ -181,6 +182,9 @@ pub struct Status {
     pub streams: Vec<StreamCounts>,
     /// The phase lock to external edges, when there is one.
     pub lock: Option<LockState>,
+    /// At the end: the sinks retired after a failure while the run went on for its live
+    /// links, each with its reason and the frames it lost.
+    pub failures: Vec<String>,
 }
 
 /// One stream's frames, as the pacer handled them.
@@ -432,8 +436,10 @@ pub fn run_with(
         }
         let _ = recycle.try_send(block);
     }
-    for s in sinks.iter_mut() {
-        s.sink.finish()?;
+    for k in 0..sinks.len() {
+        if let Err(e) = sinks[k].sink.finish() {
+            retire(&mut sinks, k, e)?;
+        }
     }
     for h in extras.hooks.iter_mut() {
         h.finish()?;
@@ -447,6 +453,7 @@ pub fn run_with(
     guard.streams = st.streams.clone();
     guard.lock = st.lock;
     guard.sinks = sink_stats(&sinks);
+    guard.failures = sinks.iter().filter_map(|s| s.sink.failure()).collect();
     Ok(guard.clone())
 }
 
@@ -466,14 +473,27 @@ fn write_all(
         }
         return Ok(());
     }
-    for s in sinks.iter_mut() {
+    for k in 0..sinks.len() {
+        let s = &mut sinks[k];
         let bytes = block.frames(s.stream, i, j, ends);
         // None of the frames is this sink's (a merged block's other streams).
         if ends.is_empty() {
             continue;
         }
-        s.sink.write(bytes, ends)?;
+        if let Err(e) = s.sink.write(bytes, ends) {
+            retire(sinks, k, e)?;
+        }
     }
+    Ok(())
+}
+
+/// After sink `k` failed with `e`: retired with a warning while a live link of the run still
+/// works (the run goes on for it), else `e`, which ends the run ([`absorb`]).
+fn retire(sinks: &mut [Routed], k: usize, e: io::Error) -> io::Result<()> {
+    let mut all: Vec<&mut (dyn Sink + 'static)> =
+        sinks.iter_mut().map(|r| r.sink.as_mut()).collect();
+    let warning = absorb(&mut all, k, e)?;
+    tracing::warn!("{warning}");
     Ok(())
 }
 

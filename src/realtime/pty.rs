@@ -129,6 +129,10 @@ fn publish(slave: &Path, link: &Path, take_over: bool) -> io::Result<()> {
 }
 
 impl Sink for PtySink {
+    fn live(&self) -> bool {
+        true
+    }
+
     fn label(&self) -> &str {
         &self.label
     }

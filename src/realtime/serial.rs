@@ -109,6 +109,10 @@ impl SerialSink {
 }
 
 impl Sink for SerialSink {
+    fn live(&self) -> bool {
+        true
+    }
+
     fn label(&self) -> &str {
         &self.label
     }

@@ -174,6 +174,10 @@ fn connector(addr: SocketAddr, want: mpsc::Receiver<()>, made: mpsc::Sender<TcpS
 }
 
 impl Sink for TcpSink {
+    fn live(&self) -> bool {
+        true
+    }
+
     fn label(&self) -> &str {
         &self.label
     }
@@ -279,6 +283,10 @@ impl TcpListenSink {
 }
 
 impl Sink for TcpListenSink {
+    fn live(&self) -> bool {
+        true
+    }
+
     fn label(&self) -> &str {
         &self.label
     }

@@ -156,7 +156,7 @@ impl FrameHook for TimeMarks {
             Out::Csv(w) => writeln!(w, "{}", m.to_csv()),
             Out::Bin(w) => w.write_all(&m.to_bytes()),
         };
-        r.map_err(|e| io::Error::new(e.kind(), format!("writing {}: {e}", self.label)))
+        r.map_err(|e| io::Error::new(e.kind(), format!("--time-marks {}: {e}", self.label)))
     }
 
     fn finish(&mut self) -> io::Result<()> {
@@ -164,7 +164,7 @@ impl FrameHook for TimeMarks {
             Out::Udp(_) => Ok(()),
             Out::Csv(w) | Out::Bin(w) => w
                 .flush()
-                .map_err(|e| io::Error::new(e.kind(), format!("writing {}: {e}", self.label))),
+                .map_err(|e| io::Error::new(e.kind(), format!("--time-marks {}: {e}", self.label))),
         }
     }
 }

@@ -129,6 +129,10 @@ impl UdpSink {
 }
 
 impl Sink for UdpSink {
+    fn live(&self) -> bool {
+        true
+    }
+
     fn label(&self) -> &str {
         &self.label
     }

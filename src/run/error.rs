@@ -30,6 +30,13 @@ pub enum RunError {
         #[source]
         source: std::io::Error,
     },
+    /// An output could not be written: the error begins with its flag (or scene-file key) and
+    /// names its file, then the system's reason.
+    #[error(transparent)]
+    Output(std::io::Error),
+    /// Standard output was the run's only output and its reader left (`… | head`).
+    #[error("{0}")]
+    ReaderLeft(#[from] crate::output::failure::ReaderLeft),
     /// The live input ended before the motion model had its first piece.
     #[error(
         "{input}: the input ended after {states} usable states; the motion model needs {need} before the first record{why}"

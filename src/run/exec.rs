@@ -4,14 +4,15 @@
 //! releases what it completes), paced and real time (`super::wall`, on the pacer's thread) —
 //! and every output is kept or removed as a whole.
 
-use std::io::Write;
+use std::io::{ErrorKind, Write};
 
 use crate::engine::frames::Until;
 use crate::live::stats::InputStats;
 use crate::live::transport::Receiver;
 use crate::live::{Decoder, InputFormat};
 use crate::motion::causal::CausalMotion;
-use crate::output::AtomicFile;
+use crate::output::failure::ReaderLeft;
+use crate::output::{AtomicFile, SinkAddr};
 use crate::sim::SimulationBuilder;
 
 use super::build::{LivePlan, Run, Signal};
@@ -30,7 +31,8 @@ impl Run {
     /// what it did. Outputs are kept when the run completes (a paced or real-time run also
     /// when stopped, its normal end) and removed when it fails.
     pub fn execute(self, ctl: &Control) -> Result<RunReport, RunError> {
-        match &self.clock {
+        let alone = self.stdout_alone();
+        let ran = match &self.clock {
             Clock::Free => self.free(ctl),
             Clock::Lockstep => self.lockstep(ctl),
             #[cfg(feature = "realtime")]
@@ -41,7 +43,23 @@ impl Run {
                 "this build has no real-time emulator (the `realtime` feature): give --speed max"
                     .into(),
             )),
+        };
+        match ran {
+            Err(RunError::Output(e)) if alone && e.kind() == ErrorKind::BrokenPipe => {
+                Err(ReaderLeft.into())
+            }
+            ran => ran,
         }
+    }
+
+    /// Whether standard output is the run's only output (no other sink, input record or time
+    /// marks): its reader leaving is then the `… | head` of a shell, not a lost output.
+    fn stdout_alone(&self) -> bool {
+        let mut outs = (self.layout.streams.iter()).flat_map(|s| s.sinks.iter().map(|(a, _)| a));
+        let only =
+            matches!((outs.next(), outs.next()), (Some(SinkAddr::File(p)), None) if p == "-");
+        let record = matches!(&self.signal, Signal::Live { input, .. } if input.record.is_some());
+        only && !record && self.sync.time_marks.is_empty()
     }
 
     /// The offline driver: window after window of simulated time, as fast as the sinks take
@@ -235,6 +253,7 @@ pub(super) fn finish(
         units,
         faults: built.faults,
         input,
+        failures: out.failures(),
     })
 }
 

@@ -8,6 +8,7 @@ use std::sync::{Arc, Mutex};
 use crate::engine::frames::{Part, Until, WindowSource};
 use crate::live::{InputFormat, TimeBase as InputBase};
 use crate::motion::causal::CausalMotion;
+use crate::output::failure::absorb;
 use crate::output::sink::Sink;
 use crate::sim::SimulationBuilder;
 
@@ -91,9 +92,12 @@ impl Control {
     }
 }
 
-/// The sinks of a run, per stream.
+/// The sinks of a run, per stream. Dropped before [`Outlets::close`] (a run that ends early
+/// with an error), every file it opened is removed.
 pub(super) struct Outlets {
     pub(super) sinks: Vec<Vec<Box<dyn Sink>>>,
+    /// Told when a sink is retired and the run goes on.
+    ctl: Control,
 }
 
 impl Outlets {
@@ -107,25 +111,50 @@ impl Outlets {
         ctl: &Control,
     ) -> Result<Outlets, RunError> {
         let note = |s: &str| ctl.note(s);
-        let sinks = (streams.iter())
-            .map(|s| sinks::open(s, links, s.rate_hz * speed, paced, &note))
-            .collect::<Result<_, _>>()?;
-        Ok(Outlets { sinks })
+        let mut out = Outlets {
+            sinks: Vec::with_capacity(streams.len()),
+            ctl: ctl.clone(),
+        };
+        for s in streams {
+            out.sinks
+                .push(sinks::open(s, links, s.rate_hz * speed, paced, &note)?);
+        }
+        Ok(out)
+    }
+
+    /// Hands the sinks over (to the pacer's thread), leaving none to remove on drop.
+    pub(super) fn take(mut self) -> Vec<Vec<Box<dyn Sink>>> {
+        std::mem::take(&mut self.sinks)
+    }
+
+    /// Applies `f` to every sink, flat index `k`; a failure is [`absorb`]ed: the sink retired
+    /// beside a live link still working, else the run's error.
+    fn each(
+        &mut self,
+        mut f: impl FnMut(usize, &mut dyn Sink) -> std::io::Result<()>,
+    ) -> Result<(), RunError> {
+        let mut k = 0;
+        for i in 0..self.sinks.len() {
+            for j in 0..self.sinks[i].len() {
+                if let Err(e) = f(i, self.sinks[i][j].as_mut()) {
+                    let mut all: Vec<&mut (dyn Sink + 'static)> = (self.sinks.iter_mut().flatten())
+                        .map(|s| s.as_mut())
+                        .collect();
+                    let warning = absorb(&mut all, k, e).map_err(RunError::Output)?;
+                    self.ctl.note(&format!("warning: {warning}"));
+                }
+                k += 1;
+            }
+        }
+        Ok(())
     }
 
     /// Writes each stream's preamble (a CSV header) to its sinks.
     pub(super) fn preamble(&mut self, preambles: &[Vec<u8>]) -> Result<(), RunError> {
-        for (sinks, p) in self.sinks.iter_mut().zip(preambles) {
-            if p.is_empty() {
-                continue;
-            }
-            for s in sinks.iter_mut() {
-                let label = s.label().to_string();
-                s.preamble(p)
-                    .map_err(|e| RunError::io(format!("writing {label}"), e))?;
-            }
-        }
-        Ok(())
+        self.each(|i, s| match preambles.get(i) {
+            Some(p) if !p.is_empty() => s.preamble(p),
+            _ => Ok(()),
+        })
     }
 
     /// Writes the frames of `parts` (one per stream) to their sinks; counts them.
@@ -134,15 +163,11 @@ impl Outlets {
         parts: &[Part],
         counts: &mut [StreamCounts],
     ) -> Result<(), RunError> {
-        for ((sinks, p), c) in self.sinks.iter_mut().zip(parts).zip(counts.iter_mut()) {
-            if p.ends.is_empty() {
-                continue;
-            }
-            for s in sinks.iter_mut() {
-                let label = s.label().to_string();
-                s.write(&p.bytes, &p.ends)
-                    .map_err(|e| RunError::io(format!("writing {label}"), e))?;
-            }
+        self.each(|i, s| match parts.get(i) {
+            Some(p) if !p.ends.is_empty() => s.write(&p.bytes, &p.ends),
+            _ => Ok(()),
+        })?;
+        for (c, p) in counts.iter_mut().zip(parts) {
             c.frames += p.ends.len() as u64;
         }
         Ok(())
@@ -155,24 +180,37 @@ impl Outlets {
             .collect()
     }
 
-    /// Flushes every sink, then keeps every output (`keep`) or removes the files.
+    /// The sinks retired while the run went on: each one's failure and what it lost.
+    pub(super) fn failures(&self) -> Vec<String> {
+        (self.sinks.iter().flatten())
+            .filter_map(|s| s.failure())
+            .collect()
+    }
+
+    /// Flushes every sink, then keeps every output (`keep`) or removes the files. Every sink is
+    /// flushed before any file is kept, so that one that cannot be written keeps none of the
+    /// others (unless a live link carries the run: then only it is lost).
     pub(super) fn close(&mut self, keep: bool) -> Result<(), RunError> {
-        let mut first = None;
-        for s in self.sinks.iter_mut().flatten() {
-            let label = s.label().to_string();
-            let r = s
-                .finish()
-                .and_then(|()| if keep { s.commit() } else { Ok(()) });
-            if let Err(e) = r {
-                first.get_or_insert(RunError::io(format!("writing {label}"), e));
+        let flushed = self.each(|_, s| s.finish());
+        let mut first = flushed.err();
+        if keep && first.is_none() {
+            for s in self.sinks.iter_mut().flatten() {
+                if let Err(e) = s.commit() {
+                    first.get_or_insert(RunError::Output(e));
+                }
             }
         }
         if !keep || first.is_some() {
-            for s in self.sinks.iter_mut().flatten() {
-                s.discard();
-            }
+            self.sinks.iter_mut().flatten().for_each(|s| s.discard());
         }
         first.map_or(Ok(()), Err)
+    }
+}
+
+impl Drop for Outlets {
+    fn drop(&mut self) {
+        // Kept outputs are no longer the sinks' to remove: discarding them does nothing.
+        self.sinks.iter_mut().flatten().for_each(|s| s.discard());
     }
 }
 

@@ -5,6 +5,7 @@
 use std::path::Path;
 
 use crate::output::SinkAddr;
+use crate::output::failure::Named;
 use crate::output::sink::{FileMode, FileSink, Sink};
 
 use super::error::RunError;
@@ -24,7 +25,8 @@ pub struct Links {
 }
 
 /// Opens every sink of `stream` (frames per wall-clock second `frames_per_s`, `paced`: file
-/// sinks written live rather than atomically); `note` is told what each pty published.
+/// sinks written live rather than atomically), each [`Named`] after the flag or key that asked
+/// for it; `note` is told what each pty published.
 pub fn open(
     stream: &StreamPlan,
     links: &Links,
@@ -34,26 +36,44 @@ pub fn open(
 ) -> Result<Vec<Box<dyn Sink>>, RunError> {
     let mut out: Vec<Box<dyn Sink>> = Vec::new();
     for (addr, origin) in &stream.sinks {
-        let what = format!("{origin}: `{}` to {addr}", stream.id);
-        out.push(match addr {
-            SinkAddr::File(path) => {
-                let mode = if paced {
-                    FileMode::Live
-                } else {
-                    FileMode::Atomic
-                };
-                Box::new(
-                    FileSink::create(Path::new(path), mode).map_err(|e| RunError::io(what, e))?,
-                )
+        match open_one(stream, addr, origin, links, frames_per_s, paced, note) {
+            Ok(s) => out.push(Box::new(Named::new(origin.as_str(), s))),
+            Err(e) => {
+                // A live file opened before is already there: a refused run leaves none.
+                out.iter_mut().for_each(|s| s.discard());
+                return Err(e);
             }
-            _ => open_link(stream, addr, links, frames_per_s, note).map_err(|e| match e {
-                RunError::Io { source, .. } => RunError::io(what, source),
-                RunError::Spec { why, .. } => RunError::spec(&what, why),
-                e => e,
-            })?,
-        });
+        }
     }
     Ok(out)
+}
+
+/// Opens the sink at `addr` of `stream`, which `origin` asked for.
+fn open_one(
+    stream: &StreamPlan,
+    addr: &SinkAddr,
+    origin: &str,
+    links: &Links,
+    frames_per_s: f64,
+    paced: bool,
+    note: &dyn Fn(&str),
+) -> Result<Box<dyn Sink>, RunError> {
+    let what = format!("{origin}: `{}` to {addr}", stream.id);
+    Ok(match addr {
+        SinkAddr::File(path) => {
+            let mode = if paced {
+                FileMode::Live
+            } else {
+                FileMode::Atomic
+            };
+            Box::new(FileSink::create(Path::new(path), mode).map_err(|e| RunError::io(what, e))?)
+        }
+        _ => open_link(stream, addr, links, frames_per_s, note).map_err(|e| match e {
+            RunError::Io { source, .. } => RunError::io(what, source),
+            RunError::Spec { why, .. } => RunError::spec(&what, why),
+            e => e,
+        })?,
+    })
 }
 
 #[cfg(feature = "realtime")]

@@ -182,6 +182,10 @@ pub struct RunReport {
     pub faults: Option<FaultTally>,
     /// What happened to the live input, when there is one.
     pub input: Option<InputStats>,
+    /// The sinks that failed while the run went on for its live links, each with its flag,
+    /// the reason and the frames it lost: a run with any did not write every output (the
+    /// command line exits 1 after the summary).
+    pub failures: Vec<String>,
 }
 
 impl RunReport {
@@ -248,6 +252,9 @@ impl RunReport {
                     "\n    {label}: {} sent, {} dropped (slow consumer), {} dropped (no reader), {} bytes",
                     k.sent, k.dropped, k.no_reader, k.bytes
                 );
+                if k.lost > 0 {
+                    out += &format!(", {} lost (the sink failed)", k.lost);
+                }
             }
         }
         for u in &self.units {
@@ -263,6 +270,9 @@ impl RunReport {
         }
         if let Some(f) = &self.faults {
             out += &format!("\n  faults injected: {}", f.summary());
+        }
+        for f in &self.failures {
+            out += &format!("\n  sink failed: {f}");
         }
         out
     }

@@ -172,20 +172,19 @@ fn end(
     input: Option<crate::live::stats::InputStats>,
     ctl: &Control,
 ) -> Result<RunReport, RunError> {
-    let joined = pacer.join();
-    let failed = ended.is_err() || joined.is_err();
-    let (st, owners, files) = match joined {
-        Ok(x) => x,
+    let (joined, owners, files) = pacer.join();
+    if ended.is_err() || joined.is_err() {
+        for f in &files {
+            crate::output::remove_partial(std::path::Path::new(f));
+        }
+    }
+    let st = match joined {
+        Ok(st) => st,
         Err(e) => {
             ended?;
             return Err(e);
         }
     };
-    if failed {
-        for f in &files {
-            let _ = std::fs::remove_file(f);
-        }
-    }
     let ended = ended?;
     let mut status = ctl.status();
     fill_status(&mut status, &st, &owners);
@@ -205,5 +204,6 @@ fn end(
         units,
         faults: built.faults,
         input,
+        failures: st.failures,
     })
 }

@@ -57,7 +57,7 @@ impl PacerThread {
             })
             .collect();
         let mut sinks = Vec::new();
-        for (i, v) in out.sinks.into_iter().enumerate() {
+        for (i, v) in out.take().into_iter().enumerate() {
             sinks.extend(v.into_iter().map(|sink| Routed { stream: i, sink }));
         }
         let owners = sinks.iter().map(|r| r.stream).collect();
@@ -98,17 +98,18 @@ impl PacerThread {
         }
     }
 
-    /// Waits for the pacer (its feed dropped) to write what it has; its final figures.
-    pub(super) fn join(self) -> Result<(Status, Vec<usize>, Vec<String>), RunError> {
+    /// Waits for the pacer (its feed dropped) to write what it has: its final figures (or why
+    /// it failed), each sink's stream, and the files written live.
+    pub(super) fn join(self) -> (Result<Status, RunError>, Vec<usize>, Vec<String>) {
         let st = (self.handle.join())
             .map_err(|_| {
                 RunError::io(
                     "the pacer",
                     std::io::Error::other("the pacer thread panicked"),
                 )
-            })?
-            .map_err(|e| RunError::io("writing the frames", e))?;
-        Ok((st, self.owners, self.files))
+            })
+            .and_then(|r| r.map_err(RunError::Output));
+        (st, self.owners, self.files)
     }
 }
 
