@@ -289,3 +289,78 @@ fn a_lockstep_rig_goes_on_without_a_failed_sink() {
         "{err}"
     );
 }
+
+/// Waits (a hang guard of 60 s) until a thread of process `pid` sleeps in the kernel at a
+/// place whose name contains one of `places` (/proc/PID/task/*/wchan).
+fn wait_blocked_in(pid: u32, places: &[&str]) {
+    let t0 = std::time::Instant::now();
+    loop {
+        let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).unwrap();
+        let blocked = tasks.filter_map(|t| t.ok()).any(|t| {
+            let w = std::fs::read_to_string(t.path().join("wchan")).unwrap_or_default();
+            places.iter().any(|p| w.contains(p))
+        });
+        if blocked {
+            return;
+        }
+        assert!(
+            t0.elapsed().as_secs() < 60,
+            "not blocked in {places:?} after 60 s"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
+/// A stop reaches a run whose thread is blocked in an output call it never returns from —
+/// a write into a pipe nobody reads, the open of a FIFO nobody opens — where the run itself
+/// cannot see it: the command ends with the signal's status, says an output was blocked and
+/// leaves no file (it once waited for the reader for ever, deaf to SIGINT and SIGTERM).
+#[test]
+fn a_stop_ends_a_run_blocked_in_its_output() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let fifo = dir.path().join("truth.fifo");
+    nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::S_IRWXU).unwrap();
+    let (reader, writer) = std::io::pipe().unwrap();
+    let pipe_writer =
+        imu_emu("generate --scene static --rate 1000 --duration 1e6 --format bin -o -")
+            .stdout(writer)
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+    let mut fifo_writer = imu_emu("generate --scene circle --rate 100 --duration 100");
+    fifo_writer
+        .arg("-o")
+        .arg(dir.path().join("out.csv"))
+        .arg("--truth")
+        .arg(&fifo)
+        .stderr(Stdio::piped());
+    let cases = [
+        ("-INT", 130, Some(pipe_writer), &["pipe_write"][..]),
+        ("-TERM", 143, None, &["fifo", "wait_for_partner"][..]),
+    ];
+    for (signal, code, child, places) in cases {
+        // One at a time: the second's files are not the first's to leave.
+        let child = child.unwrap_or_else(|| fifo_writer.spawn().unwrap());
+        wait_blocked_in(child.id(), places);
+        let kill = Command::new("kill")
+            .args([signal, &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success());
+        // The hang guard: a run deaf to the stop is killed after 60 s, failing the test.
+        let pid = child.id();
+        let guard = std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_secs(60));
+            let _ = Command::new("kill")
+                .args(["-KILL", &pid.to_string()])
+                .status();
+        });
+        let o = child.wait_with_output().unwrap();
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(code), "{signal}: {err}");
+        assert!(err.contains("an output was blocked"), "{err}");
+        assert_eq!(names(dir.path()), ["truth.fifo"]);
+        drop(guard);
+    }
+    drop(reader);
+}

@@ -9,8 +9,29 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 
+use imu_emu::output::unfinished;
 use imu_emu::realtime::signal::Interrupted;
 use imu_emu::run::{Clock, Control, Run, RunReport};
+
+/// How long after a stop an output call that has not returned (nor any other since) counts
+/// as blocked for good: a write into a pipe nobody reads, a FIFO's open with no reader.
+const STUCK_AFTER: Duration = Duration::from_millis(100);
+
+/// Ends the process for a stop its run cannot see, its thread blocked in an output call:
+/// the unfinished files removed, the stop said, the signal's exit status. `_exit`, because
+/// the blocked thread may hold the locks an orderly exit takes (stdout's).
+fn abandon(i: Interrupted) -> ! {
+    unfinished::remove_all();
+    let msg = format!(
+        "imu-emu: {i}: an output was blocked (a pipe or FIFO nobody reads); unfinished output \
+         files removed\n"
+    );
+    // SAFETY: writing a buffer we own to stderr, then ending the process without unwinding.
+    unsafe {
+        libc::write(2, msg.as_ptr().cast(), msg.len());
+        libc::_exit(i.exit_code())
+    }
+}
 
 /// Runs `run`, printing as it goes; `quiet`: print only warnings, faults and the stop (an
 /// offline run whose outputs speak for themselves).
@@ -36,11 +57,17 @@ pub fn run(run: Run, quiet: bool) -> Result<RunReport> {
     let (result, sig) = std::thread::scope(|scope| {
         let worker = scope.spawn(|| run.execute(&ctl));
         let mut last_line = Instant::now();
+        let mut stopped: Option<(Instant, u64)> = None;
         while !worker.is_finished() {
             std::thread::sleep(Duration::from_millis(50));
             let sig = caught.load(Ordering::Relaxed);
             if sig != 0 {
                 ctl.stop();
+                let (at, mark) =
+                    *stopped.get_or_insert_with(|| (Instant::now(), unfinished::progress()));
+                if at.elapsed() >= STUCK_AFTER && unfinished::stuck_since(mark) {
+                    abandon(Interrupted(sig));
+                }
             }
             let s = ctl.status();
             bar.set_position(s.streams.first().map_or(0, |c| c.frames));

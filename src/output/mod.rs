@@ -5,6 +5,7 @@ pub mod addr;
 pub mod failure;
 pub mod sink;
 pub mod text;
+pub mod unfinished;
 
 pub use addr::SinkAddr;
 
@@ -186,6 +187,7 @@ pub fn remove_partial(path: &Path) {
     if std::fs::symlink_metadata(path).is_ok_and(|m| m.is_file()) {
         let _ = std::fs::remove_file(path);
     }
+    unfinished::forget(path);
 }
 
 /// A file written under a temporary name and renamed into place by [`AtomicFile::commit`];
@@ -212,7 +214,8 @@ impl AtomicFile {
             ));
         }
         if special {
-            let file = std::fs::OpenOptions::new().write(true).open(dest)?;
+            // A FIFO's open waits for a reader.
+            let file = unfinished::blocking(|| std::fs::OpenOptions::new().write(true).open(dest))?;
             return Ok(AtomicFile {
                 file: Some(file),
                 tmp: None,
@@ -225,6 +228,7 @@ impl AtomicFile {
             .unwrap_or_default();
         let tmp = dest.with_file_name(format!(".{name}.partial-{}", std::process::id()));
         let file = File::create(&tmp)?;
+        unfinished::register(&tmp);
         Ok(AtomicFile {
             file: Some(file),
             tmp: Some(tmp),
@@ -247,11 +251,12 @@ impl AtomicFile {
             None => Ok(()),
             Some(tmp) => {
                 let done = file
-                    .map_or(Ok(()), |f| f.sync_data())
+                    .map_or(Ok(()), |f| unfinished::blocking(|| f.sync_data()))
                     .and_then(|()| std::fs::rename(&tmp, &self.dest));
                 if done.is_err() {
                     let _ = std::fs::remove_file(&tmp);
                 }
+                unfinished::forget(&tmp);
                 done
             }
         }
@@ -273,7 +278,8 @@ impl Write for AtomicFile {
 impl Drop for AtomicFile {
     fn drop(&mut self) {
         if let (Some(_), Some(tmp)) = (self.file.take(), self.tmp.take()) {
-            let _ = std::fs::remove_file(tmp);
+            let _ = std::fs::remove_file(&tmp);
+            unfinished::forget(&tmp);
         }
     }
 }

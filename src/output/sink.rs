@@ -126,7 +126,10 @@ impl FileSink {
                 (Target::Atomic(Some(f)), Box::new(w))
             }
             FileMode::Live => {
-                let f = std::fs::File::create(path).map_err(named)?;
+                // A FIFO's open waits for a reader.
+                let f =
+                    super::unfinished::blocking(|| std::fs::File::create(path)).map_err(named)?;
+                super::unfinished::register(path);
                 let w = f.try_clone().map_err(named)?;
                 (Target::Live(Some(f), path.to_path_buf()), Box::new(w))
             }
@@ -199,8 +202,9 @@ impl Sink for FileSink {
                     .map_err(|e| labeled(&format!("finishing {}", self.label), e)),
                 None => Ok(()),
             },
-            Target::Live(f, _) => {
+            Target::Live(f, path) => {
                 f.take();
+                super::unfinished::forget(path);
                 Ok(())
             }
             Target::Stdout | Target::Writer => Ok(()),
@@ -260,12 +264,13 @@ impl<W> Labeled<W> {
     }
 }
 
+/// Counted as blocking calls: a pipe or FIFO whose reader stopped reading holds them.
 impl<W: Write> Write for Labeled<W> {
     fn write(&mut self, b: &[u8]) -> io::Result<usize> {
-        self.inner.write(b).map_err(|e| labeled(&self.label, e))
+        super::unfinished::blocking(|| self.inner.write(b)).map_err(|e| labeled(&self.label, e))
     }
     fn flush(&mut self) -> io::Result<()> {
-        self.inner.flush().map_err(|e| labeled(&self.label, e))
+        super::unfinished::blocking(|| self.inner.flush()).map_err(|e| labeled(&self.label, e))
     }
 }
 
