@@ -1,5 +1,6 @@
 //! Live input as real senders send it (issue 38): a CSV header with a UTF-8 byte-order mark
-//! and its columns in another order. Real parts: the binary, a pipe, UDP on loopback.
+//! and its columns in another order, CSV states lost on UDP. Real parts: the binary, a
+//! pipe, UDP on loopback.
 
 use imu_emu::live::InputFormat;
 use imu_emu::live::transport::Receiver;
@@ -85,4 +86,38 @@ fn a_byte_order_mark_and_another_column_order_are_read_as_a_trajectory_file() {
     );
     assert!(err.contains("the sender's columns are unknown"), "{err}");
     assert!(out.is_none());
+}
+
+/// CSV states lost on UDP (issue 38: the binary datagram's losses were counted from its
+/// sequence numbers, CSV's not at all): told from the time steps and counted as missing in
+/// gaps, as the binary datagram's are — three single losses, a run of four, and a pair sent
+/// in the wrong order (missing when its successor comes, late when it comes).
+#[test]
+fn lost_csv_states_are_counted_from_the_time_steps() {
+    let lines = circle_lines(3.0);
+    // lines[2 + k] is the state at k·10 ms.
+    let mut sent: Vec<String> = lines[..2].to_vec();
+    let mut at = 0;
+    for (k, l) in lines[2..].iter().enumerate() {
+        if [40, 77, 130].contains(&k) || (100..104).contains(&k) {
+            continue;
+        }
+        if k == 160 {
+            at = sent.len();
+        }
+        sent.push(l.clone());
+    }
+    sent.swap(at, at + 1);
+    let (_, s) = csv_over_udp(&sent);
+    let st = &s.stats;
+    assert_eq!(
+        (st.missing, st.gaps, st.reordered),
+        (3 + 4 + 1, 3 + 1 + 1, 1),
+        "{st:?}"
+    );
+    assert!(
+        st.summary().contains(" 8 missing in 5 gaps,"),
+        "{}",
+        st.summary()
+    );
 }

@@ -2,6 +2,7 @@
 //! refused, counted and never fatal; the first problems are kept with their place.
 
 use super::Decoded;
+use super::lost::StepWatch;
 use crate::motion::causal::Rejected;
 
 /// Problems kept word for word (the rest are only counted).
@@ -26,9 +27,11 @@ pub struct InputStats {
     pub duplicates: u64,
     /// States older than the newest one (reordered or late): too late to be used.
     pub reordered: u64,
-    /// Breaks in the sequence numbers.
+    /// Breaks in the sequence numbers, or (CSV, which has none) steps of several of the
+    /// sender's usual time steps.
     pub gaps: u64,
-    /// States missing by the sequence numbers (some may arrive later, as reordered).
+    /// States missing by the sequence numbers or the time steps (some may arrive later, as
+    /// reordered).
     pub missing: u64,
     /// States refused: beyond the physical limits, or a time tag the run cannot place (a step
     /// too long to bridge, a tag ahead of the sender's clock).
@@ -38,6 +41,8 @@ pub struct InputStats {
     /// The first [`KEEP_PROBLEMS`] problems, each with its place.
     pub problems: Vec<String>,
     last_seq: Option<u64>,
+    /// The time steps of a format without sequence numbers, for its lost states.
+    steps: StepWatch,
 }
 
 impl InputStats {
@@ -64,6 +69,7 @@ impl InputStats {
         match outcome {
             Ok(()) => {
                 self.states += 1;
+                self.lost_by_time(d);
                 if let (Some(s), Some(last)) = (d.seq, self.last_seq) {
                     let ahead = s.wrapping_sub(last) % modulo;
                     if ahead > 1 && ahead < modulo / 2 {
@@ -85,6 +91,10 @@ impl InputStats {
             Err(e) => {
                 self.refused += 1;
                 self.note(format!("{place}: {e}"));
+                // Refused for its values, it still arrived on the sender's time line.
+                if matches!(e, Rejected::Limit(_)) {
+                    self.lost_by_time(d);
+                }
                 // It arrived: the states after it are no gap.
                 if let Some(s) = d.seq
                     && self
@@ -94,6 +104,19 @@ impl InputStats {
                     self.last_seq = Some(s);
                 }
             }
+        }
+    }
+
+    /// Counts the states a state without a sequence number says were lost before it, from
+    /// its time step ([`super::lost`]), as a break in the sequence numbers counts them.
+    fn lost_by_time(&mut self, d: &Decoded) {
+        if d.seq.is_some() {
+            return;
+        }
+        let lost = self.steps.arrived(d.state.sample.t);
+        if lost > 0 {
+            self.gaps += 1;
+            self.missing += lost;
         }
     }
 
@@ -197,6 +220,35 @@ mod tests {
         assert_eq!(s.problems, vec!["x:9: `wx`: too fast".to_string()]);
         s.malformed("x:3", "bad");
         assert_eq!(s.problems[1], "x:3: bad");
+    }
+
+    /// States without sequence numbers (CSV) lost on the way: counted from the time steps
+    /// in the same counts as a break in the sequence numbers; a reordered state is missing
+    /// when its successor comes and late when it comes, as with sequence numbers; a state
+    /// refused for its values arrived, so the step after it is no loss.
+    #[test]
+    fn csv_losses_from_the_time_steps() {
+        let mut s = InputStats::default();
+        let csv = |t: f64| Decoded {
+            seq: None,
+            ..at(0, t)
+        };
+        let ok = Ok(());
+        for k in [0, 1, 2, 3, 4, 6, 7, 8, 12, 13] {
+            s.state(&csv(f64::from(k) * 0.01), &ok, 256, "");
+        }
+        assert_eq!((s.gaps, s.missing), (2, 1 + 3));
+        s.state(&csv(0.15), &ok, 256, "");
+        let late = Err(Rejected::NotAfter { newest: 0.15 });
+        s.state(&csv(0.14), &late, 256, "");
+        assert_eq!((s.gaps, s.missing, s.reordered), (3, 5, 1));
+        let limit = Err(Rejected::Limit(crate::motion::limits::Violation {
+            column: "wx",
+            message: "too fast".into(),
+        }));
+        s.state(&csv(0.16), &limit, 256, "x");
+        s.state(&csv(0.17), &ok, 256, "");
+        assert_eq!((s.gaps, s.missing), (3, 5));
     }
 
     /// A CSV header is a message without a state, and the summary says so (issue 23 item 7:
