@@ -467,14 +467,15 @@ fn imu_emu() -> std::process::Command {
 
 /// The command line over TCP: `run --motion tcp://…` listens, takes the connection, writes
 /// the same bytes as the library run on the same input (LN-200 model and frames, `run`'s
-/// defaults), and reports the bad line with its place; the exit status is 0.
+/// defaults; both end at a `--duration` of 1.5 s), and reports the bad line with its place;
+/// the exit status is 0.
 #[test]
 fn cli_tcp_run_equals_the_library_and_reports() {
     let mut text = survey_csv(2.0);
     text.insert_str(text.find("\n1.0").unwrap() + 1, "1.0,x,0,0,0,0,0,0,0,0\n");
     let dir = tempfile::TempDir::new().unwrap();
     let out = dir.path().join("out.bin");
-    let (child, mut conn) = live_cli::lockstep_over_tcp(&out, &[]);
+    let (child, mut conn) = live_cli::lockstep_over_tcp(&out, &["--duration", "1.5"]);
     conn.write_all(text.as_bytes()).unwrap();
     let done = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&done.stderr);
@@ -482,7 +483,9 @@ fn cli_tcp_run_equals_the_library_and_reports() {
     assert!(err.contains("1 malformed"), "{err}");
     assert!(err.contains("line 102, byte 4: column 2 (`lat`)"), "{err}");
 
-    let b = Simulation::builder().defaults("ln200", "ln200");
+    let b = Simulation::builder()
+        .defaults("ln200", "ln200")
+        .duration(1.5);
     let mut rx = Receiver::from_stream(
         Box::new(std::io::Cursor::new(text.into_bytes())),
         InputFormat::Csv,

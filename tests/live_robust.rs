@@ -177,7 +177,7 @@ fn a_position_jump_is_refused() {
 fn lockstep_tcp(text: Vec<u8>) -> (ExitStatus, String, Option<Vec<u8>>, i64) {
     let dir = tempfile::TempDir::new().unwrap();
     let out = dir.path().join("out.bin");
-    let (mut child, mut conn) = live_cli::lockstep_over_tcp(&out, &[]);
+    let (mut child, mut conn) = live_cli::lockstep_over_tcp(&out, &["--duration", "2"]);
     let sender = thread::spawn(move || {
         let _ = conn.write_all(&text);
     });

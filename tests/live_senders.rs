@@ -1,6 +1,12 @@
 //! Live input as real senders send it (issue 38): a CSV header with a UTF-8 byte-order mark
-//! and its columns in another order, CSV states lost on UDP. Real parts: the binary, a
-//! pipe, UDP on loopback.
+//! and its columns in another order, CSV states lost on UDP, a TCP readiness probe and a
+//! sender that reconnects. Real parts: the binary, a pipe, UDP and TCP on loopback.
+
+use std::io::Write;
+use std::net::TcpStream;
+use std::process::{Child, ExitStatus};
+use std::thread;
+use std::time::{Duration, Instant};
 
 use imu_emu::live::InputFormat;
 use imu_emu::live::transport::Receiver;
@@ -10,7 +16,9 @@ use imu_emu::trajectory;
 #[path = "common/live_cli.rs"]
 mod live_cli;
 
-use live_cli::{circle_lines, join, lockstep_2s, lockstep_pipe, queued_udp};
+use live_cli::{
+    PIPE_RUN, circle_lines, join, lockstep_2s, lockstep_on_tcp, lockstep_pipe, queued_udp,
+};
 
 const BOM: &str = "\u{feff}";
 
@@ -120,4 +128,102 @@ fn lost_csv_states_are_counted_from_the_time_steps() {
         "{}",
         st.summary()
     );
+}
+
+/// Waits for `child` (a hang guard of 120 s: how soon is the run's timeout, not a test's);
+/// its status and stderr.
+fn outcome(mut child: Child) -> (ExitStatus, String) {
+    let mut err = child.stderr.take().unwrap();
+    let reader = thread::spawn(move || {
+        let mut s = String::new();
+        std::io::Read::read_to_string(&mut err, &mut s).unwrap();
+        s
+    });
+    let give_up = Instant::now() + Duration::from_secs(120);
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if Instant::now() > give_up {
+            child.kill().unwrap();
+            panic!("the run did not end: {}", reader.join().unwrap());
+        }
+        thread::sleep(Duration::from_millis(20));
+    };
+    (status, reader.join().unwrap())
+}
+
+/// `imu-emu run --motion tcp://… --time-mode lockstep` with [`PIPE_RUN`] and `extra`, its
+/// output in a new folder, once a readiness probe found it listening (connected and closed
+/// without a byte): the folder, the output's path, the run and its port.
+fn probed_tcp_run(extra: &[&str]) -> (tempfile::TempDir, std::path::PathBuf, Child, u16) {
+    let dir = tempfile::TempDir::new().unwrap();
+    let out = dir.path().join("out.csv");
+    let mut flags = PIPE_RUN.to_vec();
+    flags.extend(extra);
+    let (mut child, port) = lockstep_on_tcp(&out, &flags);
+    drop(live_cli::connect(&mut child, port));
+    (dir, out, child, port)
+}
+
+/// A TCP input (issue 38: a client that connected and closed — a readiness probe — ended
+/// the run with exit 1, "0 usable states", and the sender then found the port closed): two
+/// probes, a connection that sends only the header, then the states in two connections, the
+/// second going on where the first stopped. The listener takes one connection after
+/// another; the run writes the bytes a pipe run of the states writes, and counts the
+/// connections that brought no state. The run ends at its `--duration`, which only the
+/// second connection's states reach.
+#[test]
+fn tcp_probes_and_reconnects_are_followed() {
+    let lines = circle_lines(3.0);
+    let (_dir, out, child, port) = probed_tcp_run(&["--duration", "2"]);
+    drop(TcpStream::connect(("127.0.0.1", port)).unwrap());
+    let send = |text: String| {
+        let mut c = TcpStream::connect(("127.0.0.1", port)).unwrap();
+        c.write_all(text.as_bytes()).unwrap();
+    };
+    send(join(&lines[..2]));
+    // A connection that ends inside a line: that line is one malformed message, and the
+    // next connection starts a line of its own.
+    send(join(&lines[2..150]) + "1.48,41");
+    send(join(&lines[150..]));
+    let (status, err) = outcome(child);
+    assert!(status.success(), "{err}");
+    assert!(
+        err.contains("5 connections, 3 without a state taken"),
+        "{err}"
+    );
+    assert!(err.contains(" 1 malformed,"), "{err}");
+    let (status, perr, want) = lockstep_pipe(&join(&lines), &["--duration", "2"]);
+    assert!(status.success(), "{perr}");
+    assert!(
+        want.is_some() && std::fs::read(&out).ok() == want,
+        "not the pipe run's bytes: {err}"
+    );
+}
+
+/// A TCP input whose connections bring no usable state — probes, a sender whose every line
+/// is wrong — ends by `--input-timeout` after its last data, as any input does: exit 1 with
+/// the counts (the connections among them) and the first problems, no output left.
+#[test]
+fn a_tcp_input_without_a_usable_state_ends_at_its_timeout() {
+    let (_dir, out, child, port) = probed_tcp_run(&["--input-timeout", "1"]);
+    let mut c = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    c.write_all(b"t,lat,lon,h,vn,ve,vd,roll,pitch,yaw\n0,45,7\n0.01,45,7\n")
+        .unwrap();
+    drop(c);
+    let (status, err) = outcome(child);
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(err.contains("after 0 usable states"), "{err}");
+    assert!(
+        err.contains("2 connections, 2 without a state taken"),
+        "{err}"
+    );
+    assert!(
+        err.contains(&format!(
+            "first: tcp://127.0.0.1:{port}: line 2, byte 0: 3 fields, expected 10"
+        )),
+        "{err}"
+    );
+    assert!(!out.exists());
 }

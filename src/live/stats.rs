@@ -3,6 +3,7 @@
 
 use super::Decoded;
 use super::lost::StepWatch;
+use super::transport::{Message, Receiver};
 use crate::motion::causal::Rejected;
 
 /// Problems kept word for word (the rest are only counted).
@@ -38,14 +39,34 @@ pub struct InputStats {
     pub refused: u64,
     /// Stream bytes outside any frame (garbage, a lost frame's remains).
     pub skipped_bytes: u64,
+    /// TCP connections accepted (0 for other inputs).
+    pub connections: u64,
+    /// TCP connections that brought a state taken into the model: the others (a readiness
+    /// probe, a sender that closed before its first sound state) brought nothing.
+    pub connections_with_state: u64,
     /// The first [`KEEP_PROBLEMS`] problems, each with its place.
     pub problems: Vec<String>,
     last_seq: Option<u64>,
+    /// The connection of the message being counted, and the newest one that brought a state.
+    connection: u64,
+    connection_counted: u64,
     /// The time steps of a format without sequence numbers, for its lost states.
     steps: StepWatch,
 }
 
 impl InputStats {
+    /// Counts a message, before what it held is counted.
+    pub fn message(&mut self, m: &Message) {
+        self.messages += 1;
+        self.connection = m.connection;
+    }
+
+    /// Takes the receiver's own counts: bytes skipped, connections.
+    pub fn transport(&mut self, rx: &Receiver) {
+        self.skipped_bytes = rx.skipped_bytes();
+        self.connections = rx.connections();
+    }
+
     /// Counts a message that decoded to no state (the decoder's `Ok(None)`).
     pub fn no_state(&mut self) {
         self.without_state += 1;
@@ -70,6 +91,10 @@ impl InputStats {
             Ok(()) => {
                 self.states += 1;
                 self.lost_by_time(d);
+                if self.connection != self.connection_counted {
+                    self.connections_with_state += 1;
+                    self.connection_counted = self.connection;
+                }
                 if let (Some(s), Some(last)) = (d.seq, self.last_seq) {
                     let ahead = s.wrapping_sub(last) % modulo;
                     if ahead > 1 && ahead < modulo / 2 {
@@ -125,7 +150,10 @@ impl InputStats {
     /// a state (or none came).
     pub fn why_unused(&self) -> String {
         if self.messages == 0 {
-            return "; no message came".into();
+            return match self.connections {
+                0 => "; no message came".into(),
+                n => format!("; no message came on {}", connections(n)),
+            };
         }
         let mut s = format!("; input: {}", self.summary());
         if !self.problems.is_empty() {
@@ -147,8 +175,16 @@ impl InputStats {
             0 => String::new(),
             n => format!(" ({n} without a state: headers, comments, other messages)"),
         };
+        let conns = match self.connections {
+            0 => String::new(),
+            n => format!(
+                "; {}, {} without a state taken",
+                connections(n),
+                n.saturating_sub(self.connections_with_state)
+            ),
+        };
         format!(
-            "{} messages{without}, {} states taken; {} malformed, {} duplicate, {} reordered/late, {} missing in {} gaps, {} refused, {} bytes skipped",
+            "{} messages{without}, {} states taken; {} malformed, {} duplicate, {} reordered/late, {} missing in {} gaps, {} refused, {} bytes skipped{conns}",
             self.messages,
             self.states,
             self.malformed,
@@ -159,6 +195,14 @@ impl InputStats {
             self.refused,
             self.skipped_bytes
         )
+    }
+}
+
+/// "1 connection", "2 connections".
+fn connections(n: u64) -> String {
+    match n {
+        1 => "1 connection".into(),
+        n => format!("{n} connections"),
     }
 }
 
