@@ -129,6 +129,39 @@ pub fn parse_finite(text: &str) -> Result<f64, String> {
     }
 }
 
+/// `text` without a leading UTF-8 byte-order mark: spreadsheet exports and text written as
+/// `utf-8-sig` start with one, and it is not part of the first field.
+pub fn strip_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
+}
+
+/// The column of each of `known`'s names in the header `fields` (`None`: absent), as every
+/// headed table reads its header: names in any order, an unknown name or one given twice
+/// refused naming its 1-based column; `expected` (e.g. "(expected `t,lat`)") ends the message
+/// of an unknown name. Which columns must be there is the caller's to check.
+pub fn header_columns(
+    fields: &[&str],
+    known: &[&str],
+    expected: &str,
+) -> Result<Vec<Option<usize>>, String> {
+    let mut at = vec![None; known.len()];
+    for (c, name) in fields.iter().enumerate() {
+        let Some(k) = known.iter().position(|n| n == name) else {
+            let name = clip(name);
+            return Err(format!(
+                "header: column {}: unknown column {name} {expected}",
+                c + 1
+            ));
+        };
+        if at[k].is_some() {
+            let name = clip(name);
+            return Err(format!("header: column {}: {name} appears twice", c + 1));
+        }
+        at[k] = Some(c);
+    }
+    Ok(at)
+}
+
 /// Opens `path` for reading, or stdin for `-`.
 pub fn open(path: &Path) -> Result<Box<dyn Read + Send>, FileError> {
     if path == Path::new("-") {
@@ -280,9 +313,9 @@ impl<R: BufRead> CsvLines<R> {
                 return Err(self.error(format!("byte {} of the line is not UTF-8 text", at + 1)));
             }
         }
-        if self.line_start == 0 && self.text.starts_with('\u{feff}') {
-            // A byte-order mark (spreadsheet exports) is not part of the first field.
-            self.text.drain(..'\u{feff}'.len_utf8());
+        if self.line_start == 0 {
+            let mark = self.text.len() - strip_bom(&self.text).len();
+            self.text.drain(..mark);
         }
         Ok(true)
     }
@@ -331,6 +364,24 @@ mod tests {
         assert_eq!(r.next_fields().unwrap(), Some(vec!["3", "4"]));
         assert_eq!(r.next_fields().unwrap(), None);
         assert_eq!(r.error("x").to_string(), "x.csv:5: x");
+    }
+
+    /// Names in any order; unknown and repeated names name their column.
+    #[test]
+    fn header_columns_in_any_order() {
+        let known = ["t", "lat", "lon"];
+        let at = header_columns(&["lon", "t", "lat"], &known, "(x)").unwrap();
+        assert_eq!(at, vec![Some(1), Some(2), Some(0)]);
+        assert_eq!(
+            header_columns(&["t"], &known, "(x)").unwrap(),
+            vec![Some(0), None, None]
+        );
+        let e = header_columns(&["t", "\u{feff}lat"], &known, "(x)").unwrap_err();
+        assert_eq!(e, "header: column 2: unknown column `\u{feff}lat` (x)");
+        let e = header_columns(&["t", "lat", "t"], &known, "(x)").unwrap_err();
+        assert_eq!(e, "header: column 3: `t` appears twice");
+        assert_eq!(strip_bom("\u{feff}t,lat"), "t,lat");
+        assert_eq!(strip_bom("t,\u{feff}"), "t,\u{feff}");
     }
 
     #[test]

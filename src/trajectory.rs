@@ -8,7 +8,7 @@ use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::csvio::{CsvLines, FileError, clip, num, parse_finite};
+use crate::csvio::{CsvLines, FileError, header_columns, num, parse_finite};
 use crate::math::{Vec3, quat_from_euler};
 use crate::motion::limits::{check_sample, check_step};
 use crate::motion::sampled::{ModelError, ModelSettings, Sample, SampledMotion};
@@ -40,31 +40,18 @@ impl<R: BufRead> TrajectoryReader<R> {
         let Some(header) = lines.next_fields()? else {
             return Err(lines.error(format!("no header line {EXPECTED}")));
         };
-        let mut order = Vec::new();
-        let mut problem = None;
-        for (c, name) in header.iter().enumerate() {
-            let Some(k) = COLUMNS.iter().position(|n| n == name) else {
-                let name = clip(name);
-                problem = Some(format!(
-                    "header: column {}: unknown column {name} {EXPECTED}",
-                    c + 1
-                ));
-                break;
-            };
-            if order.contains(&k) {
-                let name = clip(name);
-                problem = Some(format!("header: column {}: {name} appears twice", c + 1));
-                break;
+        let width = header.len();
+        let at = header_columns(&header, &COLUMNS, EXPECTED).map_err(|p| lines.error(p))?;
+        if let Some(k) = at.iter().position(Option::is_none) {
+            let name = COLUMNS[k];
+            return Err(lines.error(format!("header: missing column `{name}` {EXPECTED}")));
+        }
+        // order[c] = k for the file column c of COLUMNS[k].
+        let mut order = vec![0; width];
+        for (k, c) in at.iter().enumerate() {
+            if let Some(c) = c {
+                order[*c] = k;
             }
-            order.push(k);
-        }
-        if problem.is_none()
-            && let Some((_, name)) = COLUMNS.iter().enumerate().find(|(k, _)| !order.contains(k))
-        {
-            problem = Some(format!("header: missing column `{name}` {EXPECTED}"));
-        }
-        if let Some(p) = problem {
-            return Err(lines.error(p));
         }
         Ok(TrajectoryReader {
             lines,

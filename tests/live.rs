@@ -273,18 +273,7 @@ fn udp_binary_damage_is_counted_and_replay_is_bit_identical() {
     sent.swap(k, k + 1);
 
     let live = |sent: &[Vec<u8>]| -> (Vec<u8>, Vec<u8>, LiveSummary) {
-        let rx_socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-        rx_socket
-            .set_read_timeout(Some(Duration::from_millis(500)))
-            .unwrap();
-        let addr = rx_socket.local_addr().unwrap();
-        // Every datagram is queued before the run reads any (a 4 MiB buffer holds them all):
-        // the run's end, at its socket's timeout, comes after the last one whatever the load.
-        imu_emu::realtime::udp::grow_receive_buffer(&rx_socket);
-        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
-        for d in sent {
-            s.send_to(d, addr).unwrap();
-        }
+        let rx_socket = live_cli::queued_udp(sent);
         let mut rx = Receiver::from_socket(rx_socket, InputFormat::Binary, "udp");
         let b = Simulation::builder().rate(400.0).format("ln200");
         let run = Lockstep::new(b, InputFormat::Binary).unwrap();
@@ -478,14 +467,15 @@ fn imu_emu() -> std::process::Command {
 
 /// The command line over TCP: `run --motion tcp://…` listens, takes the connection, writes
 /// the same bytes as the library run on the same input (LN-200 model and frames, `run`'s
-/// defaults), and reports the bad line with its place; the exit status is 0.
+/// defaults; both end at a `--duration` of 1.5 s), and reports the bad line with its place;
+/// the exit status is 0.
 #[test]
 fn cli_tcp_run_equals_the_library_and_reports() {
     let mut text = survey_csv(2.0);
     text.insert_str(text.find("\n1.0").unwrap() + 1, "1.0,x,0,0,0,0,0,0,0,0\n");
     let dir = tempfile::TempDir::new().unwrap();
     let out = dir.path().join("out.bin");
-    let (child, mut conn) = live_cli::lockstep_over_tcp(&out);
+    let (child, mut conn) = live_cli::lockstep_over_tcp(&out, &["--duration", "1.5"]);
     conn.write_all(text.as_bytes()).unwrap();
     let done = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&done.stderr);
@@ -493,7 +483,9 @@ fn cli_tcp_run_equals_the_library_and_reports() {
     assert!(err.contains("1 malformed"), "{err}");
     assert!(err.contains("line 102, byte 4: column 2 (`lat`)"), "{err}");
 
-    let b = Simulation::builder().defaults("ln200", "ln200");
+    let b = Simulation::builder()
+        .defaults("ln200", "ln200")
+        .duration(1.5);
     let mut rx = Receiver::from_stream(
         Box::new(std::io::Cursor::new(text.into_bytes())),
         InputFormat::Csv,

@@ -988,10 +988,11 @@ fn a_sender_pause_relocks_and_the_frames_return_to_lockstep() {
 /// 0.5 s) having been sent — extrapolated past the newest state, then held: the silence is
 /// over 0.5 s after the newest state came, by when the frames of up to 0.5 s − the 60 ms
 /// delay past it were due (176 at 400 Hz; one fewer for the grid's rounding), all in the file
-/// however late the run notices the silence; after a stream's end (TCP) it ends once the
+/// however late the run notices the silence; after a stream's end (a pipe) it ends once the
 /// frames up to the newest state are sent, none past it (frames past a state of the moment
 /// that came after the delay, on a loaded machine, are counted as extrapolated too: the run
-/// then reports where it first left its input).
+/// then reports where it first left its input). A TCP sender's close is no end of the
+/// input: the listener waits for the next connection, and the run ends as after a silence.
 #[test]
 fn on_timeout_stop_does_what_its_help_says() {
     let _rt = serial();
@@ -1029,50 +1030,75 @@ fn on_timeout_stop_does_what_its_help_says() {
     assert_eq!(len / frames, (len / frames).round(), "whole frames");
     assert_eq!(len / (len / frames), frames, "every frame is in the file");
 
-    // A TCP sender at the states' own pace, then the end of its stream.
+    // A sender at the states' own pace on a pipe, then the end of its stream.
+    let pace = |w: &mut dyn Write| {
+        let start = Instant::now();
+        for (i, p) in survey_states(1.0).iter().enumerate() {
+            let at = start + Duration::from_secs_f64(p.t);
+            if let Some(d) = at.checked_duration_since(Instant::now()) {
+                thread::sleep(d);
+            }
+            w.write_all(&binary::encode(&datagram(p, i as u32)))
+                .unwrap();
+        }
+    };
+    let mut child = imu_emu()
+        .current_dir(dir.path())
+        .args(["run", "--motion", "-"])
+        .args(["--input-format", "bin", "--imu", "ideal", "--rate", "400"])
+        .args(["--output-delay", "0.06", "--file", "pipe.bin"])
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    pace(&mut child.stdin.take().unwrap());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let ended = summary(&err);
+    assert!(ended.contains("(input ended)"), "{ended}");
+    let extrapolated = number_before(ended, "extrapolated)");
+    assert!(
+        extrapolated == 0.0 || departed(ended).is_some_and(|t| t < 1.0 - 1e-9),
+        "{ended}"
+    );
+    // States to 1 s, the first record after the ninth state (0.08 s): (1 − 0.08)·400 frames.
+    assert_eq!(number_before(ended, "frames at 400 Hz"), 368.0, "{ended}");
+
+    // TCP (issue 38: a readiness probe ended the run): a connection that closes without
+    // data, then the sender at its pace, then its close — the listener waits for the next
+    // connection, so the input ends as a silence does.
     let port = free_udp_port();
     let child = imu_emu()
         .current_dir(dir.path())
         .args(["run", "--motion", &format!("tcp://127.0.0.1:{port}")])
         .args(["--input-format", "bin", "--imu", "ideal", "--rate", "400"])
-        .args(["--output-delay", "0.06", "--file", "tcp.bin"])
+        .args(["--input-timeout", "0.5", "--output-delay", "0.06"])
+        .args(["--file", "tcp.bin"])
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let give_up = Instant::now() + Duration::from_secs(60);
-    let mut tcp = loop {
+    let probe = loop {
         match std::net::TcpStream::connect(("127.0.0.1", port)) {
             Ok(s) => break s,
             Err(_) if Instant::now() < give_up => thread::sleep(Duration::from_millis(20)),
             Err(e) => panic!("connecting: {e}"),
         }
     };
-    let start = Instant::now();
-    for (i, p) in survey_states(1.0).iter().enumerate() {
-        let at = start + Duration::from_secs_f64(p.t);
-        if let Some(d) = at.checked_duration_since(Instant::now()) {
-            thread::sleep(d);
-        }
-        tcp.write_all(&binary::encode(&datagram(p, i as u32)))
-            .unwrap();
-    }
-    drop(tcp);
+    drop(probe);
+    pace(&mut std::net::TcpStream::connect(("127.0.0.1", port)).unwrap());
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
-    let summary = summary(&err);
-    assert!(summary.contains("(input ended)"), "{summary}");
-    let extrapolated = number_before(summary, "extrapolated)");
+    let tcp = summary(&err);
+    assert!(tcp.contains("(input ended)"), "{tcp}");
     assert!(
-        extrapolated == 0.0 || departed(summary).is_some_and(|t| t < 1.0 - 1e-9),
-        "{summary}"
+        tcp.contains("2 connections, 1 without a state taken"),
+        "{tcp}"
     );
-    // States to 1 s, the first record after the ninth state (0.08 s): (1 − 0.08)·400 frames.
-    assert_eq!(
-        number_before(summary, "frames at 400 Hz"),
-        368.0,
-        "{summary}"
-    );
+    let extrapolated = number_before(tcp, "extrapolated)");
+    assert!(extrapolated >= (0.5 - 0.06) * 400.0 - 1.0, "{tcp}");
 }
 
 /// States the clock map cannot place (issue 38: one state tagged tens of seconds ahead put

@@ -5,74 +5,21 @@
 //! loopback.
 
 use std::io::Write;
-use std::net::UdpSocket;
-use std::process::{Command, ExitStatus, Stdio};
+use std::process::{Command, ExitStatus};
 use std::thread;
-use std::time::Duration;
 
 use imu_emu::live::binary::{self, Datagram};
 use imu_emu::live::transport::Receiver;
 use imu_emu::live::{InputFormat, csv::MAX_LINE_BYTES};
 use imu_emu::motion::Motion;
-use imu_emu::run::lockstep::Lockstep;
-use imu_emu::sim::Simulation;
-use imu_emu::source::AnyMotion;
-use imu_emu::trajectory;
 
 #[path = "common/live_cli.rs"]
 mod live_cli;
 
+use live_cli::{circle, circle_lines, join, lockstep_2s, lockstep_pipe, queued_udp};
+
 fn imu_emu() -> Command {
     Command::new(env!("CARGO_BIN_EXE_imu-emu"))
-}
-
-/// The circle scene's motion: a constant turn, so that every state shapes the motion.
-fn circle() -> AnyMotion {
-    Simulation::builder()
-        .scene("circle")
-        .build()
-        .unwrap()
-        .motion()
-        .clone()
-}
-
-/// The circle's states every 10 ms for `seconds`, as `imu-emu trajectory` writes them (a
-/// comment, the header, then one line per state).
-fn circle_lines(seconds: f64) -> Vec<String> {
-    trajectory::sample_motion(
-        &circle(),
-        0.0,
-        100.0,
-        (seconds * 100.0) as u64,
-        Some("circle"),
-    )
-    .lines()
-    .map(str::to_string)
-    .collect()
-}
-
-/// `imu-emu run --motion - --time-mode lockstep` with `text` on a pipe, error-free records as
-/// CSV (every digit shows): its exit status, stderr and output file (if one was left).
-fn lockstep_pipe(text: &str) -> (ExitStatus, String, Option<Vec<u8>>) {
-    let dir = tempfile::TempDir::new().unwrap();
-    let out = dir.path().join("out.csv");
-    let mut child = imu_emu()
-        .args(["run", "--motion", "-", "--time-mode", "lockstep"])
-        .args(["--imu", "ideal", "--format", "csv", "--file"])
-        .arg(&out)
-        .stdin(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stdin = child.stdin.take().unwrap();
-    let text = text.to_string();
-    let writer = thread::spawn(move || {
-        let _ = stdin.write_all(text.as_bytes());
-    });
-    let done = child.wait_with_output().unwrap();
-    writer.join().unwrap();
-    let err = String::from_utf8_lossy(&done.stderr).into_owned();
-    (done.status, err, std::fs::read(&out).ok())
 }
 
 /// Line `n` (1-based, as the run counts them) of `lines` with column `col` set to `value`.
@@ -80,10 +27,6 @@ fn set(lines: &mut [String], n: usize, col: usize, value: &str) {
     let mut f: Vec<&str> = lines[n - 1].split(',').collect();
     f[col] = value;
     lines[n - 1] = f.join(",");
-}
-
-fn join(lines: &[String]) -> String {
-    lines.iter().map(|l| format!("{l}\n")).collect()
 }
 
 /// A state whose given body rate is 1e300 deg/s, another whose given acceleration is 1e300
@@ -100,7 +43,7 @@ fn huge_given_rates_and_accelerations_are_refused_and_counted() {
     let clean = join(&lines);
     set(&mut lines, 150, 10, "1e300");
     set(&mut lines, 200, 13, "1e300");
-    let (status, err, out) = lockstep_pipe(&join(&lines));
+    let (status, err, out) = lockstep_pipe(&join(&lines), &[]);
     assert!(status.success(), "{err}");
     assert!(err.contains(", 2 refused,"), "{err}");
     assert!(
@@ -114,14 +57,14 @@ fn huge_given_rates_and_accelerations_are_refused_and_counted() {
     let mut without = lines.clone();
     without.remove(199);
     without.remove(149);
-    let (status, err, want) = lockstep_pipe(&join(&without));
+    let (status, err, want) = lockstep_pipe(&join(&without), &[]);
     assert!(status.success(), "{err}");
     assert!(
         out.is_some() && out == want,
         "not the bytes without the two lines"
     );
     // Without those lines the output differs: dropping a state is visible.
-    assert!(want != lockstep_pipe(&clean).2);
+    assert!(want != lockstep_pipe(&clean, &[]).2);
 }
 
 /// The motion's state at `t` as a binary datagram carrying a body rate.
@@ -143,26 +86,8 @@ fn datagram(m: &impl Motion, t: f64, seq: u32, rate: [f64; 3]) -> Vec<u8> {
 
 /// `datagrams` sent over UDP loopback to a lockstep run of 2 s; its output and summary.
 fn over_udp(datagrams: Vec<Vec<u8>>) -> (Vec<u8>, imu_emu::run::lockstep::LiveSummary) {
-    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-    socket
-        .set_read_timeout(Some(Duration::from_millis(500)))
-        .unwrap();
-    let addr = socket.local_addr().unwrap();
-    // Every datagram is queued before the run reads any (a 4 MiB buffer holds them all): the
-    // run's end, at its socket's timeout, comes after the last one whatever the load.
-    imu_emu::realtime::udp::grow_receive_buffer(&socket);
-    let s = UdpSocket::bind("127.0.0.1:0").unwrap();
-    for d in datagrams {
-        s.send_to(&d, addr).unwrap();
-    }
-    let mut rx = Receiver::from_socket(socket, InputFormat::Binary, "udp");
-    let b = Simulation::builder().rate(400.0).duration(2.0);
-    let mut out = Vec::new();
-    let s = Lockstep::new(b, InputFormat::Binary)
-        .unwrap()
-        .run(&mut rx, &mut out, None, |_| ())
-        .unwrap();
-    (out, s)
+    let mut rx = Receiver::from_socket(queued_udp(&datagrams), InputFormat::Binary, "udp");
+    lockstep_2s(&mut rx, InputFormat::Binary)
 }
 
 /// A binary datagram with ω = 1e300 rad/s (issue 23 item 1) over UDP: refused, named by its
@@ -225,7 +150,7 @@ fn a_position_jump_is_refused() {
     );
     assert!(!out.exists());
 
-    let (status, err, got) = lockstep_pipe(&join(&lines));
+    let (status, err, got) = lockstep_pipe(&join(&lines), &[]);
     assert!(status.success(), "{err}");
     assert!(
         err.contains("396 states taken;") && err.contains(", 5 refused,"),
@@ -239,7 +164,7 @@ fn a_position_jump_is_refused() {
     }
     let mut without = lines.clone();
     without.drain(299..304);
-    let (status, err, want) = lockstep_pipe(&join(&without));
+    let (status, err, want) = lockstep_pipe(&join(&without), &[]);
     assert!(status.success(), "{err}");
     assert!(
         got.is_some() && got == want,
@@ -252,7 +177,7 @@ fn a_position_jump_is_refused() {
 fn lockstep_tcp(text: Vec<u8>) -> (ExitStatus, String, Option<Vec<u8>>, i64) {
     let dir = tempfile::TempDir::new().unwrap();
     let out = dir.path().join("out.bin");
-    let (mut child, mut conn) = live_cli::lockstep_over_tcp(&out);
+    let (mut child, mut conn) = live_cli::lockstep_over_tcp(&out, &["--duration", "2"]);
     let sender = thread::spawn(move || {
         let _ = conn.write_all(&text);
     });
@@ -325,7 +250,7 @@ fn a_time_tag_off_the_time_line_is_refused() {
     let lines = circle_lines(4.0);
     let mut outlier = lines.clone();
     set(&mut outlier, 250, 0, "1e9");
-    let (status, err, got) = lockstep_pipe(&join(&outlier));
+    let (status, err, got) = lockstep_pipe(&join(&outlier), &[]);
     assert!(status.success(), "{err}");
     assert!(err.contains(", 1 refused,"), "{err}");
     assert!(
@@ -336,7 +261,7 @@ fn a_time_tag_off_the_time_line_is_refused() {
     );
     let mut without = lines.clone();
     without.remove(249);
-    let (status, err, want) = lockstep_pipe(&join(&without));
+    let (status, err, want) = lockstep_pipe(&join(&without), &[]);
     assert!(status.success(), "{err}");
     assert!(
         got.is_some() && got == want,
@@ -346,7 +271,7 @@ fn a_time_tag_off_the_time_line_is_refused() {
     // 99 states lost in a row: a step of 100 spacings (1 s) is bridged, so nothing refused.
     let mut outage = lines.clone();
     outage.drain(150..249);
-    let (status, err, _) = lockstep_pipe(&join(&outage));
+    let (status, err, _) = lockstep_pipe(&join(&outage), &[]);
     assert!(status.success(), "{err}");
     assert!(err.contains(", 0 refused,"), "{err}");
 }
@@ -360,7 +285,7 @@ fn an_input_without_a_usable_state_says_why() {
     for k in 0..20 {
         text.push_str(&format!("{},45,7,100,0,0\n", k as f64 * 0.01));
     }
-    let (status, err, out) = lockstep_pipe(&text);
+    let (status, err, out) = lockstep_pipe(&text, &[]);
     assert_eq!(status.code(), Some(1), "{err}");
     assert!(err.contains("after 0 usable states"), "{err}");
     assert!(err.contains("21 messages (1 without a state"), "{err}");

@@ -134,8 +134,9 @@ pub struct RunArgs {
 #[derive(clap::Args)]
 pub struct LiveArgs {
     /// Follow states that arrive live instead of a scene or a trajectory file:
-    /// udp://HOST:PORT (unicast or multicast), tcp://HOST:PORT (listens, takes the first
-    /// connection), - (stdin), or a FIFO or file (docs/live-input.md).
+    /// udp://HOST:PORT (unicast or multicast), tcp://HOST:PORT (listens; one connection after
+    /// another, so a readiness probe or a reconnect ends nothing), - (stdin), or a FIFO or
+    /// file (docs/live-input.md).
     #[arg(long, value_name = "SOURCE", conflicts_with_all = ["scene", "trajectory"])]
     pub motion: Option<String>,
     /// Wire format of the --motion states: csv, bin or mavlink (HIL_STATE_QUATERNION)
@@ -163,7 +164,8 @@ pub struct LiveArgs {
     /// Realtime: once the input is silent for --input-timeout (or its stream ended): stop
     /// (end the run; the frames due while waiting out the silence were already sent,
     /// extrapolated up to --max-extrapolation past the newest state, then held; a stream
-    /// that ends stops after the frames up to its newest state), hold (keep going at
+    /// that ends stops after the frames up to its newest state — a pipe or file: a TCP
+    /// sender's close is no end, its listener waits for the next), hold (keep going at
     /// constant acceleration and angular rate, frames marked stale) or extrapolate (keep
     /// going, bounded by --max-extrapolation, then hold) [default: stop].
     #[arg(long, value_name = "POLICY")]
@@ -173,7 +175,8 @@ pub struct LiveArgs {
     #[arg(long, value_name = "FILE")]
     pub record_input: Option<std::path::PathBuf>,
     /// A --motion input counts as ended after this many seconds without a UDP datagram or
-    /// TCP data, once the first has arrived [default: 10].
+    /// TCP data (on any connection: connecting is no data), once the first has arrived
+    /// [default: 10].
     #[arg(long, value_name = "SECONDS")]
     pub input_timeout: Option<f64>,
 }

@@ -2,14 +2,17 @@
 //! yaw`; s, deg, deg, m, m/s, deg) in any order, plus optional exact derivatives the
 //! simulation knows: `wx,wy,wz` (body angular rate ω_ib^b, deg/s) and `an,ae,ad` (time
 //! derivative of the NED velocity, m/s²). A header line names the columns and may be sent at
-//! any time (again over UDP, where a receiver can join late); without one the ten trajectory
-//! columns are assumed in their file order. `#` starts a comment line. Instead of `t`, the
+//! any time (again over UDP, where a receiver can join late); it is read as a trajectory
+//! file's header is ([`crate::csvio::header_columns`], a UTF-8 byte-order mark dropped).
+//! Without one the ten trajectory columns are assumed in their file order; after a refused
+//! one (and none taken before it) the rows are refused, not read in that assumed order.
+//! `#` starts a comment line. Instead of `t`, the
 //! time tag can be GPS time: `gps_week` (whole weeks since 1980-01-06) and `gps_sow` (seconds
 //! of week, [0, 604800)), taken as GPS seconds since the GPS epoch, week·604800 + sow, as the
 //! binary datagram's week and time tag are (GPS time has no leap seconds).
 
 use super::{Decoded, Malformed};
-use crate::csvio::{clip, num, parse_finite};
+use crate::csvio::{header_columns, num, parse_finite, strip_bom};
 use crate::math::{Vec3, quat_from_euler};
 use crate::motion::causal::LiveSample;
 use crate::motion::sampled::Sample;
@@ -41,6 +44,11 @@ pub struct CsvDecoder {
     width: usize,
     /// GPS time tags count from the start of this GPS week (see [`super::binary::decode_since`]).
     pub epoch_week: u32,
+    /// A header has been taken: the columns are the sender's, not the default.
+    headed: bool,
+    /// A header was refused before any was taken: the rows' order is unknown, and reading
+    /// them in the default order would swap columns without a word.
+    unknown_layout: bool,
 }
 
 impl Default for CsvDecoder {
@@ -53,6 +61,8 @@ impl Default for CsvDecoder {
             at,
             width: COLUMNS.len(),
             epoch_week: 0,
+            headed: false,
+            unknown_layout: false,
         }
     }
 }
@@ -92,43 +102,47 @@ impl CsvDecoder {
         }
         let text = std::str::from_utf8(line)
             .map_err(|e| Malformed::at(e.valid_up_to(), "not UTF-8 text"))?;
-        let text = text.trim_end_matches(['\n', '\r']);
+        let line_text = text.trim_end_matches(['\n', '\r']);
+        let text = strip_bom(line_text);
+        // Offsets in messages count the mark's bytes: they are the line's as sent.
+        let mark = line_text.len() - text.len();
+        let shift = |mut e: Malformed| {
+            e.offset += mark;
+            e
+        };
         let trimmed = text.trim();
         if trimmed.is_empty() || trimmed.starts_with('#') {
             return Ok(None);
         }
         let fields: Vec<&str> = text.split(',').map(str::trim).collect();
-        if fields[0].parse::<f64>().is_err() && !fields[0].is_empty() {
-            self.header(&fields)?;
-            return Ok(None);
+        // A line without a number is a header; one with numbers is a state, however damaged
+        // its first field (a state's damage is not a header's).
+        if fields.iter().all(|f| f.parse::<f64>().is_err()) {
+            let taken = self.header(&fields);
+            self.unknown_layout = taken.is_err() && (self.unknown_layout || !self.headed);
+            self.headed |= taken.is_ok();
+            return taken.map(|()| None).map_err(shift);
         }
-        self.data(text, &fields).map(Some)
+        if self.unknown_layout {
+            return Err(Malformed::at(
+                0,
+                "the sender's columns are unknown: its header was refused (see that line), and its rows are not read in a guessed order until a header is taken",
+            ));
+        }
+        self.data(text, &fields).map(Some).map_err(shift)
     }
 
     fn header(&mut self, fields: &[&str]) -> Result<(), Malformed> {
+        let known: Vec<&str> = (0..KNOWN).map(name_of).collect();
+        let expected = format!(
+            "(expected `{}` and optionally `{}`; `{}` for `t`)",
+            COLUMNS.join(","),
+            EXTRA_COLUMNS.join(","),
+            GPS_COLUMNS.join(",")
+        );
+        let found = header_columns(fields, &known, &expected).map_err(|m| Malformed::at(0, m))?;
         let mut at = [None; KNOWN];
-        for (c, name) in fields.iter().enumerate() {
-            let Some(k) = (0..KNOWN).find(|&k| name_of(k) == *name) else {
-                return Err(Malformed::at(
-                    0,
-                    format!(
-                        "header: column {}: unknown column {} (expected `{}` and optionally `{}`; `{}` for `t`)",
-                        c + 1,
-                        clip(name),
-                        COLUMNS.join(","),
-                        EXTRA_COLUMNS.join(","),
-                        GPS_COLUMNS.join(",")
-                    ),
-                ));
-            };
-            if at[k].is_some() {
-                return Err(Malformed::at(
-                    0,
-                    format!("header: column {}: {} appears twice", c + 1, clip(name)),
-                ));
-            }
-            at[k] = Some(c);
-        }
+        at.copy_from_slice(&found);
         match (at[0].is_some(), at[GPS].is_some(), at[GPS + 1].is_some()) {
             (_, true, false) | (_, false, true) => {
                 return Err(Malformed::at(
@@ -291,17 +305,58 @@ mod tests {
         assert!(e.message.contains("outside [-90, 90]"), "{e:?}");
         let e = d.decode(b"1.5,45,7").unwrap_err();
         assert_eq!(e.message, "3 fields, expected 10");
+        let e = d.decode(b"1.5,45,7,1,nan,2,3,0,0,90").unwrap_err();
+        assert!(e.message.contains("not finite"), "{e:?}");
+        let e = d.decode(b"1.5,45,\xff").unwrap_err();
+        assert_eq!(e.offset, 7);
+        // A damaged first field is a damaged state, not a header.
+        let e = d.decode(b"1.x5,45,7,1,1,2,3,0,0,90").unwrap_err();
+        assert_eq!(e.message, "column 1 (`t`): `1.x5` is not a number");
         let e = d
             .decode(b"t,lat,lon,h,vn,ve,vd,roll,pitch,yaw,wx")
             .unwrap_err();
         assert!(e.message.contains("give all three"), "{e:?}");
         let e = d.decode(b"t,lat,lon,h,vn,ve,vd,roll,pitch").unwrap_err();
         assert!(e.message.contains("missing column `yaw`"), "{e:?}");
-        let e = d.decode(b"1.5,45,7,1,nan,2,3,0,0,90").unwrap_err();
-        assert!(e.message.contains("not finite"), "{e:?}");
-        let e = d.decode(b"1.5,45,\xff").unwrap_err();
-        assert_eq!(e.offset, 7);
+        // These headers were refused before any was taken: the rows' order is unknown.
+        let e = d.decode(b"1.5,45,7,1,1,2,3,0,0,90").unwrap_err();
+        assert!(e.message.contains("columns are unknown"), "{e:?}");
+        assert_eq!(d.decode(COLUMNS.join(",").as_bytes()).unwrap(), None);
         assert!(d.decode(b"1.5,45,7,1,1,2,3,0,0,90").unwrap().is_some());
+    }
+
+    /// A byte-order mark and a header in another order (issue 38: the mark made the header a
+    /// malformed line and the rows were read in the default order, latitude and longitude
+    /// swapped): read as a trajectory file's; offsets count the mark's bytes.
+    #[test]
+    fn a_byte_order_mark_and_another_order() {
+        let mut d = CsvDecoder::default();
+        let head = "\u{feff}t,lon,lat,h,vn,ve,vd,roll,pitch,yaw";
+        assert_eq!(d.decode(head.as_bytes()).unwrap(), None);
+        let s = d.decode(b"2,7,45,100,1,2,3,0,0,90").unwrap().unwrap();
+        assert_eq!(s.state.sample.lat, 45f64.to_radians());
+        assert_eq!(s.state.sample.lon, 7f64.to_radians());
+        // A mark on a data line (each datagram written as `utf-8-sig`).
+        let s = d
+            .decode("\u{feff}3,7,45,100,1,2,3,0,0,90".as_bytes())
+            .unwrap()
+            .unwrap();
+        assert_eq!(s.state.sample.t, 3.0);
+        let e = d
+            .decode("\u{feff}3,7,4x,100,1,2,3,0,0,90".as_bytes())
+            .unwrap_err();
+        assert_eq!(e.offset, 3 + 4);
+        // Refused before any header was taken, e.g. a name the trajectory reader refuses too:
+        // the rows are refused, not read in the default order.
+        let mut d = CsvDecoder::default();
+        let e = d
+            .decode(b"time,lon,lat,h,vn,ve,vd,roll,pitch,yaw")
+            .unwrap_err();
+        assert!(
+            e.message.contains("column 1: unknown column `time`"),
+            "{e:?}"
+        );
+        assert!(d.decode(b"2,7,45,100,1,2,3,0,0,90").is_err());
     }
 
     /// `gps_week,gps_sow` instead of `t`: the time is GPS seconds since the GPS epoch; a

@@ -1,15 +1,16 @@
 //! Live motion input for hardware-in-the-loop runs: states of a vehicle simulation arriving
 //! over UDP, TCP, a pipe or a file, decoded ([`csv`], [`binary`], [`mavlink`]), checked and
-//! counted ([`stats`]), for the causal motion model ([`crate::motion::causal`]), with the map
-//! from the sender's clock to the host's ([`clockmap`]). The run follows them
-//! ([`crate::run`]). docs/live-input.md is the user's
-//! guide and specifies the binary datagram.
+//! counted ([`stats`]; lost CSV states told from their time steps, [`lost`]), for the causal
+//! motion model ([`crate::motion::causal`]), with the map from the sender's clock to the
+//! host's ([`clockmap`]). The run follows them ([`crate::run`]). docs/live-input.md is the
+//! user's guide and specifies the binary datagram.
 //!
 //! Decoding is pure (bytes in, states out); [`transport`] is the only I/O.
 
 pub mod binary;
 pub mod clockmap;
 pub mod csv;
+pub mod lost;
 pub mod mavlink;
 pub mod stats;
 pub mod transport;

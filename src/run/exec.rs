@@ -323,7 +323,7 @@ impl Feed {
             (r.write_all(&m.bytes).and_then(|()| r.write_all(nl)))
                 .map_err(|e| RunError::io("writing the input record", e))?;
         }
-        self.stats.messages += 1;
+        self.stats.message(&m);
         match self.decoder.decode(&m.bytes) {
             Ok(Some(d)) => {
                 let outcome = self.model.push(&d.state);
@@ -352,7 +352,7 @@ impl Feed {
     /// The input's final counts; the input record is kept whatever happened (it is how a
     /// failed run is reproduced).
     pub(super) fn close(mut self) -> Result<InputStats, RunError> {
-        self.stats.skipped_bytes = self.rx.skipped_bytes();
+        self.stats.transport(&self.rx);
         if let Some((r, p)) = self.record.take() {
             r.commit()
                 .map_err(|e| RunError::io(format!("writing {}", p.display()), e))?;

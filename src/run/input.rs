@@ -251,7 +251,8 @@ fn receive<W: Write>(
         }
         let decoded = decoder.decode(&m.bytes);
         let mut g = lock.lock().unwrap_or_else(|e| e.into_inner());
-        g.stats.messages += 1;
+        g.stats.message(&m);
+        g.stats.transport(rx);
         g.last_arrival_ns = Some(arrival_ns);
         match decoded {
             Ok(Some(d)) => {
@@ -287,7 +288,7 @@ fn receive<W: Write>(
         monotonic_ns() - before
     });
     g.error = error;
-    g.stats.skipped_bytes = rx.skipped_bytes();
+    g.stats.transport(rx);
     drop(g);
     cv.notify_all();
 }

@@ -155,7 +155,7 @@ impl Lockstep {
         input: &str,
         outs: &mut [&mut dyn Write],
     ) -> Result<(), RunError> {
-        self.stats.messages += 1;
+        self.stats.message(m);
         match self.decoder.decode(&m.bytes) {
             Ok(Some(d)) => self.state_to(&d, &format!("{input}: {}", m.place), outs),
             Ok(None) => {
@@ -266,7 +266,7 @@ impl Lockstep {
             self.message_to(&m, &name, outs)?;
             tick(&self);
         }
-        self.stats.skipped_bytes = rx.skipped_bytes();
+        self.stats.transport(rx);
         for out in outs.iter_mut() {
             out.flush()
                 .map_err(|e| RunError::io("writing the output", e))?;

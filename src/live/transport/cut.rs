@@ -19,6 +19,7 @@ impl Receiver {
                 bytes: b,
                 place: Place::Datagram(n, 0),
                 arrival,
+                connection: 0,
             });
             return;
         }
@@ -32,6 +33,7 @@ impl Receiver {
                 bytes: line[..kept].to_vec(),
                 place: Place::Datagram(n, l as u64 + 1),
                 arrival,
+                connection: 0,
             });
         }
     }
@@ -83,6 +85,7 @@ impl Receiver {
                 bytes,
                 place: Place::Line(self.lines),
                 arrival,
+                connection: self.connections,
             });
             at += len;
         }
@@ -138,6 +141,7 @@ impl Receiver {
                 bytes: rest[..len].to_vec(),
                 place: Place::Byte(self.offset + at as u64),
                 arrival,
+                connection: self.connections,
             });
             at += len;
         }

@@ -1,12 +1,18 @@
 //! Where states come from: `udp://HOST:PORT` (a datagram per message; a multicast HOST joins
-//! its group), `tcp://HOST:PORT` (listens there and takes the first connection), `-` (stdin)
-//! or a path (a file or a FIFO). Streams are cut into messages by the format: lines for CSV,
-//! the magic and fixed length for binary datagrams, the header's length for MAVLink.
+//! its group), `tcp://HOST:PORT` (listens there and reads one connection after another), `-`
+//! (stdin) or a path (a file or a FIFO). Streams are cut into messages by the format: lines
+//! for CSV, the magic and fixed length for binary datagrams, the header's length for MAVLink.
 //!
 //! Nothing waits without looking at the run's stop flag ([`Receiver::open_until`]): a socket is
 //! polled every [`POLL`], and a stream (stdin, a FIFO, a file, a TCP connection) is read — and a
 //! FIFO opened — on a thread of its own whose chunks the receiver waits for [`POLL`] at a time,
 //! so a signal before the first state (or during a silence) ends the run at once.
+//!
+//! A TCP input is not over when a connection closes: a readiness check that connects and
+//! closes, a sender that reconnects are what real rigs do. One connection is read at a time
+//! (the next waits in the listen queue); it goes on where the last one stopped, its lines
+//! and bytes counted on from there, a line or frame the last one left unfinished cut off.
+//! Like UDP, the input is over after the idle timeout without data, whatever connects.
 //!
 //! This file opens the endpoints and reads them; `cut` cuts what arrives into messages.
 
@@ -14,7 +20,7 @@ mod cut;
 
 use std::collections::VecDeque;
 use std::io::{ErrorKind, Read};
-use std::net::{Ipv4Addr, SocketAddr, TcpListener, ToSocketAddrs, UdpSocket};
+use std::net::{Ipv4Addr, Shutdown, SocketAddr, TcpListener, TcpStream, ToSocketAddrs, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -28,7 +34,7 @@ use super::InputFormat;
 pub enum Endpoint {
     /// Datagrams received at this address.
     Udp(SocketAddr),
-    /// A stream from the first client connecting to this address.
+    /// Streams from the clients connecting to this address, one after another.
     Tcp(SocketAddr),
     /// A byte stream: stdin (`-`), a file or a FIFO.
     Stream(PathBuf),
@@ -100,6 +106,8 @@ pub struct Message {
     pub place: Place,
     /// When it was received.
     pub arrival: Instant,
+    /// The TCP connection that brought it (1 for the first one); 0 for other inputs.
+    pub connection: u64,
 }
 
 /// How long a receiver waits at a time before it looks at the stop flag again.
@@ -112,6 +120,12 @@ enum Kind {
     Udp(UdpSocket),
     /// A stream read on its own thread: chunks, an empty one at its end (or its idle timeout).
     Stream(ChunkRx<std::io::Result<Vec<u8>>>),
+    /// A TCP listener (non-blocking) and the connection being read, as a stream, if any; the
+    /// socket is kept to shut it down when the input ends while it is open.
+    Tcp {
+        listener: TcpListener,
+        conn: Option<(TcpStream, ChunkRx<std::io::Result<Vec<u8>>>)>,
+    },
 }
 
 /// Reads `r` on a thread of its own, chunk by chunk, into a bounded channel; an empty chunk
@@ -180,15 +194,17 @@ pub struct Receiver {
     /// The UDP socket is polled (opened here); a caller's socket ends at its own timeout.
     polled: bool,
     rbuf: Vec<u8>,
+    /// TCP connections accepted so far.
+    connections: u64,
 }
 
 /// Largest datagram taken (bigger ones are cut, and then malformed).
 const MAX_DATAGRAM: usize = 65_536;
 
 impl Receiver {
-    /// Opens `endpoint` for messages of `format`. A UDP receiver, and a TCP one once
-    /// connected, end after `idle` without data once the first data arrived (a rig may start
-    /// the emulator before the simulation); never for `None`.
+    /// Opens `endpoint` for messages of `format`. A UDP or TCP receiver ends after `idle`
+    /// without data once the first data arrived (a rig may start the emulator before the
+    /// simulation; a TCP sender may reconnect meanwhile); never for `None`.
     pub fn open(
         endpoint: &Endpoint,
         format: InputFormat,
@@ -197,9 +213,10 @@ impl Receiver {
         Receiver::open_until(endpoint, format, idle, None)
     }
 
-    /// [`Receiver::open`], giving up every wait once `stop` is set: opening (a TCP listener
-    /// before a sender connects, a FIFO before a writer opens it) then fails with
-    /// `ErrorKind::Interrupted`, and [`Receiver::next_message`] ends the input.
+    /// [`Receiver::open`], giving up every wait once `stop` is set: opening (a FIFO before a
+    /// writer opens it) then fails with `ErrorKind::Interrupted`, and
+    /// [`Receiver::next_message`] (a TCP listener before a sender connects, or between
+    /// connections) ends the input.
     pub fn open_until(
         endpoint: &Endpoint,
         format: InputFormat,
@@ -224,25 +241,16 @@ impl Receiver {
                 (Kind::Udp(socket), format!("udp://{addr}"))
             }
             Endpoint::Tcp(addr) => {
+                // Connections are taken as messages are asked for ([`Receiver::fill`]).
                 let listener = TcpListener::bind(addr)?;
                 listener.set_nonblocking(true)?;
-                let stream = loop {
-                    match listener.accept() {
-                        Ok((s, _)) => break s,
-                        Err(e) if e.kind() == ErrorKind::WouldBlock => {
-                            if stopped(&stop) {
-                                return Err(stopped_while("before a sender connected"));
-                            }
-                            std::thread::sleep(POLL);
-                        }
-                        Err(e) => return Err(e),
-                    }
-                };
-                stream.set_nonblocking(false)?;
-                stream.set_read_timeout(idle)?;
+                let name = format!("tcp://{}", listener.local_addr()?);
                 (
-                    Kind::Stream(pump(Box::new(stream))),
-                    format!("tcp://{addr}"),
+                    Kind::Tcp {
+                        listener,
+                        conn: None,
+                    },
+                    name,
                 )
             }
             Endpoint::Stream(path) if path == Path::new("-") => (
@@ -306,6 +314,7 @@ impl Receiver {
             stop: None,
             polled: false,
             rbuf: Vec::new(),
+            connections: 0,
         }
     }
 
@@ -318,8 +327,14 @@ impl Receiver {
     pub fn local_addr(&self) -> Option<SocketAddr> {
         match &self.kind {
             Kind::Udp(s) => s.local_addr().ok(),
+            Kind::Tcp { listener, .. } => listener.local_addr().ok(),
             Kind::Stream(_) => None,
         }
+    }
+
+    /// TCP connections accepted so far (0 for other inputs).
+    pub fn connections(&self) -> u64 {
+        self.connections
     }
 
     /// Stream bytes that were outside any frame so far.
@@ -373,7 +388,7 @@ impl Receiver {
                         Err(e) => return Err(e),
                     }
                 }
-                Kind::Stream(_) => self.fill()?,
+                Kind::Stream(_) | Kind::Tcp { .. } => self.fill()?,
             };
             if !got && self.pending.is_empty() {
                 return Ok(None);
@@ -386,27 +401,109 @@ impl Receiver {
         if self.eof {
             return Ok(false);
         }
-        let Kind::Stream(r) = &mut self.kind else {
-            unreachable!("a stream")
-        };
-        let chunk = loop {
-            match r.recv_timeout(POLL) {
-                Ok(c) => break c?,
-                Err(RecvTimeoutError::Timeout) if stopped(&self.stop) => break Vec::new(),
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => break Vec::new(),
-            }
+        let chunk = match &mut self.kind {
+            Kind::Stream(r) => loop {
+                match r.recv_timeout(POLL) {
+                    Ok(c) => break c?,
+                    Err(RecvTimeoutError::Timeout) if stopped(&self.stop) => break Vec::new(),
+                    Err(RecvTimeoutError::Timeout) => {}
+                    Err(RecvTimeoutError::Disconnected) => break Vec::new(),
+                }
+            },
+            Kind::Tcp { .. } => match self.tcp_chunk()? {
+                // A connection ended: what it left unfinished is cut, the input goes on.
+                Some(c) if c.is_empty() => return Ok(true),
+                Some(c) => c,
+                None => Vec::new(),
+            },
+            Kind::Udp(_) => unreachable!("a stream"),
         };
         let n = chunk.len();
         if n == 0 {
             self.eof = true;
         }
         self.buf.extend_from_slice(&chunk);
+        self.cut();
+        Ok(n > 0 || !self.pending.is_empty())
+    }
+
+    /// Cuts what the buffer holds into messages, by the format.
+    fn cut(&mut self) {
         match self.format {
             InputFormat::Csv => self.cut_lines(),
             InputFormat::Binary | InputFormat::Mavlink => self.cut_frames(),
         }
-        Ok(n > 0 || !self.pending.is_empty())
+    }
+
+    /// True once the input is over while it waits for data: stopped, or idle since the
+    /// newest data (which sets `idled`).
+    fn waited_out(&mut self) -> bool {
+        self.idled = matches!((self.idle, self.last_data), (Some(i), Some(l)) if l.elapsed() >= i);
+        self.idled || stopped(&self.stop)
+    }
+
+    /// The next chunk of the TCP input, from the connection being read or, once it closes,
+    /// from the next one to connect; empty when a connection's end left messages to take
+    /// (what it left unfinished is cut as at a stream's end); `None` when the input is over.
+    fn tcp_chunk(&mut self) -> std::io::Result<Option<Vec<u8>>> {
+        loop {
+            let Kind::Tcp { listener, conn } = &mut self.kind else {
+                unreachable!("a TCP input")
+            };
+            let Some((_, r)) = conn else {
+                match listener.accept() {
+                    Ok((s, _)) => {
+                        s.set_nonblocking(false)?;
+                        *conn = Some((s.try_clone()?, pump(Box::new(s))));
+                        self.connections += 1;
+                    }
+                    Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                        if self.waited_out() {
+                            return Ok(None);
+                        }
+                        std::thread::sleep(POLL);
+                    }
+                    // A client gone before it was taken is no fault of the input.
+                    Err(e)
+                        if matches!(
+                            e.kind(),
+                            ErrorKind::Interrupted | ErrorKind::ConnectionAborted
+                        ) => {}
+                    Err(e) => return Err(e),
+                }
+                continue;
+            };
+            match r.recv_timeout(POLL) {
+                Ok(Ok(c)) if !c.is_empty() => {
+                    self.last_data = Some(Instant::now());
+                    return Ok(Some(c));
+                }
+                // Its end, or a reset: the connection is over, not the input.
+                Ok(_) | Err(RecvTimeoutError::Disconnected) => {
+                    *conn = None;
+                    self.eof = true;
+                    self.cut();
+                    self.eof = false;
+                    self.discarding = false;
+                    self.scanned = 0;
+                    if !self.pending.is_empty() {
+                        return Ok(Some(Vec::new()));
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    if self.waited_out() {
+                        if let Kind::Tcp {
+                            conn: Some((s, _)), ..
+                        } = &self.kind
+                        {
+                            // Its reading thread ends with it.
+                            let _ = s.shutdown(Shutdown::Both);
+                        }
+                        return Ok(None);
+                    }
+                }
+            }
+        }
     }
 }
 
