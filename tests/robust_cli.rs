@@ -484,3 +484,37 @@ fn a_segment_beyond_its_limit_is_refused() {
         }
     }
 }
+
+/// A binary record file whose length is not a whole number of records is refused from its
+/// length, before a record is read (issue 38: `analyze` read a whole 1 GiB file before its
+/// last record came up short). The first record holds a NaN, which a reader that started
+/// reading would have named instead.
+#[test]
+fn a_binary_record_file_of_the_wrong_size_is_refused_before_it_is_read() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let bin = dir.path().join("cut.bin");
+    let mut bytes = Vec::new();
+    for k in 0..20 {
+        let mut v = [0.0; 13];
+        v[0] = f64::from(k + 1) * 0.01;
+        v[1] = if k == 0 { f64::NAN } else { 0.0 };
+        let r = imu_emu::record::Record::from_values(&v);
+        imu_emu::output::encode(imu_emu::output::Format::Bin, &[r], &mut bytes);
+    }
+    bytes.extend_from_slice(&[0; 50]);
+    std::fs::write(&bin, bytes).unwrap();
+    let want = format!(
+        "{}: 2130 bytes is not a whole number of 104-byte records (20 records and 50 bytes",
+        bin.display()
+    );
+    for args in [
+        &["analyze"][..],
+        &["fit", "-o", "/dev/null"][..],
+        &["navigate", "--scene", "circle"][..],
+    ] {
+        let o = imu_emu().args(args).arg(&bin).output().unwrap();
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(&want), "{args:?}: {err}");
+    }
+}

@@ -113,6 +113,7 @@ pub fn read(
     match format {
         InputFormat::Csv(o) => read_csv(path, BufReader::with_capacity(1 << 16, file), o, sample),
         InputFormat::Bin => {
+            crate::input::check_whole_records(path)?;
             let bytes = file.metadata().map_err(io)?.len();
             let mut r = BufReader::with_capacity(1 << 16, file);
             let mut rec = [0u8; crate::output::BIN_RECORD_BYTES];
