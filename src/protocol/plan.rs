@@ -5,6 +5,7 @@
 
 use std::path::Path;
 
+use super::anchor::Anchors;
 use super::compile::{compile_layout, tick_step};
 use super::faults::{FaultError, FaultKind, FrameFaults};
 use super::frame::{Channels, DecodeError, Decoded, EncoderState};
@@ -47,6 +48,8 @@ pub struct Plan {
     schedule: Vec<usize>,
     /// The schedule is indexed by the frame's counter value rather than its position.
     by_counter: bool,
+    /// Where no frame can start (`None` when some message has no constant field).
+    anchors: Option<Anchors>,
 }
 
 impl Plan {
@@ -154,6 +157,7 @@ impl Plan {
             rate_hz: spec.rate_hz,
             baud: spec.baud,
             transport,
+            anchors: Anchors::of(&layouts),
             layouts,
             schedule,
             by_counter,
@@ -418,6 +422,21 @@ impl Plan {
         self.layouts
             .iter()
             .any(|l| l.constants_match(bytes).is_ok())
+    }
+
+    /// How many of the first places in `bytes` start no frame: the places a decoder hunting
+    /// for a boundary may skip at once (0 for frames without constant fields).
+    pub fn no_frame_before(&self, bytes: &[u8]) -> usize {
+        self.anchors
+            .as_ref()
+            .map_or(0, |a| a.no_frame_before(bytes))
+    }
+
+    /// The plan hunting byte by byte: the reference a test holds the skipping hunt to.
+    #[cfg(test)]
+    pub(crate) fn without_anchors(mut self) -> Plan {
+        self.anchors = None;
+        self
     }
 
     /// True when `bytes` start with the constants of some message (at least one of them
