@@ -56,3 +56,38 @@ fn a_long_line_costs_every_reader_what_it_costs_generate() {
         }
     }
 }
+
+/// `plot-errors` streams: a `--truth-errors` file ten times longer (20 000 rows, 9.6 MB)
+/// costs no more than 4 MB over the shorter one's peak (it read the file whole, then a row
+/// vector each: 1.8 times the file).
+#[test]
+fn plot_errors_memory_does_not_grow_with_the_file() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let errors = |seconds: &str| {
+        let p = dir.path().join(format!("e{seconds}.csv"));
+        let o = imu_emu()
+            .args("generate --scene static --imu adis16405:typical --rate 1000".split(' '))
+            .args(["--duration", seconds, "-o", "/dev/null", "--truth-errors"])
+            .arg(&p)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        p
+    };
+    let peak = |p: &Path| {
+        let png = dir.path().join("e.png");
+        let (status, err, peak) = rusage::run_with_peak(
+            imu_emu()
+                .args(["plot-errors", "--points", "100", "-o"])
+                .arg(&png)
+                .arg(p),
+        );
+        assert!(status.success(), "{err}");
+        (peak, std::fs::metadata(p).unwrap().len())
+    };
+    let (small, small_len) = peak(&errors("2"));
+    let (big, big_len) = peak(&errors("20"));
+    println!("peak {big} kB for {big_len} bytes, {small} kB for {small_len} bytes");
+    assert!(big_len > 9 * small_len, "{big_len} vs {small_len} bytes");
+    assert!(big < small + 4 * 1024, "{big} vs {small} kB");
+}
