@@ -166,10 +166,9 @@ impl Recording {
     pub fn read(&self, segment: usize) -> Result<Read, RecordingError> {
         super::analyzer::check_segment(segment).map_err(RecordingError::Refused)?;
         let refuse = |m: String| Err(RecordingError::Refused(m));
-        if let Some(r) = self.rate
-            && !(r > 0.0 && r.is_finite())
-        {
-            return refuse(format!("--rate: expected a positive number of Hz, got {r}"));
+        if let Some(r) = self.rate {
+            super::analyzer::check_rate(r)
+                .map_err(|e| RecordingError::Refused(format!("--{e}")))?;
         }
         if let Some(t) = self.table()? {
             return Ok(Read {
