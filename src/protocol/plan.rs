@@ -13,7 +13,7 @@ use super::framing::{self, BitWriter, Fcs, HdlcOptions, SdlcOptions};
 use super::layout::{Layout, What};
 use super::spec::{FrameSpec, MAX_MESSAGES, MAX_RATE_HZ, ScheduleBy, Source, SpecError, compact};
 use crate::math::Vec3;
-use crate::record::{FLAG_INVALID, Record};
+use crate::record::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED, FLAG_INVALID, Record};
 
 /// A decoder hunting for a frame boundary believes a run of frames once random bytes would
 /// pass its constants and checks by chance less than once in 2^LOCK_BITS positions (about once
@@ -307,10 +307,17 @@ impl Plan {
         // frame is withheld like a dropped one (its counter value skipped, a gap for a receiver)
         // rather than sent as if healthy.
         let withhold = |flags: u8| flags & FLAG_INVALID != 0 && !layout.reports_failure();
+        let unreported = |flags: u8| {
+            [FLAG_GYRO_SATURATED, FLAG_ACCEL_SATURATED]
+                .into_iter()
+                .any(|s| flags & s != 0 && !layout.reports_saturation(s))
+        };
         match &self.transport {
             Transport::Plain => {
                 let start = out.len();
-                if withhold(layout.encode(&rec, ch, temperature, state, f, out)) {
+                let flags = layout.encode(&rec, ch, temperature, state, f, out);
+                state.unreported += u64::from(unreported(flags));
+                if withhold(flags) {
                     out.truncate(start);
                     state.withheld += 1;
                 } else if f.duplicate {
@@ -320,8 +327,9 @@ impl Plan {
             transport => {
                 let mut frame = std::mem::take(&mut state.scratch);
                 frame.clear();
-                let sends = if withhold(layout.encode(&rec, ch, temperature, state, f, &mut frame))
-                {
+                let flags = layout.encode(&rec, ch, temperature, state, f, &mut frame);
+                state.unreported += u64::from(unreported(flags));
+                let sends = if withhold(flags) {
                     state.withheld += 1;
                     0
                 } else {
