@@ -12,6 +12,11 @@ use std::path::{Path, PathBuf};
 /// a file without line breaks from being read whole into memory.
 pub const MAX_LINE_BYTES: usize = 1 << 20;
 
+/// Largest text file read whole (scene, template and motion-definition files, ADEV and
+/// magnetic-field tables): real ones are kilobytes to a few megabytes; a bound keeps a wrong
+/// path (a recording, a device) from being read into memory whole.
+pub const MAX_TEXT_BYTES: u64 = 64 << 20;
+
 /// Characters of a field's text quoted in an error; longer text is cut with its length given.
 pub const ECHO_CHARS: usize = 40;
 
@@ -171,6 +176,29 @@ pub fn open(path: &Path) -> Result<Box<dyn Read + Send>, FileError> {
     Ok(Box::new(f))
 }
 
+/// The whole text of `path`, refused (as [`std::io::ErrorKind::InvalidData`], naming the
+/// limit) beyond [`MAX_TEXT_BYTES`]: a file from its length before a byte is read, a pipe once
+/// that much has come.
+pub fn read_text(path: &Path) -> std::io::Result<String> {
+    let f = std::fs::File::open(path)?;
+    let too_big = |size: String| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("{size} bytes: a file read whole has at most {MAX_TEXT_BYTES} bytes"),
+        )
+    };
+    let len = f.metadata()?.len();
+    if len > MAX_TEXT_BYTES {
+        return Err(too_big(len.to_string()));
+    }
+    let mut text = String::new();
+    f.take(MAX_TEXT_BYTES + 1).read_to_string(&mut text)?;
+    if text.len() as u64 > MAX_TEXT_BYTES {
+        return Err(too_big(format!("more than {MAX_TEXT_BYTES}")));
+    }
+    Ok(text)
+}
+
 /// A streaming reader of the data lines of a comma-separated table.
 pub struct CsvLines<R> {
     input: R,
@@ -243,6 +271,17 @@ impl<R: BufRead> CsvLines<R> {
                 return Ok(true);
             }
         }
+    }
+
+    /// Moves to the next line whatever it holds (comments and blank lines too, for formats
+    /// whose comments carry settings); false at the end.
+    pub fn advance_raw(&mut self) -> Result<bool, FileError> {
+        self.read_raw()
+    }
+
+    /// The current line as read, its line end included.
+    pub fn raw(&self) -> &str {
+        &self.text
     }
 
     /// The current data line, trimmed.
@@ -397,6 +436,28 @@ mod tests {
             "{e}"
         );
         assert_eq!(parse_finite("-inf").unwrap_err(), "`-inf` is not finite");
+    }
+
+    #[test]
+    fn a_file_read_whole_is_bounded_by_its_length() {
+        let dir = tempfile::TempDir::new().unwrap();
+        let p = dir.path().join("big.toml");
+        // Sparse: its length is refused before a byte of it is read.
+        std::fs::File::create(&p)
+            .unwrap()
+            .set_len(MAX_TEXT_BYTES + 1)
+            .unwrap();
+        let e = read_text(&p).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::InvalidData);
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "{} bytes: a file read whole has at most {MAX_TEXT_BYTES} bytes",
+                MAX_TEXT_BYTES + 1
+            )
+        );
+        std::fs::write(&p, "a = 1\n").unwrap();
+        assert_eq!(read_text(&p).unwrap(), "a = 1\n");
     }
 
     #[test]

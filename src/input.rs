@@ -33,6 +33,9 @@ enum Input {
 impl RecordReader {
     /// Opens `path` (or stdin for `-`).
     pub fn open(path: &Path, format: Format) -> Result<RecordReader, InputError> {
+        if format == Format::Bin {
+            check_whole_records(path)?;
+        }
         let input = BufReader::with_capacity(1 << 20, crate::csvio::open(path)?);
         RecordReader::new(input, path, format)
     }
@@ -122,6 +125,28 @@ impl RecordReader {
             Input::Bin(_) => format!("{}: record {}", self.path.display(), self.records),
         }
     }
+}
+
+/// Refuses a regular file whose length is not a whole number of binary records, before a
+/// byte of it is read: a cut or foreign file would otherwise be read to its end (a whole
+/// gigabyte) before its last record came up short. Pipes are checked record by record.
+pub fn check_whole_records(path: &Path) -> Result<(), InputError> {
+    let Ok(meta) = std::fs::metadata(path) else {
+        // The open that follows names the reason.
+        return Ok(());
+    };
+    let (len, rec) = (meta.len(), BIN_RECORD_BYTES as u64);
+    if !meta.is_file() || len % rec == 0 {
+        return Ok(());
+    }
+    Err(FileError::file(
+        path,
+        format!(
+            "{len} bytes is not a whole number of {rec}-byte records ({} records and {} bytes; is the file CSV? use --format csv)",
+            len / rec,
+            len % rec
+        ),
+    ))
 }
 
 /// Reads the header: the file column of each of `COLUMNS`, and the number of columns.

@@ -452,7 +452,7 @@ fn analyze_bad_input_is_named() {
     std::fs::write(&b, vec![0u8; 104 * 3 + 50]).unwrap();
     let e = err(imu_emu(["analyze", p(&b)]));
     assert!(
-        e.contains("362 bytes is not a whole number of 104-byte records (record 3 is cut short)"),
+        e.contains("362 bytes is not a whole number of 104-byte records (3 records and 50 bytes;"),
         "{e}"
     );
     // A corrupt record (a NaN rate) is named, not averaged into every statistic.

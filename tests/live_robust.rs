@@ -15,6 +15,9 @@ use imu_emu::motion::Motion;
 
 #[path = "common/live_cli.rs"]
 mod live_cli;
+#[path = "common/rusage.rs"]
+mod rusage;
+use rusage::wait_with_rusage;
 
 use live_cli::{circle, circle_lines, join, lockstep_2s, lockstep_pipe, queued_udp};
 
@@ -187,20 +190,6 @@ fn lockstep_tcp(text: Vec<u8>) -> (ExitStatus, String, Option<Vec<u8>>, i64) {
     sender.join().unwrap();
     let err = reader.join().unwrap();
     (status, err, std::fs::read(&out).ok(), maxrss)
-}
-
-/// Waits for `child` and returns its status and its own peak resident set size (kB): from
-/// `wait4`, which reports the one child waited for, whatever other tests run meanwhile.
-fn wait_with_rusage(child: std::process::Child) -> (ExitStatus, i64) {
-    use std::os::unix::process::ExitStatusExt;
-    let pid = child.id() as libc::pid_t;
-    let mut status = 0;
-    // SAFETY: an all-zero rusage is valid; wait4 fills it and `status` for our own child,
-    // which `child` (dropped without waiting) never reaps itself.
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    let r = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
-    assert_eq!(r, pid, "wait4: {}", std::io::Error::last_os_error());
-    (ExitStatus::from_raw(status), usage.ru_maxrss)
 }
 
 /// A 24 MB line without a line end over TCP (issue 23 item 3: read whole, searched from its

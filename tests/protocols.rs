@@ -1148,3 +1148,29 @@ fn spec_errors_do_not_repeat_their_cause() {
         .to_string();
     assert!(source.contains("os error 2"), "{source}");
 }
+
+/// A value clipped at its field's range (or at f32's largest) is counted as unreported where
+/// no status bit of the message reports it (NovAtel's integer fields, MAVLink's floats), and
+/// not where one does (STIM300, LN-200, KVH 1750): Python's `encode` refuses the former.
+#[test]
+fn clipping_without_a_status_bit_is_counted() {
+    for (name, want) in [
+        ("novatel-rawimusx", 1),
+        ("mavlink-hil-sensor", 1),
+        ("stim300", 0),
+        ("ln200", 0),
+        ("kvh1750", 0),
+    ] {
+        let (_, plan) = imu_emu::protocol::load(name).unwrap();
+        let mut st = EncoderState::default();
+        let mut out = Vec::new();
+        let mut v = [0.0; 13];
+        v[0] = 0.001;
+        plan.encode(&Record::from_values(&v), 25.0, &mut st, &mut out);
+        assert_eq!(st.unreported, 0, "{name}");
+        v[1] = 1e300;
+        v[7] = 1e297;
+        plan.encode(&Record::from_values(&v), 25.0, &mut st, &mut out);
+        assert_eq!(st.unreported, want, "{name}");
+    }
+}

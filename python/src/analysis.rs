@@ -37,11 +37,12 @@ fn input(
                     a.ncols()
                 )));
             }
-            let rows = a
+            let rows: Vec<[f64; 7]> = a
                 .rows()
                 .into_iter()
                 .map(|r| std::array::from_fn(|i| r[i]))
                 .collect();
+            check_rows(&rows)?;
             Ok((Input::Rows(rows), "records".into()))
         }
         (None, Some(p)) => {
@@ -54,6 +55,30 @@ fn input(
     }
 }
 
+/// Refuses a row the CLI refuses in a recording file: a NaN or ±∞ (which would be every
+/// statistic of its channel), or a rate no sensor measures; names the row and column.
+fn check_rows(rows: &[[f64; 7]]) -> PyResult<()> {
+    const NAMES: [&str; 7] = [
+        "t", "gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z",
+    ];
+    for (k, r) in rows.iter().enumerate() {
+        if let Some(i) = r.iter().position(|v| !v.is_finite()) {
+            return Err(invalid(format!(
+                "records: row {k}, column {i} ({}): {} is not a finite number",
+                NAMES[i], r[i]
+            )));
+        }
+        let v = std::array::from_fn(|i| r[i + 1]);
+        if let Some((i, why)) = imu_emu::analysis::reader::implausible(&v) {
+            return Err(invalid(format!(
+                "records: row {k}, column {}: {why}",
+                i + 1
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Reads the input through an analyzer, as the CLI's `InputArgs::analyze` does: transients
 /// (knocks, spikes) found and left out of the statistics unless `keep_transients`.
 fn analysis(
@@ -62,10 +87,8 @@ fn analysis(
     segment: usize,
     keep_transients: bool,
 ) -> Result<Analysis, String> {
-    if let Some(r) = rate
-        && !(r > 0.0 && r.is_finite())
-    {
-        return Err(format!("rate: expected a positive number of Hz, got {r}"));
+    if let Some(r) = rate {
+        imu_emu::analysis::analyzer::check_rate(r)?;
     }
     imu_emu::analysis::analyzer::check_segment(segment)?;
     let rows = match input {

@@ -67,6 +67,17 @@ pub fn encode<'py>(
         .into_iter()
         .map(|r| std::array::from_fn(|i| r[i]))
         .collect();
+    // The producer never hands the encoder a value that is not a number; a NaN sent as 0
+    // would read as a measurement of 0 wherever the protocol has no failure bit.
+    for (k, r) in rows.iter().enumerate() {
+        if let Some(i) = r.iter().position(|v| !v.is_finite()) {
+            return Err(invalid(format!(
+                "records: row {k}, column {i} (`{}`): {} is not a finite number",
+                imu_emu::record::COLUMNS[i],
+                r[i]
+            )));
+        }
+    }
     let bytes = py.detach(|| {
         let mut state = EncoderState {
             gps_week0: gps_time.map_or(0, |g| g.0),
@@ -74,11 +85,19 @@ pub fn encode<'py>(
             ..Default::default()
         };
         let mut out = Vec::with_capacity(rows.len() * plan.max_len());
-        for v in &rows {
+        for (k, v) in rows.iter().enumerate() {
             plan.encode(&Record::from_values(v), temperature, &mut state, &mut out);
+            // Clipped without a status bit, the value would read as a measurement of the
+            // field's limit; a protocol with such bits sets them, as the CLI's frames do.
+            if state.unreported > 0 {
+                return Err(invalid(format!(
+                    "records: row {k}: a value beyond the range of a `{}` field, whose frames have no status bit to report it (they would carry the field's limit as a measurement)",
+                    plan.name
+                )));
+            }
         }
-        out
-    });
+        Ok(out)
+    })?;
     Ok(PyBytes::new(py, &bytes))
 }
 

@@ -7,13 +7,14 @@ use std::path::{Path, PathBuf};
 
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyReadonlyArray2};
+use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use imu_emu::csvio::{FileError, Place};
 use imu_emu::errors::{Sensor, StageKind};
 use imu_emu::motion::sampled::Sample;
-use imu_emu::sim::{SimError, Simulation, SimulationBuilder};
+use imu_emu::sim::{Simulation, SimulationBuilder};
 
 use crate::errors::{err, invalid};
 
@@ -199,24 +200,62 @@ struct Produced {
 /// Values per injected-error row: t, then gyro and accel xyz per stage kind.
 const ERROR_WIDTH: usize = 1 + 6 * StageKind::ALL.len();
 
+/// Records one call returns at most: its arrays are held in memory, where `imu-emu generate`
+/// streams to a file. 2^25 is 9.3 h at 1 kHz, 3.5 GB for each 13-column array; rate=1e5,
+/// duration=1e4 once asked for 10^9 records and aborted the interpreter.
+pub const MAX_RECORDS: u64 = 1 << 25;
+
+/// Bytes of the main output per record at most, for the estimate of what a call holds (a
+/// CSV line of 13 shortest round-trip numbers; a binary record or a frame is shorter).
+const OUTPUT_BYTES: u64 = 13 * 25;
+
+/// Refuses a call of `count` records beyond [`MAX_RECORDS`] (`ImuEmuError`), or whose arrays
+/// (`per_record` bytes each, with the output) need more memory than the machine has
+/// available (`MemoryError`), before anything is allocated.
+fn check_size(count: u64, per_record: u64) -> PyResult<()> {
+    if count > MAX_RECORDS {
+        return Err(invalid(format!(
+            "rate × duration make {count} records, more than the {MAX_RECORDS} (2^25) one call returns in memory: lower the rate, shorten the duration, or write them to a file with `imu-emu generate`, which streams"
+        )));
+    }
+    let need = count.saturating_mul(per_record + OUTPUT_BYTES);
+    if let Some(free) = available_memory()
+        && need > free
+    {
+        return Err(PyMemoryError::new_err(format!(
+            "{count} records need about {} MB of arrays, more than the {} MB of memory available",
+            need >> 20,
+            free >> 20
+        )));
+    }
+    Ok(())
+}
+
+/// The memory the kernel says is available to a new allocation without swapping (bytes);
+/// `None` where it does not say (not Linux).
+fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
 /// Runs the simulation into flat buffers (no Python object touched: runs without the GIL).
-fn produce(
-    b: SimulationBuilder,
-    truth: bool,
-    errors: bool,
-    pose: bool,
-) -> Result<Produced, SimError> {
+fn produce(b: SimulationBuilder, truth: bool, errors: bool, pose: bool) -> PyResult<Produced> {
     if b.is_rig() {
-        return Err(SimError::Invalid(
-            "the scene file lists `[[imu]]` units (a rig): simulate runs one IMU; run the rig with `imu_emu.LiveRun` or the CLI".into(),
+        return Err(invalid(
+            "the scene file lists `[[imu]]` units (a rig): simulate runs one IMU; run the rig with `imu_emu.LiveRun` or the CLI",
         ));
     }
-    let sim = b.build()?;
+    let sim = b.build().map_err(err)?;
     let (rate, seed, imu) = (sim.grid().rate_hz, sim.seed(), sim.imu().name.clone());
     let warnings = sim.warnings().to_vec();
+    let widths = 13 + 13 * usize::from(truth) + ERROR_WIDTH * usize::from(errors);
+    let per_record = 8 * (widths + 10 * usize::from(pose)) as u64;
+    check_size(sim.grid().count, per_record)?;
     let count = sim.grid().count as usize;
     let poses = if pose { poses(&sim) } else { Vec::new() };
-    let mut p = sim.producer()?;
+    let mut p = sim.producer().map_err(err)?;
     if errors {
         p = p.with_components();
     }
@@ -253,7 +292,7 @@ fn produce(
         buf.clear();
         ends.clear();
     }
-    p.finished()?;
+    p.finished().map_err(err)?;
     Ok(out)
 }
 
@@ -352,7 +391,7 @@ pub fn simulate<'py>(
         imu.as_ref(),
         &settings,
     )?;
-    let p = py.detach(|| produce(b, truth, errors, pose)).map_err(err)?;
+    let p = py.detach(|| produce(b, truth, errors, pose))?;
     let d = PyDict::new(py);
     d.set_item("records", array(py, p.records, 13)?)?;
     if truth {

@@ -99,3 +99,22 @@ def test_a_segment_beyond_its_limit_raises():
     for segment in (2**40, 1000):
         with pytest.raises(imu_emu.ImuEmuError, match="expected a power of two from 8 to 1048576"):
             imu_emu.analyze(sim, segment=segment)
+
+
+def test_records_the_cli_would_refuse_in_a_file_raise():
+    """Issue 38: a NaN column gave NaN statistics and an ADEV of 0; a rate no gyro measures,
+    or a sampling rate of 1e300 Hz, was analysed. Each raises naming the row and column, or
+    the limit, as the CLI names the line and column of a file."""
+    rows = imu_emu.simulate("static", rate=100.0, duration=2.0).records.rows.copy()
+    bad = rows.copy()
+    bad[12, 2] = np.nan
+    with pytest.raises(imu_emu.ImuEmuError, match=r"row 12, column 2 \(gyro y\): NaN is not a finite"):
+        imu_emu.analyze(bad)
+    bad[12, 2] = np.inf
+    with pytest.raises(imu_emu.ImuEmuError, match="row 12, column 2"):
+        imu_emu.fit(bad)
+    bad[12, 2] = 1e30
+    with pytest.raises(imu_emu.ImuEmuError, match="gyro y is 1e30 rad/s, beyond the 1e4 rad/s"):
+        imu_emu.analyze(bad)
+    with pytest.raises(imu_emu.ImuEmuError, match=r"expected a sampling rate in \(0, 1e7\] Hz"):
+        imu_emu.analyze(rows, rate=1e300)

@@ -55,3 +55,24 @@ def test_encode_refuses_wrong_shapes_and_protocols():
         imu_emu.encode(np.zeros((3, 7)), "kvh1750")
     with pytest.raises(imu_emu.ImuEmuError):
         imu_emu.encode(np.zeros((3, 13)), "no-such-protocol")
+
+
+def test_encode_refuses_values_a_frame_cannot_carry():
+    """Issue 38: NaN and 1e300 were encoded into frames that decode as values with no flag.
+    A NaN or ±inf raises, naming the row and column; a value beyond a field's range is
+    clipped with the protocol's status bits where it has them (STIM300: the gyro status
+    word, as the CLI's frames), and raises where it has none (NovAtel's integer fields)."""
+    rows = imu_emu.simulate("static", imu="stim300", rate=200.0, duration=0.2).records.rows
+    for v in (np.nan, np.inf):
+        bad = rows.copy()
+        bad[5, 1] = v
+        with pytest.raises(imu_emu.ImuEmuError, match=r"row 5, column 1 \(`gyro_x`\)"):
+            imu_emu.encode(bad, "stim300")
+    big = rows.copy()
+    big[5, 1] = 1e300
+    d = imu_emu.decode(imu_emu.encode(big, "stim300"), "stim300")
+    gyro_status = d["values"][:, d["columns"].index("gyro_status")]
+    assert gyro_status[5] != 0 and np.all(np.delete(gyro_status, 5) == 0)
+    assert d["stats"]["status_flagged"] == 1
+    with pytest.raises(imu_emu.ImuEmuError, match="row 5: a value beyond the range of a `novatel-rawimusx` field"):
+        imu_emu.encode(big, "novatel-rawimusx")

@@ -123,3 +123,11 @@ def test_pose_is_cli_trajectory(cli, tmp_path):
     got = imu_emu.simulate("circle", rate=200.0, duration=2.0, pose=True).pose
     for k in want:
         np.testing.assert_array_equal(got[k], want[k])
+
+
+def test_a_call_beyond_what_memory_holds_raises():
+    """Issue 38: rate=1e5, duration=1e4 (10^9 records) aborted the interpreter (exit 134);
+    now it raises before allocating, naming the limit, and the interpreter goes on."""
+    with pytest.raises(imu_emu.ImuEmuError, match=r"1000000000 records, more than the 33554432 \(2\^25\)"):
+        imu_emu.simulate("static", rate=1e5, duration=1e4)
+    assert len(imu_emu.simulate("static", rate=100.0, duration=1.0).records) == 100

@@ -18,6 +18,7 @@
 //! at m needs 2m + 1 phase points, the ends of 2m samples), which gives the fewest degrees of freedom the
 //! table is compatible with, so the intervals are as wide as the table allows.
 
+use std::io::BufRead;
 use std::path::Path;
 
 use super::analyzer::{Analysis, ChannelAnalysis};
@@ -26,7 +27,7 @@ use super::fit::fit;
 use super::octave_adev::{AdevPoint, CONFIDENCE};
 use super::psd::Psd;
 use super::stats::Stats;
-use crate::csvio::{FileError, clip};
+use crate::csvio::{CsvLines, FileError, clip};
 use crate::units::{self, Kind};
 
 /// Relative mismatch allowed between a τ and the nearest multiple of Δt (tables print τ
@@ -174,14 +175,26 @@ fn stated(line: &str, opts: &mut TableOptions, path: &Path, no: u64) -> Result<(
 /// Parses the table `text` read from `path`; `opts` (the command line) overrides what the
 /// table states.
 pub fn parse(text: &str, path: &Path, opts: TableOptions) -> Result<AdevTable, FileError> {
+    read(CsvLines::new(text.as_bytes(), path), opts)
+}
+
+/// Reads the table at `path` line by line (each line bounded as every table's is); `opts`
+/// (the command line) overrides what the table states.
+pub fn read_file(path: &Path, opts: TableOptions) -> Result<AdevTable, FileError> {
+    read(CsvLines::open(path)?, opts)
+}
+
+fn read(mut lines: CsvLines<impl BufRead>, opts: TableOptions) -> Result<AdevTable, FileError> {
+    let path = lines.path().to_path_buf();
+    let path = path.as_path();
     let mut opts = opts;
     let mut header: Option<(Vec<Column>, f64)> = None;
     let mut names: Vec<String> = Vec::new();
     // (line, τ, fields) of every data row, parsed once the header is known.
     let mut rows: Vec<(u64, f64, Vec<Option<f64>>)> = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let no = i as u64 + 1;
-        let line = raw.trim();
+    while lines.advance_raw()? {
+        let line = lines.raw().trim();
+        let no = lines.line_no();
         if line.starts_with('#') {
             stated(line, &mut opts, path, no)?;
             continue;

@@ -26,6 +26,8 @@ pub const DEFAULT_SEGMENT: usize = 1 << 14;
 /// where 2²⁸ once asked for 60 GB before reading a byte.
 pub const MAX_SEGMENT: usize = 1 << 20;
 
+pub use crate::units::bounds::MAX_RATE_HZ;
+
 /// Refuses a Welch segment length that is not a power of two in 8..=[`MAX_SEGMENT`], naming
 /// the limit.
 pub fn check_segment(segment: usize) -> Result<(), String> {
@@ -34,6 +36,21 @@ pub fn check_segment(segment: usize) -> Result<(), String> {
     } else {
         Err(format!(
             "segment: {segment} samples; expected a power of two from 8 to {MAX_SEGMENT} (2^20)"
+        ))
+    }
+}
+
+/// Refuses a sampling rate that is not in (0, [`MAX_RATE_HZ`]] Hz, the bound of every rate
+/// the program takes, naming it (`--rate 1e300` made Δt 1e-300 s and every τ and frequency
+/// meaningless).
+pub fn check_rate(rate: f64) -> Result<(), String> {
+    if rate > 0.0 && rate <= MAX_RATE_HZ {
+        Ok(())
+    } else {
+        Err(format!(
+            "rate: {} Hz; expected a sampling rate in (0, {}] Hz",
+            crate::csvio::num(rate),
+            crate::csvio::num(MAX_RATE_HZ)
         ))
     }
 }

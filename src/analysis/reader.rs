@@ -100,6 +100,30 @@ const CHANNEL_NAMES: [&str; 6] = [
     "gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z",
 ];
 
+/// The first channel of a sample `v` (rad/s, m/s²) beyond what any sensor of its kind
+/// measures — the template bounds of [`crate::units::bounds`], 10⁴ rad/s and 10⁷ m/s² — and
+/// why, for a message. Such a sample is a corrupt or mis-scaled input whose statistics would
+/// describe only the corruption (a fit of frames carrying 1e30 rad/s wrote a template that
+/// no reader loads).
+pub fn implausible(v: &[f64; 6]) -> Option<(usize, String)> {
+    use crate::units::Kind;
+    (0..6).find_map(|i| {
+        let (kind, sensor) = match i {
+            0..3 => (Kind::AngularRate, "gyro"),
+            _ => (Kind::Acceleration, "accelerometer"),
+        };
+        let (max, unit) = crate::units::bounds::max_magnitude(kind, false)?;
+        (v[i].abs() > max).then(|| {
+            let (x, max) = (crate::csvio::num(v[i]), crate::csvio::num(max));
+            let why = format!(
+                "{} is {x} {unit}, beyond the {max} {unit} no {sensor} measures",
+                CHANNEL_NAMES[i]
+            );
+            (i, why)
+        })
+    })
+}
+
 /// Reads `path` and calls `sample(t, [gx, gy, gz, ax, ay, az])` for each sample, in SI.
 /// `t` is NaN when the input has no time; `dt` (if known) turns frame increments into rates.
 pub fn read(
@@ -113,6 +137,7 @@ pub fn read(
     match format {
         InputFormat::Csv(o) => read_csv(path, BufReader::with_capacity(1 << 16, file), o, sample),
         InputFormat::Bin => {
+            crate::input::check_whole_records(path)?;
             let bytes = file.metadata().map_err(io)?.len();
             let mut r = BufReader::with_capacity(1 << 16, file);
             let mut rec = [0u8; crate::output::BIN_RECORD_BYTES];
@@ -143,7 +168,11 @@ pub fn read(
                         ),
                     ));
                 }
-                sample(v[0], &std::array::from_fn(|i| v[i + 1]));
+                let s = std::array::from_fn(|i| v[i + 1]);
+                if let Some((_, why)) = implausible(&s) {
+                    return Err(FileError::file(path, format!("record {n}: {why}")));
+                }
+                sample(v[0], &s);
                 n += 1;
             }
             Ok(ReadSummary {
@@ -282,6 +311,16 @@ fn read_csv(
                 Role::Skip => {}
             }
         }
+        if let Some((ch, why)) = implausible(&v) {
+            let role = if ch < 3 {
+                Role::Gyro(ch)
+            } else {
+                Role::Accel(ch - 3)
+            };
+            let i = used.iter().find(|u| u.1 == role).map_or(0, |u| u.0);
+            let name = names.get(i).map_or("", String::as_str);
+            return Err(lines.error(why).in_column(i + 1, name));
+        }
         sample(t, &v);
         n += 1;
     }
@@ -313,7 +352,8 @@ fn read_frames(
     let mut n = 0u64;
     // Chosen from the first frame: each axis from its rate, else its increment over Δt.
     let mut layout: Option<Result<FrameLayout, ReadError>> = None;
-    // A frame whose rate decodes to a NaN or ∞ (a float field's bits): the first one, by frame.
+    // A frame whose rate decodes to a NaN, ∞ or a value no sensor measures (a float field's
+    // bits): the first one, by frame.
     let mut not_finite: Option<ReadError> = None;
     let mut each = |d: &crate::protocol::Decoded| {
         let l = layout.get_or_insert_with(|| frame_layout(path, d, dt));
@@ -328,6 +368,10 @@ fn read_frames(
                         CHANNEL_NAMES[i], v[i]
                     ),
                 ));
+                return false;
+            }
+            if let Some((_, why)) = implausible(&v) {
+                not_finite = Some(FileError::file(path, format!("frame {n}: {why}")));
                 return false;
             }
             let t = time.and_then(|s| d.get(s)).unwrap_or(f64::NAN);

@@ -10,6 +10,7 @@ use super::adev_table::{self, TableOptions};
 use super::analyzer::Analysis;
 use super::passes::{First, Passes, Sink};
 use super::reader::{self, CsvOptions, InputFormat, ReadSummary};
+use crate::csvio::CsvLines;
 use crate::units::{self, Kind};
 
 /// A recording and how to read it; messages name the flags of `imu-emu analyze`.
@@ -107,9 +108,6 @@ impl Recording {
         if !csv || (is_bin && self.format.is_none()) {
             return Ok(None);
         }
-        let read = |p: &PathBuf| {
-            std::fs::read_to_string(p).map_err(context(|| format!("{}: cannot read", p.display())))
-        };
         // Only a regular file is sniffed: a pipe read here would be gone for the reader.
         // Only its first line with content is read: a recording may be gigabytes.
         // (A stat, not an open: opening a named pipe waits for its writer.)
@@ -121,10 +119,13 @@ impl Recording {
             // The recording reader reports what is wrong with the file.
             Err(_) => return Ok(None),
         };
-        let first = std::io::BufRead::lines(std::io::BufReader::new(file))
-            .map_while(Result::ok)
-            .map(|l| l.trim().to_string())
-            .find(|l| !l.is_empty() && !l.starts_with('#'));
+        // The recording's own line reader, with its bound on a line: a file without line
+        // ends costs what it costs that reader, which then names the line and the limit.
+        let mut lines = CsvLines::new(
+            std::io::BufReader::with_capacity(1 << 16, file),
+            &self.input,
+        );
+        let first = lines.next_line().ok().flatten().map(str::to_string);
         if !first.as_deref().is_some_and(adev_table::is_table_header) {
             if let Some(t) = self.tables.first() {
                 return Err(RecordingError::Refused(format!(
@@ -152,10 +153,9 @@ impl Recording {
             rate: self.rate,
             record_length,
         };
-        let text = read(&self.input)?;
-        let mut table = adev_table::parse(&text, &self.input, opts).map_err(read_error)?;
+        let mut table = adev_table::read_file(&self.input, opts).map_err(read_error)?;
         for p in &self.tables {
-            let other = adev_table::parse(&read(p)?, p, opts).map_err(read_error)?;
+            let other = adev_table::read_file(p, opts).map_err(read_error)?;
             table.merge(other, p).map_err(read_error)?;
         }
         Ok(Some(table.analysis()))
@@ -166,10 +166,9 @@ impl Recording {
     pub fn read(&self, segment: usize) -> Result<Read, RecordingError> {
         super::analyzer::check_segment(segment).map_err(RecordingError::Refused)?;
         let refuse = |m: String| Err(RecordingError::Refused(m));
-        if let Some(r) = self.rate
-            && !(r > 0.0 && r.is_finite())
-        {
-            return refuse(format!("--rate: expected a positive number of Hz, got {r}"));
+        if let Some(r) = self.rate {
+            super::analyzer::check_rate(r)
+                .map_err(|e| RecordingError::Refused(format!("--{e}")))?;
         }
         if let Some(t) = self.table()? {
             return Ok(Read {

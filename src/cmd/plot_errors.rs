@@ -11,7 +11,8 @@ pub struct PlotErrorsArgs {
     /// The plot (.png or .svg).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// At most this many points per line (the largest-magnitude sample of each stretch).
+    /// At most this many points per line, at least half as many (the largest-magnitude sample
+    /// of each stretch); up to 100 000.
     #[arg(long, default_value_t = 4000)]
     pub points: usize,
 }

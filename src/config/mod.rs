@@ -503,7 +503,7 @@ impl SceneFile {
 
     /// Reads and parses a scene file.
     pub fn read(path: &Path) -> Result<SceneFile, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        let text = crate::csvio::read_text(path).map_err(|source| ConfigError::Io {
             path: path.to_path_buf(),
             source,
         })?;

@@ -133,7 +133,7 @@ pub fn has_motion(text: &str) -> bool {
 
 /// Reads the `[motion]` table of a TOML file.
 pub fn read(path: &Path) -> Result<DefinedMotion, FileError> {
-    let text = std::fs::read_to_string(path).map_err(|e| FileError::io(path, e))?;
+    let text = crate::csvio::read_text(path).map_err(|e| FileError::io(path, e))?;
     parse(&text, path)
 }
 

@@ -17,6 +17,10 @@ pub struct EncoderState {
     /// Frames not sent because a value was not finite and their message has no status word to
     /// report the failure (their counter values are skipped).
     pub withheld: u64,
+    /// Frames sent with a value clipped at its field's range (or at the float type's largest)
+    /// that no status bit of their message reports: as a unit without such a bit would send
+    /// them, but a caller encoding records of its own may refuse them.
+    pub unreported: u64,
     /// Faults to inject, if any (boxed: the state travels inside the job's encoding).
     pub faults: Option<Box<FaultInjector>>,
     /// The synchronous line of an SDLC transport (NRZI level across frames).

@@ -137,6 +137,25 @@ impl Layout {
         })
     }
 
+    /// Whether a status word of this layout has bits of its own for the saturation `flag`
+    /// ([`FLAG_GYRO_SATURATED`] or [`FLAG_ACCEL_SATURATED`]).
+    pub(super) fn reports_saturation(&self, flag: u8) -> bool {
+        self.ops.iter().any(|op| match &op.what {
+            What::Status(m)
+            | What::Counter {
+                status: Some(m), ..
+            } => {
+                let edit = if flag == FLAG_GYRO_SATURATED {
+                    m.gyro
+                } else {
+                    m.accel
+                };
+                edit != BitEdit::default()
+            }
+            _ => false,
+        })
+    }
+
     /// The shortest frame of this layout (a truncated one keeps one payload byte).
     pub(super) fn shortest(&self) -> usize {
         match self.truncate {

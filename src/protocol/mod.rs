@@ -2,6 +2,7 @@
 //! validated and compiled once into a flat plan that encodes records into frames and decodes
 //! frames back. Pure: no I/O but [`load`], which reads spec files.
 
+mod anchor;
 pub mod check;
 mod compile;
 pub mod faults;

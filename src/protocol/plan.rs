@@ -5,6 +5,7 @@
 
 use std::path::Path;
 
+use super::anchor::Anchors;
 use super::compile::{compile_layout, tick_step};
 use super::faults::{FaultError, FaultKind, FrameFaults};
 use super::frame::{Channels, DecodeError, Decoded, EncoderState};
@@ -12,7 +13,7 @@ use super::framing::{self, BitWriter, Fcs, HdlcOptions, SdlcOptions};
 use super::layout::{Layout, What};
 use super::spec::{FrameSpec, MAX_MESSAGES, MAX_RATE_HZ, ScheduleBy, Source, SpecError, compact};
 use crate::math::Vec3;
-use crate::record::{FLAG_INVALID, Record};
+use crate::record::{FLAG_ACCEL_SATURATED, FLAG_GYRO_SATURATED, FLAG_INVALID, Record};
 
 /// A decoder hunting for a frame boundary believes a run of frames once random bytes would
 /// pass its constants and checks by chance less than once in 2^LOCK_BITS positions (about once
@@ -47,6 +48,8 @@ pub struct Plan {
     schedule: Vec<usize>,
     /// The schedule is indexed by the frame's counter value rather than its position.
     by_counter: bool,
+    /// Where no frame can start (`None` when some message has no constant field).
+    anchors: Option<Anchors>,
 }
 
 impl Plan {
@@ -154,6 +157,7 @@ impl Plan {
             rate_hz: spec.rate_hz,
             baud: spec.baud,
             transport,
+            anchors: Anchors::of(&layouts),
             layouts,
             schedule,
             by_counter,
@@ -303,10 +307,17 @@ impl Plan {
         // frame is withheld like a dropped one (its counter value skipped, a gap for a receiver)
         // rather than sent as if healthy.
         let withhold = |flags: u8| flags & FLAG_INVALID != 0 && !layout.reports_failure();
+        let unreported = |flags: u8| {
+            [FLAG_GYRO_SATURATED, FLAG_ACCEL_SATURATED]
+                .into_iter()
+                .any(|s| flags & s != 0 && !layout.reports_saturation(s))
+        };
         match &self.transport {
             Transport::Plain => {
                 let start = out.len();
-                if withhold(layout.encode(&rec, ch, temperature, state, f, out)) {
+                let flags = layout.encode(&rec, ch, temperature, state, f, out);
+                state.unreported += u64::from(unreported(flags));
+                if withhold(flags) {
                     out.truncate(start);
                     state.withheld += 1;
                 } else if f.duplicate {
@@ -316,8 +327,9 @@ impl Plan {
             transport => {
                 let mut frame = std::mem::take(&mut state.scratch);
                 frame.clear();
-                let sends = if withhold(layout.encode(&rec, ch, temperature, state, f, &mut frame))
-                {
+                let flags = layout.encode(&rec, ch, temperature, state, f, &mut frame);
+                state.unreported += u64::from(unreported(flags));
+                let sends = if withhold(flags) {
                     state.withheld += 1;
                     0
                 } else {
@@ -418,6 +430,21 @@ impl Plan {
         self.layouts
             .iter()
             .any(|l| l.constants_match(bytes).is_ok())
+    }
+
+    /// How many of the first places in `bytes` start no frame: the places a decoder hunting
+    /// for a boundary may skip at once (0 for frames without constant fields).
+    pub fn no_frame_before(&self, bytes: &[u8]) -> usize {
+        self.anchors
+            .as_ref()
+            .map_or(0, |a| a.no_frame_before(bytes))
+    }
+
+    /// The plan hunting byte by byte: the reference a test holds the skipping hunt to.
+    #[cfg(test)]
+    pub(crate) fn without_anchors(mut self) -> Plan {
+        self.anchors = None;
+        self
     }
 
     /// True when `bytes` start with the constants of some message (at least one of them

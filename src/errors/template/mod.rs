@@ -119,7 +119,7 @@ pub fn load(name_or_path: &str) -> Result<ImuModel, TemplateError> {
     }
     let path = Path::new(name);
     if path.extension().is_some_and(|e| e == "toml") || path.exists() {
-        let text = std::fs::read_to_string(path).map_err(|source| TemplateError::Io {
+        let text = crate::csvio::read_text(path).map_err(|source| TemplateError::Io {
             path: path.to_path_buf(),
             source,
         })?;

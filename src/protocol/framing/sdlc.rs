@@ -296,19 +296,51 @@ impl SdlcDecoder {
                 BitOrder::LsbFirst => byte,
                 BitOrder::MsbFirst => byte.reverse_bits(),
             };
-            for i in 0..8 {
-                let line = byte >> i & 1 == 1;
-                let bit = match self.opts.line_code {
-                    LineCode::Nrz => line,
-                    LineCode::Nrzi => {
-                        let bit = line == self.level;
-                        self.level = line;
-                        bit
-                    }
-                };
-                self.bit(bit, &mut on_frame);
+            if self.in_frame || !self.hunt(byte) {
+                self.bits_of(byte, &mut on_frame);
             }
         }
+    }
+
+    /// One line byte (LSB first), bit by bit.
+    fn bits_of(&mut self, byte: u8, on_frame: &mut impl FnMut(Result<&[u8], FrameError>)) {
+        for i in 0..8 {
+            let line = byte >> i & 1 == 1;
+            let bit = match self.opts.line_code {
+                LineCode::Nrz => line,
+                LineCode::Nrzi => {
+                    let bit = line == self.level;
+                    self.level = line;
+                    bit
+                }
+            };
+            self.bit(bit, on_frame);
+        }
+    }
+
+    /// Out of a frame, a line byte (LSB first) that completes no flag changes only the run of
+    /// 1s and the NRZI level: taken whole, for a hunt through garbage or idle fill at memory
+    /// speed rather than bit by bit. False, with nothing changed, when it may complete a flag.
+    fn hunt(&mut self, line: u8) -> bool {
+        let data = match self.opts.line_code {
+            LineCode::Nrz => line,
+            // A 1 is a line level equal to the bit's before.
+            LineCode::Nrzi => !(line ^ (line << 1 | u8::from(self.level))),
+        };
+        let lead = data.trailing_ones();
+        // A flag is a 0 after exactly six 1s: at the byte's first 0, counting the run carried
+        // in, or within the byte (0 111111 0).
+        if lead < 8 && self.ones.saturating_add(lead) == 6 || data == FLAG {
+            return false;
+        }
+        self.ones = match lead {
+            8 => self.ones.saturating_add(8),
+            _ => data.leading_ones(),
+        };
+        if self.opts.line_code == LineCode::Nrzi {
+            self.level = line >> 7 == 1;
+        }
+        true
     }
 
     /// Processes one data-level bit.
@@ -398,5 +430,42 @@ impl SdlcDecoder {
         self.acc = 0;
         self.nacc = 0;
         self.zero_before_run = false;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Taking a hunted byte whole is taking it bit by bit: for every byte, run of 1s carried
+    /// in and NRZI level, either the byte is left to the bits (it may complete a flag) or
+    /// both ways end in the same state, out of a frame, with nothing reported.
+    #[test]
+    fn a_byte_taken_whole_is_its_bits() {
+        for line_code in [LineCode::Nrz, LineCode::Nrzi] {
+            let opts = SdlcOptions {
+                line_code,
+                ..SdlcOptions::default()
+            };
+            for ones in (0..=9).chain([200, u32::MAX]) {
+                for level in [false, true] {
+                    for byte in 0..=255u8 {
+                        let mut slow = SdlcDecoder::new(&opts);
+                        (slow.ones, slow.level) = (ones, level);
+                        let mut fast = slow.clone();
+                        let mut reported = 0;
+                        slow.bits_of(byte, &mut |_| reported += 1);
+                        let state = |d: &SdlcDecoder| (d.in_frame, d.ones, d.level);
+                        if fast.hunt(byte) {
+                            let at = (line_code, ones, level, byte);
+                            assert_eq!(state(&fast), state(&slow), "{at:?}");
+                            assert_eq!(reported, 0, "{at:?}");
+                        } else {
+                            assert_eq!((fast.ones, fast.level), (ones, level));
+                        }
+                    }
+                }
+            }
+        }
     }
 }

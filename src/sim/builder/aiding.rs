@@ -73,7 +73,7 @@ impl SimulationBuilder {
                     "magnetometer.field_table",
                 )
                 .unwrap_or_else(|| "`magnetometer.field_table`".into());
-            let text = std::fs::read_to_string(&path).map_err(|e| {
+            let text = crate::csvio::read_text(&path).map_err(|e| {
                 SimError::Invalid(format!("reading {}: {e}", path.display())).at(Some(place))
             })?;
             let table = FieldTable::parse(&text).map_err(|e| {
