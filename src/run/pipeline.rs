@@ -123,6 +123,7 @@ impl Outlets {
     }
 
     /// Hands the sinks over (to the pacer's thread), leaving none to remove on drop.
+    #[cfg(feature = "realtime")]
     pub(super) fn take(mut self) -> Vec<Vec<Box<dyn Sink>>> {
         std::mem::take(&mut self.sinks)
     }
